@@ -1,0 +1,50 @@
+//! Pass/fail criteria evaluated when a run ends. A run fails when any criterion fails;
+//! `sadesim run` then exits non-zero so CI pipelines can gate on it.
+
+use kube::core::Duration;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// The verdict a zone request is expected to get.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, JsonSchema)]
+#[serde(rename_all = "camelCase")]
+pub enum Expectation {
+    Granted,
+    Denied,
+}
+
+/// One criterion. Each is an object keyed by its kind, e.g. `- noUnauthorizedEntries: {}`.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", rename_all_fields = "camelCase", deny_unknown_fields)]
+pub enum Criterion {
+    /// No drone is inside an active zone without a valid lease.
+    NoUnauthorizedEntries {},
+    /// Drones inside a zone respect the zone's altitude constraints.
+    ZoneConstraintsRespected {},
+    /// Every drone stays within its group's altitude limits.
+    AltitudeLimitsRespected {},
+    /// No drone crashes (building or ground contact above landing speed).
+    NoCrashes {},
+    /// Airborne drones never come closer to each other than `meters`.
+    MinSeparation {
+        #[schemars(range(min = 0.1, max = 10000.0))]
+        meters: f64,
+    },
+    /// Every drone of `groups` is inside `zone` within `within` of sim time.
+    ReachZone {
+        #[schemars(length(min = 1, max = 64), inner(length(max = 40)))]
+        groups: Vec<String>,
+        #[schemars(length(min = 1, max = 63))]
+        zone: String,
+        within: Duration,
+    },
+    /// Every drone of `groups` that asked for `zone` got the `expect`ed verdict, and at
+    /// least one asked.
+    ZoneVerdicts {
+        #[schemars(length(min = 1, max = 64), inner(length(max = 40)))]
+        groups: Vec<String>,
+        #[schemars(length(min = 1, max = 63))]
+        zone: String,
+        expect: Expectation,
+    },
+}

@@ -1,0 +1,85 @@
+//! Environment factors: sampled at a drone's position and time by physics and sensors.
+//! New factors (fog, rain, ...) are new optional fields here and new `EnvironmentFactor`
+//! implementations in `sim-worker`; physics does not change.
+
+use kube::core::Duration;
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+/// All environment factors; each is off when absent.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Environment {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wind: Option<Wind>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gnss: Option<Gnss>,
+}
+
+/// Turbulence intensity of the Dryden model (MIL-F-8785C levels).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase")]
+pub enum Turbulence {
+    #[default]
+    None,
+    Light,
+    Moderate,
+    Severe,
+}
+
+/// Mean wind with a logarithmic height profile, plus Dryden turbulence seeded per drone.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Wind {
+    /// Mean wind speed at `referenceHeightM` above ground, m/s (0..40).
+    #[schemars(range(min = 0.0, max = 40.0))]
+    pub speed_mps: f64,
+    /// Direction the wind blows *from*, degrees clockwise from true north (0..360).
+    #[schemars(range(min = 0.0, max = 360.0))]
+    pub direction_from_deg: f64,
+    /// Height of the speed measurement above ground, metres. Default 10 (meteorological
+    /// standard).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1.0, max = 500.0))]
+    pub reference_height_m: Option<f64>,
+    /// Turbulence intensity. Default none.
+    #[serde(default)]
+    pub turbulence: Turbulence,
+}
+
+/// GNSS receiver model: white noise, a random-walk bias, and scheduled dropouts.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Gnss {
+    /// Fix rate, Hz (1..20). Default 5.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1.0, max = 20.0))]
+    pub rate_hz: Option<f64>,
+    /// 1-sigma horizontal white noise, metres (0..100). Default 0.5.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0, max = 100.0))]
+    pub horizontal_sigma_m: Option<f64>,
+    /// 1-sigma vertical white noise, metres (0..100). Default 0.8.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0, max = 100.0))]
+    pub vertical_sigma_m: Option<f64>,
+    /// Bias random-walk intensity, metres per sqrt(second) (0..10). Default 0.01.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0, max = 10.0))]
+    pub bias_walk_m_per_sqrt_s: Option<f64>,
+    /// Scheduled outages.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(length(max = 256))]
+    pub dropouts: Vec<GnssDropout>,
+}
+
+/// No fix for `duration` from sim time `start`, for the listed groups (all when empty).
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct GnssDropout {
+    pub start: Duration,
+    pub duration: Duration,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(length(max = 64), inner(length(max = 40)))]
+    pub groups: Vec<String>,
+}

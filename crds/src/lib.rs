@@ -1,0 +1,26 @@
+//! SADE-SIM contracts: the `SimulationRun` custom resource (spec, status), its validation,
+//! the resolved `RunPlan` every role reads, and the pilot-facing fleet file.
+//!
+//! This crate does no I/O (like `kube-core`): parsing takes `&str`, validation and geodesy
+//! are pure functions. Dependency direction: `crds` <- `sim-worker` <- `operator`.
+
+pub mod airframe;
+pub mod crd;
+pub mod criteria;
+pub mod document;
+pub mod environment;
+pub mod fleet;
+pub mod fleet_file;
+pub mod geo;
+pub mod plan;
+pub mod polygon;
+pub mod random;
+pub mod run;
+pub mod status;
+pub mod validate;
+pub mod zones;
+
+pub use document::{DocumentError, parse_run, parse_runs};
+pub use run::{SimulationRun, SimulationRunSpec};
+pub use status::{Phase, SimulationRunStatus};
+pub use validate::{FieldError, ValidationErrors, validate};

@@ -1,0 +1,395 @@
+//! The `SimulationRun` custom resource: the one document that declares a run.
+//!
+//! Field names carry their unit (`altitudeMslM`, `physicsRateHz`); durations are Go-style
+//! strings (`90s`, `15m`, `1h30m`) as everywhere else in Kubernetes. Every optional field
+//! is skipped when unset so server-side apply never sends nulls.
+
+use kube::{CustomResource, KubeSchema, core::Duration};
+use schemars::JsonSchema;
+use serde::{Deserialize, Serialize};
+
+use crate::criteria::Criterion;
+use crate::environment::Environment;
+use crate::fleet::FleetGroup;
+use crate::status::SimulationRunStatus;
+use crate::zones::Zone;
+
+/// Default physics rate, Hz: the paper's 1000 Hz lockstep.
+pub const DEFAULT_PHYSICS_RATE_HZ: u32 = 1000;
+/// Default drones per physics shard.
+pub const DEFAULT_DRONES_PER_SHARD: u32 = 100;
+/// Default sync window: physics steps between shard <-> coordinator exchanges (DESIGN §5).
+pub const DEFAULT_SYNC_WINDOW_STEPS: u32 = 10;
+/// Default half-width of the square world around the origin, metres.
+pub const DEFAULT_WORLD_EXTENT_M: f64 = 3000.0;
+
+/// Specification of one simulation run: where, how long, which drones with which pilot,
+/// under which airspace rules, and how to judge and keep the result.
+#[derive(CustomResource, KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[kube(
+    group = "sadesim.io",
+    version = "v1alpha1",
+    kind = "SimulationRun",
+    plural = "simulationruns",
+    namespaced,
+    shortname = "simrun",
+    category = "sadesim",
+    status = "SimulationRunStatus",
+    derive = "PartialEq",
+    doc = "A SADE-SIM simulation run: fleet, world, environment, airspace zones, pilot and evidence archive.",
+    printcolumn(name = "Phase", type_ = "string", json_path = ".status.phase"),
+    printcolumn(name = "Drones", type_ = "integer", json_path = ".status.drones"),
+    printcolumn(name = "Shards", type_ = "integer", json_path = ".status.shardCount"),
+    printcolumn(
+        name = "SimTime",
+        type_ = "number",
+        json_path = ".status.simTimeS",
+        description = "Simulated seconds elapsed"
+    ),
+    printcolumn(
+        name = "RTF",
+        type_ = "number",
+        json_path = ".status.realTimeFactor",
+        description = "Simulated seconds per wall-clock second"
+    ),
+    printcolumn(name = "Age", type_ = "date", json_path = ".metadata.creationTimestamp")
+)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+#[x_kube(validation = Rule::new("has(self.pilot) || self.fleet.all(g, has(g.mission))").message("spec.pilot is required: a fleet group without a mission is flown over MAVLink by the pilot"))]
+pub struct SimulationRunSpec {
+    /// Geodetic origin of the run's local ENU frame, on the ground at the centre of the world.
+    pub origin: Origin,
+    /// Simulated time the run lasts (Go duration, e.g. `15m`). The run may end earlier when
+    /// the pilot exits or the run is aborted.
+    pub duration: Duration,
+    /// How simulated time relates to wall-clock time. Default `realtime`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clock: Option<Clock>,
+    /// Physics steps per simulated second. Default 1000 Hz.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 50, max = 10000))]
+    pub physics_rate_hz: Option<u32>,
+    /// Seed of every random stream in the run (DESIGN §5). Same seed, same run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// The world: ground, buildings, extent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub world: Option<World>,
+    /// Environment factors sampled by physics and sensors: wind, GNSS.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<Environment>,
+    /// Drone groups. Drones get global indices in group order.
+    #[schemars(length(min = 1, max = 64))]
+    #[x_kube(merge_strategy = ListMerge::Map(vec!["name".into()]))]
+    pub fleet: Vec<FleetGroup>,
+    /// Airspace zones (SADE Zones) enforced by the airspace authority.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(length(max = 64))]
+    #[x_kube(merge_strategy = ListMerge::Map(vec!["name".into()]))]
+    pub zones: Vec<Zone>,
+    /// The software pilot under test: flies every group that has no scripted mission.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pilot: Option<Pilot>,
+    /// Live 3D rendering.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rendering: Option<Rendering>,
+    /// How physics is split across shards.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sharding: Option<Sharding>,
+    /// Where the run's evidence is archived.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub archive: Option<Archive>,
+    /// Pass/fail criteria evaluated at the end of the run.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(length(max = 64))]
+    pub criteria: Vec<Criterion>,
+    /// Kueue LocalQueue to admit the run through (Kubernetes only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1, max = 63), pattern(r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"))]
+    pub queue: Option<String>,
+    /// Set to true to stop the run: pilot first, then shards, then the archive is written.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub abort: bool,
+}
+
+impl SimulationRunSpec {
+    pub fn clock(&self) -> Clock {
+        self.clock.clone().unwrap_or_default()
+    }
+    pub fn physics_rate_hz(&self) -> u32 {
+        self.physics_rate_hz.unwrap_or(DEFAULT_PHYSICS_RATE_HZ)
+    }
+    pub fn seed(&self) -> u64 {
+        self.seed.unwrap_or(0)
+    }
+    pub fn world(&self) -> World {
+        self.world.clone().unwrap_or_default()
+    }
+    pub fn environment(&self) -> Environment {
+        self.environment.clone().unwrap_or_default()
+    }
+    pub fn sharding(&self) -> Sharding {
+        self.sharding.clone().unwrap_or_default()
+    }
+    pub fn rendering(&self) -> Rendering {
+        self.rendering.clone().unwrap_or_default()
+    }
+    /// Total drones over all groups.
+    pub fn total_drones(&self) -> u64 {
+        self.fleet.iter().map(|g| u64::from(g.count)).sum()
+    }
+    /// Duration in simulated seconds (negative durations are rejected by validation).
+    pub fn duration_s(&self) -> f64 {
+        let d: std::time::Duration = self.duration.into();
+        if self.duration.is_negative() { -d.as_secs_f64() } else { d.as_secs_f64() }
+    }
+}
+
+/// WGS84 origin of the local frame: the ground point at the centre of the world.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Origin {
+    /// Latitude, degrees north (WGS84), -85..85.
+    #[schemars(range(min = -85.0, max = 85.0))]
+    pub latitude_deg: f64,
+    /// Longitude, degrees east (WGS84), -180..180.
+    #[schemars(range(min = -180.0, max = 180.0))]
+    pub longitude_deg: f64,
+    /// Ground altitude at the origin, metres above mean sea level.
+    #[schemars(range(min = -500.0, max = 9000.0))]
+    pub altitude_msl_m: f64,
+}
+
+impl Origin {
+    pub fn geo(&self) -> crate::geo::GeoPoint {
+        crate::geo::GeoPoint::new(self.latitude_deg, self.longitude_deg, self.altitude_msl_m)
+    }
+}
+
+/// How the coordinator paces simulated time.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase")]
+pub enum ClockMode {
+    /// One simulated second per wall-clock second: for external pilots and ground stations.
+    #[default]
+    Realtime,
+    /// `factor` simulated seconds per wall-clock second.
+    Scaled,
+    /// As fast as the slowest shard: for scripted missions and CI.
+    AsFastAsPossible,
+}
+
+/// Clock: `{mode: realtime}`, `{mode: scaled, factor: 4}` or `{mode: asFastAsPossible}`.
+#[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq, Default)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+#[x_kube(validation = Rule::new("self.mode == 'scaled' ? has(self.factor) : !has(self.factor)").message("clock.factor is required with mode scaled and only allowed with it"))]
+pub struct Clock {
+    pub mode: ClockMode,
+    /// Simulated seconds per wall-clock second with `mode: scaled`, 0.01..1000.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.01, max = 1000.0))]
+    pub factor: Option<f64>,
+}
+
+/// Where the world geometry comes from.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase")]
+pub enum WorldSource {
+    /// A seeded procedural city (streets, buildings, parks) around the origin.
+    #[default]
+    Procedural,
+}
+
+/// The world around the origin.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct World {
+    #[serde(default)]
+    pub source: WorldSource,
+    /// Half-width of the square world centred on the origin, metres (100..50000). Homes,
+    /// waypoints and zones must lie inside.
+    #[serde(default = "default_extent_m")]
+    #[schemars(range(min = 100.0, max = 50000.0))]
+    pub extent_m: f64,
+    /// Procedural city parameters.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub city: Option<City>,
+}
+
+fn default_extent_m() -> f64 {
+    DEFAULT_WORLD_EXTENT_M
+}
+
+impl Default for World {
+    fn default() -> Self {
+        Self { source: WorldSource::Procedural, extent_m: DEFAULT_WORLD_EXTENT_M, city: None }
+    }
+}
+
+impl World {
+    pub fn city(&self) -> City {
+        self.city.clone().unwrap_or_default()
+    }
+}
+
+/// Shape of the procedural city. Defaults resemble a North American downtown grid.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct City {
+    /// Side of a city block between streets, metres.
+    #[serde(default = "City::default_block_m")]
+    #[schemars(range(min = 20.0, max = 1000.0))]
+    pub block_size_m: f64,
+    /// Street width between blocks, metres.
+    #[serde(default = "City::default_street_m")]
+    #[schemars(range(min = 5.0, max = 200.0))]
+    pub street_width_m: f64,
+    /// Median building height, metres (heights are log-normal around it).
+    #[serde(default = "City::default_median_height_m")]
+    #[schemars(range(min = 3.0, max = 300.0))]
+    pub median_building_height_m: f64,
+    /// Tallest building, metres.
+    #[serde(default = "City::default_max_height_m")]
+    #[schemars(range(min = 3.0, max = 1000.0))]
+    pub max_building_height_m: f64,
+    /// Fraction of block area covered by buildings, 0..1.
+    #[serde(default = "City::default_built_fraction")]
+    #[schemars(range(min = 0.0, max = 1.0))]
+    pub built_fraction: f64,
+}
+
+impl City {
+    fn default_block_m() -> f64 {
+        120.0
+    }
+    fn default_street_m() -> f64 {
+        25.0
+    }
+    fn default_median_height_m() -> f64 {
+        30.0
+    }
+    fn default_max_height_m() -> f64 {
+        300.0
+    }
+    fn default_built_fraction() -> f64 {
+        0.5
+    }
+}
+
+impl Default for City {
+    fn default() -> Self {
+        Self {
+            block_size_m: Self::default_block_m(),
+            street_width_m: Self::default_street_m(),
+            median_building_height_m: Self::default_median_height_m(),
+            max_building_height_m: Self::default_max_height_m(),
+            built_fraction: Self::default_built_fraction(),
+        }
+    }
+}
+
+/// What happens when the pilot process exits before `duration`.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase")]
+pub enum PilotExit {
+    /// End the run (the pilot's exit status decides nothing by itself; criteria do).
+    #[default]
+    EndRun,
+    /// Keep simulating until `duration`.
+    Continue,
+}
+
+/// An environment variable for the pilot.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct EnvVar {
+    #[schemars(length(min = 1, max = 253), pattern(r"^[A-Za-z_][A-Za-z0-9_]*$"))]
+    pub name: String,
+    #[schemars(length(max = 4096))]
+    pub value: String,
+}
+
+/// The software pilot under test. Locally `command` is started as a child process (from the
+/// scenario file's folder); on Kubernetes `image` runs as a Job with `command`.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Pilot {
+    /// Container image (Kubernetes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(min = 1, max = 512))]
+    pub image: Option<String>,
+    /// Program and arguments. Locally required; on Kubernetes it overrides the image's
+    /// entrypoint when set.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(length(max = 64), inner(length(max = 4096)))]
+    pub command: Vec<String>,
+    /// Extra environment. `SADESIM_FLEET` (the fleet file) is always set.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(length(max = 128))]
+    pub env: Vec<EnvVar>,
+    /// What the run does when the pilot exits early. Default `endRun`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub on_exit: Option<PilotExit>,
+    /// Resources for the pilot container (Kubernetes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub resources: Option<PilotResources>,
+}
+
+/// CPU and memory for the pilot container.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct PilotResources {
+    /// Millicores, 10..64000.
+    #[schemars(range(min = 10, max = 64000))]
+    pub cpu_millis: u32,
+    /// Mebibytes, 16..262144.
+    #[schemars(range(min = 16, max = 262_144))]
+    pub memory_mib: u32,
+}
+
+/// Live 3D view in a browser.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Rendering {
+    #[serde(default)]
+    pub enabled: bool,
+}
+
+/// How drones are split into physics shards.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Sharding {
+    /// Drones per shard (one pod per shard on Kubernetes), 1..2000. Default 100.
+    #[serde(default = "Sharding::default_drones_per_shard")]
+    #[schemars(range(min = 1, max = 2000))]
+    pub drones_per_shard: u32,
+    /// Physics steps between snapshot exchanges with the coordinator, 1..1000. Default 10.
+    #[serde(default = "Sharding::default_sync_window_steps")]
+    #[schemars(range(min = 1, max = 1000))]
+    pub sync_window_steps: u32,
+}
+
+impl Sharding {
+    fn default_drones_per_shard() -> u32 {
+        DEFAULT_DRONES_PER_SHARD
+    }
+    fn default_sync_window_steps() -> u32 {
+        DEFAULT_SYNC_WINDOW_STEPS
+    }
+}
+
+impl Default for Sharding {
+    fn default() -> Self {
+        Self { drones_per_shard: DEFAULT_DRONES_PER_SHARD, sync_window_steps: DEFAULT_SYNC_WINDOW_STEPS }
+    }
+}
+
+/// Where evidence goes: `file:///abs/path` or a relative `file://runs`, `s3://bucket/prefix`,
+/// `gs://bucket/prefix`, `az://container/prefix`. Default: `./runs` locally, the operator's
+/// configured bucket on Kubernetes.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Archive {
+    #[schemars(length(min = 1, max = 1024), pattern(r"^(file|s3|gs|az)://"))]
+    pub url: String,
+}
