@@ -66,7 +66,9 @@ pub fn parse_runs(text: &str) -> Result<Vec<Result<SimulationRun, DocumentError>
         if depth > MAX_NESTING {
             return Err(DocumentError::Syntax {
                 document: 1,
-                message: format!("nesting is about {depth} levels deep, over the limit of {MAX_NESTING} (recursion limit)"),
+                message: format!(
+                    "nesting is about {depth} levels deep, over the limit of {MAX_NESTING} (recursion limit)"
+                ),
             });
         }
     }

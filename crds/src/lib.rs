@@ -9,6 +9,8 @@ pub mod crd;
 pub mod criteria;
 pub mod document;
 pub mod environment;
+#[cfg(any(test, feature = "fixtures"))]
+pub mod fixtures;
 pub mod fleet;
 pub mod fleet_file;
 pub mod geo;

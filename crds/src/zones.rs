@@ -33,7 +33,7 @@ pub struct ZoneAltitude {
 /// A restricted volume of airspace.
 #[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
-#[x_kube(validation = Rule::new("self.floor.reference != self.ceiling.reference || self.floor.heightM < self.ceiling.heightM").message("zone floor must be below its ceiling"))]
+#[x_kube(validation = Rule::new("!has(self.floor) || self.floor.reference != self.ceiling.reference || self.floor.heightM < self.ceiling.heightM").message("zone floor must be below its ceiling"))]
 pub struct Zone {
     /// Unique zone name (DNS label); the API and events refer to it.
     #[schemars(length(min = 1, max = 63), pattern(r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"))]

@@ -1,1 +1,5 @@
+//! SADE-SIM's `sadesim` binary as a library: the planner (pure `SimulationRun -> RunPlan`),
+//! the CLI commands, and (later) the Kubernetes reconciler and the local runner.
 
+pub mod cli;
+pub mod planner;

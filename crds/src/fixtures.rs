@@ -1,0 +1,140 @@
+//! Chainable builders for tests (feature `fixtures`): `RunBuilder::test().with_drones(32)`.
+
+use kube::core::{Duration, ObjectMeta};
+
+use crate::fleet::{AltitudeLimits, Area, FleetGroup, HomePlacement, LatLon, Mission, MissionItem, Role};
+use crate::run::{Origin, Pilot, SimulationRun, SimulationRunSpec};
+use crate::zones::{AltitudeReference, Zone, ZoneAltitude, ZonePolicy};
+
+/// The Art Institute of Chicago, ground level: the case study's origin.
+pub const CHICAGO: LatLon = LatLon { latitude_deg: 41.8796, longitude_deg: -87.6237 };
+
+/// Builds valid runs; each `with_*` changes one aspect.
+#[derive(Clone, Debug)]
+pub struct RunBuilder {
+    run: SimulationRun,
+}
+
+impl RunBuilder {
+    /// One scripted x500 over Chicago for two minutes.
+    pub fn test() -> Self {
+        let spec = SimulationRunSpec {
+            origin: Origin {
+                latitude_deg: CHICAGO.latitude_deg,
+                longitude_deg: CHICAGO.longitude_deg,
+                altitude_msl_m: 181.0,
+            },
+            duration: "2m".parse::<Duration>().expect("valid duration"),
+            clock: None,
+            physics_rate_hz: None,
+            seed: Some(7),
+            world: None,
+            environment: None,
+            fleet: vec![group("alpha", 1)],
+            zones: vec![],
+            pilot: None,
+            rendering: None,
+            sharding: None,
+            archive: None,
+            criteria: vec![],
+            queue: None,
+            abort: false,
+        };
+        let mut run = SimulationRun::new("test-run", spec);
+        run.metadata =
+            ObjectMeta { name: Some("test-run".into()), namespace: Some("default".into()), ..Default::default() };
+        Self { run }
+    }
+
+    /// Replaces the fleet with one scripted group of `n` drones placed randomly near the origin.
+    pub fn with_drones(mut self, n: u32) -> Self {
+        self.run.spec.fleet = vec![group("alpha", n)];
+        self
+    }
+
+    /// Adds a scripted group of `n` drones.
+    pub fn with_group(mut self, name: &str, n: u32) -> Self {
+        self.run.spec.fleet.push(group(name, n));
+        self
+    }
+
+    pub fn with_drones_per_shard(mut self, n: u32) -> Self {
+        self.run.spec.sharding = Some(crate::run::Sharding { drones_per_shard: n, ..Default::default() });
+        self
+    }
+
+    pub fn with_seed(mut self, seed: u64) -> Self {
+        self.run.spec.seed = Some(seed);
+        self
+    }
+
+    /// Makes every group MAVLink-driven by an external pilot command.
+    pub fn with_pilot(mut self, command: &[&str]) -> Self {
+        for g in &mut self.run.spec.fleet {
+            g.mission = None;
+        }
+        self.run.spec.pilot = Some(Pilot {
+            image: None,
+            command: command.iter().map(|s| s.to_string()).collect(),
+            env: vec![],
+            on_exit: None,
+            resources: None,
+        });
+        self
+    }
+
+    /// Adds a 200 m square zone centred on the origin, 0-150 m AGL.
+    pub fn with_zone(mut self, name: &str) -> Self {
+        let d = 0.0009; // ~100 m of latitude
+        let (la, lo) = (CHICAGO.latitude_deg, CHICAGO.longitude_deg);
+        self.run.spec.zones.push(Zone {
+            name: name.into(),
+            polygon: vec![
+                LatLon { latitude_deg: la - d, longitude_deg: lo - d },
+                LatLon { latitude_deg: la - d, longitude_deg: lo + d },
+                LatLon { latitude_deg: la + d, longitude_deg: lo + d },
+                LatLon { latitude_deg: la + d, longitude_deg: lo - d },
+            ],
+            floor: None,
+            ceiling: ZoneAltitude { height_m: 150.0, reference: AltitudeReference::Agl },
+            active_from: None,
+            active_until: None,
+            policy: ZonePolicy {
+                authorized_operators: vec!["acme".into()],
+                capacity: None,
+                lease_duration: None,
+                min_altitude_agl_m: None,
+                max_altitude_agl_m: None,
+            },
+        });
+        self
+    }
+
+    /// Applies any other change.
+    pub fn with(mut self, f: impl FnOnce(&mut SimulationRun)) -> Self {
+        f(&mut self.run);
+        self
+    }
+
+    pub fn build(self) -> SimulationRun {
+        self.run
+    }
+}
+
+fn group(name: &str, count: u32) -> FleetGroup {
+    FleetGroup {
+        name: name.into(),
+        count,
+        airframe: "x500".into(),
+        operator: "acme".into(),
+        role: Role::Other,
+        credential: None,
+        homes: HomePlacement::RandomInArea(Area { name: None, center: CHICAGO, radius_m: 1500.0 }),
+        altitude: AltitudeLimits { max_agl_m: 120.0, min_agl_m: None },
+        mission: Some(Mission {
+            items: vec![MissionItem::Takeoff { alt_agl_m: 30.0 }, MissionItem::Land {}],
+            speed_mps: None,
+        }),
+        geofence: None,
+    }
+}

@@ -1,0 +1,328 @@
+//! The `sadesim` command line: flags and glue only; the work is in the planner and the
+//! contracts crate.
+
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+use clap::{Parser, Subcommand};
+use sadesim_crds::document::{DocumentError, MAX_DOCUMENT_BYTES};
+use sadesim_crds::plan::RunPlan;
+use sadesim_crds::{SimulationRun, parse_runs, validate};
+
+use crate::planner::{self, Addressing};
+
+/// SADE-SIM: city-scale multi-drone simulation for validating software pilots.
+///
+/// A SimulationRun document declares a run: origin, world, environment, fleet, airspace
+/// zones, pilot, criteria and archive. The same document runs locally (`sadesim run`) and on
+/// Kubernetes (`kubectl apply -f`). Scenario files may hold several runs (YAML `---`
+/// documents, a `kind: List`, or a JSON array).
+#[derive(Debug, Parser)]
+#[command(name = "sadesim", version, propagate_version = true, max_term_width = 100)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Check scenario files and list every problem with its field path.
+    ///
+    /// Exits 0 when every run in every file is valid, 1 otherwise. Use `-` for stdin.
+    Validate {
+        /// Scenario files (YAML or JSON).
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+    },
+    /// Show how a run will be laid out: groups, shards, router segments, ports, resources.
+    Plan {
+        /// Scenario file with exactly one run (use `-` for stdin).
+        file: PathBuf,
+        /// Print the full RunPlan as JSON instead of the summary.
+        #[arg(long)]
+        json: bool,
+        /// Print the fleet file a local pilot would get (`SADESIM_FLEET`) as JSON.
+        #[arg(long, conflicts_with = "json")]
+        fleet: bool,
+        /// Namespace to plan for (default: the document's, else `default`).
+        #[arg(long)]
+        namespace: Option<String>,
+    },
+    /// Print the SimulationRun CustomResourceDefinition (YAML), for `kubectl apply -f -`.
+    Crd,
+}
+
+/// What a command reports back to `main`.
+#[derive(Debug, PartialEq, Eq)]
+pub enum Outcome {
+    Success,
+    /// The command ran but found problems (exit code 1).
+    Problems,
+}
+
+/// Errors that stop a command (exit code 2 from `main`).
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// A file could not be read.
+    #[error("failed to read {path}: {source}")]
+    Read { path: String, source: std::io::Error },
+    /// A file is too large to be a scenario.
+    #[error("{path}: larger than {limit} bytes: not a scenario file")]
+    TooLarge { path: String, limit: usize },
+    /// The input was unreadable as a whole.
+    #[error("{path}: {source}")]
+    Document { path: String, source: DocumentError },
+    /// `plan` needs exactly one run.
+    #[error("{path}: holds {count} runs; `plan` takes a file with exactly one")]
+    NotOneRun { path: String, count: usize },
+    /// Writing the output failed.
+    #[error("failed to write output: {0}")]
+    Write(#[from] std::io::Error),
+}
+
+/// Runs a parsed command, writing its report to `out`.
+///
+/// # Errors
+/// Only for failures to read input or write output; invalid scenarios are reported on
+/// `out` and give [`Outcome::Problems`].
+pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
+    match cli.command {
+        Command::Validate { files } => validate_files(&files, out),
+        Command::Plan { file, json, fleet, namespace } => plan_file(&file, json, fleet, namespace, out),
+        Command::Crd => {
+            out.write_all(sadesim_crds::crd::crd_yaml().as_bytes())?;
+            Ok(Outcome::Success)
+        }
+    }
+}
+
+/// Reads a scenario file (or stdin for `-`) without ever holding more than the size limit.
+pub fn read_scenario(path: &Path) -> Result<String, CliError> {
+    let name = path.display().to_string();
+    let read_err = |source| CliError::Read { path: name.clone(), source };
+    let mut reader: Box<dyn Read> =
+        if name == "-" { Box::new(std::io::stdin()) } else { Box::new(std::fs::File::open(path).map_err(read_err)?) };
+    let mut buf = Vec::new();
+    reader.by_ref().take(MAX_DOCUMENT_BYTES as u64 + 1).read_to_end(&mut buf).map_err(read_err)?;
+    if buf.len() > MAX_DOCUMENT_BYTES {
+        return Err(CliError::TooLarge { path: name, limit: MAX_DOCUMENT_BYTES });
+    }
+    String::from_utf8(buf).map_err(|e| {
+        let at = e.utf8_error().valid_up_to();
+        read_err(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 text (invalid byte at offset {at})"),
+        ))
+    })
+}
+
+fn run_label(run: &SimulationRun) -> String {
+    run.metadata.name.clone().unwrap_or_else(|| "(unnamed)".into())
+}
+
+fn validate_files(files: &[PathBuf], out: &mut dyn Write) -> Result<Outcome, CliError> {
+    let mut problems = 0usize;
+    for file in files {
+        let path = file.display().to_string();
+        let text = match read_scenario(file) {
+            Ok(t) => t,
+            Err(e) => {
+                writeln!(out, "error: {e}")?;
+                problems += 1;
+                continue;
+            }
+        };
+        let docs = match parse_runs(&text) {
+            Ok(docs) => docs,
+            Err(e) => {
+                writeln!(out, "error: {path}: {e}")?;
+                problems += 1;
+                continue;
+            }
+        };
+        for (i, doc) in docs.into_iter().enumerate() {
+            let run = match doc {
+                Ok(run) => run,
+                Err(e) => {
+                    writeln!(out, "error: {path}: {e}")?;
+                    problems += 1;
+                    continue;
+                }
+            };
+            match validate(&run) {
+                Ok(()) => writeln!(
+                    out,
+                    "ok: {path}: {} ({} drones in {} groups, {} zones)",
+                    run_label(&run),
+                    run.spec.total_drones(),
+                    run.spec.fleet.len(),
+                    run.spec.zones.len()
+                )?,
+                Err(errors) => {
+                    writeln!(
+                        out,
+                        "error: {path}: document {} ({}): {} problems",
+                        i + 1,
+                        run_label(&run),
+                        errors.0.len()
+                    )?;
+                    for e in &errors.0 {
+                        writeln!(out, "  {e}")?;
+                    }
+                    problems += 1;
+                }
+            }
+        }
+    }
+    Ok(if problems == 0 { Outcome::Success } else { Outcome::Problems })
+}
+
+fn plan_file(
+    file: &Path,
+    json: bool,
+    fleet: bool,
+    namespace: Option<String>,
+    out: &mut dyn Write,
+) -> Result<Outcome, CliError> {
+    let path = file.display().to_string();
+    let text = read_scenario(file)?;
+    let mut docs = parse_runs(&text).map_err(|source| CliError::Document { path: path.clone(), source })?;
+    if docs.len() != 1 {
+        return Err(CliError::NotOneRun { path, count: docs.len() });
+    }
+    let mut run = match docs.remove(0) {
+        Ok(run) => run,
+        Err(e) => {
+            writeln!(out, "error: {path}: {e}")?;
+            return Ok(Outcome::Problems);
+        }
+    };
+    if namespace.is_some() {
+        run.metadata.namespace = namespace;
+    }
+    let plan = match planner::plan(&run) {
+        Ok(plan) => plan,
+        Err(planner::PlanError::Invalid(errors)) => {
+            writeln!(out, "error: {path}: {} problems", errors.0.len())?;
+            for e in &errors.0 {
+                writeln!(out, "  {e}")?;
+            }
+            return Ok(Outcome::Problems);
+        }
+    };
+    if json {
+        serde_json::to_writer_pretty(&mut *out, &plan).map_err(std::io::Error::from)?;
+        writeln!(out)?;
+    } else if fleet {
+        let file = planner::fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
+        serde_json::to_writer_pretty(&mut *out, &file).map_err(std::io::Error::from)?;
+        writeln!(out)?;
+    } else {
+        out.write_all(summary(&plan).as_bytes())?;
+    }
+    Ok(Outcome::Success)
+}
+
+/// Human-readable plan summary.
+pub fn summary(plan: &RunPlan) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let spec = &plan.spec;
+    let clock = spec.clock();
+    let clock = match clock.factor {
+        Some(f) => format!("{:?} x{f}", clock.mode),
+        None => format!("{:?}", clock.mode),
+    };
+    let o = &spec.origin;
+    let _ = writeln!(s, "Run {}/{}", plan.run.namespace, plan.run.name);
+    let _ = writeln!(
+        s,
+        "  origin {:.6}, {:.6} at {} m MSL; duration {} s at {} Hz; clock {clock}; seed {}",
+        o.latitude_deg, o.longitude_deg, o.altitude_msl_m, plan.duration_s, plan.physics_rate_hz, plan.seed
+    );
+    let world = spec.world();
+    let _ = writeln!(
+        s,
+        "  world {:?}, {} m around the origin; asset cache key {}",
+        world.source,
+        world.extent_m,
+        &plan.asset_cache_key[..16]
+    );
+    let _ = writeln!(s, "\nGroups ({} drones)", plan.drones.len());
+    let _ = writeln!(
+        s,
+        "  {:<20} {:>6}  {:<13} {:<9} {:<20} flown by",
+        "group", "drones", "indices", "airframe", "operator"
+    );
+    for (gi, g) in spec.fleet.iter().enumerate() {
+        let idx: Vec<u32> = plan.drones.iter().filter(|d| d.group_index == gi as u32).map(|d| d.index).collect();
+        let range = format!("{}-{}", idx.first().unwrap_or(&0), idx.last().unwrap_or(&0));
+        let by = if g.mission.is_some() { "scripted mission" } else { "pilot over MAVLink" };
+        let _ = writeln!(s, "  {:<20} {:>6}  {:<13} {:<9} {:<20} {by}", g.name, g.count, range, g.airframe, g.operator);
+    }
+    let _ = writeln!(
+        s,
+        "\nShards ({} drones per shard, sync every {} steps)",
+        spec.sharding().drones_per_shard,
+        plan.sync_window_steps
+    );
+    let _ = writeln!(s, "  {:<6} {:>6}  {:<13} {:>8} {:>9}", "shard", "drones", "indices", "cpu (m)", "mem (MiB)");
+    for (sh, r) in plan.shards.iter().zip(&plan.resources.shards).take(20) {
+        let range = format!("{}-{}", sh.first_drone, sh.first_drone + sh.drone_count - 1);
+        let _ = writeln!(
+            s,
+            "  {:<6} {:>6}  {:<13} {:>8} {:>9}",
+            sh.index, sh.drone_count, range, r.cpu_millis, r.memory_mib
+        );
+    }
+    if plan.shards.len() > 20 {
+        let _ = writeln!(s, "  ... {} more shards", plan.shards.len() - 20);
+    }
+    let _ = writeln!(s, "\nMAVLink router segments (system ids 1..250 each)");
+    let _ = writeln!(s, "  {:<8} {:>6}  {:<13} {:>8} {:>8}", "segment", "drones", "indices", "GCS udp", "GCS tcp");
+    for seg in &plan.segments {
+        let range = format!("{}-{}", seg.first_drone, seg.first_drone + seg.drone_count - 1);
+        let _ = writeln!(
+            s,
+            "  {:<8} {:>6}  {:<13} {:>8} {:>8}",
+            seg.index, seg.drone_count, range, seg.gcs_udp, seg.gcs_tcp
+        );
+    }
+    let _ = writeln!(s, "\nDrones (API link: the drone sends to this UDP port; endpoint: connect here, UDP or TCP)");
+    let _ = writeln!(
+        s,
+        "  {:<6} {:<24} {:>5} {:>4} {:>5} {:>9} {:>9}  home (lat, lon)",
+        "index", "name", "sysid", "seg", "shard", "api udp", "endpoint"
+    );
+    for d in plan.drones.iter().take(12) {
+        let _ = writeln!(
+            s,
+            "  {:<6} {:<24} {:>5} {:>4} {:>5} {:>9} {:>9}  {:.6}, {:.6}",
+            d.index,
+            d.name,
+            d.system_id,
+            d.segment,
+            d.shard,
+            d.ports.api_udp,
+            d.ports.endpoint,
+            d.home.global.latitude_deg,
+            d.home.global.longitude_deg
+        );
+    }
+    if plan.drones.len() > 12 {
+        let _ = writeln!(s, "  ... {} more drones (`sadesim plan --json` lists all)", plan.drones.len() - 12);
+    }
+    let sv = plan.services;
+    let _ = writeln!(
+        s,
+        "\nServices: coordinator tcp {}, airspace http {}, renderer http {}, metrics {}",
+        sv.coordinator, sv.airspace_http, sv.renderer_http, sv.metrics
+    );
+    let total = plan.resources.total(plan.segments.len());
+    let _ = writeln!(
+        s,
+        "Resources for the whole run: {} millicores, {} MiB (assets job: {} m, {} MiB)",
+        total.cpu_millis, total.memory_mib, plan.resources.assets.cpu_millis, plan.resources.assets.memory_mib
+    );
+    s
+}
