@@ -213,3 +213,27 @@ mod tests {
         assert_eq!(cols, ["Phase", "Drones", "Shards", "SimTime", "RTF", "Age"]);
     }
 }
+
+/// The checked-in copies of the CRD must match the types; regenerate with
+/// `SADESIM_BLESS=1 cargo test -p sadesim-crds checked_in`.
+#[cfg(test)]
+mod checked_in {
+    #[test]
+    fn checked_in_crd_files_are_current() {
+        let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
+        let generated = super::crd_yaml();
+        for rel in ["crds/sadesim.io_simulationruns.yaml", "charts/sadesim/crds/sadesim.io_simulationruns.yaml"] {
+            let path = format!("{root}/{rel}");
+            if std::env::var("SADESIM_BLESS").as_deref() == Ok("1") {
+                std::fs::create_dir_all(std::path::Path::new(&path).parent().unwrap()).unwrap();
+                std::fs::write(&path, &generated).unwrap();
+                continue;
+            }
+            let current = std::fs::read_to_string(&path).unwrap_or_default();
+            assert!(
+                current == generated,
+                "{rel} is stale: regenerate with `SADESIM_BLESS=1 cargo test -p sadesim-crds checked_in`"
+            );
+        }
+    }
+}

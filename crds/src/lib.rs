@@ -17,6 +17,7 @@ pub mod geo;
 pub mod plan;
 pub mod polygon;
 pub mod random;
+pub mod reference;
 pub mod run;
 pub mod status;
 pub mod validate;

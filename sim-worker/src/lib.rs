@@ -1,1 +1,16 @@
+//! SADE-SIM simulation engine and runtime roles.
+//!
+//! Modules are named after the domain (DESIGN §6): `world` (ground, buildings), `env`
+//! (environment factors: wind, GNSS), `vehicle` (airframes, motors, rigid bodies),
+//! `sensors`, `autopilot` (the built-in flight controller), `shard` and `coordinator`
+//! (lockstep time), `pilot` (scripted missions).
+//!
+//! Frames used everywhere in the engine: world **ENU** (x east, y north, z up, metres from
+//! the run origin, see `sadesim_crds::geo`); body **FLU** (x forward, y left, z up).
+//! MAVLink's NED/FRD appear only at the MAVLink edge.
 
+pub mod autopilot;
+pub mod env;
+pub mod sensors;
+pub mod vehicle;
+pub mod world;

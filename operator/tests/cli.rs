@@ -1,0 +1,157 @@
+//! End-to-end tests of the `sadesim` binary: what a user sees at the terminal.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().unwrap().to_path_buf()
+}
+
+fn sadesim(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sadesim")).args(args).current_dir(repo()).output().expect("sadesim runs")
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+fn files_in(dir: &str) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(repo().join(dir))
+        .unwrap_or_else(|e| panic!("{dir}: {e}"))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn examples_and_valid_scenarios_validate() {
+    let mut files = files_in("examples");
+    files.retain(|p| p.extension().is_some_and(|e| e == "yaml"));
+    files.extend(files_in("tests/scenarios/valid"));
+    assert!(files.len() >= 4, "{files:?}");
+    let args: Vec<&str> = files.iter().map(|p| p.to_str().unwrap()).collect();
+    let mut all = vec!["validate"];
+    all.extend(args);
+    let out = sadesim(&all);
+    assert!(out.status.success(), "{}", text(&out));
+    assert!(text(&out).contains("ok: ") && text(&out).contains("chicago-museum (32 drones in 3 groups, 1 zones)"), "{}", text(&out));
+}
+
+#[test]
+fn each_broken_scenario_fails_naming_its_field() {
+    let files = files_in("tests/scenarios/invalid");
+    assert!(files.len() >= 20, "expected the broken-scenario collection, found {}", files.len());
+    for file in files {
+        let content = std::fs::read_to_string(&file).unwrap();
+        let expect = content
+            .lines()
+            .next()
+            .and_then(|l| l.strip_prefix("# expect: "))
+            .unwrap_or_else(|| panic!("{}: first line must be `# expect: <path>...`", file.display()));
+        let out = sadesim(&["validate", file.to_str().unwrap()]);
+        let report = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{}: {report}", file.display());
+        for path in expect.split_whitespace() {
+            assert!(report.contains(&format!("{path}:")), "{}: expected `{path}:` in\n{report}", file.display());
+        }
+    }
+}
+
+#[test]
+fn huge_and_deeply_nested_inputs_are_refused_cleanly() {
+    let dir = std::env::temp_dir().join(format!("sadesim-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // 50 MB: refused by size before parsing.
+    let big = dir.join("big.yaml");
+    let mut body = String::from("apiVersion: sadesim.io/v1alpha1\nkind: SimulationRun\nmetadata: {name: big}\nspec:\n  padding: |\n");
+    let line = format!("    {}\n", "x".repeat(100));
+    while body.len() < 50 * 1024 * 1024 {
+        body.push_str(&line);
+    }
+    std::fs::write(&big, body).unwrap();
+    let out = sadesim(&["validate", big.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    assert!(text(&out).contains("larger than"), "{}", text(&out));
+    // Deep nesting: refused by the depth limit, not a stack overflow or a hang.
+    let deep = dir.join("deep.yaml");
+    std::fs::write(&deep, format!("spec: {}{}\n", "[".repeat(200_000), "]".repeat(200_000))).unwrap();
+    let out = sadesim(&["validate", deep.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    assert!(text(&out).contains("recursion limit"), "{}", text(&out));
+    let deep_json = dir.join("deep.json");
+    std::fs::write(&deep_json, format!("{{\"spec\": {}{}}}", "[".repeat(200_000), "]".repeat(200_000))).unwrap();
+    let out = sadesim(&["validate", deep_json.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    assert!(text(&out).contains("recursion limit"), "{}", text(&out));
+    // Not UTF-8: the byte offset is named.
+    let binary = dir.join("binary.yaml");
+    std::fs::write(&binary, b"apiVersion: sadesim.io/v1alpha1\n\xff\xfe").unwrap();
+    let out = sadesim(&["validate", binary.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(text(&out).contains("invalid byte at offset 32"), "{}", text(&out));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn validate_reads_stdin() {
+    let example = std::fs::read(repo().join("examples/quickstart.yaml")).unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_sadesim"))
+        .args(["validate", "-"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child.stdin.take().unwrap().write_all(&example).unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "{}", text(&out));
+}
+
+#[test]
+fn plan_summarises_groups_shards_segments_and_ports() {
+    let out = sadesim(&["plan", "examples/chicago-museum.yaml"]);
+    let report = text(&out);
+    assert!(out.status.success(), "{report}");
+    for needle in ["Groups (32 drones)", "public-safety", "Shards", "MAVLink router segments", "14550", "5760", "14540"] {
+        assert!(report.contains(needle), "missing {needle:?} in\n{report}");
+    }
+    let out = sadesim(&["plan", "--json", "examples/chicago-museum.yaml"]);
+    assert!(out.status.success(), "{}", text(&out));
+    let plan: sadesim_crds::plan::RunPlan = serde_json::from_slice(&out.stdout).expect("plan --json is a RunPlan");
+    assert_eq!(plan.drones.len(), 32);
+    assert_eq!(plan.run.name, "chicago-museum");
+    let out = sadesim(&["plan", "--fleet", "examples/chicago-museum.yaml"]);
+    let fleet: sadesim_crds::fleet_file::FleetFile = serde_json::from_slice(&out.stdout).expect("fleet file JSON");
+    assert_eq!(fleet.drones[0].mavlink.api, "udpin://0.0.0.0:14540");
+}
+
+#[test]
+fn plan_refuses_invalid_runs_with_all_problems() {
+    let file = repo().join("tests/scenarios/invalid/multi-error.yaml");
+    let out = sadesim(&["plan", file.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    let expect = std::fs::read_to_string(&file).unwrap();
+    let expect = expect.lines().next().unwrap().strip_prefix("# expect: ").unwrap().to_string();
+    for path in expect.split_whitespace() {
+        assert!(text(&out).contains(path), "{}", text(&out));
+    }
+}
+
+#[test]
+fn crd_command_prints_the_checked_in_crd() {
+    let out = sadesim(&["crd"]);
+    assert!(out.status.success());
+    let checked_in = std::fs::read_to_string(repo().join("crds/sadesim.io_simulationruns.yaml")).unwrap();
+    assert_eq!(String::from_utf8(out.stdout).unwrap(), checked_in);
+}
+
+#[test]
+fn help_explains_the_commands() {
+    let out = sadesim(&["--help"]);
+    let help = text(&out);
+    for cmd in ["validate", "plan", "crd"] {
+        assert!(help.contains(cmd), "{help}");
+    }
+}

@@ -1,0 +1,1 @@
+//! Environment factors sampled at (position, time): wind, GNSS conditions.

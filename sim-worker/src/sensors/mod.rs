@@ -1,0 +1,1 @@
+//! Sensor models: IMU, barometer, magnetometer, GNSS receiver.

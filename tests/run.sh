@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# The whole test suite: the README's test command, and what CI runs (.ci/run).
+# Installs missing tools first (tests/install-tools.sh), then: formatting, lints, Rust
+# tests (cargo nextest), Python interop tests (pytest), Helm chart lint and template.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+bash tests/install-tools.sh
+
+echo "==> cargo fmt --check"
+cargo fmt --all -- --check
+
+echo "==> cargo clippy"
+cargo clippy --workspace --all-targets --locked -- -D warnings
+
+echo "==> cargo build (binaries used by the interop tests)"
+cargo build --workspace --locked
+
+echo "==> helm lint / template"
+.tools/bin/helm lint --strict charts/sadesim
+.tools/bin/helm template sadesim charts/sadesim --include-crds > /dev/null
+
+echo "==> Python interop tests"
+.venv/bin/python -m pytest -q tests/interop
+
+echo "==> Rust tests"
+cargo nextest run --workspace --locked --no-fail-fast
