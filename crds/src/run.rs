@@ -37,22 +37,12 @@ pub const DEFAULT_WORLD_EXTENT_M: f64 = 3000.0;
     status = "SimulationRunStatus",
     derive = "PartialEq",
     doc = "A SADE-SIM simulation run: fleet, world, environment, airspace zones, pilot and evidence archive.",
-    printcolumn(name = "Phase", type_ = "string", json_path = ".status.phase"),
-    printcolumn(name = "Drones", type_ = "integer", json_path = ".status.drones"),
-    printcolumn(name = "Shards", type_ = "integer", json_path = ".status.shardCount"),
-    printcolumn(
-        name = "SimTime",
-        type_ = "number",
-        json_path = ".status.simTimeS",
-        description = "Simulated seconds elapsed"
-    ),
-    printcolumn(
-        name = "RTF",
-        type_ = "number",
-        json_path = ".status.realTimeFactor",
-        description = "Simulated seconds per wall-clock second"
-    ),
-    printcolumn(name = "Age", type_ = "date", json_path = ".metadata.creationTimestamp")
+    printcolumn = r#"{"name":"Phase","type":"string","jsonPath":".status.phase"}"#,
+    printcolumn = r#"{"name":"Drones","type":"integer","jsonPath":".status.drones"}"#,
+    printcolumn = r#"{"name":"Shards","type":"integer","jsonPath":".status.shardCount"}"#,
+    printcolumn = r#"{"name":"SimTime","type":"number","jsonPath":".status.simTimeS","description":"Simulated seconds elapsed"}"#,
+    printcolumn = r#"{"name":"RTF","type":"number","jsonPath":".status.realTimeFactor","description":"Simulated seconds per wall-clock second"}"#,
+    printcolumn = r#"{"name":"Age","type":"date","jsonPath":".metadata.creationTimestamp"}"#
 )]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 #[x_kube(validation = Rule::new("has(self.pilot) || self.fleet.all(g, has(g.mission))").message("spec.pilot is required: a fleet group without a mission is flown over MAVLink by the pilot"))]

@@ -98,6 +98,14 @@ impl Problems {
         }
     }
 
+    /// At most `max` list entries (the CRD's `maxItems`, so a file that passes here also
+    /// passes `kubectl apply`).
+    fn max_items(&mut self, path: impl Into<String>, len: usize, max: usize) {
+        if len > max {
+            self.add(path, format!("must have at most {max} entries, got {len}"));
+        }
+    }
+
     /// A positive duration no longer than `max_s`.
     fn duration(&mut self, path: impl Into<String>, d: &Duration, max_s: f64) -> Option<f64> {
         let s = duration_s(d);
@@ -151,7 +159,7 @@ impl WorldBounds {
         }
         let ok_lat = p.range(format!("{path}.latitudeDeg"), at.latitude_deg, -90.0, 90.0);
         let ok_lon = p.range(format!("{path}.longitudeDeg"), at.longitude_deg, -180.0, 180.0);
-        if !(ok_lat && ok_lon) || !self.extent_m.is_finite() {
+        if !(ok_lat && ok_lon && self.extent_m.is_finite()) {
             return;
         }
         let (east, north) = self.frame.to_plane(at.latitude_deg, at.longitude_deg);
@@ -198,6 +206,11 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
             (_, None) => {}
         }
     }
+    if let Some(seed) = spec.seed
+        && seed > i64::MAX as u64
+    {
+        p.add("spec.seed", format!("must be at most {} (Kubernetes integers are 64-bit signed), got {seed}", i64::MAX));
+    }
     if let Some(rate) = spec.physics_rate_hz {
         p.range_int("spec.physicsRateHz", rate.into(), 50, 10_000);
     }
@@ -239,6 +252,7 @@ fn check_fleet(spec: &SimulationRunSpec, bounds: Option<&WorldBounds>, p: &mut P
     if spec.fleet.is_empty() {
         p.add("spec.fleet", "must list at least one drone group");
     }
+    p.max_items("spec.fleet", spec.fleet.len(), 64);
     let total = spec.total_drones();
     if total > u64::from(MAX_DRONES) {
         p.add("spec.fleet", format!("total drones must be at most {MAX_DRONES}, got {total}"));
@@ -256,8 +270,16 @@ fn check_fleet(spec: &SimulationRunSpec, bounds: Option<&WorldBounds>, p: &mut P
                 format!("unknown airframe preset {:?}, expected one of: {}", g.airframe, airframe::preset_names()),
             );
         }
-        if g.operator.is_empty() || g.operator.len() > 63 {
-            p.add(format!("{path}.operator"), "must be 1 to 63 characters");
+        let operator_ok = !g.operator.is_empty()
+            && g.operator.len() <= 63
+            && g.operator.bytes().all(|b| b.is_ascii_alphanumeric() || b"-_.".contains(&b))
+            && g.operator.bytes().next().is_some_and(|b| b.is_ascii_alphanumeric())
+            && g.operator.bytes().last().is_some_and(|b| b.is_ascii_alphanumeric());
+        if !operator_ok {
+            p.add(
+                format!("{path}.operator"),
+                format!("must be 1 to 63 letters, digits, '-', '_' or '.', starting and ending alphanumeric, got {:?}", g.operator),
+            );
         }
         if let Some(Credential::Value(v)) = &g.credential
             && v.is_empty()
@@ -307,6 +329,7 @@ fn check_homes(g: &FleetGroup, path: &str, bounds: Option<&WorldBounds>, p: &mut
             if areas.is_empty() {
                 p.add(format!("{path}.homes.areas"), "must list at least one area");
             }
+            p.max_items(format!("{path}.homes.areas"), areas.len(), 256);
             if let Some(b) = bounds {
                 for (k, area) in areas.iter().enumerate() {
                     b.check_area(p, &format!("{path}.homes.areas[{k}]"), area);
@@ -320,6 +343,7 @@ fn check_mission(g: &FleetGroup, m: &Mission, path: &str, bounds: Option<&WorldB
     if let Some(speed) = m.speed_mps {
         p.range(format!("{path}.speedMps"), speed, 0.5, 30.0);
     }
+    p.max_items(format!("{path}.items"), m.items.len(), 1000);
     if m.items.is_empty() {
         p.add(format!("{path}.items"), "must list at least one item, starting with `takeoff`");
         return;
@@ -385,6 +409,7 @@ fn check_zones(
     p: &mut Problems,
 ) -> HashSet<String> {
     let mut names = HashSet::new();
+    p.max_items("spec.zones", spec.zones.len(), 64);
     for (i, z) in spec.zones.iter().enumerate() {
         let path = format!("spec.zones[{i}]");
         p.dns_label(format!("{path}.name"), &z.name, 63);
@@ -414,10 +439,10 @@ fn check_zones(
         {
             p.add(format!("{path}.activeFrom"), "must not be negative");
         }
-        if let Some(u) = until {
-            if u <= from.unwrap_or(0.0) {
-                p.add(format!("{path}.activeUntil"), "must be after activeFrom (and after the start)");
-            }
+        if let Some(u) = until
+            && u <= from.unwrap_or(0.0)
+        {
+            p.add(format!("{path}.activeUntil"), "must be after activeFrom (and after the start)");
         }
         if let (Some(f), Some(d)) = (from, run_duration_s)
             && f >= d
@@ -434,9 +459,10 @@ fn check_zones(
         if let Some(d) = &pol.lease_duration {
             p.duration(format!("{path}.policy.leaseDuration"), d, MAX_DURATION_S);
         }
+        p.max_items(format!("{path}.policy.authorizedOperators"), pol.authorized_operators.len(), 64);
         for (k, op) in pol.authorized_operators.iter().enumerate() {
-            if op.is_empty() {
-                p.add(format!("{path}.policy.authorizedOperators[{k}]"), "must not be empty");
+            if op.is_empty() || op.len() > 63 {
+                p.add(format!("{path}.policy.authorizedOperators[{k}]"), "must be 1 to 63 characters");
             }
         }
         let min =
@@ -526,6 +552,7 @@ fn check_environment(spec: &SimulationRunSpec, groups: &HashSet<String>, p: &mut
                 p.range(format!("{base}.{field}"), v, 0.0, hi);
             }
         }
+        p.max_items(format!("{base}.dropouts"), g.dropouts.len(), 256);
         for (k, d) in g.dropouts.iter().enumerate() {
             let dp = format!("{base}.dropouts[{k}]");
             if duration_s(&d.start) < 0.0 {
@@ -556,6 +583,8 @@ fn check_pilot(spec: &SimulationRunSpec, p: &mut Problems) {
             if pilot.command.first().is_some_and(|c| c.trim().is_empty()) {
                 p.add("spec.pilot.command[0]", "must name a program");
             }
+            p.max_items("spec.pilot.command", pilot.command.len(), 64);
+            p.max_items("spec.pilot.env", pilot.env.len(), 128);
             let mut seen = HashSet::new();
             for (k, e) in pilot.env.iter().enumerate() {
                 let ok = e.name.bytes().next().is_some_and(|b| b.is_ascii_alphabetic() || b == b'_')
@@ -596,6 +625,7 @@ fn check_archive_url(url: &str, p: &mut Problems) {
 }
 
 fn check_group_refs(refs: &[String], groups: &HashSet<String>, path: &str, p: &mut Problems) {
+    p.max_items(path, refs.len(), 64);
     for (k, g) in refs.iter().enumerate() {
         if !groups.contains(g) {
             let known: BTreeSet<&String> = groups.iter().collect();
@@ -611,6 +641,7 @@ fn check_criteria(spec: &SimulationRunSpec, groups: &HashSet<String>, zones: &Ha
             p.add(path, format!("unknown zone {z:?}, expected one of {known:?}"));
         }
     };
+    p.max_items("spec.criteria", spec.criteria.len(), 64);
     for (i, c) in spec.criteria.iter().enumerate() {
         let path = format!("spec.criteria[{i}]");
         match c {

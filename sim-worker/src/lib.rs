@@ -11,6 +11,9 @@
 
 pub mod autopilot;
 pub mod env;
+pub mod events;
+pub mod pacing;
+pub mod pilot;
 pub mod sensors;
 pub mod vehicle;
 pub mod world;

@@ -1,1 +1,15 @@
 //! Airframes, motors and the forces on a multirotor.
+//!
+//! `airframe` holds the presets' physical parameters, `motor` the rotor speed lag, `battery`
+//! the charge and voltage, `dynamics` the wrench (rotors + drag against the air + gravity)
+//! and a reference rigid-body integrator. Frames: world ENU, body FLU (see the crate docs).
+
+pub mod airframe;
+pub mod battery;
+pub mod dynamics;
+pub mod motor;
+
+pub use airframe::{Airframe, BatterySpec, GRAVITY_MPS2, Rotor, Spin, preset};
+pub use battery::Battery;
+pub use dynamics::{RigidState, Wrench, wrench};
+pub use motor::Motor;

@@ -67,32 +67,34 @@ impl Building {
 
     /// Where the segment `a + t (b - a)`, `t` in [0, 1], first meets the closed box: the
     /// smallest such `t`, or `None`. A segment starting inside the box meets it at `t = 0`.
-    ///
-    /// Slab method (Kay & Kajiya 1986): intersect the segment's parameter interval with the
-    /// interval where it lies between each pair of parallel faces.
     pub fn segment_entry_t(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> Option<f64> {
-        let (lo, hi) = (self.min_corner(), self.max_corner());
-        let d = b - a;
-        let (mut t_enter, mut t_exit) = (0.0_f64, 1.0_f64);
-        for axis in 0..3 {
-            if d[axis] == 0.0 {
-                // Parallel to this pair of faces: inside the slab for every t, or never.
-                if a[axis] < lo[axis] || a[axis] > hi[axis] {
-                    return None;
-                }
-                continue;
-            }
-            let inv = 1.0 / d[axis];
-            let (t0, t1) = ((lo[axis] - a[axis]) * inv, (hi[axis] - a[axis]) * inv);
-            let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
-            t_enter = t_enter.max(near);
-            t_exit = t_exit.min(far);
-            if t_enter > t_exit {
+        clip_segment(a, &(b - a), &self.min_corner(), &self.max_corner()).map(|(t_enter, _)| t_enter)
+    }
+}
+
+/// The parameter interval `[t0, t1]` within [0, 1] where `a + t d` lies in the closed box
+/// `[lo, hi]`, or `None`. Slab method (Kay & Kajiya 1986): intersect, axis by axis, the
+/// interval where the segment lies between the two faces normal to that axis.
+pub fn clip_segment(a: &Vector3<f64>, d: &Vector3<f64>, lo: &Vector3<f64>, hi: &Vector3<f64>) -> Option<(f64, f64)> {
+    let (mut t_enter, mut t_exit) = (0.0_f64, 1.0_f64);
+    for axis in 0..3 {
+        if d[axis] == 0.0 {
+            // Parallel to this pair of faces: inside the slab for every t, or never.
+            if a[axis] < lo[axis] || a[axis] > hi[axis] {
                 return None;
             }
+            continue;
         }
-        Some(t_enter)
+        let inv = 1.0 / d[axis];
+        let (t0, t1) = ((lo[axis] - a[axis]) * inv, (hi[axis] - a[axis]) * inv);
+        let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+        t_enter = t_enter.max(near);
+        t_exit = t_exit.min(far);
+        if t_enter > t_exit {
+            return None;
+        }
     }
+    Some((t_enter, t_exit))
 }
 
 #[cfg(test)]

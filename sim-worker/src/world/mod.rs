@@ -1,1 +1,32 @@
 //! Ground, buildings and open areas around the origin (procedural city).
+//!
+//! Frame: world **ENU** metres from the run origin (x east, y north, z up); z = 0 is the
+//! ground altitude at the origin (`spec.origin.altitudeMslM`), so an MSL altitude is
+//! `altitudeMslM + z`. Build a [`World`] from [`WorldInputs`] (usually
+//! [`WorldInputs::from_spec`]) and ask it for ground heights, buildings and line-of-sight
+//! hits.
+//!
+//! - `inputs`: what shapes the world, and its seed (a hash of the inputs, not `spec.seed`).
+//! - `terrain`: the smooth seeded ground relief.
+//! - `city`: street grid, blocks, lots, buildings and their heights.
+//! - `building`: one box and its geometry.
+//! - `index`: the uniform grid behind the fast queries.
+//! - `map`: [`World`] and its queries; `stats`: [`WorldStats`] for logs.
+
+mod building;
+mod city;
+mod index;
+mod inputs;
+mod map;
+mod stats;
+mod terrain;
+
+#[cfg(test)]
+mod tests;
+
+pub use building::Building;
+pub use city::{MIN_HEIGHT_M, PARK_FRACTION};
+pub use inputs::{EXPLICIT_HOME_CLEARANCE_M, OpenArea, WorldInputs};
+pub use map::World;
+pub use stats::WorldStats;
+pub use terrain::Terrain;

@@ -1,0 +1,279 @@
+//! State estimator: position and velocity from IMU, GNSS and barometer.
+//!
+//! A per-axis linear Kalman filter with state `[position, velocity]` (ENU, m and m/s),
+//! predicted with the IMU's specific force rotated into ENU (plus gravity) and corrected by
+//! GNSS position/velocity fixes and barometric height. This is the part of PX4's EKF2 that
+//! matters to a mission: GNSS noise and bias flow into the position estimate, so a biased
+//! or degraded receiver really moves the vehicle, and without GNSS the estimate drifts on
+//! integrated accelerometer noise.
+//!
+//! # Simplification
+//! Attitude is taken from an ideal AHRS (the true attitude) and body rates from the noisy
+//! gyro. A real EKF's attitude error (~0.5° level, a few degrees of heading) is omitted:
+//! it changes little for waypoint missions, while a multirotor's accelerometer cannot
+//! observe tilt in flight without the full EKF. Recorded as a departure in
+//! docs/architecture.md.
+
+use nalgebra::{UnitQuaternion, Vector3};
+
+/// Standard gravity, m/s^2.
+pub const G_MPS2: f64 = 9.80665;
+
+/// Accelerometer noise driving the prediction, m/s^2 (1 sigma) — covers IMU noise plus
+/// unmodelled vibration.
+const ACCEL_PROCESS_SIGMA_MPS2: f64 = 0.35;
+/// GNSS velocity noise, m/s (1 sigma), as u-blox M8/M9 receivers report (sAcc).
+const GNSS_VEL_SIGMA_MPS: f64 = 0.15;
+/// Barometric height noise, m (1 sigma).
+const BARO_SIGMA_M: f64 = 0.5;
+/// Without a GNSS fix for this long, the horizontal estimate is no longer trusted (PX4's
+/// EKF2 position timeout is similar).
+pub const GNSS_TIMEOUT_S: f64 = 1.0;
+
+/// What the estimator outputs for the controllers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    pub position_enu_m: Vector3<f64>,
+    pub velocity_enu_mps: Vector3<f64>,
+    /// Body -> ENU.
+    pub attitude: UnitQuaternion<f64>,
+    pub rate_body_rps: Vector3<f64>,
+    /// 1-sigma horizontal position uncertainty, m.
+    pub eph_m: f64,
+    /// 1-sigma vertical position uncertainty, m.
+    pub epv_m: f64,
+}
+
+/// A GNSS fix as the estimator consumes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GnssMeasurement {
+    pub position_enu_m: Vector3<f64>,
+    pub velocity_enu_mps: Vector3<f64>,
+    /// Reported 1-sigma horizontal / vertical accuracy, m.
+    pub eph_m: f64,
+    pub epv_m: f64,
+}
+
+/// Kalman filter over one axis: position p (m), velocity v (m/s).
+#[derive(Clone, Copy, Debug)]
+struct Axis {
+    x: [f64; 2],
+    /// Covariance [[pp, pv], [pv, vv]].
+    p: [[f64; 2]; 2],
+}
+
+impl Axis {
+    fn new(position: f64, sigma_p: f64) -> Self {
+        Self { x: [position, 0.0], p: [[sigma_p * sigma_p, 0.0], [0.0, 1.0]] }
+    }
+
+    /// x' = F x + B a with F = [[1, dt], [0, 1]], B = [dt^2/2, dt]; P' = F P F^T + Q with the
+    /// white-acceleration Q = sigma_a^2 [[dt^4/4, dt^3/2], [dt^3/2, dt^2]].
+    fn predict(&mut self, accel: f64, dt: f64, sigma_a: f64) {
+        let [p, v] = self.x;
+        self.x = [p + v * dt + 0.5 * accel * dt * dt, v + accel * dt];
+        let [[a, b], [_, d]] = self.p;
+        let q = sigma_a * sigma_a;
+        let (dt2, dt3, dt4) = (dt * dt, dt * dt * dt, dt * dt * dt * dt);
+        let pp = a + 2.0 * dt * b + dt2 * d + q * dt4 / 4.0;
+        let pv = b + dt * d + q * dt3 / 2.0;
+        let vv = d + q * dt2;
+        self.p = [[pp, pv], [pv, vv]];
+    }
+
+    /// Scalar measurement of state component `i` (0 position, 1 velocity) with variance r.
+    fn update(&mut self, i: usize, z: f64, r: f64) {
+        let s = self.p[i][i] + r;
+        let k = [self.p[0][i] / s, self.p[1][i] / s];
+        let innovation = z - self.x[i];
+        self.x[0] += k[0] * innovation;
+        self.x[1] += k[1] * innovation;
+        // P' = (I - K H) P, with H selecting component i: row r loses k_r times row i.
+        let p = self.p;
+        for (row, ki) in k.iter().enumerate() {
+            self.p[row] = [p[row][0] - ki * p[i][0], p[row][1] - ki * p[i][1]];
+        }
+    }
+}
+
+/// The estimator of one drone.
+#[derive(Clone, Debug)]
+pub struct Estimator {
+    axes: Option<[Axis; 3]>,
+    attitude: UnitQuaternion<f64>,
+    rate_body_rps: Vector3<f64>,
+    /// Sim time of the last GNSS fix, s.
+    last_gnss_s: Option<f64>,
+    /// Baro height minus GNSS height at initialisation, m (the baro's offset and drift are
+    /// unknown to the vehicle; PX4 aligns them the same way).
+    baro_offset_m: Option<f64>,
+}
+
+impl Default for Estimator {
+    fn default() -> Self {
+        Self {
+            axes: None,
+            attitude: UnitQuaternion::identity(),
+            rate_body_rps: Vector3::zeros(),
+            last_gnss_s: None,
+            baro_offset_m: None,
+        }
+    }
+}
+
+impl Estimator {
+    /// Prediction with an IMU sample: specific force (body FLU, m/s^2), gyro (body, rad/s),
+    /// and the AHRS attitude (body -> ENU).
+    pub fn predict(&mut self, accel_body_mps2: Vector3<f64>, gyro_body_rps: Vector3<f64>, attitude: UnitQuaternion<f64>, dt_s: f64) {
+        self.attitude = attitude;
+        self.rate_body_rps = gyro_body_rps;
+        // Specific force excludes gravity: a = R f + g, with g = (0, 0, -9.81) in ENU.
+        let accel_enu = attitude * accel_body_mps2 - Vector3::new(0.0, 0.0, G_MPS2);
+        if let Some(axes) = &mut self.axes {
+            for (axis, a) in axes.iter_mut().zip(accel_enu.iter()) {
+                axis.predict(*a, dt_s, ACCEL_PROCESS_SIGMA_MPS2);
+            }
+        }
+    }
+
+    /// Correction with a GNSS fix at sim time `time_s`. The first fix initialises the filter.
+    pub fn fuse_gnss(&mut self, time_s: f64, fix: &GnssMeasurement) {
+        self.last_gnss_s = Some(time_s);
+        let eph = fix.eph_m.max(0.05);
+        let epv = fix.epv_m.max(0.05);
+        match &mut self.axes {
+            None => {
+                self.axes = Some([
+                    Axis::new(fix.position_enu_m.x, eph),
+                    Axis::new(fix.position_enu_m.y, eph),
+                    Axis::new(fix.position_enu_m.z, epv),
+                ]);
+            }
+            Some(axes) => {
+                for (i, axis) in axes.iter_mut().enumerate() {
+                    let r = if i < 2 { eph * eph } else { epv * epv };
+                    axis.update(0, fix.position_enu_m[i], r);
+                    axis.update(1, fix.velocity_enu_mps[i], GNSS_VEL_SIGMA_MPS * GNSS_VEL_SIGMA_MPS);
+                }
+            }
+        }
+    }
+
+    /// Correction with a barometric height (metres up from the origin's altitude).
+    pub fn fuse_baro(&mut self, baro_up_m: f64) {
+        let Some(axes) = &mut self.axes else { return };
+        let offset = *self.baro_offset_m.get_or_insert(baro_up_m - axes[2].x[0]);
+        axes[2].update(0, baro_up_m - offset, BARO_SIGMA_M * BARO_SIGMA_M);
+    }
+
+    /// A position estimate exists (at least one fix so far).
+    pub fn is_initialized(&self) -> bool {
+        self.axes.is_some()
+    }
+
+    /// GNSS fixes are arriving (the last one is recent).
+    pub fn gnss_healthy(&self, time_s: f64) -> bool {
+        self.last_gnss_s.is_some_and(|t| time_s - t <= GNSS_TIMEOUT_S)
+    }
+
+    /// The current estimate; `None` before the first GNSS fix.
+    pub fn estimate(&self) -> Option<Estimate> {
+        let axes = self.axes.as_ref()?;
+        Some(Estimate {
+            position_enu_m: Vector3::new(axes[0].x[0], axes[1].x[0], axes[2].x[0]),
+            velocity_enu_mps: Vector3::new(axes[0].x[1], axes[1].x[1], axes[2].x[1]),
+            attitude: self.attitude,
+            rate_body_rps: self.rate_body_rps,
+            eph_m: axes[0].p[0][0].max(axes[1].p[0][0]).sqrt(),
+            epv_m: axes[2].p[0][0].sqrt(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use sadesim_crds::random::{Purpose, Rng};
+
+    use super::*;
+
+    const LEVEL_AT_REST: Vector3<f64> = Vector3::new(0.0, 0.0, G_MPS2);
+
+    fn fix(p: Vector3<f64>, v: Vector3<f64>) -> GnssMeasurement {
+        GnssMeasurement { position_enu_m: p, velocity_enu_mps: v, eph_m: 0.5, epv_m: 0.8 }
+    }
+
+    #[test]
+    fn converges_to_noisy_fixes_and_averages_the_noise() {
+        let mut est = Estimator::default();
+        let mut rng = Rng::stream(1, 0, Purpose::Gnss);
+        let truth = Vector3::new(10.0, -5.0, 2.0);
+        let dt = 0.001;
+        let mut err_sum = 0.0;
+        let mut n = 0;
+        for step in 0..20_000 {
+            let t = step as f64 * dt;
+            est.predict(LEVEL_AT_REST, Vector3::zeros(), UnitQuaternion::identity(), dt);
+            if step % 200 == 0 {
+                let noisy = truth + Vector3::new(rng.normal(), rng.normal(), rng.normal()) * 0.5;
+                est.fuse_gnss(t, &fix(noisy, Vector3::zeros()));
+            }
+            if step > 10_000 {
+                err_sum += (est.estimate().unwrap().position_enu_m - truth).norm();
+                n += 1;
+            }
+        }
+        let mean_err = err_sum / n as f64;
+        assert!(mean_err < 0.35, "filtered error {mean_err} m should beat the 0.5 m/axis fix noise");
+    }
+
+    #[test]
+    fn a_gnss_bias_moves_the_estimate() {
+        let mut est = Estimator::default();
+        let bias = Vector3::new(3.0, 0.0, 0.0);
+        for step in 0..10_000 {
+            est.predict(LEVEL_AT_REST, Vector3::zeros(), UnitQuaternion::identity(), 0.001);
+            if step % 200 == 0 {
+                est.fuse_gnss(step as f64 * 0.001, &fix(bias, Vector3::zeros()));
+            }
+        }
+        let e = est.estimate().unwrap();
+        assert!((e.position_enu_m.x - 3.0).abs() < 0.1, "{e:?}");
+    }
+
+    #[test]
+    fn tracks_acceleration_between_fixes_and_drifts_without_gnss() {
+        let mut est = Estimator::default();
+        est.fuse_gnss(0.0, &fix(Vector3::zeros(), Vector3::zeros()));
+        // 1 m/s^2 eastward for 2 s with fixes every 0.2 s: ends near x = 2 m, v = 2 m/s.
+        let accel_body = Vector3::new(1.0, 0.0, G_MPS2);
+        for step in 1..=2000 {
+            let t = step as f64 * 0.001;
+            est.predict(accel_body, Vector3::zeros(), UnitQuaternion::identity(), 0.001);
+            if step % 200 == 0 {
+                est.fuse_gnss(t, &fix(Vector3::new(0.5 * t * t, 0.0, 0.0), Vector3::new(t, 0.0, 0.0)));
+            }
+        }
+        let e = est.estimate().unwrap();
+        assert!((e.position_enu_m.x - 2.0).abs() < 0.1 && (e.velocity_enu_mps.x - 2.0).abs() < 0.1, "{e:?}");
+        assert!(est.gnss_healthy(2.0) && !est.gnss_healthy(3.5));
+        // Uncertainty grows while dead-reckoning.
+        let before = e.eph_m;
+        for _ in 0..5000 {
+            est.predict(LEVEL_AT_REST, Vector3::zeros(), UnitQuaternion::identity(), 0.001);
+        }
+        assert!(est.estimate().unwrap().eph_m > before * 2.0);
+    }
+
+    #[test]
+    fn baro_holds_height_and_nothing_before_first_fix() {
+        let mut est = Estimator::default();
+        assert!(est.estimate().is_none() && !est.is_initialized());
+        est.fuse_baro(5.0); // ignored before initialisation
+        est.fuse_gnss(0.0, &fix(Vector3::new(0.0, 0.0, 1.0), Vector3::zeros()));
+        est.fuse_baro(11.0); // sets the offset: baro reads 10 m high
+        for _ in 0..100 {
+            est.fuse_baro(13.0); // climbed 2 m
+        }
+        assert!((est.estimate().unwrap().position_enu_m.z - 3.0).abs() < 0.1);
+    }
+}

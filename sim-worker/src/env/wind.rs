@@ -1,0 +1,87 @@
+//! `WindFactor`: mean log-profile wind plus per-drone Dryden turbulence, in world ENU.
+
+use nalgebra::Vector3;
+use sadesim_crds::environment::{Turbulence, Wind};
+use sadesim_crds::random::{Purpose, Rng};
+
+use super::dryden::{DrydenFilter, DrydenScales, M_PER_FT, wind_speed_at_20ft_mps};
+use super::sample::{EnvSample, EnvironmentFactor, SampleContext};
+use super::wind_profile::MeanWind;
+
+/// Turbulence ramps linearly from 0 at the roughness length z0 to full strength at the
+/// bottom of the Dryden model's range (10 ft), metres: a landed drone sits in the roughness
+/// sublayer, where the mean profile is 0 too.
+const FULL_TURBULENCE_HEIGHT_M: f64 = 10.0 * M_PER_FT;
+
+/// Mean wind with a log height profile plus Dryden turbulence (MIL-F-8785C low altitude),
+/// one seeded filter per drone. Adds its wind to `EnvSample::wind_enu_mps`.
+#[derive(Debug)]
+pub struct WindFactor {
+    mean: MeanWind,
+    /// W20 (wind at 20 ft) setting the turbulence intensity, m/s; `None` = no turbulence.
+    w20_mps: Option<f64>,
+    /// Per shard drone, indexed by `SampleContext::drone`.
+    drones: Vec<DroneGust>,
+}
+
+#[derive(Debug)]
+struct DroneGust {
+    filter: DrydenFilter,
+    /// Time of the last filter step, s: sampling twice at one time does not step twice.
+    stepped_at_s: f64,
+    gust_enu_mps: Vector3<f64>,
+}
+
+impl WindFactor {
+    /// From the spec's wind (urban roughness) for the shard's drones; each drone's filter
+    /// draws from `(seed, global drone index, Purpose::Turbulence)`.
+    pub fn from_spec(wind: &Wind, seed: u64, drone_global_indices: &[u32]) -> Self {
+        let mean = MeanWind::urban(wind.speed_mps, wind.direction_from_deg, wind.reference_height_m);
+        Self::new(mean, wind.turbulence, seed, drone_global_indices)
+    }
+
+    pub fn new(mean: MeanWind, turbulence: Turbulence, seed: u64, drone_global_indices: &[u32]) -> Self {
+        let drones = drone_global_indices
+            .iter()
+            .map(|&index| DroneGust {
+                filter: DrydenFilter::new(Rng::stream(seed, u64::from(index), Purpose::Turbulence)),
+                stepped_at_s: f64::NEG_INFINITY,
+                gust_enu_mps: Vector3::zeros(),
+            })
+            .collect();
+        Self { mean, w20_mps: wind_speed_at_20ft_mps(turbulence), drones }
+    }
+
+    /// Gust at the drone, world ENU, m/s; steps the drone's filter once per new `time_s`.
+    fn gust_enu_mps(&mut self, ctx: &SampleContext) -> Vector3<f64> {
+        let Some(w20_mps) = self.w20_mps else { return Vector3::zeros() };
+        debug_assert!(ctx.drone < self.drones.len(), "drone {} not in this shard", ctx.drone);
+        let Some(drone) = self.drones.get_mut(ctx.drone) else { return Vector3::zeros() };
+        if ctx.time_s > drone.stepped_at_s {
+            let scales = DrydenScales::low_altitude(ctx.height_agl_m, w20_mps);
+            let gust_uvw = drone.filter.step(&scales, ctx.airspeed_mps, ctx.dt_s);
+            // Mean-wind frame -> ENU: u downwind, v = up × u (to the left of the wind), w up.
+            let u_hat = self.mean.downwind_enu();
+            let w_hat = Vector3::z();
+            let v_hat = w_hat.cross(&u_hat);
+            let z0 = self.mean.roughness_length_m;
+            let ramp = ((ctx.height_agl_m - z0) / (FULL_TURBULENCE_HEIGHT_M - z0).max(1e-3)).clamp(0.0, 1.0);
+            drone.gust_enu_mps = ramp * (u_hat * gust_uvw.x + v_hat * gust_uvw.y + w_hat * gust_uvw.z);
+            drone.stepped_at_s = ctx.time_s;
+        }
+        drone.gust_enu_mps
+    }
+}
+
+impl EnvironmentFactor for WindFactor {
+    fn name(&self) -> &'static str {
+        "wind"
+    }
+
+    fn apply(&mut self, ctx: &SampleContext, out: &mut EnvSample) {
+        out.wind_enu_mps += self.mean.velocity_enu_mps(ctx.height_agl_m) + self.gust_enu_mps(ctx);
+    }
+}
+
+#[cfg(test)]
+mod tests;
