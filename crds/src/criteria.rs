@@ -5,7 +5,7 @@ use kube::core::Duration;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
-/// The verdict a zone request is expected to get.
+/// The verdict a zone request is expected to get: `granted` or `denied`.
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, JsonSchema)]
 #[serde(rename_all = "camelCase")]
 pub enum Expectation {
@@ -25,26 +25,33 @@ pub enum Criterion {
     AltitudeLimitsRespected {},
     /// No drone crashes (building or ground contact above landing speed).
     NoCrashes {},
-    /// Airborne drones never come closer to each other than `meters`.
+    /// Airborne drones never come closer to each other than `distanceM`.
     MinSeparation {
+        /// Minimum 3-D distance between any two airborne drones, metres (0.1..10000).
         #[schemars(range(min = 0.1, max = 10000.0))]
-        meters: f64,
+        distance_m: f64,
     },
     /// Every drone of `groups` is inside `zone` within `within` of sim time.
     ReachZone {
+        /// Fleet group names.
         #[schemars(length(min = 1, max = 64), inner(length(max = 40)))]
         groups: Vec<String>,
+        /// Zone name.
         #[schemars(length(min = 1, max = 63))]
         zone: String,
+        /// Deadline in sim time from the start (Go duration).
         within: Duration,
     },
     /// Every drone of `groups` that asked for `zone` got the `expect`ed verdict, and at
     /// least one asked.
     ZoneVerdicts {
+        /// Fleet group names.
         #[schemars(length(min = 1, max = 64), inner(length(max = 40)))]
         groups: Vec<String>,
+        /// Zone name.
         #[schemars(length(min = 1, max = 63))]
         zone: String,
+        /// `granted` or `denied`.
         expect: Expectation,
     },
 }

@@ -296,7 +296,7 @@ spec:
       operator: acme
       homes: {explicit: [{latitudeDeg: 41.8796, longitudeDeg: -87.6237}]}
       altitude: {maxAglM: 100}
-      mission: {items: [{takeoff: {altAglM: 20}}, {land: {}}]}
+      mission: {items: [{takeoff: {altitudeAglM: 20}}, {land: {}}]}
 "#;
 
     fn field_error(text: &str) -> (String, String) {

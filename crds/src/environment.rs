@@ -16,7 +16,8 @@ pub struct Environment {
     pub gnss: Option<Gnss>,
 }
 
-/// Turbulence intensity of the Dryden model (MIL-F-8785C levels).
+/// Turbulence intensity of the Dryden model (MIL-F-8785C levels): `none` (default),
+/// `light`, `moderate`, `severe`.
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
 #[serde(rename_all = "camelCase")]
 pub enum Turbulence {
@@ -77,8 +78,11 @@ pub struct Gnss {
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct GnssDropout {
+    /// Sim time the outage starts (Go duration from the run start).
     pub start: Duration,
+    /// How long it lasts.
     pub duration: Duration,
+    /// Affected fleet groups; empty means every drone.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 64), inner(length(max = 40)))]
     pub groups: Vec<String>,

@@ -9,6 +9,9 @@ use crate::zones::{AltitudeReference, Zone, ZoneAltitude, ZonePolicy};
 /// The Art Institute of Chicago, ground level: the case study's origin.
 pub const CHICAGO: LatLon = LatLon { latitude_deg: 41.8796, longitude_deg: -87.6237 };
 
+/// Centre of the fixture's home area: 1 km south of the origin.
+pub const HOMES: LatLon = LatLon { latitude_deg: 41.8706, longitude_deg: -87.6237 };
+
 /// Builds valid runs; each `with_*` changes one aspect.
 #[derive(Clone, Debug)]
 pub struct RunBuilder {
@@ -46,7 +49,8 @@ impl RunBuilder {
         Self { run }
     }
 
-    /// Replaces the fleet with one scripted group of `n` drones placed randomly near the origin.
+    /// Replaces the fleet with one scripted group of `n` drones placed randomly 1 km south of
+    /// the origin.
     pub fn with_drones(mut self, n: u32) -> Self {
         self.run.spec.fleet = vec![group("alpha", n)];
         self
@@ -129,10 +133,11 @@ fn group(name: &str, count: u32) -> FleetGroup {
         operator: "acme".into(),
         role: Role::Other,
         credential: None,
-        homes: HomePlacement::RandomInArea(Area { name: None, center: CHICAGO, radius_m: 1500.0 }),
+        // 1 km south of the origin, clear of `with_zone`'s zone around the origin.
+        homes: HomePlacement::RandomInArea(Area { name: None, center: HOMES, radius_m: 500.0 }),
         altitude: AltitudeLimits { max_agl_m: 120.0, min_agl_m: None },
         mission: Some(Mission {
-            items: vec![MissionItem::Takeoff { alt_agl_m: 30.0 }, MissionItem::Land {}],
+            items: vec![MissionItem::Takeoff { altitude_agl_m: 30.0 }, MissionItem::Land {}],
             speed_mps: None,
         }),
         geofence: None,

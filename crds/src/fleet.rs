@@ -1,14 +1,16 @@
 //! Fleet groups: how many drones of which airframe, who operates them, where they start,
 //! how high they may fly, and who flies them (a scripted mission or the external pilot).
 
-use kube::{KubeSchema, core::Duration};
+use kube::KubeSchema;
 use schemars::JsonSchema;
 use serde::{Deserialize, Serialize};
 
 /// Most drones in one group and in one run.
 pub const MAX_DRONES: u32 = 10_000;
 
-/// The operator's kind of flying; shapes reports (colours, legends), not physics.
+/// The operator's kind of flying: `publicSafety`, `journalist`, `recreational`,
+/// `commercial`, `delivery` or `other` (default). Shapes reports (colours, legends), not
+/// physics.
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Hash, Default, JsonSchema)]
 #[serde(rename_all = "camelCase")]
 pub enum Role {
@@ -72,8 +74,10 @@ pub enum Credential {
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct SecretKeyRef {
+    /// Secret name, in the run's namespace.
     #[schemars(length(min = 1, max = 253))]
     pub name: String,
+    /// Key within the Secret's data.
     #[schemars(length(min = 1, max = 253))]
     pub key: String,
 }
@@ -82,8 +86,10 @@ pub struct SecretKeyRef {
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct LatLon {
+    /// Latitude, degrees north (WGS84).
     #[schemars(range(min = -90.0, max = 90.0))]
     pub latitude_deg: f64,
+    /// Longitude, degrees east (WGS84).
     #[schemars(range(min = -180.0, max = 180.0))]
     pub longitude_deg: f64,
 }
@@ -130,7 +136,8 @@ pub struct AltitudeLimits {
     pub min_agl_m: Option<f64>,
 }
 
-/// PX4-like geofence breach action.
+/// Built-in geofence breach action (PX4-like): `hold` (stop outside the zone) or
+/// `returnToLaunch`. Without it the pilot alone is responsible for staying out.
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, JsonSchema)]
 #[serde(rename_all = "camelCase")]
 pub enum GeofenceAction {
@@ -157,35 +164,49 @@ pub struct Mission {
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
 #[serde(rename_all = "camelCase", rename_all_fields = "camelCase", deny_unknown_fields)]
 pub enum MissionItem {
-    /// Arm and climb vertically to `altAglM`.
+    /// Arm and climb vertically to `altitudeAglM`.
     Takeoff {
+        /// Altitude above the home's ground, metres (1..1000).
         #[schemars(range(min = 1.0, max = 1000.0))]
-        alt_agl_m: f64,
+        altitude_agl_m: f64,
     },
     /// Fly to a position and altitude, then hold `holdS` seconds.
     Waypoint {
+        /// Latitude, degrees north (WGS84).
         #[schemars(range(min = -90.0, max = 90.0))]
         latitude_deg: f64,
+        /// Longitude, degrees east (WGS84).
         #[schemars(range(min = -180.0, max = 180.0))]
         longitude_deg: f64,
+        /// Altitude above the ground under the waypoint, metres (1..1000).
         #[schemars(range(min = 1.0, max = 1000.0))]
-        alt_agl_m: f64,
+        altitude_agl_m: f64,
+        /// Seconds to hold at the waypoint before the next item. Default 0.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         #[schemars(range(min = 0.0, max = 86400.0))]
         hold_s: Option<f64>,
     },
-    /// Hold position for a while.
-    Loiter { duration: Duration },
+    /// Hold position for `holdS` seconds.
+    Loiter {
+        /// Seconds to hold (0..86400).
+        #[schemars(range(min = 0.0, max = 86400.0))]
+        hold_s: f64,
+    },
     /// Recreational flying: `count` waypoints drawn (seeded) inside `area` at altitudes in
-    /// `[minAltAglM, maxAltAglM]`.
+    /// `[minAltitudeAglM, maxAltitudeAglM]`.
     RandomWaypoints {
+        /// Disc the waypoints are drawn in.
         area: Area,
+        /// Number of waypoints (1..10000).
         #[schemars(range(min = 1, max = 10000))]
         count: u32,
+        /// Lowest waypoint altitude above ground, metres.
         #[schemars(range(min = 1.0, max = 1000.0))]
-        min_alt_agl_m: f64,
+        min_altitude_agl_m: f64,
+        /// Highest waypoint altitude above ground, metres.
         #[schemars(range(min = 1.0, max = 1000.0))]
-        max_alt_agl_m: f64,
+        max_altitude_agl_m: f64,
+        /// Seconds to hold at each waypoint. Default 0.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         #[schemars(range(min = 0.0, max = 86400.0))]
         hold_s: Option<f64>,

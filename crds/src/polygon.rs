@@ -56,6 +56,25 @@ pub fn first_self_intersection(polygon: &[Point]) -> Option<(usize, usize)> {
     None
 }
 
+/// Shortest distance from `p` to the polygon's boundary, metres.
+pub fn distance_to_boundary(polygon: &[Point], p: Point) -> f64 {
+    let n = polygon.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (polygon[i], polygon[(i + 1) % n]);
+            let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+            let len2 = dx * dx + dy * dy;
+            let t = if len2 == 0.0 { 0.0 } else { (((p.0 - a.0) * dx + (p.1 - a.1) * dy) / len2).clamp(0.0, 1.0) };
+            (p.0 - (a.0 + t * dx)).hypot(p.1 - (a.1 + t * dy))
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Whether a disc overlaps the polygon (centre inside, or boundary closer than the radius).
+pub fn disc_overlaps(polygon: &[Point], center: Point, radius: f64) -> bool {
+    contains(polygon, center) || distance_to_boundary(polygon, center) < radius
+}
+
 /// Point-in-polygon by ray casting (even-odd rule); works for concave polygons.
 pub fn contains(polygon: &[Point], p: Point) -> bool {
     let n = polygon.len();
@@ -94,6 +113,14 @@ mod tests {
         assert_eq!(first_self_intersection(&C_SHAPE), None);
         let bow_tie = [(0.0, 0.0), (10.0, 10.0), (10.0, 0.0), (0.0, 10.0)];
         assert_eq!(first_self_intersection(&bow_tie), Some((0, 2)));
+    }
+
+    #[test]
+    fn discs_overlap_by_centre_or_by_edge_distance() {
+        assert_eq!(distance_to_boundary(&SQUARE, (15.0, 5.0)), 5.0);
+        assert!(disc_overlaps(&SQUARE, (5.0, 5.0), 0.1));
+        assert!(disc_overlaps(&SQUARE, (15.0, 5.0), 6.0));
+        assert!(!disc_overlaps(&SQUARE, (15.0, 5.0), 4.0));
     }
 
     #[test]

@@ -24,7 +24,6 @@ const DURATION_FIELDS: &[&str] = &[
     "spec.criteria[].reachZone.within",
     "spec.environment.gnss.dropouts[].duration",
     "spec.environment.gnss.dropouts[].start",
-    "spec.fleet[].mission.items[].loiter.duration",
     "spec.zones[].activeFrom",
     "spec.zones[].activeUntil",
     "spec.zones[].policy.leaseDuration",
@@ -127,9 +126,9 @@ spec:
       mission:            # every group has a mission, so no spec.pilot is needed
         speedMps: 10
         items:
-          - takeoff: {altAglM: 40}
-          - waypoint: {latitudeDeg: 41.8850, longitudeDeg: -87.6350, altAglM: 90, holdS: 5}
-          - loiter: {duration: 30s}
+          - takeoff: {altitudeAglM: 40}
+          - waypoint: {latitudeDeg: 41.8850, longitudeDeg: -87.6350, altitudeAglM: 90, holdS: 5}
+          - loiter: {holdS: 30}
           - returnToLaunch: {}
   zones:
     - name: museum
@@ -144,7 +143,7 @@ spec:
   criteria:
     - noCrashes: {}
     - noUnauthorizedEntries: {}
-    - minSeparation: {meters: 3}
+    - minSeparation: {distanceM: 3}
 ";
 
 fn writing_a_scenario(out: &mut String) {
@@ -179,7 +178,7 @@ fn writing_a_scenario(out: &mut String) {
          \x20 | `S` | seconds (a number; durations are strings, see above) | `holdS` |\n\
          \x20 | `Millis`, `Mib` | CPU millicores, mebibytes | `cpuMillis`, `memoryMib` |\n\n\
          - **One-of objects** (home placement, mission items, criteria, credentials) are written as \
-         an object with a single key naming the variant, e.g. `- takeoff: {altAglM: 30}` or \
+         an object with a single key naming the variant, e.g. `- takeoff: {altitudeAglM: 30}` or \
          `- noCrashes: {}`. Variants without fields take an empty object `{}`.\n\
          - **Optional fields** can be left out. Names of groups and zones are DNS labels (lowercase \
          letters, digits and `-`), unique within the run.\n\
@@ -524,7 +523,7 @@ fn semantic_checks(out: &mut String) {
     let checks = [
         format!("`metadata.name` is set and is a DNS label of at most {MAX_RUN_NAME_LEN} characters (the run's pods are named after it)."),
         "All numbers are finite (no `.nan` or `.inf`).".to_string(),
-        format!("Every duration (`duration`, `loiter.duration`, `reachZone.within`, GNSS dropout `duration`, `leaseDuration`) is positive and at most {MAX_DURATION_S} s ({max_h} h)."),
+        format!("Every duration (`duration`, `reachZone.within`, GNSS dropout `duration`, `leaseDuration`) is positive and at most {MAX_DURATION_S} s ({max_h} h)."),
         "`clock.factor` is set exactly when `clock.mode` is `scaled`.".to_string(),
         "`world.city.maxBuildingHeightM` is at least `medianBuildingHeightM`.".to_string(),
         format!("The fleet has at least one group, group names are unique, and all groups together have at most {MAX_DRONES} drones."),
@@ -532,7 +531,7 @@ fn semantic_checks(out: &mut String) {
         "`homes.explicit` lists exactly `count` positions.".to_string(),
         "Homes, waypoints, home areas and `randomWaypoints` areas (with their whole radius) and zone vertices lie inside the world: the square of half-width `world.extentM` around the origin.".to_string(),
         "`altitude.minAglM` is below `altitude.maxAglM`.".to_string(),
-        "A mission starts with `takeoff`; no mission altitude (`takeoff`, `waypoint`, `randomWaypoints`) exceeds the group's `altitude.maxAglM`; `randomWaypoints.minAltAglM` does not exceed `maxAltAglM`.".to_string(),
+        "A mission starts with `takeoff`; no mission altitude (`takeoff`, `waypoint`, `randomWaypoints`) exceeds the group's `altitude.maxAglM`; `randomWaypoints.minAltitudeAglM` does not exceed `maxAltitudeAglM`.".to_string(),
         format!("Zone names are unique; a zone polygon has 3 to {MAX_POLYGON_VERTICES} vertices, no two consecutive vertices at the same place, no self-intersection, and encloses at least 1 m²."),
         "A zone's floor is below its ceiling (an AGL height is compared with an MSL one using the origin's ground altitude).".to_string(),
         "`activeFrom` is not negative and before the run ends; `activeUntil` is after `activeFrom`.".to_string(),

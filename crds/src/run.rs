@@ -156,7 +156,9 @@ impl Origin {
     }
 }
 
-/// How the coordinator paces simulated time.
+/// How the coordinator paces simulated time: `realtime` (1 sim s per wall s: external
+/// pilots and ground stations), `scaled` (`factor` sim s per wall s), `asFastAsPossible`
+/// (scripted missions and CI).
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
 #[serde(rename_all = "camelCase")]
 pub enum ClockMode {
@@ -181,7 +183,8 @@ pub struct Clock {
     pub factor: Option<f64>,
 }
 
-/// Where the world geometry comes from.
+/// Where the world geometry comes from: `procedural` (a seeded city of streets, buildings
+/// and parks around the origin; the only source so far).
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
 #[serde(rename_all = "camelCase")]
 pub enum WorldSource {
@@ -278,7 +281,8 @@ impl Default for City {
     }
 }
 
-/// What happens when the pilot process exits before `duration`.
+/// What the run does when the pilot exits before `duration`: `endRun` (default) or
+/// `continue` until `duration`.
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
 #[serde(rename_all = "camelCase")]
 pub enum PilotExit {
@@ -293,8 +297,10 @@ pub enum PilotExit {
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct EnvVar {
+    /// Variable name; the `SADESIM_` prefix is reserved.
     #[schemars(length(min = 1, max = 253), pattern(r"^[A-Za-z_][A-Za-z0-9_]*$"))]
     pub name: String,
+    /// Value.
     #[schemars(length(max = 4096))]
     pub value: String,
 }
@@ -308,8 +314,8 @@ pub struct Pilot {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1, max = 512))]
     pub image: Option<String>,
-    /// Program and arguments. Locally required; on Kubernetes it overrides the image's
-    /// entrypoint when set.
+    /// Program and arguments. Required for local runs (`sadesim run` starts it from the
+    /// scenario file's folder); on Kubernetes it overrides the image's entrypoint when set.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 64), inner(length(max = 4096)))]
     pub command: Vec<String>,
@@ -341,6 +347,7 @@ pub struct PilotResources {
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct Rendering {
+    /// Start the renderer (browser 3D view). Default false.
     #[serde(default)]
     pub enabled: bool,
 }
@@ -380,6 +387,7 @@ impl Default for Sharding {
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct Archive {
+    /// Archive URL: `file://`, `s3://`, `gs://` or `az://`.
     #[schemars(length(min = 1, max = 1024), pattern(r"^(file|s3|gs|az)://"))]
     pub url: String,
 }

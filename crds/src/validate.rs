@@ -231,6 +231,9 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
 
     let group_names = check_fleet(spec, bounds.as_ref(), p);
     let zone_names = check_zones(spec, bounds.as_ref(), duration_s, p);
+    if let Some(b) = &bounds {
+        check_zone_interactions(spec, b, p);
+    }
     check_environment(spec, &group_names, p);
     check_pilot(spec, p);
 
@@ -253,10 +256,6 @@ fn check_fleet(spec: &SimulationRunSpec, bounds: Option<&WorldBounds>, p: &mut P
         p.add("spec.fleet", "must list at least one drone group");
     }
     p.max_items("spec.fleet", spec.fleet.len(), 64);
-    let total = spec.total_drones();
-    if total > u64::from(MAX_DRONES) {
-        p.add("spec.fleet", format!("total drones must be at most {MAX_DRONES}, got {total}"));
-    }
     for (i, g) in spec.fleet.iter().enumerate() {
         let path = format!("spec.fleet[{i}]");
         p.dns_label(format!("{path}.name"), &g.name, 40);
@@ -278,7 +277,10 @@ fn check_fleet(spec: &SimulationRunSpec, bounds: Option<&WorldBounds>, p: &mut P
         if !operator_ok {
             p.add(
                 format!("{path}.operator"),
-                format!("must be 1 to 63 letters, digits, '-', '_' or '.', starting and ending alphanumeric, got {:?}", g.operator),
+                format!(
+                    "must be 1 to 63 letters, digits, '-', '_' or '.', starting and ending alphanumeric, got {:?}",
+                    g.operator
+                ),
             );
         }
         if let Some(Credential::Value(v)) = &g.credential
@@ -301,6 +303,10 @@ fn check_fleet(spec: &SimulationRunSpec, bounds: Option<&WorldBounds>, p: &mut P
         if let Some(m) = &g.mission {
             check_mission(g, m, &format!("{path}.mission"), bounds, p);
         }
+    }
+    let total = spec.total_drones();
+    if total > u64::from(MAX_DRONES) {
+        p.add("spec.fleet", format!("total drones must be at most {MAX_DRONES}, got {total}"));
     }
     names
 }
@@ -360,29 +366,29 @@ fn check_mission(g: &FleetGroup, m: &Mission, path: &str, bounds: Option<&WorldB
     for (k, item) in m.items.iter().enumerate() {
         let ip = format!("{path}.items[{k}]");
         match item {
-            MissionItem::Takeoff { alt_agl_m } => alt(p, format!("{ip}.takeoff.altAglM"), *alt_agl_m),
-            MissionItem::Waypoint { latitude_deg, longitude_deg, alt_agl_m, hold_s } => {
+            MissionItem::Takeoff { altitude_agl_m } => alt(p, format!("{ip}.takeoff.altitudeAglM"), *altitude_agl_m),
+            MissionItem::Waypoint { latitude_deg, longitude_deg, altitude_agl_m, hold_s } => {
                 let at = LatLon { latitude_deg: *latitude_deg, longitude_deg: *longitude_deg };
                 if let Some(b) = bounds {
                     b.check(p, &format!("{ip}.waypoint"), &at, 0.0);
                 }
-                alt(p, format!("{ip}.waypoint.altAglM"), *alt_agl_m);
+                alt(p, format!("{ip}.waypoint.altitudeAglM"), *altitude_agl_m);
                 if let Some(h) = hold_s {
                     p.range(format!("{ip}.waypoint.holdS"), *h, 0.0, 86_400.0);
                 }
             }
-            MissionItem::Loiter { duration } => {
-                p.duration(format!("{ip}.loiter.duration"), duration, MAX_DURATION_S);
+            MissionItem::Loiter { hold_s } => {
+                p.range(format!("{ip}.loiter.holdS"), *hold_s, 0.0, 86_400.0);
             }
-            MissionItem::RandomWaypoints { area, count, min_alt_agl_m, max_alt_agl_m, hold_s } => {
+            MissionItem::RandomWaypoints { area, count, min_altitude_agl_m, max_altitude_agl_m, hold_s } => {
                 if let Some(b) = bounds {
                     b.check_area(p, &format!("{ip}.randomWaypoints.area"), area);
                 }
                 p.range_int(format!("{ip}.randomWaypoints.count"), (*count).into(), 1, 10_000);
-                alt(p, format!("{ip}.randomWaypoints.minAltAglM"), *min_alt_agl_m);
-                alt(p, format!("{ip}.randomWaypoints.maxAltAglM"), *max_alt_agl_m);
-                if min_alt_agl_m > max_alt_agl_m {
-                    p.add(format!("{ip}.randomWaypoints.minAltAglM"), "must not exceed maxAltAglM");
+                alt(p, format!("{ip}.randomWaypoints.minAltitudeAglM"), *min_altitude_agl_m);
+                alt(p, format!("{ip}.randomWaypoints.maxAltitudeAglM"), *max_altitude_agl_m);
+                if min_altitude_agl_m > max_altitude_agl_m {
+                    p.add(format!("{ip}.randomWaypoints.minAltitudeAglM"), "must not exceed maxAltitudeAglM");
                 }
                 if let Some(h) = hold_s {
                     p.range(format!("{ip}.randomWaypoints.holdS"), *h, 0.0, 86_400.0);
@@ -390,6 +396,13 @@ fn check_mission(g: &FleetGroup, m: &Mission, path: &str, bounds: Option<&WorldB
             }
             MissionItem::ReturnToLaunch {} | MissionItem::Land {} => {}
         }
+    }
+}
+
+fn reference_name(r: AltitudeReference) -> &'static str {
+    match r {
+        AltitudeReference::Agl => "agl",
+        AltitudeReference::Msl => "msl",
     }
 }
 
@@ -426,8 +439,11 @@ fn check_zones(
                 p.add(
                     format!("{path}.ceiling"),
                     format!(
-                        "floor must be below ceiling: floor {} m {:?}, ceiling {} m {:?}",
-                        floor.height_m, floor.reference, z.ceiling.height_m, z.ceiling.reference
+                        "floor must be below ceiling: floor {} m {}, ceiling {} m {}",
+                        floor.height_m,
+                        reference_name(floor.reference),
+                        z.ceiling.height_m,
+                        reference_name(z.ceiling.reference)
                     ),
                 );
             }
@@ -493,6 +509,79 @@ fn check_zones(
     names
 }
 
+/// Zone polygon in the local plane, when all its vertices are usable.
+fn zone_points(z: &Zone, frame: &LocalFrame) -> Option<Vec<polygon::Point>> {
+    let ok = z.polygon.len() >= 3
+        && z.polygon
+            .iter()
+            .all(|v| v.latitude_deg.is_finite() && v.longitude_deg.is_finite() && v.latitude_deg.abs() <= 90.0);
+    ok.then(|| z.polygon.iter().map(|v| frame.to_plane(v.latitude_deg, v.longitude_deg)).collect())
+}
+
+fn disc_inside(polygon_pts: &[polygon::Point], c: polygon::Point, r: f64) -> bool {
+    polygon::contains(polygon_pts, c) && polygon::distance_to_boundary(polygon_pts, c) >= r
+}
+
+/// Fleet against zones: nobody starts inside a zone that reaches the ground, and no
+/// authorized group is too low to ever meet a zone's minimum altitude.
+fn check_zone_interactions(spec: &SimulationRunSpec, b: &WorldBounds, p: &mut Problems) {
+    let origin_alt = spec.origin.altitude_msl_m;
+    for z in &spec.zones {
+        let Some(pts) = zone_points(z, &b.frame) else { continue };
+        let floor = z.floor();
+        let reaches_ground = approx_msl(&floor, origin_alt) <= origin_alt;
+        let active_at_start = z.active_from.as_ref().is_none_or(|d| duration_s(d) <= 0.0);
+        for (i, g) in spec.fleet.iter().enumerate() {
+            let path = format!("spec.fleet[{i}]");
+            if reaches_ground && active_at_start {
+                let msg = |what: &str| {
+                    format!(
+                        "{what} zone {:?}, which reaches the ground: drones would start inside restricted airspace",
+                        z.name
+                    )
+                };
+                match &g.homes {
+                    HomePlacement::Explicit(list) => {
+                        for (k, at) in list.iter().enumerate() {
+                            if polygon::contains(&pts, b.frame.to_plane(at.latitude_deg, at.longitude_deg)) {
+                                p.add(format!("{path}.homes.explicit[{k}]"), msg("is inside"));
+                            }
+                        }
+                    }
+                    // Random homes are drawn outside zones by the planner; only a disc
+                    // entirely inside a zone leaves it nowhere to put them.
+                    HomePlacement::RandomInArea(area) => {
+                        let c = b.frame.to_plane(area.center.latitude_deg, area.center.longitude_deg);
+                        if disc_inside(&pts, c, area.radius_m) {
+                            p.add(format!("{path}.homes.randomInArea"), msg("lies entirely inside"));
+                        }
+                    }
+                    HomePlacement::Areas(areas) => {
+                        for (k, area) in areas.iter().enumerate() {
+                            let c = b.frame.to_plane(area.center.latitude_deg, area.center.longitude_deg);
+                            if disc_inside(&pts, c, area.radius_m) {
+                                p.add(format!("{path}.homes.areas[{k}]"), msg("lies entirely inside"));
+                            }
+                        }
+                    }
+                }
+            }
+            if let Some(min) = z.policy.min_altitude_agl_m
+                && z.policy.authorized_operators.contains(&g.operator)
+                && g.altitude.max_agl_m < min
+            {
+                p.add(
+                    format!("{path}.altitude.maxAglM"),
+                    format!(
+                        "is {} m, below zone {:?}'s minimum altitude inside ({min} m): the group is authorized there but could never comply",
+                        g.altitude.max_agl_m, z.name
+                    ),
+                );
+            }
+        }
+    }
+}
+
 fn check_polygon(z: &Zone, path: &str, bounds: Option<&WorldBounds>, p: &mut Problems) {
     let n = z.polygon.len();
     let ppath = format!("{path}.polygon");
@@ -514,10 +603,17 @@ fn check_polygon(z: &Zone, path: &str, bounds: Option<&WorldBounds>, p: &mut Pro
     }
     let pts: Vec<polygon::Point> =
         z.polygon.iter().map(|v| b.frame.to_plane(v.latitude_deg, v.longitude_deg)).collect();
-    for k in 0..n {
-        let (a, c) = (pts[k], pts[(k + 1) % n]);
-        if (a.0 - c.0).hypot(a.1 - c.1) < 0.01 {
-            p.add(format!("{ppath}[{}]", (k + 1) % n), format!("repeats vertex {k}: consecutive vertices must differ"));
+    let same = |a: polygon::Point, c: polygon::Point| (a.0 - c.0).hypot(a.1 - c.1) < 0.01;
+    if same(pts[0], pts[n - 1]) {
+        p.add(
+            format!("{ppath}[{}]", n - 1),
+            "repeats vertex 0: polygons are closed implicitly, drop the closing vertex (GeoJSON rings repeat it, zones do not)",
+        );
+        return;
+    }
+    for k in 0..n - 1 {
+        if same(pts[k], pts[k + 1]) {
+            p.add(format!("{ppath}[{}]", k + 1), format!("repeats vertex {k}: consecutive vertices must differ"));
             return;
         }
     }
@@ -555,8 +651,14 @@ fn check_environment(spec: &SimulationRunSpec, groups: &HashSet<String>, p: &mut
         p.max_items(format!("{base}.dropouts"), g.dropouts.len(), 256);
         for (k, d) in g.dropouts.iter().enumerate() {
             let dp = format!("{base}.dropouts[{k}]");
-            if duration_s(&d.start) < 0.0 {
+            let start = duration_s(&d.start);
+            if start < 0.0 {
                 p.add(format!("{dp}.start"), "must not be negative");
+            } else if start >= spec.duration_s() {
+                p.add(
+                    format!("{dp}.start"),
+                    format!("is after the run ends ({} s): the dropout would never happen", spec.duration_s()),
+                );
             }
             p.duration(format!("{dp}.duration"), &d.duration, MAX_DURATION_S);
             check_group_refs(&d.groups, groups, &format!("{dp}.groups"), p);
@@ -624,12 +726,23 @@ fn check_archive_url(url: &str, p: &mut Problems) {
     }
 }
 
+fn non_empty(p: &mut Problems, path: String, list: &[String]) {
+    if list.is_empty() {
+        p.add(path, "must name at least one group");
+    }
+}
+
+/// Names in a stable order for messages.
+fn sorted(names: &HashSet<String>) -> String {
+    let names: BTreeSet<&str> = names.iter().map(String::as_str).collect();
+    if names.is_empty() { "(none defined)".into() } else { names.into_iter().collect::<Vec<_>>().join(", ") }
+}
+
 fn check_group_refs(refs: &[String], groups: &HashSet<String>, path: &str, p: &mut Problems) {
     p.max_items(path, refs.len(), 64);
     for (k, g) in refs.iter().enumerate() {
         if !groups.contains(g) {
-            let known: BTreeSet<&String> = groups.iter().collect();
-            p.add(format!("{path}[{k}]"), format!("unknown group {g:?}, expected one of {known:?}"));
+            p.add(format!("{path}[{k}]"), format!("unknown group {g:?}, expected one of: {}", sorted(groups)));
         }
     }
 }
@@ -637,23 +750,31 @@ fn check_group_refs(refs: &[String], groups: &HashSet<String>, path: &str, p: &m
 fn check_criteria(spec: &SimulationRunSpec, groups: &HashSet<String>, zones: &HashSet<String>, p: &mut Problems) {
     let zone_ref = |p: &mut Problems, path: String, z: &str| {
         if !zones.contains(z) {
-            let known: BTreeSet<&String> = zones.iter().collect();
-            p.add(path, format!("unknown zone {z:?}, expected one of {known:?}"));
+            p.add(path, format!("unknown zone {z:?}, expected one of: {}", sorted(zones)));
         }
     };
     p.max_items("spec.criteria", spec.criteria.len(), 64);
     for (i, c) in spec.criteria.iter().enumerate() {
         let path = format!("spec.criteria[{i}]");
         match c {
-            Criterion::MinSeparation { meters } => {
-                p.range(format!("{path}.minSeparation.meters"), *meters, 0.1, 10_000.0);
+            Criterion::MinSeparation { distance_m } => {
+                p.range(format!("{path}.minSeparation.distanceM"), *distance_m, 0.1, 10_000.0);
             }
             Criterion::ReachZone { groups: gs, zone, within } => {
+                non_empty(p, format!("{path}.reachZone.groups"), gs);
                 check_group_refs(gs, groups, &format!("{path}.reachZone.groups"), p);
                 zone_ref(p, format!("{path}.reachZone.zone"), zone);
-                p.duration(format!("{path}.reachZone.within"), within, MAX_DURATION_S);
+                if let Some(w) = p.duration(format!("{path}.reachZone.within"), within, MAX_DURATION_S)
+                    && w > spec.duration_s()
+                {
+                    p.add(
+                        format!("{path}.reachZone.within"),
+                        format!("is longer than the run ({} s): it could never be checked", spec.duration_s()),
+                    );
+                }
             }
             Criterion::ZoneVerdicts { groups: gs, zone, .. } => {
+                non_empty(p, format!("{path}.zoneVerdicts.groups"), gs);
                 check_group_refs(gs, groups, &format!("{path}.zoneVerdicts.groups"), p);
                 zone_ref(p, format!("{path}.zoneVerdicts.zone"), zone);
             }

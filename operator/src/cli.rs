@@ -116,6 +116,11 @@ pub fn read_scenario(path: &Path) -> Result<String, CliError> {
     })
 }
 
+/// "1 problem", "3 problems".
+fn count(n: usize, noun: &str) -> String {
+    if n == 1 { format!("1 {noun}") } else { format!("{n} {noun}s") }
+}
+
 fn run_label(run: &SimulationRun) -> String {
     run.metadata.name.clone().unwrap_or_else(|| "(unnamed)".into())
 }
@@ -152,20 +157,15 @@ fn validate_files(files: &[PathBuf], out: &mut dyn Write) -> Result<Outcome, Cli
             match validate(&run) {
                 Ok(()) => writeln!(
                     out,
-                    "ok: {path}: {} ({} drones in {} groups, {} zones)",
+                    "ok: {path}: {} ({} in {}, {})",
                     run_label(&run),
-                    run.spec.total_drones(),
-                    run.spec.fleet.len(),
-                    run.spec.zones.len()
+                    count(run.spec.total_drones() as usize, "drone"),
+                    count(run.spec.fleet.len(), "group"),
+                    count(run.spec.zones.len(), "zone")
                 )?,
                 Err(errors) => {
-                    writeln!(
-                        out,
-                        "error: {path}: document {} ({}): {} problems",
-                        i + 1,
-                        run_label(&run),
-                        errors.0.len()
-                    )?;
+                    let n = count(errors.0.len(), "problem");
+                    writeln!(out, "error: {path}: document {} ({}): {n}", i + 1, run_label(&run))?;
                     for e in &errors.0 {
                         writeln!(out, "  {e}")?;
                     }
@@ -203,10 +203,14 @@ fn plan_file(
     let plan = match planner::plan(&run) {
         Ok(plan) => plan,
         Err(planner::PlanError::Invalid(errors)) => {
-            writeln!(out, "error: {path}: {} problems", errors.0.len())?;
+            writeln!(out, "error: {path}: {}", count(errors.0.len(), "problem"))?;
             for e in &errors.0 {
                 writeln!(out, "  {e}")?;
             }
+            return Ok(Outcome::Problems);
+        }
+        Err(e @ planner::PlanError::NoHome { .. }) => {
+            writeln!(out, "error: {path}: {e}")?;
             return Ok(Outcome::Problems);
         }
     };

@@ -4,7 +4,7 @@
 use std::process::ExitCode;
 
 use clap::Parser;
-use sadesim::cli::{Cli, Outcome, execute};
+use sadesim::cli::{Cli, CliError, Outcome, execute};
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -13,6 +13,8 @@ fn main() -> ExitCode {
     match execute(cli, &mut out) {
         Ok(Outcome::Success) => ExitCode::SUCCESS,
         Ok(Outcome::Problems) => ExitCode::from(1),
+        // `sadesim plan ... | head`: the reader left; that is not an error worth reporting.
+        Err(CliError::Write(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(2)

@@ -36,7 +36,11 @@ fn examples_and_valid_scenarios_validate() {
     all.extend(args);
     let out = sadesim(&all);
     assert!(out.status.success(), "{}", text(&out));
-    assert!(text(&out).contains("ok: ") && text(&out).contains("chicago-museum (32 drones in 3 groups, 1 zones)"), "{}", text(&out));
+    assert!(
+        text(&out).contains("ok: ") && text(&out).contains("chicago-museum (32 drones in 3 groups, 1 zone)"),
+        "{}",
+        text(&out)
+    );
 }
 
 #[test]
@@ -65,7 +69,9 @@ fn huge_and_deeply_nested_inputs_are_refused_cleanly() {
     std::fs::create_dir_all(&dir).unwrap();
     // 50 MB: refused by size before parsing.
     let big = dir.join("big.yaml");
-    let mut body = String::from("apiVersion: sadesim.io/v1alpha1\nkind: SimulationRun\nmetadata: {name: big}\nspec:\n  padding: |\n");
+    let mut body = String::from(
+        "apiVersion: sadesim.io/v1alpha1\nkind: SimulationRun\nmetadata: {name: big}\nspec:\n  padding: |\n",
+    );
     let line = format!("    {}\n", "x".repeat(100));
     while body.len() < 50 * 1024 * 1024 {
         body.push_str(&line);
@@ -114,7 +120,8 @@ fn plan_summarises_groups_shards_segments_and_ports() {
     let out = sadesim(&["plan", "examples/chicago-museum.yaml"]);
     let report = text(&out);
     assert!(out.status.success(), "{report}");
-    for needle in ["Groups (32 drones)", "public-safety", "Shards", "MAVLink router segments", "14550", "5760", "14540"] {
+    for needle in ["Groups (32 drones)", "public-safety", "Shards", "MAVLink router segments", "14550", "5760", "14540"]
+    {
         assert!(report.contains(needle), "missing {needle:?} in\n{report}");
     }
     let out = sadesim(&["plan", "--json", "examples/chicago-museum.yaml"]);

@@ -29,11 +29,16 @@ pub enum FlightMode {
 #[serde(tag = "event", rename_all = "camelCase", rename_all_fields = "camelCase")]
 pub enum EventKind {
     /// Every shard is ready; simulated time starts.
-    RunStarted { drones: u32, shards: u32 },
+    RunStarted {
+        drones: u32,
+        shards: u32,
+    },
     /// Pilots released (all drones ready, as in the paper).
     PilotsReleased,
     /// The run ended at `reason` (duration, pilotExited, aborted, failed).
-    RunEnded { reason: String },
+    RunEnded {
+        reason: String,
+    },
     Armed,
     Disarmed,
     /// Left the ground.
@@ -41,15 +46,29 @@ pub enum EventKind {
     /// Touched down gently.
     Landed,
     /// Hit a building or the ground too hard; the drone stops.
-    Crashed { with: String, speed_mps: f64 },
-    ModeChanged { from: FlightMode, to: FlightMode },
+    Crashed {
+        with: String,
+        speed_mps: f64,
+    },
+    ModeChanged {
+        from: FlightMode,
+        to: FlightMode,
+    },
     /// Reached mission item `seq` (0-based).
-    WaypointReached { seq: u32 },
+    WaypointReached {
+        seq: u32,
+    },
     MissionCompleted,
     /// A failsafe fired (gnssLost, lowBattery, ...) and took `action`.
-    Failsafe { reason: String, action: FlightMode },
+    Failsafe {
+        reason: String,
+        action: FlightMode,
+    },
     /// A command was refused (arming checks, invalid mode).
-    CommandRejected { command: String, reason: String },
+    CommandRejected {
+        command: String,
+        reason: String,
+    },
 }
 
 /// One event with its time and drone.

@@ -9,9 +9,12 @@ mod ports;
 mod resources;
 
 use sadesim_crds::fleet::{Area, FleetGroup, HomePlacement};
-use sadesim_crds::geo::{Enu, LocalFrame};
+use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
 use sadesim_crds::plan::{Home, PLAN_FORMAT_VERSION, PlannedDrone, PlannedShard, RouterSegment, RunPlan, RunRef};
+use sadesim_crds::polygon;
 use sadesim_crds::random::{Purpose, Rng};
+use sadesim_crds::validate::duration_s;
+use sadesim_crds::zones::AltitudeReference;
 use sadesim_crds::{SimulationRun, ValidationErrors, validate};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
@@ -33,7 +36,15 @@ pub enum PlanError {
     /// The run failed validation; every problem is listed.
     #[error("invalid SimulationRun:\n{0}")]
     Invalid(#[from] ValidationErrors),
+    /// Random home placement found no spot outside the ground-level zones.
+    #[error(
+        "spec.fleet[{group}].homes: no home found for drone {drone} outside the zones that reach the ground after {MAX_HOME_DRAWS} draws: enlarge the area or move it away from the zones"
+    )]
+    NoHome { group: usize, drone: u32 },
 }
+
+/// Draws per drone before random placement gives up.
+pub const MAX_HOME_DRAWS: usize = 1000;
 
 /// Plans a run.
 ///
@@ -51,10 +62,13 @@ pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
     let sharding = spec.sharding();
     let per_shard = sharding.drones_per_shard;
 
+    let keep_out = ground_zones(spec, &frame);
     let mut drones = Vec::with_capacity(spec.total_drones() as usize);
     for (group_index, group) in spec.fleet.iter().enumerate() {
         for k in 0..group.count {
             let index = drones.len() as u32;
+            let home = home(&frame, group, k, index, seed, &keep_out)
+                .ok_or(PlanError::NoHome { group: group_index, drone: index })?;
             drones.push(PlannedDrone {
                 index,
                 name: format!("{}-{k}", group.name),
@@ -68,7 +82,7 @@ pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
                 segment: index / SYSTEM_IDS_PER_SEGMENT,
                 shard: index / per_shard,
                 ports: sadesim_crds::plan::DronePorts { api_udp: api_udp_port(index), endpoint: endpoint_port(index) },
-                home: home(&frame, group, k, index, seed),
+                home,
                 scripted: group.mission.is_some(),
             });
         }
@@ -116,27 +130,61 @@ fn ranges(total: u32, size: u32) -> impl Iterator<Item = (u32, u32)> {
     (0..total.div_ceil(size)).map(move |i| (i * size, size.min(total - i * size)))
 }
 
-/// Home of drone `k` of `group` (global index `index`), on the ground (`up` = 0).
+/// Polygons (local plane) of the zones a drone must not start in: active at the start and
+/// reaching the ground.
+fn ground_zones(spec: &sadesim_crds::SimulationRunSpec, frame: &LocalFrame) -> Vec<Vec<polygon::Point>> {
+    let origin_alt = spec.origin.altitude_msl_m;
+    spec.zones
+        .iter()
+        .filter(|z| z.active_from.as_ref().is_none_or(|d| duration_s(d) <= 0.0))
+        .filter(|z| {
+            let f = z.floor();
+            match f.reference {
+                AltitudeReference::Agl => f.height_m <= 0.0,
+                AltitudeReference::Msl => f.height_m <= origin_alt,
+            }
+        })
+        .map(|z| z.polygon.iter().map(|v| frame.to_plane(v.latitude_deg, v.longitude_deg)).collect())
+        .collect()
+}
+
+/// Home of drone `k` of `group` (global index `index`), on the ground; `None` when random
+/// placement finds no spot outside `keep_out`.
 ///
 /// Random placements draw from the drone's own `(seed, global index, Home)` stream
-/// (DESIGN §5), so homes do not depend on sharding.
-fn home(frame: &LocalFrame, group: &FleetGroup, k: u32, index: u32, seed: u64) -> Home {
+/// (DESIGN §5), so homes do not depend on sharding; draws inside a ground-level zone are
+/// rejected and drawn again (explicit homes inside zones are refused by validation).
+fn home(
+    frame: &LocalFrame,
+    group: &FleetGroup,
+    k: u32,
+    index: u32,
+    seed: u64,
+    keep_out: &[Vec<polygon::Point>],
+) -> Option<Home> {
     let in_area = |area: &Area| {
         let (cx, cy) = frame.to_plane(area.center.latitude_deg, area.center.longitude_deg);
-        let (dx, dy) = Rng::stream(seed, index.into(), Purpose::Home).in_disc(area.radius_m);
-        (cx + dx, cy + dy)
+        let mut rng = Rng::stream(seed, index.into(), Purpose::Home);
+        (0..MAX_HOME_DRAWS)
+            .map(|_| rng.in_disc(area.radius_m))
+            .map(|(dx, dy)| (cx + dx, cy + dy))
+            .find(|p| !keep_out.iter().any(|zone| polygon::contains(zone, *p)))
     };
     let (east_m, north_m) = match &group.homes {
         HomePlacement::Explicit(list) => {
             let at = list[k as usize];
             frame.to_plane(at.latitude_deg, at.longitude_deg)
         }
-        HomePlacement::RandomInArea(area) => in_area(area),
+        HomePlacement::RandomInArea(area) => in_area(area)?,
         // Round-robin over the areas so each gets its share (the paper's "various parks").
-        HomePlacement::Areas(areas) => in_area(&areas[k as usize % areas.len()]),
+        HomePlacement::Areas(areas) => in_area(&areas[k as usize % areas.len()])?,
     };
-    let local = Enu::new(east_m, north_m, 0.0);
-    Home { local, global: frame.to_geodetic(local) }
+    // On the ground at the origin's altitude: the point's MSL altitude is the origin's, and
+    // its ENU `up` is slightly negative away from the origin (Earth curvature, -0.08 m at
+    // 1 km), which keeps homes consistent with the world's curvature-aware ground.
+    let on_plane = frame.to_geodetic(Enu::new(east_m, north_m, 0.0));
+    let global = GeoPoint { altitude_msl_m: frame.origin().altitude_msl_m, ..on_plane };
+    Some(Home { local: frame.to_enu(global), global })
 }
 
 /// Everything that shapes the world assets, hashed: origin, world, zones (baked into the

@@ -124,7 +124,13 @@ impl Default for Estimator {
 impl Estimator {
     /// Prediction with an IMU sample: specific force (body FLU, m/s^2), gyro (body, rad/s),
     /// and the AHRS attitude (body -> ENU).
-    pub fn predict(&mut self, accel_body_mps2: Vector3<f64>, gyro_body_rps: Vector3<f64>, attitude: UnitQuaternion<f64>, dt_s: f64) {
+    pub fn predict(
+        &mut self,
+        accel_body_mps2: Vector3<f64>,
+        gyro_body_rps: Vector3<f64>,
+        attitude: UnitQuaternion<f64>,
+        dt_s: f64,
+    ) {
         self.attitude = attitude;
         self.rate_body_rps = gyro_body_rps;
         // Specific force excludes gravity: a = R f + g, with g = (0, 0, -9.81) in ENU.

@@ -1,4 +1,7 @@
 //! The built-in flight controller: estimator, cascaded control, modes, failsafes.
 
+pub mod control;
 pub mod estimator;
 pub mod mission;
+
+pub use control::{ControlOutput, Controller, EstimatedState, Setpoint};

@@ -1,6 +1,6 @@
 //! Turns a group's scenario `mission` into the mission the autopilot flies.
 //!
-//! Altitudes in the scenario are above ground level at each waypoint (`altAglM`); the
+//! Altitudes in the scenario are above ground level at each waypoint (`altitudeAglM`); the
 //! autopilot flies relative to home (PX4 convention), so each is shifted by the ground
 //! height difference between the waypoint and home. Random waypoints are drawn from the
 //! drone's own `(seed, drone index, Mission)` stream, so they do not depend on sharding.
@@ -9,7 +9,6 @@ use nalgebra::Vector2;
 use sadesim_crds::fleet::{Mission, MissionItem as SpecItem};
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::random::{Purpose, Rng};
-use sadesim_crds::validate::duration_s;
 
 use crate::autopilot::mission::{DEFAULT_CRUISE_MPS, MissionItem, MissionPlan};
 
@@ -34,23 +33,25 @@ pub fn expand(
     for item in &mission.items {
         match item {
             // Takeoff climbs over home: AGL there is relative to home by definition.
-            SpecItem::Takeoff { alt_agl_m } => items.push(MissionItem::Takeoff { alt_rel_home_m: *alt_agl_m }),
-            SpecItem::Waypoint { latitude_deg, longitude_deg, alt_agl_m, hold_s } => {
+            SpecItem::Takeoff { altitude_agl_m } => {
+                items.push(MissionItem::Takeoff { alt_rel_home_m: *altitude_agl_m })
+            }
+            SpecItem::Waypoint { latitude_deg, longitude_deg, altitude_agl_m, hold_s } => {
                 let (e, n) = frame.to_plane(*latitude_deg, *longitude_deg);
                 let en = Vector2::new(e, n);
                 items.push(MissionItem::Waypoint {
                     target_en_m: en,
-                    alt_rel_home_m: rel(en, *alt_agl_m),
+                    alt_rel_home_m: rel(en, *altitude_agl_m),
                     hold_s: hold_s.unwrap_or(0.0),
                 });
             }
-            SpecItem::Loiter { duration } => items.push(MissionItem::Loiter { hold_s: duration_s(duration) }),
-            SpecItem::RandomWaypoints { area, count, min_alt_agl_m, max_alt_agl_m, hold_s } => {
+            SpecItem::Loiter { hold_s } => items.push(MissionItem::Loiter { hold_s: *hold_s }),
+            SpecItem::RandomWaypoints { area, count, min_altitude_agl_m, max_altitude_agl_m, hold_s } => {
                 let (cx, cy) = frame.to_plane(area.center.latitude_deg, area.center.longitude_deg);
                 for _ in 0..*count {
                     let (dx, dy) = rng.in_disc(area.radius_m);
                     let en = Vector2::new(cx + dx, cy + dy);
-                    let agl = rng.uniform(*min_alt_agl_m, *max_alt_agl_m);
+                    let agl = rng.uniform(*min_altitude_agl_m, *max_altitude_agl_m);
                     items.push(MissionItem::Waypoint {
                         target_en_m: en,
                         alt_rel_home_m: rel(en, agl),
@@ -90,8 +91,13 @@ mod tests {
         let g = f.to_geodetic(sadesim_crds::geo::Enu::new(500.0, 0.0, 0.0));
         let mission = Mission {
             items: vec![
-                SpecItem::Takeoff { alt_agl_m: 30.0 },
-                SpecItem::Waypoint { latitude_deg: g.latitude_deg, longitude_deg: g.longitude_deg, alt_agl_m: 40.0, hold_s: Some(2.0) },
+                SpecItem::Takeoff { altitude_agl_m: 30.0 },
+                SpecItem::Waypoint {
+                    latitude_deg: g.latitude_deg,
+                    longitude_deg: g.longitude_deg,
+                    altitude_agl_m: 40.0,
+                    hold_s: Some(2.0),
+                },
                 SpecItem::Land {},
             ],
             speed_mps: Some(7.0),
@@ -113,10 +119,14 @@ mod tests {
         let f = frame();
         let mission = Mission {
             items: vec![SpecItem::RandomWaypoints {
-                area: Area { name: None, center: LatLon { latitude_deg: 41.8796, longitude_deg: -87.6237 }, radius_m: 200.0 },
+                area: Area {
+                    name: None,
+                    center: LatLon { latitude_deg: 41.8796, longitude_deg: -87.6237 },
+                    radius_m: 200.0,
+                },
                 count: 20,
-                min_alt_agl_m: 10.0,
-                max_alt_agl_m: 30.0,
+                min_altitude_agl_m: 10.0,
+                max_altitude_agl_m: 30.0,
                 hold_s: None,
             }],
             speed_mps: None,

@@ -190,7 +190,7 @@ fn x500() -> Airframe {
 ///   (thrust/weight 2.77; a thrust/weight of 2.0 would put hover at 71 % of max ω).
 /// * Yaw: C_Q/C_T ≈ 0.07, so k_m = 0.07 · D = 0.0084 m (x500's 10" props: 0.016/0.254 = 0.063).
 /// * Motors: lighter rotors than x500, time constants 10/20 ms up/down.
-/// * Drag: 15 m/s needs ~27° of tilt (1.2 N, DJI's sport-mode top speed is 16 m/s).
+/// * Drag: 15 m/s needs ~26° of tilt (1.2 N, DJI's sport-mode top speed is 16 m/s).
 /// * Battery: 2S 2450 mAh (Mini 3 class), ~60 mΩ; hover draws ~34 W, i.e. ~32 min.
 /// * Limits: 35° tilt, 15 m/s, climb 5 m/s, descent 3.5 m/s (DJI Mini 2 published limits).
 fn mini250() -> Airframe {

@@ -164,7 +164,8 @@ impl GridIndex {
     }
 
     fn cell_index(&self, i: i64, j: i64) -> Option<usize> {
-        (i >= 0 && j >= 0 && (i as usize) < self.nx && (j as usize) < self.ny).then(|| j as usize * self.nx + i as usize)
+        (i >= 0 && j >= 0 && (i as usize) < self.nx && (j as usize) < self.ny)
+            .then(|| j as usize * self.nx + i as usize)
     }
 
     fn cell(&self, c: usize) -> &[u32] {
@@ -222,8 +223,7 @@ mod tests {
         let hit = |a: Vector3<f64>, b: Vector3<f64>, z_lo: f64, z_hi: f64| {
             grid.first_hit(&a, &b, z_lo, z_hi, |k| {
                 let r = rects[k as usize];
-                clip_segment(&a, &(b - a), &Vector3::new(r[0], r[1], 0.0), &Vector3::new(r[2], r[3], 10.0))
-                    .map(|t| t.0)
+                clip_segment(&a, &(b - a), &Vector3::new(r[0], r[1], 0.0), &Vector3::new(r[2], r[3], 10.0)).map(|t| t.0)
             })
         };
         let (west, east) = (Vector3::new(0.0, 0.0, 5.0), Vector3::new(100.0, 0.0, 5.0));

@@ -162,9 +162,8 @@ impl World {
     /// far along the line of sight; only the part below the tallest roof is walked).
     pub fn segment_hits_building(&self, a: Vector3<f64>, b: Vector3<f64>) -> Option<(usize, Vector3<f64>)> {
         let (z_lo, z_hi) = self.z_band_up_m;
-        let (k, t) = self
-            .index
-            .first_hit(&a, &b, z_lo, z_hi, |k| self.buildings[k as usize].segment_entry_t(&a, &b))?;
+        let (k, t) =
+            self.index.first_hit(&a, &b, z_lo, z_hi, |k| self.buildings[k as usize].segment_entry_t(&a, &b))?;
         Some((k as usize, a + (b - a) * t))
     }
 }

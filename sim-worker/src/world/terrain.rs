@@ -69,7 +69,8 @@ impl Terrain {
 
     /// A flat ground (h = 0 everywhere), for tests and worlds without relief.
     pub fn flat() -> Self {
-        let zero = Wave { amplitude_m: 0.0, k_east_rad_per_m: 0.0, k_north_rad_per_m: 0.0, phase_rad: 0.0, sin_phase: 0.0 };
+        let zero =
+            Wave { amplitude_m: 0.0, k_east_rad_per_m: 0.0, k_north_rad_per_m: 0.0, phase_rad: 0.0, sin_phase: 0.0 };
         Self { waves: [zero; WAVES] }
     }
 

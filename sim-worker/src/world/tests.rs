@@ -59,7 +59,11 @@ fn same_inputs_give_a_bitwise_identical_world_and_another_origin_does_not() {
 fn the_run_seed_does_not_change_the_world() {
     let spec = |seed| {
         let park = Area { name: None, center: CHICAGO, radius_m: 100.0 };
-        RunBuilder::test().with_seed(seed).with(|r| r.spec.fleet[0].homes = HomePlacement::RandomInArea(park)).build().spec
+        RunBuilder::test()
+            .with_seed(seed)
+            .with(|r| r.spec.fleet[0].homes = HomePlacement::RandomInArea(park))
+            .build()
+            .spec
     };
     let a = World::generate(&WorldInputs::from_spec(&spec(1), &[]));
     let b = World::generate(&WorldInputs::from_spec(&spec(99), &[]));
@@ -223,7 +227,8 @@ fn segments_hit_a_box_from_outside_and_nothing_along_a_street() {
     let sky = 400.0;
     assert_eq!(world.segment_hits_building(Vector3::new(-1400.0, 0.0, sky), Vector3::new(1400.0, 0.0, sky)), None);
     // Along the street centrelines through the origin, 2 m above the ground: clear.
-    for (a, b) in [((-1500.0, 0.0), (1500.0, 0.0)), ((0.0, -1500.0), (0.0, 1500.0)), ((145.0, -1400.0), (145.0, 1400.0))]
+    for (a, b) in
+        [((-1500.0, 0.0), (1500.0, 0.0)), ((0.0, -1500.0), (0.0, 1500.0)), ((145.0, -1400.0), (145.0, 1400.0))]
     {
         let z = 2.0 + world.terrain().max_abs_up_m();
         assert_eq!(world.segment_hits_building(Vector3::new(a.0, a.1, z), Vector3::new(b.0, b.1, z)), None);
@@ -318,5 +323,9 @@ fn tmp_park_distribution() {
     }
     let m = shares.iter().sum::<f64>() / shares.len() as f64;
     let sd = (shares.iter().map(|s| (s - m).powi(2)).sum::<f64>() / shares.len() as f64).sqrt();
-    println!("park share mean {m:.4} sd {sd:.4} min {:.4} max {:.4}", shares.iter().cloned().fold(1.0, f64::min), shares.iter().cloned().fold(0.0, f64::max));
+    println!(
+        "park share mean {m:.4} sd {sd:.4} min {:.4} max {:.4}",
+        shares.iter().cloned().fold(1.0, f64::min),
+        shares.iter().cloned().fold(0.0, f64::max)
+    );
 }
