@@ -13,6 +13,7 @@ pub mod autopilot;
 pub mod env;
 pub mod events;
 pub mod pacing;
+pub mod physics;
 pub mod pilot;
 pub mod sensors;
 pub mod vehicle;

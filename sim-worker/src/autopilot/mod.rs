@@ -2,6 +2,8 @@
 
 pub mod control;
 pub mod estimator;
+pub mod fmu;
 pub mod mission;
+pub mod navigator;
 
 pub use control::{ControlOutput, Controller, EstimatedState, Setpoint};

@@ -67,13 +67,6 @@ impl Terrain {
         Self { waves }
     }
 
-    /// A flat ground (h = 0 everywhere), for tests and worlds without relief.
-    pub fn flat() -> Self {
-        let zero =
-            Wave { amplitude_m: 0.0, k_east_rad_per_m: 0.0, k_north_rad_per_m: 0.0, phase_rad: 0.0, sin_phase: 0.0 };
-        Self { waves: [zero; WAVES] }
-    }
-
     /// Ground height above the origin's ground (ENU up), metres, at a horizontal position.
     /// Defined everywhere, also outside the world's extent.
     pub fn up_m(&self, east_m: f64, north_m: f64) -> f64 {
