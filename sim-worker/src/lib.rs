@@ -15,6 +15,8 @@ pub mod events;
 pub mod pacing;
 pub mod physics;
 pub mod pilot;
+pub mod protocol;
 pub mod sensors;
+pub mod shard;
 pub mod vehicle;
 pub mod world;

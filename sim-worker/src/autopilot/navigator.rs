@@ -246,16 +246,17 @@ impl Navigator {
                 self.disarm();
                 Ok(())
             }
+            // Missions upload while disarmed, as with PX4.
+            Command::LoadMission(plan) => {
+                self.mission = Some(plan);
+                self.current_item = 0;
+                Ok(())
+            }
             _ if !self.armed => Err(Rejection::NotArmed),
             Command::Takeoff { altitude_rel_home_m } => {
                 let est = est.ok_or(Rejection::NotArmed)?;
                 self.start_takeoff(t_s, est, altitude_rel_home_m);
                 self.set_mode(FlightMode::Takeoff);
-                Ok(())
-            }
-            Command::LoadMission(plan) => {
-                self.mission = Some(plan);
-                self.current_item = 0;
                 Ok(())
             }
             Command::StartMission => {
@@ -392,10 +393,9 @@ impl Navigator {
 
         let p = est.position_enu_m;
         match self.phase.clone() {
-            Phase::Ground => {
-                // Armed on the ground and waiting: spin at idle, hold home.
-                Setpoint::Position { position_enu_m: p, yaw_rad: self.yaw_rad, velocity_ff: Vector3::zeros() }
-            }
+            // Armed on the ground and waiting for a takeoff: motors at idle (PX4 spins them
+            // slowly; no thrust to speak of), no position control fighting the ground.
+            Phase::Ground => Setpoint::Idle,
             Phase::Hold { at, until_s } => {
                 if until_s.is_some_and(|u| t_s >= u) {
                     self.item_done(t_s, est);

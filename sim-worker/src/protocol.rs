@@ -1,0 +1,67 @@
+//! The shard <-> coordinator message set (DESIGN §5): the same types travel over in-process
+//! channels and, as JSON lines, over TCP between `sim-worker shard` and `sim-worker
+//! coordinator` processes.
+
+use serde::{Deserialize, Serialize};
+
+use crate::events::{Event, FlightMode};
+
+/// Bumped on any incompatible change; peers refuse other versions.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// A drone's state at a window boundary (ground truth), for the merged snapshot, the
+/// recorder and everything that couples drones.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct DroneSnapshot {
+    /// Global drone index.
+    pub index: u32,
+    /// ENU position, m.
+    pub position_enu_m: [f64; 3],
+    /// ENU velocity, m/s.
+    pub velocity_enu_mps: [f64; 3],
+    /// Body -> ENU quaternion, (w, x, y, z).
+    pub attitude_wxyz: [f64; 4],
+    /// Height above the ground below, m.
+    pub height_agl_m: f64,
+    pub mode: FlightMode,
+    pub armed: bool,
+    pub on_ground: bool,
+    pub crashed: bool,
+    /// Remaining battery fraction, 0..1.
+    pub battery_remaining: f64,
+    /// The estimator has a position (GNSS fix received).
+    pub position_valid: bool,
+}
+
+/// Coordinator -> shard.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
+pub enum ToShard {
+    /// Simulate up to (excluding) physics step `until_step`. `snapshot` is the merged state
+    /// of every drone at the previous boundary; `release_pilots` starts scripted pilots.
+    Advance { until_step: u64, release_pilots: bool, snapshot: Vec<DroneSnapshot> },
+    /// End of run: flush and exit.
+    Stop,
+}
+
+/// Shard -> coordinator.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
+pub enum FromShard {
+    /// Sent once after the shard built its world and drones.
+    Hello { version: u32, shard: u32, drones: u32 },
+    /// A window is done: state at `step` (the next step to simulate) and what happened.
+    Advanced {
+        shard: u32,
+        step: u64,
+        /// Every drone of the shard has a position estimate (pilots may be released).
+        ready: bool,
+        drones: Vec<DroneSnapshot>,
+        events: Vec<Event>,
+    },
+    /// The shard stopped cleanly.
+    Stopped { shard: u32 },
+    /// The shard cannot go on.
+    Failed { shard: u32, reason: String },
+}
