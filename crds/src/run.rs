@@ -207,6 +207,11 @@ pub struct World {
     /// Procedural city parameters.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub city: Option<City>,
+    /// Discs kept free of buildings: real parks, plazas, rivers or airfields the pilot's
+    /// routes rely on. (Home areas of the fleet are kept open automatically.)
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(length(max = 256))]
+    pub open_areas: Vec<crate::fleet::Area>,
 }
 
 fn default_extent_m() -> f64 {
@@ -215,7 +220,7 @@ fn default_extent_m() -> f64 {
 
 impl Default for World {
     fn default() -> Self {
-        Self { source: WorldSource::Procedural, extent_m: DEFAULT_WORLD_EXTENT_M, city: None }
+        Self { source: WorldSource::Procedural, extent_m: DEFAULT_WORLD_EXTENT_M, city: None, open_areas: Vec::new() }
     }
 }
 

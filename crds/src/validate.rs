@@ -228,6 +228,12 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
         }
     }
     let bounds = origin_ok.then(|| WorldBounds { frame: LocalFrame::new(o.geo()), extent_m: world.extent_m });
+    p.max_items("spec.world.openAreas", world.open_areas.len(), 256);
+    if let Some(b) = &bounds {
+        for (k, area) in world.open_areas.iter().enumerate() {
+            b.check_area(p, &format!("spec.world.openAreas[{k}]"), area);
+        }
+    }
 
     let group_names = check_fleet(spec, bounds.as_ref(), p);
     let zone_names = check_zones(spec, bounds.as_ref(), duration_s, p);

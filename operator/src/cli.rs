@@ -50,6 +50,21 @@ pub enum Command {
     },
     /// Print the SimulationRun CustomResourceDefinition (YAML), for `kubectl apply -f -`.
     Crd,
+    /// Run a scenario locally: world, shards, coordinator and recorder in this process.
+    ///
+    /// Writes plan.json, world.json, events.jsonl, trajectory.csv, trajectory.geojson and
+    /// summary.json into `<out>/<run>/<UTC time>/` (out: the archive folder of a file://
+    /// archive URL, else ./runs). Ctrl-C ends the run cleanly and keeps everything written.
+    Run {
+        /// Scenario file with exactly one run (use `-` for stdin).
+        file: PathBuf,
+        /// Folder to create the run folder in.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
 }
 
 /// What a command reports back to `main`.
@@ -58,6 +73,8 @@ pub enum Outcome {
     Success,
     /// The command ran but found problems (exit code 1).
     Problems,
+    /// Ctrl-C ended a run early; its output was kept (exit code 130).
+    Interrupted,
 }
 
 /// Errors that stop a command (exit code 2 from `main`).
@@ -75,6 +92,9 @@ pub enum CliError {
     /// `plan` needs exactly one run.
     #[error("{path}: holds {count} runs; `plan` takes a file with exactly one")]
     NotOneRun { path: String, count: usize },
+    /// A run could not start or finish.
+    #[error("{path}: {source}")]
+    Run { path: String, source: crate::runner::RunError },
     /// Writing the output failed.
     #[error("failed to write output: {0}")]
     Write(#[from] std::io::Error),
@@ -89,6 +109,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
     match cli.command {
         Command::Validate { files } => validate_files(&files, out),
         Command::Plan { file, json, fleet, namespace } => plan_file(&file, json, fleet, namespace, out),
+        Command::Run { file, out: out_root, quiet } => run_file(&file, out_root, !quiet, out),
         Command::Crd => {
             out.write_all(sadesim_crds::crd::crd_yaml().as_bytes())?;
             Ok(Outcome::Success)
@@ -177,6 +198,76 @@ fn validate_files(files: &[PathBuf], out: &mut dyn Write) -> Result<Outcome, Cli
     Ok(if problems == 0 { Outcome::Success } else { Outcome::Problems })
 }
 
+/// Reads a file holding exactly one run; parse problems are reported on `out` (`None`).
+fn load_one(file: &Path, out: &mut dyn Write) -> Result<Option<SimulationRun>, CliError> {
+    let path = file.display().to_string();
+    let text = read_scenario(file)?;
+    let mut docs = parse_runs(&text).map_err(|source| CliError::Document { path: path.clone(), source })?;
+    if docs.len() != 1 {
+        return Err(CliError::NotOneRun { path, count: docs.len() });
+    }
+    match docs.remove(0) {
+        Ok(run) => Ok(Some(run)),
+        Err(e) => {
+            writeln!(out, "error: {path}: {e}")?;
+            Ok(None)
+        }
+    }
+}
+
+fn report_problems(out: &mut dyn Write, path: &str, errors: &sadesim_crds::ValidationErrors) -> std::io::Result<()> {
+    writeln!(out, "error: {path}: {}", count(errors.0.len(), "problem"))?;
+    for e in &errors.0 {
+        writeln!(out, "  {e}")?;
+    }
+    Ok(())
+}
+
+fn run_file(file: &Path, out_root: Option<PathBuf>, progress: bool, out: &mut dyn Write) -> Result<Outcome, CliError> {
+    use std::io::IsTerminal;
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+
+    use crate::runner::{RunError, RunOptions, run_local};
+
+    let path = file.display().to_string();
+    let Some(run) = load_one(file, out)? else { return Ok(Outcome::Problems) };
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    // Ctrl-C asks the coordinator to stop after the current window; the recorder then
+    // closes its files. (Fails only if a handler is already installed: keep that one.)
+    let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+    let options = RunOptions { out_root, progress: progress && std::io::stderr().is_terminal() };
+    match run_local(&run, &options, stop) {
+        Ok(report) => {
+            let s = &report.summary;
+            let took_off = s.per_drone.iter().filter(|d| d.took_off).count();
+            let landed = s.per_drone.iter().filter(|d| d.landed).count();
+            writeln!(
+                out,
+                "run {} ended ({}) at {:.1} s simulated in {:.1} s wall (real-time factor {:.1})",
+                s.run, s.end_reason, s.sim_time_s, s.wall_time_s, s.real_time_factor
+            )?;
+            writeln!(
+                out,
+                "  {} drones in {}: {took_off} took off, {landed} landed, {} airborne at the end, {} crashed; {} events",
+                s.drones,
+                count(s.shards as usize, "shard"),
+                s.airborne,
+                s.crashed,
+                s.events
+            )?;
+            writeln!(out, "  output: {}", report.out_dir.display())?;
+            Ok(if s.end_reason == "interrupted" { Outcome::Interrupted } else { Outcome::Success })
+        }
+        Err(RunError::Plan(planner::PlanError::Invalid(errors))) => {
+            report_problems(out, &path, &errors)?;
+            Ok(Outcome::Problems)
+        }
+        Err(source) => Err(CliError::Run { path, source }),
+    }
+}
+
 fn plan_file(
     file: &Path,
     json: bool,
@@ -185,28 +276,14 @@ fn plan_file(
     out: &mut dyn Write,
 ) -> Result<Outcome, CliError> {
     let path = file.display().to_string();
-    let text = read_scenario(file)?;
-    let mut docs = parse_runs(&text).map_err(|source| CliError::Document { path: path.clone(), source })?;
-    if docs.len() != 1 {
-        return Err(CliError::NotOneRun { path, count: docs.len() });
-    }
-    let mut run = match docs.remove(0) {
-        Ok(run) => run,
-        Err(e) => {
-            writeln!(out, "error: {path}: {e}")?;
-            return Ok(Outcome::Problems);
-        }
-    };
+    let Some(mut run) = load_one(file, out)? else { return Ok(Outcome::Problems) };
     if namespace.is_some() {
         run.metadata.namespace = namespace;
     }
     let plan = match planner::plan(&run) {
         Ok(plan) => plan,
         Err(planner::PlanError::Invalid(errors)) => {
-            writeln!(out, "error: {path}: {}", count(errors.0.len(), "problem"))?;
-            for e in &errors.0 {
-                writeln!(out, "  {e}")?;
-            }
+            report_problems(out, &path, &errors)?;
             return Ok(Outcome::Problems);
         }
         Err(e @ planner::PlanError::NoHome { .. }) => {

@@ -13,6 +13,7 @@ fn main() -> ExitCode {
     match execute(cli, &mut out) {
         Ok(Outcome::Success) => ExitCode::SUCCESS,
         Ok(Outcome::Problems) => ExitCode::from(1),
+        Ok(Outcome::Interrupted) => ExitCode::from(130),
         // `sadesim plan ... | head`: the reader left; that is not an error worth reporting.
         Err(CliError::Write(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
         Err(e) => {

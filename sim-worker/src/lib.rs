@@ -10,13 +10,16 @@
 //! MAVLink's NED/FRD appear only at the MAVLink edge.
 
 pub mod autopilot;
+pub mod coordinator;
 pub mod env;
 pub mod events;
 pub mod pacing;
 pub mod physics;
 pub mod pilot;
 pub mod protocol;
+pub mod record;
 pub mod sensors;
 pub mod shard;
+pub mod transport;
 pub mod vehicle;
 pub mod world;

@@ -38,9 +38,11 @@ pub struct DroneSnapshot {
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
 pub enum ToShard {
-    /// Simulate up to (excluding) physics step `until_step`. `snapshot` is the merged state
-    /// of every drone at the previous boundary; `release_pilots` starts scripted pilots.
-    Advance { until_step: u64, release_pilots: bool, snapshot: Vec<DroneSnapshot> },
+    /// Simulate up to (excluding) physics step `until_step`; `release_pilots` starts the
+    /// scripted pilots. (The merged snapshot stays with the coordinator, which runs every
+    /// drone-coupling check; a shard-side consumer such as detect-and-avoid would add it
+    /// here.)
+    Advance { until_step: u64, release_pilots: bool },
     /// End of run: flush and exit.
     Stop,
 }

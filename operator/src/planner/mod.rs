@@ -18,6 +18,7 @@ use sadesim_crds::zones::AltitudeReference;
 use sadesim_crds::{SimulationRun, ValidationErrors, validate};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
+use sim_worker::world::WorldInputs;
 
 pub use fleet_file::{Addressing, credential_env_var, fleet_file, zones_geojson};
 pub use ports::{
@@ -187,35 +188,20 @@ fn home(
     Some(Home { local: frame.to_enu(global), global })
 }
 
-/// Everything that shapes the world assets, hashed: origin, world, zones (baked into the
-/// assets in the local frame) and the areas kept open for homes (parks). Not the fleet
-/// size, the clock or the pilot: changing those reuses the cached world.
+/// Everything that shapes the world assets, hashed: exactly the world generator's inputs
+/// (origin, world parameters, open areas including the fleet's home areas) and the zones
+/// (baked into the assets in the local frame). Not the run seed, the fleet size, the clock
+/// or the pilot: changing those reuses the cached world.
 fn asset_cache_key(run: &SimulationRun) -> String {
     #[derive(Serialize)]
     struct AssetInputs<'a> {
         format: u32,
-        origin: &'a sadesim_crds::run::Origin,
-        world: sadesim_crds::run::World,
+        world: WorldInputs,
         zones: &'a [sadesim_crds::zones::Zone],
-        open_areas: Vec<&'a Area>,
     }
     let spec = &run.spec;
-    let open_areas = spec
-        .fleet
-        .iter()
-        .flat_map(|g| match &g.homes {
-            HomePlacement::Explicit(_) => vec![],
-            HomePlacement::RandomInArea(a) => vec![a],
-            HomePlacement::Areas(list) => list.iter().collect(),
-        })
-        .collect();
-    let inputs = AssetInputs {
-        format: ASSETS_FORMAT_VERSION,
-        origin: &spec.origin,
-        world: spec.world(),
-        zones: &spec.zones,
-        open_areas,
-    };
+    let inputs =
+        AssetInputs { format: ASSETS_FORMAT_VERSION, world: WorldInputs::from_spec(spec, &[]), zones: &spec.zones };
     // serde_json writes struct fields in declaration order and floats with a fixed
     // shortest-round-trip format, so the bytes are canonical for these types.
     let bytes = serde_json::to_vec(&inputs).expect("asset inputs always serialize");

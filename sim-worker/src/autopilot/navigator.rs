@@ -24,8 +24,12 @@ pub struct NavigatorConfig {
     pub altitude_acceptance_m: f64,
     /// Climb speed during takeoff, m/s [MPC_TKO_SPEED].
     pub takeoff_speed_mps: f64,
-    /// Descent speed while landing, m/s [MPC_LAND_SPEED].
+    /// Descent speed for the last metres of a landing, m/s [MPC_LAND_SPEED].
     pub land_speed_mps: f64,
+    /// Descent speed above `land_slow_below_m`, m/s [MPC_Z_V_AUTO_DN].
+    pub descent_speed_mps: f64,
+    /// Height above home below which a landing slows to `land_speed_mps`, m [MPC_LAND_ALT2].
+    pub land_slow_below_m: f64,
     /// Return altitude above home, m [RTL_RETURN_ALT] (capped by the group's ceiling).
     pub rtl_altitude_m: f64,
     /// Offboard setpoints older than this trigger the offboard-loss failsafe, s [COM_OF_LOSS_T].
@@ -43,6 +47,8 @@ impl Default for NavigatorConfig {
             altitude_acceptance_m: 0.8,
             takeoff_speed_mps: 1.5,
             land_speed_mps: 0.7,
+            descent_speed_mps: 1.5,
+            land_slow_below_m: 5.0,
             rtl_altitude_m: 30.0,
             offboard_timeout_s: 1.0,
             battery_low: 0.15,
@@ -118,10 +124,12 @@ enum Phase {
         at: Vector3<f64>,
         until_s: Option<f64>,
     },
-    /// Descend at the land speed from `from`.
+    /// Descend above `from`'s horizontal position; the setpoint height `carrot_z` sinks at
+    /// the descent speed, then at the land speed near the ground.
     Descend {
         from: Vector3<f64>,
-        started_s: f64,
+        carrot_z: f64,
+        last_s: f64,
     },
     Ground,
 }
@@ -333,7 +341,7 @@ impl Navigator {
 
     fn start_land(&mut self, t_s: f64, est: &Estimate) {
         self.set_mode(FlightMode::Land);
-        self.phase = Phase::Descend { from: est.position_enu_m, started_s: t_s };
+        self.phase = Phase::Descend { from: est.position_enu_m, carrot_z: est.position_enu_m.z, last_s: t_s };
     }
 
     /// Starts mission item `current_item`.
@@ -402,16 +410,18 @@ impl Navigator {
                 }
                 self.position(at, Vector3::zeros())
             }
-            Phase::Descend { from, started_s } => {
+            Phase::Descend { from, carrot_z, last_s } => {
                 if status.on_ground {
                     self.disarm();
                     return Setpoint::Idle;
                 }
-                // The setpoint keeps sinking below the vehicle at the land speed so it
-                // reaches the ground and the land detector fires.
-                let z = from.z - self.config.land_speed_mps * (t_s - started_s);
-                let down = Vector3::new(0.0, 0.0, -self.config.land_speed_mps);
-                self.position(Vector3::new(from.x, from.y, z), down)
+                // The setpoint keeps sinking below the vehicle so it reaches the ground and
+                // the land detector fires; slower for the last metres, like PX4.
+                let high = p.z - self.home_enu_m.z > self.config.land_slow_below_m;
+                let speed = if high { self.config.descent_speed_mps } else { self.config.land_speed_mps };
+                let carrot_z = carrot_z.min(p.z + 1.0) - speed * (t_s - last_s);
+                self.phase = Phase::Descend { from, carrot_z, last_s: t_s };
+                self.position(Vector3::new(from.x, from.y, carrot_z), Vector3::new(0.0, 0.0, -speed))
             }
             Phase::Leg { from, to, started_s, speed_mps, hold_s, reached_s } => {
                 let delta = to - from;
@@ -464,7 +474,7 @@ impl Navigator {
                     let to = Vector3::new(self.home_enu_m.x, self.home_enu_m.y, p.z);
                     self.phase = self.leg(t_s, p, to, self.cruise_speed(), 0.0);
                 } else {
-                    self.phase = Phase::Descend { from: p, started_s: t_s };
+                    self.phase = Phase::Descend { from: p, carrot_z: p.z, last_s: t_s };
                 }
             }
             _ => self.item_done(t_s, est),

@@ -120,9 +120,7 @@ impl Shard {
     /// Handles one coordinator message; `None` means the shard is done.
     pub fn handle(&mut self, msg: ToShard) -> Option<FromShard> {
         match msg {
-            ToShard::Advance { until_step, release_pilots, snapshot: _ } => {
-                // The merged snapshot is where drone-drone couplings will read (separation,
-                // detect-and-avoid); the built-in stack has none yet.
+            ToShard::Advance { until_step, release_pilots } => {
                 if release_pilots {
                     self.released = true;
                 }

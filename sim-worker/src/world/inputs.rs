@@ -21,7 +21,7 @@ pub struct OpenArea {
 }
 
 /// Everything [`super::World::generate`] reads. Same inputs, same world.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct WorldInputs {
     /// Geodetic origin of the run's ENU frame; its altitude is the ground at (0, 0).
     pub origin: GeoPoint,
@@ -48,7 +48,9 @@ impl WorldInputs {
             let (east_m, north_m) = frame.to_plane(area.center.latitude_deg, area.center.longitude_deg);
             OpenArea { east_m, north_m, radius_m: area.radius_m }
         };
-        let mut open_areas = Vec::new();
+        let world = spec.world();
+        // Declared open areas first (real parks, plazas, rivers), then the homes' areas.
+        let mut open_areas: Vec<OpenArea> = world.open_areas.iter().map(disc).collect();
         for group in &spec.fleet {
             match &group.homes {
                 HomePlacement::Explicit(homes) => open_areas.extend(homes.iter().map(|home| {
@@ -60,7 +62,7 @@ impl WorldInputs {
             }
         }
         open_areas.extend_from_slice(extra_open);
-        Self { origin, world: spec.world(), open_areas }
+        Self { origin, world, open_areas }
     }
 
     /// The generator's seed: a 64-bit hash of every input that shapes the world (origin,

@@ -1,0 +1,132 @@
+//! The recorder: a [`RunObserver`] writing every evidence file of a run into one folder.
+
+use std::path::{Path, PathBuf};
+
+use sadesim_crds::geo::LocalFrame;
+use sadesim_crds::plan::RunPlan;
+
+use super::{DroneSummary, EventLog, RunSummary, TrajectoryCsv, TrajectoryGeoJson};
+use crate::coordinator::{RunObserver, RunOutcome};
+use crate::events::{Event, EventKind};
+use crate::protocol::DroneSnapshot;
+
+/// Sampling rates of the recorded streams.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RecorderOptions {
+    /// Rows per drone per simulated second in `trajectory.csv`.
+    pub trajectory_hz: f64,
+    /// Points per drone per simulated second in `trajectory.geojson`.
+    pub track_hz: f64,
+}
+
+impl Default for RecorderOptions {
+    fn default() -> Self {
+        Self { trajectory_hz: 10.0, track_hz: 1.0 }
+    }
+}
+
+/// Writes `events.jsonl`, `trajectory.csv` as the run goes, and `trajectory.geojson` and
+/// `summary.json` at [`Recorder::finish`].
+#[derive(Debug)]
+pub struct Recorder {
+    dir: PathBuf,
+    plan: RunPlan,
+    frame: LocalFrame,
+    options: RecorderOptions,
+    events: EventLog,
+    csv: TrajectoryCsv,
+    tracks: TrajectoryGeoJson,
+    next_row_s: f64,
+    next_track_s: f64,
+    summary: RunSummary,
+    last_positions: Vec<Option<[f64; 2]>>,
+    last: Vec<DroneSnapshot>,
+}
+
+impl Recorder {
+    /// Creates the files in `dir` (which must exist).
+    ///
+    /// # Errors
+    /// When a file cannot be created.
+    pub fn create(dir: &Path, plan: &RunPlan, options: RecorderOptions) -> std::io::Result<Self> {
+        let summary = RunSummary {
+            run: plan.run.name.clone(),
+            drones: plan.drones.len() as u32,
+            shards: plan.shards.len() as u32,
+            per_drone: plan
+                .drones
+                .iter()
+                .map(|d| DroneSummary {
+                    index: d.index,
+                    name: d.name.clone(),
+                    group: d.group.clone(),
+                    ..Default::default()
+                })
+                .collect(),
+            ..Default::default()
+        };
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            frame: LocalFrame::new(plan.spec.origin.geo()),
+            options,
+            events: EventLog::create(&dir.join("events.jsonl"))?,
+            csv: TrajectoryCsv::create(&dir.join("trajectory.csv"))?,
+            tracks: TrajectoryGeoJson::new(plan.drones.len()),
+            next_row_s: 0.0,
+            next_track_s: 0.0,
+            summary,
+            last_positions: vec![None; plan.drones.len()],
+            last: Vec::new(),
+            plan: plan.clone(),
+        })
+    }
+
+    /// The latest drone states.
+    pub fn latest(&self) -> &[DroneSnapshot] {
+        &self.last
+    }
+
+    pub fn summary(&self) -> &RunSummary {
+        &self.summary
+    }
+
+    /// Writes the end-of-run files and returns the summary.
+    ///
+    /// # Errors
+    /// I/O errors.
+    pub fn finish(mut self, outcome: &RunOutcome) -> std::io::Result<RunSummary> {
+        self.tracks.write(&self.dir.join("trajectory.geojson"), &self.plan)?;
+        self.summary.end_reason = outcome.reason.clone();
+        self.summary.sim_time_s = outcome.sim_time_s;
+        self.summary.wall_time_s = outcome.wall_time.as_secs_f64();
+        self.summary.real_time_factor = outcome.sim_time_s / outcome.wall_time.as_secs_f64().max(1e-9);
+        self.summary.pilots_released_at_s = outcome.released_at_s;
+        let json = serde_json::to_vec_pretty(&self.summary).map_err(std::io::Error::other)?;
+        std::fs::write(self.dir.join("summary.json"), json)?;
+        Ok(self.summary)
+    }
+}
+
+impl RunObserver for Recorder {
+    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
+        let io = |e: std::io::Error| format!("failed to record: {e}");
+        self.events.write(events).map_err(io)?;
+        // Sample times are multiples of the period: rows line up across runs and rates.
+        let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
+        if time_s + 1e-9 >= self.next_row_s && !final_window {
+            self.csv.write(time_s, drones, &self.plan, &self.frame).map_err(io)?;
+            self.next_row_s += 1.0 / self.options.trajectory_hz;
+        }
+        if time_s + 1e-9 >= self.next_track_s || final_window {
+            self.tracks.add(drones, &self.frame);
+            self.next_track_s += 1.0 / self.options.track_hz;
+        }
+        if !final_window {
+            self.summary.observe(drones, events, &mut self.last_positions);
+        } else {
+            self.summary.events += events.len() as u64;
+        }
+        self.last = drones.to_vec();
+        Ok(())
+    }
+}
