@@ -51,6 +51,8 @@ fn splitmix64(state: &mut u64) -> u64 {
 #[derive(Clone, Debug)]
 pub struct Rng {
     s: [u64; 4],
+    /// The second normal deviate of the last Box-Muller pair.
+    spare_normal: Option<f64>,
 }
 
 impl Rng {
@@ -61,7 +63,10 @@ impl Rng {
         let mut mix = a ^ drone_index.wrapping_mul(0xD1B5_4A32_D192_ED03);
         let b = splitmix64(&mut mix);
         let mut state = b ^ purpose.tag();
-        Self { s: [splitmix64(&mut state), splitmix64(&mut state), splitmix64(&mut state), splitmix64(&mut state)] }
+        Self {
+            s: [splitmix64(&mut state), splitmix64(&mut state), splitmix64(&mut state), splitmix64(&mut state)],
+            spare_normal: None,
+        }
     }
 
     pub fn next_u64(&mut self) -> u64 {
@@ -86,11 +91,18 @@ impl Rng {
         lo + (hi - lo) * self.next_f64()
     }
 
-    /// Standard normal N(0, 1) by Box-Muller (one of the pair; simple and deterministic).
+    /// Standard normal N(0, 1) by Box-Muller: each pair of uniforms gives two independent
+    /// deviates; the second is kept for the next call (sensor noise draws millions).
     pub fn normal(&mut self) -> f64 {
+        if let Some(z) = self.spare_normal.take() {
+            return z;
+        }
         let u1 = 1.0 - self.next_f64(); // (0, 1]: ln is finite
         let u2 = self.next_f64();
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        let r = (-2.0 * u1.ln()).sqrt();
+        let (sin, cos) = (std::f64::consts::TAU * u2).sin_cos();
+        self.spare_normal = Some(r * sin);
+        r * cos
     }
 
     /// Uniform point in a disc of radius `r`, returned as (dx, dy); sqrt keeps the areal

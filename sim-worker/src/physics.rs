@@ -37,8 +37,7 @@ impl ContactWorld {
     /// Builds the world from the city's buildings and one ball of `radius_m` per drone at
     /// its start position.
     pub fn new(buildings: &[Building], drones: &[(Vector3<f64>, f64)]) -> Self {
-        let mut world = PhysicsWorld::default();
-        world.gravity = Vector::ZERO;
+        let mut world = PhysicsWorld { gravity: Vector::ZERO, ..PhysicsWorld::default() };
         for b in buildings {
             let center = Vector3::new(b.center_east_m, b.center_north_m, b.base_up_m + b.height_m / 2.0);
             let collider =
@@ -59,15 +58,17 @@ impl ContactWorld {
         Self { world, drones }
     }
 
-    /// Moves drone `i` (shard-local index) for the next step.
+    /// Moves drone `i` (shard-local index) to its new position.
     pub fn set_position(&mut self, i: usize, p: &Vector3<f64>) {
         let (body, _) = self.drones[i];
-        self.world.bodies[body].set_next_kinematic_translation(v(p));
+        self.world.bodies[body].set_translation(v(p), false);
     }
 
-    /// Steps collision detection; call once per physics step after `set_position`.
+    /// Updates collision detection (broad and narrow phase only: rapier integrates nothing
+    /// here, so its solver and its worker threads never run); call once per physics step
+    /// after `set_position`.
     pub fn step(&mut self) {
-        self.world.step();
+        self.world.detect_collisions(&(), &());
     }
 
     /// Whether drone `i` overlaps any building.

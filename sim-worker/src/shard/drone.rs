@@ -142,7 +142,7 @@ impl DroneSim {
         // Sensors.
         let imu = self.sensors.imu.measure(accel_enu, self.state.rate_body_rps, &self.state.attitude, dt_s);
         let gnss = self.sensors.gnss.update(t_end, self.state.position_enu_m, self.state.velocity_enu_mps, &env.gnss);
-        let baro = (step % BARO_DIVIDER == 0).then(|| {
+        let baro = step.is_multiple_of(BARO_DIVIDER).then(|| {
             let alt_msl = self.origin_alt_msl_m + self.state.position_enu_m.z;
             self.sensors.barometer.measure(alt_msl, dt_s * BARO_DIVIDER as f64)
         });
