@@ -64,6 +64,10 @@ pub enum Command {
         /// No progress bar.
         #[arg(long, short)]
         quiet: bool,
+        /// Run the coordinator and each shard as separate `sim-worker` processes over TCP
+        /// (as on Kubernetes) instead of threads.
+        #[arg(long)]
+        processes: bool,
     },
 }
 
@@ -109,7 +113,10 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
     match cli.command {
         Command::Validate { files } => validate_files(&files, out),
         Command::Plan { file, json, fleet, namespace } => plan_file(&file, json, fleet, namespace, out),
-        Command::Run { file, out: out_root, quiet } => run_file(&file, out_root, !quiet, out),
+        Command::Run { file, out: out_root, quiet, processes } => {
+            let options = crate::runner::RunOptions { out_root, progress: !quiet, processes, worker: None };
+            run_file(&file, options, out)
+        }
         Command::Crd => {
             out.write_all(sadesim_crds::crd::crd_yaml().as_bytes())?;
             Ok(Outcome::Success)
@@ -223,12 +230,12 @@ fn report_problems(out: &mut dyn Write, path: &str, errors: &sadesim_crds::Valid
     Ok(())
 }
 
-fn run_file(file: &Path, out_root: Option<PathBuf>, progress: bool, out: &mut dyn Write) -> Result<Outcome, CliError> {
+fn run_file(file: &Path, mut options: crate::runner::RunOptions, out: &mut dyn Write) -> Result<Outcome, CliError> {
     use std::io::IsTerminal;
     use std::sync::Arc;
     use std::sync::atomic::{AtomicBool, Ordering};
 
-    use crate::runner::{RunError, RunOptions, run_local};
+    use crate::runner::{RunError, run_local};
 
     let path = file.display().to_string();
     let Some(run) = load_one(file, out)? else { return Ok(Outcome::Problems) };
@@ -237,7 +244,7 @@ fn run_file(file: &Path, out_root: Option<PathBuf>, progress: bool, out: &mut dy
     // Ctrl-C asks the coordinator to stop after the current window; the recorder then
     // closes its files. (Fails only if a handler is already installed: keep that one.)
     let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-    let options = RunOptions { out_root, progress: progress && std::io::stderr().is_terminal() };
+    options.progress &= std::io::stderr().is_terminal();
     match run_local(&run, &options, stop) {
         Ok(report) => {
             let s = &report.summary;

@@ -18,6 +18,7 @@ pub mod physics;
 pub mod pilot;
 pub mod protocol;
 pub mod record;
+pub mod roles;
 pub mod sensors;
 pub mod shard;
 pub mod transport;

@@ -45,7 +45,6 @@ fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
         let msg = shard.handle(sim_worker::protocol::ToShard::Advance {
             until_step: 500 + window * 100,
             release_pilots: true,
-            snapshot: vec![],
         });
         let Some(sim_worker::protocol::FromShard::Advanced { drones, events: e, .. }) = msg else { panic!() };
         events.extend(e);

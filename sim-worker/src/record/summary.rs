@@ -1,12 +1,12 @@
 //! `summary.json`: per drone and per run totals, built from the windows as they pass.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::events::{Event, EventKind};
 use crate::protocol::DroneSnapshot;
 
 /// Per-drone outcome.
-#[derive(Serialize, Clone, Debug, Default, PartialEq)]
+#[derive(Serialize, Deserialize, Clone, Debug, Default, PartialEq)]
 #[serde(rename_all = "camelCase")]
 pub struct DroneSummary {
     pub index: u32,
@@ -24,7 +24,7 @@ pub struct DroneSummary {
 }
 
 /// The whole run.
-#[derive(Serialize, Clone, Debug, Default, PartialEq)]
+#[derive(Serialize, Deserialize, Clone, Debug, Default, PartialEq)]
 #[serde(rename_all = "camelCase")]
 pub struct RunSummary {
     pub run: String,

@@ -151,7 +151,8 @@ impl Shard {
                 self.contacts.set_position(i, &drone.position_enu_m());
             }
             self.contacts.step();
-            let t_end = t + self.dt_s;
+            // Times are step counts times dt, never sums, so they print the same everywhere.
+            let t_end = (self.step + 1) as f64 * self.dt_s;
             for (i, drone) in self.drones.iter_mut().enumerate() {
                 if !drone.is_crashed() && self.contacts.touches_building(i) {
                     let speed = drone.speed_mps();

@@ -19,6 +19,8 @@ use sim_worker::world::{World, WorldInputs};
 
 use crate::planner::{self, PlanError};
 
+mod workers;
+
 /// How to run.
 #[derive(Clone, Debug, Default)]
 pub struct RunOptions {
@@ -27,6 +29,12 @@ pub struct RunOptions {
     pub out_root: Option<PathBuf>,
     /// Draw a progress bar (only on a terminal).
     pub progress: bool,
+    /// Run the coordinator and every shard as `sim-worker` processes talking TCP, instead
+    /// of threads in this process.
+    pub processes: bool,
+    /// The `sim-worker` binary for `processes` (default: `$SADESIM_WORKER`, else next to
+    /// this executable).
+    pub worker: Option<PathBuf>,
 }
 
 /// Why a run did not happen or did not finish.
@@ -43,6 +51,9 @@ pub enum RunError {
     Shard { shard: u32, source: sim_worker::shard::ShardError },
     #[error(transparent)]
     Coordinator(#[from] CoordinatorError),
+    /// A `sim-worker` process could not be started or failed.
+    #[error("{0}")]
+    Worker(String),
 }
 
 /// What a finished run reports.
@@ -153,37 +164,44 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
 
     let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
     write_json(&out_dir, "world.json", world.stats())?;
+    let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
+    bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));
+    bar.enable_steady_tick(Duration::from_millis(200));
+    let summary = if options.processes {
+        workers::run(&plan, options.worker.as_deref(), &out_dir, &bar, &stop)
+    } else {
+        run_threads(&plan, world, &out_dir, &bar, &stop)
+    };
+    bar.finish_and_clear();
+    Ok(RunReport { out_dir, summary: summary? })
+}
 
+/// Every role in this process: one thread per shard, the coordinator on this thread.
+fn run_threads(
+    plan: &RunPlan,
+    world: Arc<World>,
+    out_dir: &Path,
+    bar: &ProgressBar,
+    stop: &AtomicBool,
+) -> Result<RunSummary, RunError> {
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
     for shard in &plan.shards {
-        let (link, handle) = transport::spawn_thread(&plan, shard.index, world.clone())
+        let (link, handle) = transport::spawn_thread(plan, shard.index, world.clone())
             .map_err(|source| RunError::Shard { shard: shard.index, source })?;
         links.push(Box::new(link));
         threads.push(handle);
     }
-
-    let mut recorder = Recorder::create(&out_dir, &plan, RecorderOptions::default())
-        .map_err(|source| RunError::Output { path: out_dir.display().to_string(), source })?;
-    let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
-    bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));
-    bar.enable_steady_tick(Duration::from_millis(200));
-    let mut progress = Progress {
-        recorder: &mut recorder,
-        bar: bar.clone(),
-        duration_s: plan.duration_s,
-        started: std::time::Instant::now(),
-    };
-    let outcome = coordinator::run(&plan, &mut links, &mut progress, &stop);
-    bar.finish_and_clear();
+    let output_err = |source| RunError::Output { path: out_dir.display().to_string(), source };
+    let mut recorder = Recorder::create(out_dir, plan, RecorderOptions::default()).map_err(output_err)?;
+    let mut progress =
+        Progress { recorder: &mut recorder, bar: bar.clone(), duration_s: plan.duration_s, started: std::time::Instant::now() };
+    let outcome = coordinator::run(plan, &mut links, &mut progress, stop);
     drop(links);
     for t in threads {
         let _ = t.join();
     }
-    let outcome = outcome?;
-    let summary =
-        recorder.finish(&outcome).map_err(|source| RunError::Output { path: out_dir.display().to_string(), source })?;
-    Ok(RunReport { out_dir, summary })
+    recorder.finish(&outcome?).map_err(output_err)
 }
 
 #[cfg(test)]

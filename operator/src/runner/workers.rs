@@ -1,0 +1,149 @@
+//! `sadesim run --processes`: the coordinator and each shard as `sim-worker` processes,
+//! talking the shard protocol over TCP on 127.0.0.1 — the same processes and messages as
+//! the pods of a Kubernetes run.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use indicatif::ProgressBar;
+use sadesim_crds::plan::RunPlan;
+use sim_worker::record::RunSummary;
+use sim_worker::roles::coordinator::Report;
+
+use super::RunError;
+
+/// The `sim-worker` binary: the option, `$SADESIM_WORKER`, else next to this executable.
+fn worker_binary(configured: Option<&Path>) -> Result<PathBuf, RunError> {
+    if let Some(p) = configured {
+        return Ok(p.to_path_buf());
+    }
+    if let Some(p) = std::env::var_os("SADESIM_WORKER") {
+        return Ok(PathBuf::from(p));
+    }
+    let exe = std::env::current_exe().map_err(|e| RunError::Worker(format!("cannot locate sadesim: {e}")))?;
+    let worker = exe.with_file_name("sim-worker");
+    if worker.exists() {
+        Ok(worker)
+    } else {
+        Err(RunError::Worker(format!(
+            "--processes needs the sim-worker binary next to sadesim ({}); build it with `cargo build --release -p sim-worker` or set SADESIM_WORKER",
+            worker.display()
+        )))
+    }
+}
+
+fn log_file(dir: &Path, name: &str) -> Result<std::fs::File, RunError> {
+    let path = dir.join(name);
+    std::fs::File::create(&path).map_err(|source| RunError::Output { path: path.display().to_string(), source })
+}
+
+fn spawn(cmd: &mut Command, what: &str) -> Result<Child, RunError> {
+    cmd.spawn().map_err(|e| RunError::Worker(format!("failed to start the {what}: {e}")))
+}
+
+/// Asks a process to stop like Ctrl-C would (SIGINT through `kill`, no unsafe code).
+fn interrupt(child: &Child) {
+    let _ = Command::new("kill").args(["-INT", &child.id().to_string()]).status();
+}
+
+/// Runs the plan written at `out_dir/plan.json` with worker processes.
+pub(super) fn run(
+    plan: &RunPlan,
+    worker: Option<&Path>,
+    out_dir: &Path,
+    bar: &ProgressBar,
+    stop: &AtomicBool,
+) -> Result<RunSummary, RunError> {
+    let worker = worker_binary(worker)?;
+    let plan_path = out_dir.join("plan.json");
+    let mut coordinator = spawn(
+        Command::new(&worker)
+            .arg("coordinator")
+            .arg("--plan")
+            .arg(&plan_path)
+            .args(["--listen", "127.0.0.1:0", "--out"])
+            .arg(out_dir)
+            .stdout(Stdio::piped())
+            .stderr(log_file(out_dir, "coordinator.log")?),
+        "coordinator",
+    )?;
+    let stdout = coordinator.stdout.take().expect("stdout is piped");
+    let mut lines = BufReader::new(stdout).lines();
+    let address = match lines.next().and_then(Result::ok).and_then(|l| serde_json::from_str::<Report>(&l).ok()) {
+        Some(Report::Listening { address }) => address,
+        _ => {
+            let _ = coordinator.kill();
+            return Err(RunError::Worker(format!(
+                "the coordinator did not start; see {}",
+                out_dir.join("coordinator.log").display()
+            )));
+        }
+    };
+    let mut shards = Vec::new();
+    for shard in &plan.shards {
+        shards.push(spawn(
+            Command::new(&worker)
+                .arg("shard")
+                .arg("--plan")
+                .arg(&plan_path)
+                .args(["--shard", &shard.index.to_string(), "--coordinator", &address])
+                .stdout(Stdio::null())
+                .stderr(log_file(out_dir, &format!("shard-{}.log", shard.index))?),
+            "shard",
+        )?);
+    }
+    // Progress lines arrive on a reader thread so Ctrl-C is noticed between them.
+    let (tx, rx) = std::sync::mpsc::channel::<Report>();
+    let reader = std::thread::spawn(move || {
+        for line in lines.map_while(Result::ok) {
+            if let Ok(r) = serde_json::from_str::<Report>(&line)
+                && tx.send(r).is_err()
+            {
+                break;
+            }
+        }
+    });
+    let started = Instant::now();
+    let mut summary = None;
+    let mut interrupted = false;
+    loop {
+        if stop.load(Ordering::Relaxed) && !interrupted {
+            interrupted = true;
+            interrupt(&coordinator);
+        }
+        match rx.recv_timeout(Duration::from_millis(100)) {
+            Ok(Report::Progress { sim_time_s, airborne, on_ground, crashed }) => {
+                let rtf = sim_time_s / started.elapsed().as_secs_f64().max(1e-9);
+                bar.set_position((sim_time_s / plan.duration_s * 1000.0) as u64);
+                bar.set_message(format!(
+                    "sim {sim_time_s:7.1}/{:.0} s  RTF {rtf:5.1}  airborne {airborne} on ground {on_ground} crashed {crashed}",
+                    plan.duration_s
+                ));
+            }
+            Ok(Report::Finished { summary: s }) => summary = Some(s),
+            Ok(Report::Listening { .. }) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+        }
+    }
+    let _ = reader.join();
+    let status = coordinator.wait().map_err(|e| RunError::Worker(format!("coordinator: {e}")))?;
+    // Shards exit when the coordinator says Stop or its socket closes; give them a moment.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    for mut shard in shards {
+        while shard.try_wait().ok().flatten().is_none() && Instant::now() < deadline {
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = shard.kill();
+        let _ = shard.wait();
+    }
+    summary.ok_or_else(|| {
+        RunError::Worker(format!(
+            "the coordinator exited ({status}) without finishing the run; see {}",
+            out_dir.join("coordinator.log").display()
+        ))
+    })
+}

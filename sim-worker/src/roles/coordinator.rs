@@ -1,0 +1,117 @@
+//! `sim-worker coordinator`: accepts one TCP connection per shard, runs the lockstep loop
+//! with the recorder, and reports progress as JSON lines on stdout.
+
+use std::io::Write;
+use std::net::{TcpListener, ToSocketAddrs};
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+use sadesim_crds::plan::RunPlan;
+use serde::{Deserialize, Serialize};
+
+use super::RoleError;
+use crate::coordinator::{self, RunObserver, ShardLink};
+use crate::events::Event;
+use crate::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION};
+use crate::record::{Recorder, RecorderOptions, RunSummary};
+use crate::transport::TcpLink;
+
+/// One line of the coordinator's stdout.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
+pub enum Report {
+    /// Bound and waiting for shards.
+    Listening { address: String },
+    /// Progress, about once per simulated second.
+    Progress { sim_time_s: f64, airborne: u32, on_ground: u32, crashed: u32 },
+    /// The run is over and its files are written.
+    Finished { summary: RunSummary },
+}
+
+/// Writes a report line to stdout (ignored when nobody reads it).
+pub fn report(r: &Report) {
+    let mut out = std::io::stdout().lock();
+    let _ = serde_json::to_writer(&mut out, r);
+    let _ = out.write_all(b"\n");
+    let _ = out.flush();
+}
+
+/// Forwards windows to the recorder and reports progress.
+struct Reporting<'a> {
+    recorder: &'a mut Recorder,
+    next_report_s: f64,
+}
+
+impl RunObserver for Reporting<'_> {
+    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
+        self.recorder.on_window(time_s, drones, events)?;
+        if time_s >= self.next_report_s {
+            self.next_report_s = time_s.floor() + 1.0;
+            let airborne = drones.iter().filter(|d| !d.on_ground && !d.crashed).count() as u32;
+            let crashed = drones.iter().filter(|d| d.crashed).count() as u32;
+            report(&Report::Progress {
+                sim_time_s: time_s,
+                airborne,
+                on_ground: drones.len() as u32 - airborne - crashed,
+                crashed,
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Accepts the plan's shards on `listen`, runs the run, records into `out_dir`.
+///
+/// # Errors
+/// Network, protocol, shard and recording failures.
+pub fn run(plan: &RunPlan, listen: impl ToSocketAddrs, out_dir: &Path, stop: &AtomicBool) -> Result<RunSummary, RoleError> {
+    let listener = TcpListener::bind(listen)?;
+    report(&Report::Listening { address: listener.local_addr()?.to_string() });
+    let mut links: Vec<Option<Box<dyn ShardLink>>> = (0..plan.shards.len()).map(|_| None).collect();
+    for _ in 0..plan.shards.len() {
+        let (stream, _) = listener.accept()?;
+        let mut link = TcpLink::new(stream)?;
+        // The Hello tells which shard connected; the coordinator reads it again below, so
+        // keep it for the loop by re-queueing through a small wrapper.
+        let hello = link.recv().map_err(|e| RoleError::Protocol(format!("shard greeting: {e}")))?;
+        let FromShard::Hello { shard, version, drones } = hello.clone() else {
+            return Err(RoleError::Protocol(format!("expected a Hello, got {hello:?}")));
+        };
+        if version != PROTOCOL_VERSION {
+            return Err(RoleError::Protocol(format!("shard {shard} speaks protocol {version}, expected {PROTOCOL_VERSION}")));
+        }
+        let slot = links
+            .get_mut(shard as usize)
+            .ok_or_else(|| RoleError::Protocol(format!("shard {shard} is not in the plan")))?;
+        if slot.is_some() {
+            return Err(RoleError::Protocol(format!("shard {shard} connected twice")));
+        }
+        *slot = Some(Box::new(Greeted { hello: Some(FromShard::Hello { shard, version, drones }), link }));
+    }
+    let mut links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
+    let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
+    let mut recorder = Recorder::create(out_dir, plan, RecorderOptions::default()).map_err(record_err)?;
+    let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0 };
+    let outcome = coordinator::run(plan, &mut links, &mut observer, stop)?;
+    let summary = recorder.finish(&outcome).map_err(record_err)?;
+    report(&Report::Finished { summary: summary.clone() });
+    Ok(summary)
+}
+
+/// A link whose first message (the Hello, already read to identify the shard) is replayed.
+struct Greeted {
+    hello: Option<FromShard>,
+    link: TcpLink,
+}
+
+impl ShardLink for Greeted {
+    fn send(&mut self, msg: &crate::protocol::ToShard) -> Result<(), coordinator::LinkError> {
+        self.link.send(msg)
+    }
+    fn recv(&mut self) -> Result<FromShard, coordinator::LinkError> {
+        match self.hello.take() {
+            Some(h) => Ok(h),
+            None => self.link.recv(),
+        }
+    }
+}

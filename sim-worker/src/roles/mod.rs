@@ -1,0 +1,44 @@
+//! Runtime roles as process entry points (`sim-worker <role>`): the same code the local
+//! runner uses in-process, behind TCP.
+
+pub mod coordinator;
+pub mod shard;
+
+use std::path::Path;
+
+use sadesim_crds::plan::{PLAN_FORMAT_VERSION, RunPlan};
+
+/// Why a role could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RoleError {
+    #[error("failed to read the plan {path}: {source}")]
+    ReadPlan { path: String, source: std::io::Error },
+    #[error("the plan {path} is not a RunPlan: {source}")]
+    ParsePlan { path: String, source: serde_json::Error },
+    #[error("the plan {path} has format version {found}; this sim-worker reads version {PLAN_FORMAT_VERSION}")]
+    PlanVersion { path: String, found: u32 },
+    #[error("network: {0}")]
+    Io(#[from] std::io::Error),
+    #[error(transparent)]
+    Shard(#[from] crate::shard::ShardError),
+    #[error(transparent)]
+    Coordinator(#[from] crate::coordinator::CoordinatorError),
+    #[error("failed to record into {path}: {source}")]
+    Record { path: String, source: std::io::Error },
+    #[error("{0}")]
+    Protocol(String),
+}
+
+/// Reads a RunPlan written by the planner (`plan.json`).
+///
+/// # Errors
+/// Unreadable file, not a plan, or another plan format version.
+pub fn read_plan(path: &Path) -> Result<RunPlan, RoleError> {
+    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|source| RoleError::ReadPlan { path: name.clone(), source })?;
+    let plan: RunPlan = serde_json::from_slice(&bytes).map_err(|source| RoleError::ParsePlan { path: name.clone(), source })?;
+    if plan.format_version != PLAN_FORMAT_VERSION {
+        return Err(RoleError::PlanVersion { path: name, found: plan.format_version });
+    }
+    Ok(plan)
+}
