@@ -162,3 +162,52 @@ fn help_explains_the_commands() {
         assert!(help.contains(cmd), "{help}");
     }
 }
+
+#[test]
+fn ctrl_c_ends_a_run_cleanly_and_keeps_its_output() {
+    let dir = std::env::temp_dir().join(format!("sadesim-ctrlc-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    // The quickstart at real time: long enough to be interrupted.
+    let scenario = std::fs::read_to_string(repo().join("examples/quickstart.yaml"))
+        .unwrap()
+        .replace("clock: {mode: asFastAsPossible}", "clock: {mode: realtime}");
+    assert!(scenario.contains("mode: realtime"));
+    let file = dir.join("realtime.yaml");
+    std::fs::write(&file, scenario).unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_sadesim"))
+        .args(["run", file.to_str().unwrap(), "--quiet", "--out", dir.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_secs(3));
+    let status = Command::new("kill").args(["-INT", &child.id().to_string()]).status().unwrap();
+    assert!(status.success());
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130), "{}", text(&out));
+    assert!(text(&out).contains("ended (interrupted)"), "{}", text(&out));
+    let run_dir = std::fs::read_dir(dir.join("quickstart")).unwrap().next().unwrap().unwrap().path();
+    let events = std::fs::read_to_string(run_dir.join("events.jsonl")).unwrap();
+    assert!(events.lines().last().unwrap().contains(r#""event":"runEnded","reason":"interrupted""#), "{events}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run_dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["endReason"], "interrupted");
+    let sim_time = summary["simTimeS"].as_f64().unwrap();
+    assert!((1.0..10.0).contains(&sim_time), "real time: about 3 s simulated, got {sim_time}");
+    let rows = std::fs::read_to_string(run_dir.join("trajectory.csv")).unwrap().lines().count();
+    assert!(rows > 40, "trajectory rows kept: {rows}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn run_refuses_what_is_not_built_yet_with_the_field() {
+    let out =
+        sadesim(&["run", "examples/chicago-museum.yaml", "--quiet", "--out", std::env::temp_dir().to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2), "{}", text(&out));
+    assert!(
+        text(&out).contains("not supported yet: spec.fleet: groups public-safety, journalists, recreational"),
+        "{}",
+        text(&out)
+    );
+}

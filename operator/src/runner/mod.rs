@@ -194,8 +194,12 @@ fn run_threads(
     }
     let output_err = |source| RunError::Output { path: out_dir.display().to_string(), source };
     let mut recorder = Recorder::create(out_dir, plan, RecorderOptions::default()).map_err(output_err)?;
-    let mut progress =
-        Progress { recorder: &mut recorder, bar: bar.clone(), duration_s: plan.duration_s, started: std::time::Instant::now() };
+    let mut progress = Progress {
+        recorder: &mut recorder,
+        bar: bar.clone(),
+        duration_s: plan.duration_s,
+        started: std::time::Instant::now(),
+    };
     let outcome = coordinator::run(plan, &mut links, &mut progress, stop);
     drop(links);
     for t in threads {

@@ -64,7 +64,12 @@ impl RunObserver for Reporting<'_> {
 ///
 /// # Errors
 /// Network, protocol, shard and recording failures.
-pub fn run(plan: &RunPlan, listen: impl ToSocketAddrs, out_dir: &Path, stop: &AtomicBool) -> Result<RunSummary, RoleError> {
+pub fn run(
+    plan: &RunPlan,
+    listen: impl ToSocketAddrs,
+    out_dir: &Path,
+    stop: &AtomicBool,
+) -> Result<RunSummary, RoleError> {
     let listener = TcpListener::bind(listen)?;
     report(&Report::Listening { address: listener.local_addr()?.to_string() });
     let mut links: Vec<Option<Box<dyn ShardLink>>> = (0..plan.shards.len()).map(|_| None).collect();
@@ -78,7 +83,9 @@ pub fn run(plan: &RunPlan, listen: impl ToSocketAddrs, out_dir: &Path, stop: &At
             return Err(RoleError::Protocol(format!("expected a Hello, got {hello:?}")));
         };
         if version != PROTOCOL_VERSION {
-            return Err(RoleError::Protocol(format!("shard {shard} speaks protocol {version}, expected {PROTOCOL_VERSION}")));
+            return Err(RoleError::Protocol(format!(
+                "shard {shard} speaks protocol {version}, expected {PROTOCOL_VERSION}"
+            )));
         }
         let slot = links
             .get_mut(shard as usize)

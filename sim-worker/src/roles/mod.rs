@@ -36,7 +36,8 @@ pub enum RoleError {
 pub fn read_plan(path: &Path) -> Result<RunPlan, RoleError> {
     let name = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|source| RoleError::ReadPlan { path: name.clone(), source })?;
-    let plan: RunPlan = serde_json::from_slice(&bytes).map_err(|source| RoleError::ParsePlan { path: name.clone(), source })?;
+    let plan: RunPlan =
+        serde_json::from_slice(&bytes).map_err(|source| RoleError::ParsePlan { path: name.clone(), source })?;
     if plan.format_version != PLAN_FORMAT_VERSION {
         return Err(RoleError::PlanVersion { path: name, found: plan.format_version });
     }

@@ -1,0 +1,180 @@
+//! The local runner end to end: determinism, independence from sharding, threads vs
+//! processes, crashes as events, and what it refuses.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use sadesim::runner::{RunError, RunOptions, run_local};
+use sadesim_crds::SimulationRun;
+use sadesim_crds::fixtures::RunBuilder;
+use sadesim_crds::fleet::{Area, HomePlacement, Mission, MissionItem};
+use sadesim_crds::geo::{Enu, LocalFrame};
+use sadesim_crds::run::{Clock, ClockMode};
+use sadesim_integration_tests::{plan, world};
+
+fn out_root(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("sadesim-run-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// A short as-fast-as-possible run: `n` drones take off, fly 40 m north, land.
+fn scenario(n: u32, per_shard: u32) -> SimulationRun {
+    RunBuilder::test()
+        .with_drones(n)
+        .with_drones_per_shard(per_shard)
+        .with(|r| {
+            r.spec.duration = "40s".parse().unwrap();
+            r.spec.clock = Some(Clock { mode: ClockMode::AsFastAsPossible, factor: None });
+            // Small home disc; the world keeps it (and so the short flights) free of buildings.
+            let homes = r.spec.fleet[0].homes.clone();
+            if let HomePlacement::RandomInArea(a) = homes {
+                r.spec.fleet[0].homes = HomePlacement::RandomInArea(Area { radius_m: 60.0, ..a });
+            }
+            let frame = LocalFrame::new(r.spec.origin.geo());
+            let HomePlacement::RandomInArea(a) = &r.spec.fleet[0].homes else { unreachable!() };
+            let c =
+                frame.to_enu(sadesim_crds::geo::GeoPoint::new(a.center.latitude_deg, a.center.longitude_deg, 181.0));
+            let wp = frame.to_geodetic(Enu::new(c.east_m, c.north_m + 40.0, 0.0));
+            r.spec.fleet[0].mission = Some(Mission {
+                items: vec![
+                    MissionItem::Takeoff { altitude_agl_m: 10.0 },
+                    MissionItem::Waypoint {
+                        latitude_deg: wp.latitude_deg,
+                        longitude_deg: wp.longitude_deg,
+                        altitude_agl_m: 12.0,
+                        hold_s: None,
+                    },
+                    MissionItem::Land {},
+                ],
+                speed_mps: Some(6.0),
+            });
+        })
+        .build()
+}
+
+fn run(run: &SimulationRun, root: &Path, processes: bool) -> Result<sadesim::runner::RunReport, RunError> {
+    let worker = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/debug/sim-worker");
+    let options = RunOptions { out_root: Some(root.to_path_buf()), progress: false, processes, worker: Some(worker) };
+    run_local(run, &options, Arc::new(AtomicBool::new(false)))
+}
+
+fn bytes(dir: &Path, file: &str) -> String {
+    std::fs::read_to_string(dir.join(file)).unwrap_or_else(|e| panic!("{}: {e}", dir.join(file).display()))
+}
+
+/// Events without the `runStarted` line, which names the shard count.
+fn drone_events(dir: &Path) -> String {
+    bytes(dir, "events.jsonl").lines().filter(|l| !l.contains("runStarted")).collect::<Vec<_>>().join("\n")
+}
+
+/// Equality without dumping megabytes on failure.
+fn assert_same(a: &str, b: &str, what: &str) {
+    if a != b {
+        let line = a.lines().zip(b.lines()).position(|(x, y)| x != y).unwrap_or(0);
+        panic!("{what} differ at line {}: {:?} vs {:?}", line + 1, a.lines().nth(line), b.lines().nth(line));
+    }
+}
+
+#[test]
+fn same_scenario_and_seed_give_identical_recordings() {
+    let root = out_root("determinism");
+    let a = run(&scenario(3, 100), &root.join("a"), false).unwrap();
+    let b = run(&scenario(3, 100), &root.join("b"), false).unwrap();
+    assert_eq!(a.summary.end_reason, "duration");
+    for file in ["trajectory.csv", "events.jsonl", "trajectory.geojson", "plan.json"] {
+        assert_same(&bytes(&a.out_dir, file), &bytes(&b.out_dir, file), file);
+    }
+    // The run did something: every drone took off and landed again.
+    assert!(a.summary.per_drone.iter().all(|d| d.took_off && d.landed && !d.crashed), "{:?}", a.summary.per_drone);
+    // A different seed changes the noise, hence the trajectory.
+    let c = run(&scenario(3, 100).clone_with_seed(99), &root.join("c"), false).unwrap();
+    assert_ne!(bytes(&a.out_dir, "trajectory.csv"), bytes(&c.out_dir, "trajectory.csv"));
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+trait WithSeed {
+    fn clone_with_seed(&self, seed: u64) -> SimulationRun;
+}
+impl WithSeed for SimulationRun {
+    fn clone_with_seed(&self, seed: u64) -> SimulationRun {
+        let mut r = self.clone();
+        r.spec.seed = Some(seed);
+        r
+    }
+}
+
+#[test]
+fn trajectories_do_not_depend_on_sharding_or_on_processes() {
+    let root = out_root("sharding");
+    let one_shard = run(&scenario(4, 4), &root.join("one"), false).unwrap();
+    let four_shards = run(&scenario(4, 1), &root.join("four"), false).unwrap();
+    assert_eq!(one_shard.summary.shards, 1);
+    assert_eq!(four_shards.summary.shards, 4);
+    assert_same(
+        &bytes(&one_shard.out_dir, "trajectory.csv"),
+        &bytes(&four_shards.out_dir, "trajectory.csv"),
+        "trajectories",
+    );
+    assert_same(&drone_events(&one_shard.out_dir), &drone_events(&four_shards.out_dir), "events");
+    // The same four shards as sim-worker processes over TCP.
+    let processes = run(&scenario(4, 1), &root.join("processes"), true).unwrap();
+    assert_same(
+        &bytes(&four_shards.out_dir, "trajectory.csv"),
+        &bytes(&processes.out_dir, "trajectory.csv"),
+        "trajectories",
+    );
+    assert_same(&bytes(&four_shards.out_dir, "events.jsonl"), &bytes(&processes.out_dir, "events.jsonl"), "events");
+    assert!(processes.out_dir.join("shard-3.log").exists());
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
+fn flying_into_a_building_is_a_crash_event_and_the_run_goes_on() {
+    let root = out_root("crash");
+    let mut r = scenario(2, 100);
+    // Aim drone 0's mission straight through the tallest building within 600 m of home.
+    let p = plan(&r);
+    let w = world(&p);
+    let home = p.drones[0].home.local;
+    let tower = w
+        .buildings()
+        .iter()
+        .filter(|b| (b.center_east_m - home.east_m).hypot(b.center_north_m - home.north_m) < 600.0)
+        .max_by(|a, b| a.height_m.total_cmp(&b.height_m))
+        .expect("downtown has buildings");
+    assert!(tower.height_m > 20.0);
+    let frame = LocalFrame::new(r.spec.origin.geo());
+    let target = frame.to_geodetic(Enu::new(tower.center_east_m, tower.center_north_m, 0.0));
+    r.spec.duration = "3m".parse().unwrap();
+    r.spec.fleet[0].count = 2;
+    r.spec.fleet[0].altitude.max_agl_m = 200.0;
+    r.spec.fleet[0].mission = Some(Mission {
+        items: vec![
+            MissionItem::Takeoff { altitude_agl_m: 15.0 },
+            MissionItem::Waypoint {
+                latitude_deg: target.latitude_deg,
+                longitude_deg: target.longitude_deg,
+                altitude_agl_m: 15.0,
+                hold_s: None,
+            },
+            MissionItem::Land {},
+        ],
+        speed_mps: Some(10.0),
+    });
+    let report = run(&r, &root, false).unwrap();
+    let events = bytes(&report.out_dir, "events.jsonl");
+    assert!(events.contains(r#""event":"crashed","with":"building""#), "{events}");
+    assert_eq!(report.summary.crashed, 2, "both drones flew the same route into the tower");
+    assert_eq!(report.summary.end_reason, "duration");
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
+fn external_pilots_are_refused_as_not_supported_yet() {
+    let r = RunBuilder::test().with_pilot(&["python3", "pilot.py"]).build();
+    let err = run(&r, &out_root("unsupported"), false).unwrap_err();
+    assert!(matches!(err, RunError::NotSupported(_)), "{err}");
+    assert!(err.to_string().contains("spec.fleet: groups alpha are flown by an external MAVLink pilot"), "{err}");
+}
