@@ -20,7 +20,7 @@ pub const AIRFRAME_PRESETS: &[AirframePreset] = &[
     },
     AirframePreset {
         name: "mini250",
-        description: "sub-250 g folding quadrotor (DJI Mini class), 0.249 kg, 0.25 m diagonal",
+        description: "sub-250 g folding quadrotor (DJI Mini 2 class), 0.249 kg, 0.213 m motor diagonal",
     },
 ];
 

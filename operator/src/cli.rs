@@ -50,6 +50,20 @@ pub enum Command {
     },
     /// Print the SimulationRun CustomResourceDefinition (YAML), for `kubectl apply -f -`.
     Crd,
+    /// Measure simulation throughput (drone-steps per second) on a synthetic scenario:
+    /// x500s flying random waypoints over Chicago at 1 kHz with wind, GNSS noise and
+    /// recording, as fast as possible. Results go in docs/performance.md.
+    Bench {
+        /// Drones in the fleet.
+        #[arg(long, default_value_t = 32)]
+        drones: u32,
+        /// Simulated seconds.
+        #[arg(long, default_value_t = 60)]
+        seconds: u32,
+        /// Drones per shard (one thread per shard).
+        #[arg(long, default_value_t = 100)]
+        drones_per_shard: u32,
+    },
     /// Run a scenario locally: world, shards, coordinator and recorder in this process.
     ///
     /// Writes plan.json, world.json, events.jsonl, trajectory.csv, trajectory.geojson and
@@ -116,6 +130,24 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
         Command::Run { file, out: out_root, quiet, processes } => {
             let options = crate::runner::RunOptions { out_root, progress: !quiet, processes, worker: None };
             run_file(&file, options, out)
+        }
+        Command::Bench { drones, seconds, drones_per_shard } => {
+            let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
+            let result = crate::bench::run(drones, seconds, drones_per_shard, root.clone())
+                .map_err(|source| CliError::Run { path: "bench".into(), source })?;
+            let _ = std::fs::remove_dir_all(&root);
+            writeln!(
+                out,
+                "bench: {} drones in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
+                result.drones,
+                count(result.shards as usize, "shard"),
+                result.sim_time_s,
+                result.wall_time_s,
+                result.drone_steps_per_s,
+                result.sim_time_s / result.wall_time_s,
+                std::thread::available_parallelism().map_or(1, usize::from)
+            )?;
+            Ok(Outcome::Success)
         }
         Command::Crd => {
             out.write_all(sadesim_crds::crd::crd_yaml().as_bytes())?;

@@ -1,16 +1,16 @@
 //! Resource estimate per role instance (Kubernetes requests; `sadesim plan` shows them).
 //!
 //! Physics cost scales with drone-steps per wall-clock second: drones x physicsRateHz x
-//! real-time factor. We budget 200 000 drone-steps per core-second for the full per-drone
-//! stack (controller, sensors, environment, contacts, recording): a conservative figure
-//! until the engine benchmark (docs/performance.md) replaces it.
+//! real-time factor. `sadesim bench` measured ~360 000 drone-steps per core-second for the
+//! full per-drone stack (docs/performance.md); we request for 250 000 to leave headroom for
+//! slower cluster cores and for the MAVLink and recording work still to come.
 
 use sadesim_crds::SimulationRunSpec;
 use sadesim_crds::plan::{PlannedShard, ResourcePlan, RoleResources};
 use sadesim_crds::run::ClockMode;
 
 /// Drone-steps one core sustains per second with the full per-drone stack.
-pub const DRONE_STEPS_PER_CORE_S: f64 = 200_000.0;
+pub const DRONE_STEPS_PER_CORE_S: f64 = 250_000.0;
 
 pub fn estimate(spec: &SimulationRunSpec, shards: &[PlannedShard]) -> ResourcePlan {
     let clock = spec.clock();
