@@ -192,11 +192,13 @@ pub enum MissionItem {
         #[schemars(range(min = 0.0, max = 86400.0))]
         hold_s: f64,
     },
-    /// Recreational flying: `count` waypoints drawn (seeded) inside `area` at altitudes in
-    /// `[minAltitudeAglM, maxAltitudeAglM]`.
+    /// Recreational flying: `count` waypoints drawn (seeded, per drone) inside `area` at
+    /// altitudes in `[minAltitudeAglM, maxAltitudeAglM]`.
     RandomWaypoints {
-        /// Disc the waypoints are drawn in.
-        area: Area,
+        /// Disc the waypoints are drawn in. Omitted: the drone's own home area (its park for
+        /// `areas`, the disc for `randomInArea`), which the world keeps free of buildings.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        area: Option<Area>,
         /// Number of waypoints (1..10000).
         #[schemars(range(min = 1, max = 10000))]
         count: u32,

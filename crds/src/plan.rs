@@ -68,6 +68,8 @@ pub struct PlannedDrone {
     pub group: String,
     /// Index of the group in `spec.fleet`.
     pub group_index: u32,
+    /// Position within the group, 0-based (the `k` of the name).
+    pub member: u32,
     pub operator: String,
     pub role: Role,
     pub airframe: String,

@@ -387,8 +387,17 @@ fn check_mission(g: &FleetGroup, m: &Mission, path: &str, bounds: Option<&WorldB
                 p.range(format!("{ip}.loiter.holdS"), *hold_s, 0.0, 86_400.0);
             }
             MissionItem::RandomWaypoints { area, count, min_altitude_agl_m, max_altitude_agl_m, hold_s } => {
-                if let Some(b) = bounds {
-                    b.check_area(p, &format!("{ip}.randomWaypoints.area"), area);
+                match (area, &g.homes) {
+                    (Some(area), _) => {
+                        if let Some(b) = bounds {
+                            b.check_area(p, &format!("{ip}.randomWaypoints.area"), area);
+                        }
+                    }
+                    (None, HomePlacement::Explicit(_)) => p.add(
+                        format!("{ip}.randomWaypoints.area"),
+                        "is required for a group with explicit homes (without it, waypoints are drawn in the drone's home area)",
+                    ),
+                    (None, _) => {}
                 }
                 p.range_int(format!("{ip}.randomWaypoints.count"), (*count).into(), 1, 10_000);
                 alt(p, format!("{ip}.randomWaypoints.minAltitudeAglM"), *min_altitude_agl_m);

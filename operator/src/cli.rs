@@ -82,6 +82,10 @@ pub enum Command {
         /// (as on Kubernetes) instead of threads.
         #[arg(long)]
         processes: bool,
+        /// Override the scenario's clock: `realtime`, `asFastAsPossible` (or `afap`), or
+        /// `scaled:FACTOR` (e.g. `scaled:4`).
+        #[arg(long, value_parser = parse_clock)]
+        clock: Option<sadesim_crds::run::Clock>,
     },
 }
 
@@ -127,9 +131,9 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
     match cli.command {
         Command::Validate { files } => validate_files(&files, out),
         Command::Plan { file, json, fleet, namespace } => plan_file(&file, json, fleet, namespace, out),
-        Command::Run { file, out: out_root, quiet, processes } => {
+        Command::Run { file, out: out_root, quiet, processes, clock } => {
             let options = crate::runner::RunOptions { out_root, progress: !quiet, processes, worker: None };
-            run_file(&file, options, out)
+            run_file(&file, options, clock, out)
         }
         Command::Bench { drones, seconds, drones_per_shard } => {
             let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
@@ -262,7 +266,25 @@ fn report_problems(out: &mut dyn Write, path: &str, errors: &sadesim_crds::Valid
     Ok(())
 }
 
-fn run_file(file: &Path, mut options: crate::runner::RunOptions, out: &mut dyn Write) -> Result<Outcome, CliError> {
+/// `--clock` values.
+fn parse_clock(s: &str) -> Result<sadesim_crds::run::Clock, String> {
+    use sadesim_crds::run::{Clock, ClockMode};
+    match s {
+        "realtime" => Ok(Clock { mode: ClockMode::Realtime, factor: None }),
+        "asFastAsPossible" | "afap" => Ok(Clock { mode: ClockMode::AsFastAsPossible, factor: None }),
+        _ => match s.strip_prefix("scaled:").map(str::parse::<f64>) {
+            Some(Ok(f)) if f.is_finite() && f > 0.0 => Ok(Clock { mode: ClockMode::Scaled, factor: Some(f) }),
+            _ => Err(format!("expected realtime, asFastAsPossible or scaled:FACTOR (e.g. scaled:4), got {s:?}")),
+        },
+    }
+}
+
+fn run_file(
+    file: &Path,
+    mut options: crate::runner::RunOptions,
+    clock: Option<sadesim_crds::run::Clock>,
+    out: &mut dyn Write,
+) -> Result<Outcome, CliError> {
     use std::io::IsTerminal;
     use std::sync::Arc;
     use std::sync::atomic::{AtomicBool, Ordering};
@@ -270,7 +292,10 @@ fn run_file(file: &Path, mut options: crate::runner::RunOptions, out: &mut dyn W
     use crate::runner::{RunError, run_local};
 
     let path = file.display().to_string();
-    let Some(run) = load_one(file, out)? else { return Ok(Outcome::Problems) };
+    let Some(mut run) = load_one(file, out)? else { return Ok(Outcome::Problems) };
+    if clock.is_some() {
+        run.spec.clock = clock;
+    }
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     // Ctrl-C asks the coordinator to stop after the current window; the recorder then

@@ -18,7 +18,7 @@ use sadesim_crds::zones::AltitudeReference;
 use sadesim_crds::{SimulationRun, ValidationErrors, validate};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
-use sim_worker::world::WorldInputs;
+use sim_worker::world::{World, WorldInputs};
 
 pub use fleet_file::{Addressing, credential_env_var, fleet_file, zones_geojson};
 pub use ports::{
@@ -64,17 +64,22 @@ pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
     let per_shard = sharding.drones_per_shard;
 
     let keep_out = ground_zones(spec, &frame);
+    // Random homes must not fall inside buildings: generate the (deterministic, cached)
+    // world here and draw homes on open ground. ~30 ms for a 4 km city.
+    let world_inputs = WorldInputs::from_spec(spec, &[]);
+    let world = World::generate(&world_inputs);
     let mut drones = Vec::with_capacity(spec.total_drones() as usize);
     for (group_index, group) in spec.fleet.iter().enumerate() {
         for k in 0..group.count {
             let index = drones.len() as u32;
-            let home = home(&frame, group, k, index, seed, &keep_out)
+            let home = home(&frame, group, k, index, seed, &keep_out, &world)
                 .ok_or(PlanError::NoHome { group: group_index, drone: index })?;
             drones.push(PlannedDrone {
                 index,
                 name: format!("{}-{k}", group.name),
                 group: group.name.clone(),
                 group_index: group_index as u32,
+                member: k,
                 operator: group.operator.clone(),
                 role: group.role,
                 airframe: group.airframe.clone(),
@@ -105,7 +110,7 @@ pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
         .collect::<Vec<_>>();
     let resources = resources::estimate(spec, &shards);
 
-    Ok(RunPlan {
+    let mut plan = RunPlan {
         format_version: PLAN_FORMAT_VERSION,
         run: RunRef {
             name: run.metadata.name.clone().unwrap_or_default(),
@@ -120,15 +125,27 @@ pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
         drones,
         shards,
         segments,
-        asset_cache_key: asset_cache_key(run),
+        asset_cache_key: String::new(),
         services: service_ports(),
         resources,
-    })
+    };
+    plan.asset_cache_key = asset_cache_key(&world_inputs, &plan.spec.zones);
+    Ok(plan)
 }
 
 /// Contiguous `(first, count)` ranges of at most `size` covering `0..total`.
 fn ranges(total: u32, size: u32) -> impl Iterator<Item = (u32, u32)> {
     (0..total.div_ceil(size)).map(move |i| (i * size, size.min(total - i * size)))
+}
+
+/// Clearance a random home keeps from any building footprint, m (rotor disc plus margin).
+const HOME_BUILDING_CLEARANCE_M: f64 = 3.0;
+
+fn clear_of_buildings(world: &World, (e, n): polygon::Point) -> bool {
+    let c = HOME_BUILDING_CLEARANCE_M;
+    [(0.0, 0.0), (c, 0.0), (-c, 0.0), (0.0, c), (0.0, -c)]
+        .iter()
+        .all(|(de, dn)| world.building_at(e + de, n + dn).is_none())
 }
 
 /// Polygons (local plane) of the zones a drone must not start in: active at the start and
@@ -162,6 +179,7 @@ fn home(
     index: u32,
     seed: u64,
     keep_out: &[Vec<polygon::Point>],
+    world: &World,
 ) -> Option<Home> {
     let in_area = |area: &Area| {
         let (cx, cy) = frame.to_plane(area.center.latitude_deg, area.center.longitude_deg);
@@ -169,7 +187,7 @@ fn home(
         (0..MAX_HOME_DRAWS)
             .map(|_| rng.in_disc(area.radius_m))
             .map(|(dx, dy)| (cx + dx, cy + dy))
-            .find(|p| !keep_out.iter().any(|zone| polygon::contains(zone, *p)))
+            .find(|p| !keep_out.iter().any(|zone| polygon::contains(zone, *p)) && clear_of_buildings(world, *p))
     };
     let (east_m, north_m) = match &group.homes {
         HomePlacement::Explicit(list) => {
@@ -189,19 +207,17 @@ fn home(
 }
 
 /// Everything that shapes the world assets, hashed: exactly the world generator's inputs
-/// (origin, world parameters, open areas including the fleet's home areas) and the zones
-/// (baked into the assets in the local frame). Not the run seed, the fleet size, the clock
-/// or the pilot: changing those reuses the cached world.
-fn asset_cache_key(run: &SimulationRun) -> String {
+/// (origin, world parameters, open areas including parks and the clearance around every
+/// home) and the zones (baked into the assets in the local frame). Not the run seed, the
+/// clock or the pilot: changing those reuses the cached world.
+fn asset_cache_key(world: &WorldInputs, zones: &[sadesim_crds::zones::Zone]) -> String {
     #[derive(Serialize)]
     struct AssetInputs<'a> {
         format: u32,
         world: WorldInputs,
         zones: &'a [sadesim_crds::zones::Zone],
     }
-    let spec = &run.spec;
-    let inputs =
-        AssetInputs { format: ASSETS_FORMAT_VERSION, world: WorldInputs::from_spec(spec, &[]), zones: &spec.zones };
+    let inputs = AssetInputs { format: ASSETS_FORMAT_VERSION, world: world.clone(), zones };
     // serde_json writes struct fields in declaration order and floats with a fixed
     // shortest-round-trip format, so the bytes are canonical for these types.
     let bytes = serde_json::to_vec(&inputs).expect("asset inputs always serialize");

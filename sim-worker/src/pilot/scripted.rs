@@ -6,7 +6,7 @@
 //! drone's own `(seed, drone index, Mission)` stream, so they do not depend on sharding.
 
 use nalgebra::Vector2;
-use sadesim_crds::fleet::{Mission, MissionItem as SpecItem};
+use sadesim_crds::fleet::{Area, LatLon, Mission, MissionItem as SpecItem};
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::random::{Purpose, Rng};
 
@@ -17,12 +17,14 @@ pub trait GroundHeight {
     fn ground_up_m(&self, east_m: f64, north_m: f64) -> f64;
 }
 
-/// Expands a scenario mission for one drone.
+/// Expands a scenario mission for one drone. `home_area` is the disc the drone's home was
+/// drawn in (for random waypoints without an area of their own).
 pub fn expand(
     mission: &Mission,
     frame: &LocalFrame,
     ground: &dyn GroundHeight,
     home_en_m: Vector2<f64>,
+    home_area: Option<&Area>,
     seed: u64,
     drone_index: u32,
 ) -> MissionPlan {
@@ -47,6 +49,10 @@ pub fn expand(
             }
             SpecItem::Loiter { hold_s } => items.push(MissionItem::Loiter { hold_s: *hold_s }),
             SpecItem::RandomWaypoints { area, count, min_altitude_agl_m, max_altitude_agl_m, hold_s } => {
+                // Validation guarantees an area for explicit homes; a missing one falls back
+                // to a 30 m disc around home rather than panicking.
+                let fallback = Area { name: None, center: frame_latlon(frame, home_en_m), radius_m: 30.0 };
+                let area = area.as_ref().or(home_area).unwrap_or(&fallback);
                 let (cx, cy) = frame.to_plane(area.center.latitude_deg, area.center.longitude_deg);
                 for _ in 0..*count {
                     let (dx, dy) = rng.in_disc(area.radius_m);
@@ -66,9 +72,13 @@ pub fn expand(
     MissionPlan { items, speed_mps: mission.speed_mps.unwrap_or(DEFAULT_CRUISE_MPS) }
 }
 
+fn frame_latlon(frame: &LocalFrame, en: Vector2<f64>) -> LatLon {
+    let g = frame.to_geodetic(sadesim_crds::geo::Enu::new(en.x, en.y, 0.0));
+    LatLon { latitude_deg: g.latitude_deg, longitude_deg: g.longitude_deg }
+}
+
 #[cfg(test)]
 mod tests {
-    use sadesim_crds::fleet::{Area, LatLon};
     use sadesim_crds::geo::GeoPoint;
 
     use super::*;
@@ -102,7 +112,7 @@ mod tests {
             ],
             speed_mps: Some(7.0),
         };
-        let plan = expand(&mission, &f, &Slope, Vector2::new(0.0, 0.0), 1, 0);
+        let plan = expand(&mission, &f, &Slope, Vector2::new(0.0, 0.0), None, 1, 0);
         assert_eq!(plan.speed_mps, 7.0);
         match &plan.items[1] {
             MissionItem::Waypoint { target_en_m, alt_rel_home_m, hold_s } => {
@@ -115,15 +125,38 @@ mod tests {
     }
 
     #[test]
+    fn random_waypoints_without_an_area_stay_in_the_home_area() {
+        let f = frame();
+        let park =
+            Area { name: None, center: LatLon { latitude_deg: 41.8826, longitude_deg: -87.6225 }, radius_m: 50.0 };
+        let mission = Mission {
+            items: vec![SpecItem::RandomWaypoints {
+                area: None,
+                count: 30,
+                min_altitude_agl_m: 10.0,
+                max_altitude_agl_m: 20.0,
+                hold_s: None,
+            }],
+            speed_mps: None,
+        };
+        let plan = expand(&mission, &f, &Slope, Vector2::zeros(), Some(&park), 2, 5);
+        let (cx, cy) = f.to_plane(park.center.latitude_deg, park.center.longitude_deg);
+        for item in &plan.items {
+            let MissionItem::Waypoint { target_en_m, .. } = item else { panic!() };
+            assert!((target_en_m.x - cx).hypot(target_en_m.y - cy) <= 50.0 + 1e-6, "{target_en_m:?}");
+        }
+    }
+
+    #[test]
     fn random_waypoints_are_seeded_per_drone_and_stay_in_area() {
         let f = frame();
         let mission = Mission {
             items: vec![SpecItem::RandomWaypoints {
-                area: Area {
+                area: Some(Area {
                     name: None,
                     center: LatLon { latitude_deg: 41.8796, longitude_deg: -87.6237 },
                     radius_m: 200.0,
-                },
+                }),
                 count: 20,
                 min_altitude_agl_m: 10.0,
                 max_altitude_agl_m: 30.0,
@@ -131,9 +164,9 @@ mod tests {
             }],
             speed_mps: None,
         };
-        let a = expand(&mission, &f, &Slope, Vector2::zeros(), 9, 3);
-        assert_eq!(a, expand(&mission, &f, &Slope, Vector2::zeros(), 9, 3));
-        assert_ne!(a, expand(&mission, &f, &Slope, Vector2::zeros(), 9, 4));
+        let a = expand(&mission, &f, &Slope, Vector2::zeros(), None, 9, 3);
+        assert_eq!(a, expand(&mission, &f, &Slope, Vector2::zeros(), None, 9, 3));
+        assert_ne!(a, expand(&mission, &f, &Slope, Vector2::zeros(), None, 9, 4));
         assert_eq!(a.items.len(), 20);
         for item in &a.items {
             let MissionItem::Waypoint { target_en_m, alt_rel_home_m, .. } = item else { panic!() };

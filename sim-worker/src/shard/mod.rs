@@ -5,6 +5,7 @@ mod drone;
 
 use std::sync::Arc;
 
+use sadesim_crds::fleet::HomePlacement;
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 
@@ -71,10 +72,15 @@ impl Shard {
             let airframe =
                 vehicle::preset(&d.airframe).ok_or_else(|| ShardError::UnknownAirframe(d.airframe.clone()))?;
             let home_en = nalgebra::Vector2::new(d.home.local.east_m, d.home.local.north_m);
+            let home_area = match &group.homes {
+                HomePlacement::RandomInArea(a) => Some(a),
+                HomePlacement::Areas(list) => list.get(d.member as usize % list.len()),
+                HomePlacement::Explicit(_) => None,
+            };
             let mission = group
                 .mission
                 .as_ref()
-                .map(|m| scripted::expand(m, &frame, world.as_ref(), home_en, plan.seed, d.index));
+                .map(|m| scripted::expand(m, &frame, world.as_ref(), home_en, home_area, plan.seed, d.index));
             // Return below the group's ceiling (PX4's 60 m default is above many groups' limits).
             let navigator = NavigatorConfig {
                 rtl_altitude_m: (group.altitude.max_agl_m * 0.8).min(60.0),

@@ -32,13 +32,14 @@ pub struct WorldInputs {
 }
 
 impl WorldInputs {
-    /// The inputs of a run: its origin and world, every home area of the fleet
-    /// (`randomInArea`, `areas`) as an open area, and a disc of
-    /// [`EXPLICIT_HOME_CLEARANCE_M`] around each explicit home, so no drone spawns inside a
-    /// building; then `extra_open`.
+    /// The inputs of a run: origin, world, the declared open areas
+    /// (`spec.world.openAreas`), every park-style home area of the fleet (`areas`), a disc of
+    /// [`EXPLICIT_HOME_CLEARANCE_M`] around each explicit home, then `extra_open`. A
+    /// `randomInArea` disc is *not* cleared (it may span a whole district): the planner
+    /// draws those homes outside buildings instead.
     ///
     /// # Guarantees
-    /// The result depends on the spec's origin, world and fleet home placements only: not on
+    /// Depends on the spec's origin, world and fleet home placements only: not on
     /// `spec.seed`, the clock or missions (the world is a cached asset shared by runs that
     /// differ only in those).
     pub fn from_spec(spec: &SimulationRunSpec, extra_open: &[OpenArea]) -> Self {
@@ -49,7 +50,6 @@ impl WorldInputs {
             OpenArea { east_m, north_m, radius_m: area.radius_m }
         };
         let world = spec.world();
-        // Declared open areas first (real parks, plazas, rivers), then the homes' areas.
         let mut open_areas: Vec<OpenArea> = world.open_areas.iter().map(disc).collect();
         for group in &spec.fleet {
             match &group.homes {
@@ -57,16 +57,17 @@ impl WorldInputs {
                     let (east_m, north_m) = frame.to_plane(home.latitude_deg, home.longitude_deg);
                     OpenArea { east_m, north_m, radius_m: EXPLICIT_HOME_CLEARANCE_M }
                 })),
-                HomePlacement::RandomInArea(area) => open_areas.push(disc(area)),
                 HomePlacement::Areas(areas) => open_areas.extend(areas.iter().map(disc)),
+                HomePlacement::RandomInArea(_) => {}
             }
         }
         open_areas.extend_from_slice(extra_open);
         Self { origin, world, open_areas }
     }
 
-    /// The generator's seed: a 64-bit hash of every input that shapes the world (origin,
-    /// source, extent, resolved city parameters, open areas in order).
+    /// The generator's seed: a 64-bit hash of the origin, source, extent and resolved city
+    /// parameters. Open areas are left out on purpose: they only remove buildings, so
+    /// adding a drone (and its home clearance) does not redraw the whole city.
     ///
     /// Hashed from the values' IEEE-754 bits (with -0.0 folded into 0.0), so it does not
     /// depend on how the spec was written (`city` omitted or spelled out with defaults give
@@ -90,12 +91,6 @@ impl WorldInputs {
             city.built_fraction,
         ] {
             h.f64(v);
-        }
-        h.bytes(&(self.open_areas.len() as u64).to_le_bytes());
-        for area in &self.open_areas {
-            for v in [area.east_m, area.north_m, area.radius_m] {
-                h.f64(v);
-            }
         }
         h.finish()
     }
@@ -171,8 +166,9 @@ mod tests {
         let mut moved = a.clone();
         moved.origin.latitude_deg += 1e-6;
         assert_ne!(a.seed(), moved.seed());
+        // Open areas only remove buildings: the rest of the city stays as it was.
         let mut opened = a.clone();
         opened.open_areas.push(OpenArea { east_m: 0.0, north_m: 0.0, radius_m: 1.0 });
-        assert_ne!(a.seed(), opened.seed());
+        assert_eq!(a.seed(), opened.seed());
     }
 }
