@@ -202,12 +202,21 @@ fn ctrl_c_ends_a_run_cleanly_and_keeps_its_output() {
 
 #[test]
 fn run_refuses_what_is_not_built_yet_with_the_field() {
-    let out =
-        sadesim(&["run", "examples/chicago-museum.yaml", "--quiet", "--out", std::env::temp_dir().to_str().unwrap()]);
+    // The quickstart flown by an external MAVLink pilot instead of its scripted mission.
+    let scenario = std::fs::read_to_string(repo().join("examples/quickstart.yaml")).unwrap();
+    let start = scenario.find("      mission:").unwrap();
+    let end = scenario.find("  # A small restricted zone").unwrap();
+    let scenario = format!("{}  pilot:\n    command: [python3, pilot.py]\n\n{}", &scenario[..start], &scenario[end..]);
+    let dir = std::env::temp_dir().join(format!("sadesim-unsupported-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("pilot.yaml");
+    std::fs::write(&file, scenario).unwrap();
+    let out = sadesim(&["run", file.to_str().unwrap(), "--quiet", "--out", dir.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out));
     assert!(
-        text(&out).contains("not supported yet: spec.fleet: groups public-safety, journalists, recreational"),
+        text(&out).contains("not supported yet: spec.fleet: groups scouts are flown by an external MAVLink pilot"),
         "{}",
         text(&out)
     );
+    std::fs::remove_dir_all(&dir).unwrap();
 }
