@@ -31,7 +31,11 @@ impl RunBuilder {
             clock: None,
             physics_rate_hz: None,
             seed: Some(7),
-            world: None,
+            // The home area is parkland: flights near home meet no buildings.
+            world: Some(crate::run::World {
+                open_areas: vec![Area { name: Some("fixture park".into()), center: HOMES, radius_m: 500.0 }],
+                ..Default::default()
+            }),
             environment: None,
             fleet: vec![group("alpha", 1)],
             zones: vec![],
