@@ -154,7 +154,7 @@ pub struct Mission {
     /// Items in order, like a MAVLink mission.
     #[schemars(length(min = 1, max = 1000))]
     pub items: Vec<MissionItem>,
-    /// Cruise ground speed, m/s (0.5..30). Default 8.
+    /// Cruise ground speed, m/s (0.5..30). Default 5 (PX4's MPC_XY_CRUISE).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 0.5, max = 30.0))]
     pub speed_mps: Option<f64>,
@@ -196,7 +196,8 @@ pub enum MissionItem {
     /// altitudes in `[minAltitudeAglM, maxAltitudeAglM]`.
     RandomWaypoints {
         /// Disc the waypoints are drawn in. Omitted: the drone's own home area (its park for
-        /// `areas`, the disc for `randomInArea`), which the world keeps free of buildings.
+        /// `areas`, which the world keeps free of buildings; the disc for `randomInArea`,
+        /// which it does not).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         area: Option<Area>,
         /// Number of waypoints (1..10000).

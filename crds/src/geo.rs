@@ -35,6 +35,7 @@ pub struct GeoPoint {
 
 /// A local position in the run's ENU frame, metres.
 #[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize, JsonSchema)]
+#[serde(rename_all = "camelCase")]
 pub struct Enu {
     /// East of the origin, metres.
     pub east_m: f64,

@@ -111,8 +111,8 @@ pub enum CliError {
     /// The input was unreadable as a whole.
     #[error("{path}: {source}")]
     Document { path: String, source: DocumentError },
-    /// `plan` needs exactly one run.
-    #[error("{path}: holds {count} runs; `plan` takes a file with exactly one")]
+    /// `plan` and `run` need exactly one run.
+    #[error("{path}: holds {count} runs; this command takes a file with exactly one")]
     NotOneRun { path: String, count: usize },
     /// A run could not start or finish.
     #[error("{path}: {source}")]
@@ -142,8 +142,8 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             let _ = std::fs::remove_dir_all(&root);
             writeln!(
                 out,
-                "bench: {} drones in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
-                result.drones,
+                "bench: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
+                count(result.drones as usize, "drone"),
                 count(result.shards as usize, "shard"),
                 result.sim_time_s,
                 result.wall_time_s,
@@ -314,18 +314,30 @@ fn run_file(
             )?;
             writeln!(
                 out,
-                "  {} drones in {}: {took_off} took off, {landed} landed, {} airborne at the end, {} crashed; {} events",
-                s.drones,
+                "  {} in {}: {took_off} took off, {landed} landed, {} airborne at the end, {} crashed; {} events",
+                count(s.drones as usize, "drone"),
                 count(s.shards as usize, "shard"),
                 s.airborne,
                 s.crashed,
                 s.events
             )?;
             writeln!(out, "  output: {}", report.out_dir.display())?;
+            if !run.spec.criteria.is_empty() {
+                // Not a pass: the compliance monitor that judges criteria is not built yet.
+                writeln!(
+                    out,
+                    "  note: {} not evaluated yet (the compliance monitor arrives with the airspace issue)",
+                    count(run.spec.criteria.len(), "criterion")
+                )?;
+            }
             Ok(if s.end_reason == "interrupted" { Outcome::Interrupted } else { Outcome::Success })
         }
         Err(RunError::Plan(planner::PlanError::Invalid(errors))) => {
             report_problems(out, &path, &errors)?;
+            Ok(Outcome::Problems)
+        }
+        Err(RunError::Plan(e @ planner::PlanError::NoHome { .. })) => {
+            writeln!(out, "error: {path}: {e}")?;
             Ok(Outcome::Problems)
         }
         Err(source) => Err(CliError::Run { path, source }),

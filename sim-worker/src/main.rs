@@ -49,6 +49,10 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.role {
         Role::Shard { plan, shard, coordinator } => {
+            // Ctrl-C in a terminal reaches every process of the group. A shard stops when
+            // the coordinator says so (or its connection closes), so the coordinator can
+            // finish the run and write its files first.
+            let _ = ctrlc::set_handler(|| {});
             roles::read_plan(&plan).and_then(|plan| roles::shard::run(&plan, shard, &coordinator))
         }
         Role::Coordinator { plan, listen, out } => {

@@ -73,6 +73,11 @@ fn check_supported(plan: &RunPlan) -> Result<(), RunError> {
             external.join(", ")
         )));
     }
+    if let Some(i) = spec.fleet.iter().position(|g| g.geofence.is_some()) {
+        return Err(RunError::NotSupported(format!(
+            "spec.fleet[{i}].geofence: the built-in geofence arrives with the airspace authority; remove it for now"
+        )));
+    }
     if spec.rendering().enabled {
         return Err(RunError::NotSupported(
             "spec.rendering.enabled: the renderer is not built yet; set it to false".into(),
@@ -157,7 +162,13 @@ impl RunObserver for Progress<'_> {
 pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool>) -> Result<RunReport, RunError> {
     let plan = planner::plan(run)?;
     check_supported(&plan)?;
-    let out_dir = out_root(&plan, options).join(&plan.run.name).join(utc_stamp(SystemTime::now()));
+    let base = out_root(&plan, options).join(&plan.run.name);
+    let stamp = utc_stamp(SystemTime::now());
+    // Two runs started within the same second get `-2`, `-3`, ... rather than mixing files.
+    let out_dir = (1..)
+        .map(|n| if n == 1 { base.join(&stamp) } else { base.join(format!("{stamp}-{n}")) })
+        .find(|d| !d.exists())
+        .expect("some suffix is free");
     std::fs::create_dir_all(&out_dir)
         .map_err(|source| RunError::Output { path: out_dir.display().to_string(), source })?;
     write_json(&out_dir, "plan.json", &plan)?;

@@ -68,16 +68,16 @@ impl Recorder {
         Ok(Self {
             dir: dir.to_path_buf(),
             frame: LocalFrame::new(plan.spec.origin.geo()),
-            options,
             events: EventLog::create(&dir.join("events.jsonl"))?,
             csv: TrajectoryCsv::create(&dir.join("trajectory.csv"))?,
             tracks: TrajectoryGeoJson::new(plan.drones.len()),
-            next_row_s: 0.0,
+            next_row_s: 1.0 / options.trajectory_hz,
             next_track_s: 0.0,
             summary,
             last_positions: vec![None; plan.drones.len()],
             last: Vec::new(),
             plan: plan.clone(),
+            options,
         })
     }
 
@@ -111,15 +111,17 @@ impl RunObserver for Recorder {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
         let io = |e: std::io::Error| format!("failed to record: {e}");
         self.events.write(events).map_err(io)?;
-        // Sample times are multiples of the period: rows line up across runs and rates.
+        // A row at the first window boundary at or after each multiple of the period, so
+        // rows line up across runs whatever the sync window.
+        let next_multiple = |t: f64, hz: f64| ((t * hz + 1e-9).floor() + 1.0) / hz;
         let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
         if time_s + 1e-9 >= self.next_row_s && !final_window {
             self.csv.write(time_s, drones, &self.plan, &self.frame).map_err(io)?;
-            self.next_row_s += 1.0 / self.options.trajectory_hz;
+            self.next_row_s = next_multiple(time_s, self.options.trajectory_hz);
         }
         if time_s + 1e-9 >= self.next_track_s || final_window {
             self.tracks.add(drones, &self.frame);
-            self.next_track_s += 1.0 / self.options.track_hz;
+            self.next_track_s = next_multiple(time_s, self.options.track_hz);
         }
         if !final_window {
             self.summary.observe(drones, events, &mut self.last_positions);
