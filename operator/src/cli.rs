@@ -324,10 +324,11 @@ fn run_file(
             writeln!(out, "  output: {}", report.out_dir.display())?;
             if !run.spec.criteria.is_empty() {
                 // Not a pass: the compliance monitor that judges criteria is not built yet.
+                let n = run.spec.criteria.len();
+                let what = if n == 1 { "1 criterion".to_string() } else { format!("{n} criteria") };
                 writeln!(
                     out,
-                    "  note: {} not evaluated yet (the compliance monitor arrives with the airspace issue)",
-                    count(run.spec.criteria.len(), "criterion")
+                    "  note: {what} not evaluated yet (the compliance monitor arrives with the airspace issue)"
                 )?;
             }
             Ok(if s.end_reason == "interrupted" { Outcome::Interrupted } else { Outcome::Success })

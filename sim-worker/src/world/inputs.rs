@@ -137,6 +137,7 @@ mod tests {
         let park = Area { name: None, center: CHICAGO, radius_m: 80.0 };
         let north = LatLon { latitude_deg: CHICAGO.latitude_deg + 0.001, longitude_deg: CHICAGO.longitude_deg };
         let run = RunBuilder::test()
+            .with(|r| r.spec.world = None) // no declared open areas: only the fleet's
             .with(|r| r.spec.fleet[0].homes = HomePlacement::Areas(vec![park.clone(), park.clone()]))
             .with_group("bravo", 1)
             .with(|r| r.spec.fleet[1].homes = HomePlacement::Explicit(vec![north]))
