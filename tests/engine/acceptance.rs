@@ -5,11 +5,10 @@ use nalgebra::{UnitQuaternion, Vector3};
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::{Mission, MissionItem};
 use sadesim_crds::geo::{Enu, LocalFrame};
-use sadesim_integration_tests::{plan, world};
+use sadesim_integration_tests::plan;
 use sim_worker::autopilot::control::{Controller, EstimatedState, Setpoint};
 use sim_worker::events::{Event, EventKind};
-use sim_worker::protocol::{DroneSnapshot, FromShard, ToShard};
-use sim_worker::shard::Shard;
+use sim_worker::protocol::DroneSnapshot;
 use sim_worker::vehicle::{GRAVITY_MPS2, Motor, RigidState, preset, wrench};
 
 const DT: f64 = 0.001;
@@ -49,39 +48,37 @@ fn hover_needs_thrust_equal_to_weight_within_two_percent() {
     }
 }
 
-#[test]
-fn a_twenty_metre_free_fall_takes_the_analytic_time() {
-    // Drag off: the analytic time is sqrt(2 h / g).
-    let mut airframe = preset("x500").unwrap();
-    airframe.drag_coeff_linear = Vector3::zeros();
-    airframe.drag_coeff_quadratic = Vector3::zeros();
-    let motors = Motor::for_airframe(&airframe); // stopped
-    let mut state = RigidState::at_rest(Vector3::new(0.0, 0.0, 20.0));
+/// Seconds for `airframe`, motors stopped, to fall `height_m` from rest in still air.
+fn fall_time_s(airframe: &sim_worker::vehicle::Airframe, height_m: f64) -> f64 {
+    let motors = Motor::for_airframe(airframe);
+    let mut state = RigidState::at_rest(Vector3::new(0.0, 0.0, height_m));
     let mut t = 0.0;
     while state.position_enu_m.z > 0.0 {
         let w = wrench(
-            &airframe,
+            airframe,
             &motors,
             &state.attitude,
             &state.velocity_enu_mps,
             &state.rate_body_rps,
             &Vector3::zeros(),
         );
-        state.integrate(&airframe, &w, DT);
+        state.integrate(airframe, &w, DT);
         t += DT;
     }
+    t
+}
+
+#[test]
+fn a_twenty_metre_free_fall_takes_the_analytic_time() {
+    // Drag off: the analytic time is sqrt(2 h / g).
+    let mut airframe = preset("x500").unwrap();
+    airframe.drag_coeff_linear = Vector3::zeros();
+    airframe.drag_coeff_quadratic = Vector3::zeros();
+    let t = fall_time_s(&airframe, 20.0);
     let analytic = (2.0 * 20.0 / GRAVITY_MPS2).sqrt();
     assert!((t - analytic).abs() / analytic < 0.01, "fell in {t:.4} s, analytic {analytic:.4} s");
     // With the airframe's drag the same fall is slower, never faster.
-    let drag = preset("x500").unwrap();
-    let mut state = RigidState::at_rest(Vector3::new(0.0, 0.0, 20.0));
-    let mut t_drag = 0.0;
-    while state.position_enu_m.z > 0.0 {
-        let w =
-            wrench(&drag, &motors, &state.attitude, &state.velocity_enu_mps, &state.rate_body_rps, &Vector3::zeros());
-        state.integrate(&drag, &w, DT);
-        t_drag += DT;
-    }
+    let t_drag = fall_time_s(&preset("x500").unwrap(), 20.0);
     assert!(t_drag > t, "drag {t_drag:.3} s vs vacuum {t:.3} s");
 }
 
@@ -107,22 +104,9 @@ fn without_control_a_drone_drifts_downwind() {
 // Whole stack: shard with world, environment, sensors, estimator, navigator, control
 // ---------------------------------------------------------------------------------------
 
-/// Flies `run`'s drone 0 for `seconds`, sampling its true state every 10 ms.
+/// Drone 0's events and true state every 10 ms.
 fn fly(run: &sadesim_crds::SimulationRun, seconds: u64) -> (Vec<Event>, Vec<DroneSnapshot>) {
-    let p = plan(run);
-    let mut shard = Shard::new(&p, 0, world(&p)).unwrap();
-    let mut events = shard.advance(300);
-    let mut track = Vec::new();
-    for window in 1..=seconds * 100 {
-        let Some(FromShard::Advanced { drones, events: e, .. }) =
-            shard.handle(ToShard::Advance { until_step: 300 + window * 10, release_pilots: true })
-        else {
-            panic!("shard stopped")
-        };
-        events.extend(e);
-        track.push(drones[0].clone());
-    }
-    (events, track)
+    sadesim_integration_tests::fly(run, seconds, 10)
 }
 
 fn horizontal(a: [f64; 3], e: f64, n: f64) -> f64 {

@@ -64,24 +64,12 @@ fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
     assert!(last.on_ground && !last.armed && last.mode == FlightMode::Idle, "{last:?}");
 }
 
-/// Runs shard 0 of `run` for `seconds`, releasing pilots at once; returns all events and
-/// the snapshots of drone 0 every 0.1 s.
+/// Drone 0's events and true state every 0.1 s.
 fn fly(
     run: &sadesim_crds::SimulationRun,
     seconds: u64,
 ) -> (Vec<sim_worker::events::Event>, Vec<sim_worker::protocol::DroneSnapshot>) {
-    let plan = plan_for(run);
-    let mut shard = Shard::new(&plan, 0, world_for(&plan)).unwrap();
-    let mut events = shard.advance(300);
-    let mut track = Vec::new();
-    for window in 1..=seconds * 10 {
-        let msg = shard
-            .handle(sim_worker::protocol::ToShard::Advance { until_step: 300 + window * 100, release_pilots: true });
-        let Some(sim_worker::protocol::FromShard::Advanced { drones, events: e, .. }) = msg else { panic!() };
-        events.extend(e);
-        track.push(drones[0].clone());
-    }
-    (events, track)
+    sadesim_integration_tests::fly(run, seconds, 100)
 }
 
 fn hover_mission(seconds: f64) -> Mission {

@@ -4,11 +4,37 @@ use std::sync::Arc;
 
 use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
+use sim_worker::events::Event;
+use sim_worker::protocol::{DroneSnapshot, FromShard, ToShard};
+use sim_worker::shard::Shard;
 use sim_worker::world::{World, WorldInputs};
 
 /// Plans a run that must be valid.
 pub fn plan(run: &SimulationRun) -> RunPlan {
     sadesim::planner::plan(run).expect("a valid run")
+}
+
+/// Flies shard 0 of `run` for `seconds` of simulated time after a 0.3 s warm-up (GNSS
+/// fix), releasing the pilots at once; returns every event and drone 0's true state at
+/// every `sample_steps` physics steps.
+pub fn fly(run: &SimulationRun, seconds: u64, sample_steps: u64) -> (Vec<Event>, Vec<DroneSnapshot>) {
+    let plan = plan(run);
+    let steps_per_s = u64::from(plan.physics_rate_hz);
+    let mut shard = Shard::new(&plan, 0, world(&plan)).expect("the shard builds");
+    let warm_up = steps_per_s * 3 / 10;
+    let mut events = shard.advance(warm_up);
+    let mut track = Vec::new();
+    for window in 1..=seconds * steps_per_s / sample_steps {
+        let until_step = warm_up + window * sample_steps;
+        let Some(FromShard::Advanced { drones, events: e, .. }) =
+            shard.handle(ToShard::Advance { until_step, release_pilots: true })
+        else {
+            panic!("the shard stopped")
+        };
+        events.extend(e);
+        track.push(drones[0].clone());
+    }
+    (events, track)
 }
 
 /// The world a plan's shards share.

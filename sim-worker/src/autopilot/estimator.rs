@@ -44,6 +44,17 @@ pub struct Estimate {
     pub epv_m: f64,
 }
 
+impl From<&Estimate> for crate::autopilot::control::EstimatedState {
+    fn from(e: &Estimate) -> Self {
+        Self {
+            position_enu_m: e.position_enu_m,
+            velocity_enu_mps: e.velocity_enu_mps,
+            attitude: e.attitude,
+            rate_body_rps: e.rate_body_rps,
+        }
+    }
+}
+
 /// A GNSS fix as the estimator consumes it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GnssMeasurement {

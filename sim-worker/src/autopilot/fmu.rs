@@ -110,12 +110,7 @@ impl Fmu {
         let status = self.status(on_ground, battery_remaining);
         let setpoint = self.navigator.update(time_s, est.as_ref(), &status);
         let state = match est {
-            Some(e) => EstimatedState {
-                position_enu_m: e.position_enu_m,
-                velocity_enu_mps: e.velocity_enu_mps,
-                attitude: e.attitude,
-                rate_body_rps: e.rate_body_rps,
-            },
+            Some(e) => EstimatedState::from(&e),
             None => EstimatedState {
                 position_enu_m: Vector3::zeros(),
                 velocity_enu_mps: Vector3::zeros(),
