@@ -13,6 +13,7 @@ pub mod autopilot;
 pub mod coordinator;
 pub mod env;
 pub mod events;
+pub mod mavlink;
 pub mod pacing;
 pub mod physics;
 pub mod pilot;

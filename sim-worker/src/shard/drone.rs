@@ -133,7 +133,7 @@ impl DroneSim {
         );
         let v_before = self.state.velocity_enu_mps;
         self.state.integrate(&self.airframe, &w, dt_s);
-        self.ground_contact(world, t_end);
+        self.ground_contact(world);
         if self.crashed {
             return;
         }
@@ -183,7 +183,7 @@ impl DroneSim {
 
     /// Landing gear on the terrain: touchdown below the crash speeds rests the drone level
     /// on its gear; faster is a crash.
-    fn ground_contact(&mut self, world: &World, t_s: f64) {
+    fn ground_contact(&mut self, world: &World) {
         let p = self.state.position_enu_m;
         let floor = world.ground_up_m(p.x, p.y) + GEAR_HEIGHT_M;
         self.height_agl_m = p.z - floor + GEAR_HEIGHT_M;
@@ -196,7 +196,7 @@ impl DroneSim {
         let v = self.state.velocity_enu_mps;
         let horizontal = v.xy().norm();
         if !self.on_ground && (-v.z > CRASH_VERTICAL_MPS || horizontal > CRASH_HORIZONTAL_MPS) {
-            self.crash("ground", v.norm(), t_s);
+            self.crash("ground", v.norm());
             return;
         }
         self.on_ground = true;
@@ -208,7 +208,7 @@ impl DroneSim {
     }
 
     /// Stops the drone where it is: motors off, nothing simulated any more.
-    pub fn crash(&mut self, with: &str, speed_mps: f64, _t_s: f64) {
+    pub fn crash(&mut self, with: &str, speed_mps: f64) {
         if self.crashed {
             return;
         }

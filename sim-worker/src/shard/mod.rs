@@ -174,7 +174,7 @@ impl Shard {
             for (i, drone) in self.drones.iter_mut().enumerate() {
                 if !drone.is_crashed() && self.contacts.touches_building(i) {
                     let speed = drone.speed_mps();
-                    drone.crash("building", speed, t_end);
+                    drone.crash("building", speed);
                     self.contacts.disable(i);
                 }
                 let index = drone.plan.index;
