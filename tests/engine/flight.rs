@@ -146,3 +146,32 @@ fn hover_holds_position_in_gusty_wind() {
         / (track.len() - 400) as f64;
     assert!(tilt_west < -0.05, "mean body-z east component {tilt_west:.3}: should lean into a west wind");
 }
+
+#[test]
+fn a_drifting_gnss_bias_really_moves_the_vehicle() {
+    // The estimator trusts GNSS for position, so a receiver whose bias wanders drags the
+    // true position along while the drone believes it holds still.
+    let excursion = |bias_walk: f64| {
+        let run = RunBuilder::test()
+            .with(|r| {
+                r.spec.fleet[0].mission = Some(hover_mission(200.0));
+                r.spec.environment = Some(
+                    serde_json::from_value(serde_json::json!({
+                        "gnss": {"biasWalkMPerSqrtS": bias_walk, "horizontalSigmaM": 0.3}
+                    }))
+                    .unwrap(),
+                );
+            })
+            .build();
+        let (_, track) = fly(&run, 150);
+        let start = track[300].position_enu_m; // 30 s: climb done, holding
+        track[300..]
+            .iter()
+            .map(|s| (s.position_enu_m[0] - start[0]).hypot(s.position_enu_m[1] - start[1]))
+            .fold(0.0, f64::max)
+    };
+    let steady = excursion(0.0);
+    let drifting = excursion(1.0);
+    assert!(steady < 1.5, "no bias walk: held within {steady:.2} m");
+    assert!(drifting > 3.0 * steady && drifting > 4.0, "1 m/sqrt(s) bias walk moved the drone {drifting:.2} m");
+}
