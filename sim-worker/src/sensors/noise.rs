@@ -45,13 +45,20 @@ pub(crate) fn white_sigma(density: f64, dt_s: f64) -> f64 {
 /// For dt ≪ τ it is a random walk (std q·√t); τ bounds it at q·sqrt(τ/2). τ = ∞ gives the
 /// pure random walk b ← b + q·√dt·n. `n` is a standard normal draw.
 pub(crate) fn gauss_markov_step(b: f64, walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64, n: f64) -> f64 {
+    let (decay, sigma) = gauss_markov_coefficients(walk_per_sqrt_s, tau_s, dt_s);
+    decay * b + sigma * n
+}
+
+/// `(e^{-dt/τ}, q · sqrt(τ/2 · (1 - e^{-2dt/τ})))` of [`gauss_markov_step`]; `(1, q·√dt)` for
+/// τ = ∞. Two transcendentals: computed once per step and shared by the axes.
+fn gauss_markov_coefficients(walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64) -> (f64, f64) {
     let dt_s = dt_s.max(0.0);
     if tau_s.is_infinite() {
-        return b + walk_per_sqrt_s * dt_s.sqrt() * n;
+        return (1.0, walk_per_sqrt_s * dt_s.sqrt());
     }
     let decay = (-dt_s / tau_s).exp();
     let sigma = walk_per_sqrt_s * (tau_s / 2.0 * -(-2.0 * dt_s / tau_s).exp_m1()).sqrt();
-    decay * b + sigma * n
+    (decay, sigma)
 }
 
 /// [`gauss_markov_step`] on each axis, drawing three normals.
@@ -62,7 +69,8 @@ pub(crate) fn gauss_markov_step3(
     dt_s: f64,
     rng: &mut Rng,
 ) -> Vector3<f64> {
-    b.map(|axis| gauss_markov_step(axis, walk_per_sqrt_s, tau_s, dt_s, rng.normal()))
+    let (decay, sigma) = gauss_markov_coefficients(walk_per_sqrt_s, tau_s, dt_s);
+    b.map(|axis| decay * axis + sigma * rng.normal())
 }
 
 #[cfg(test)]
