@@ -7,7 +7,7 @@ use sadesim_crds::geo::{Enu, LocalFrame};
 use sim_worker::events::{EventKind, FlightMode};
 use sim_worker::shard::Shard;
 
-use sadesim_integration_tests::{plan as plan_for, world as world_for};
+use sadesim_integration_tests::{fly_to_and_land, plan as plan_for, world as world_for};
 
 #[test]
 fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
@@ -18,19 +18,7 @@ fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
     let plan0 = plan_for(&run);
     let home = plan0.drones[0].home.local;
     let wp = frame.to_geodetic(Enu::new(home.east_m, home.north_m + 60.0, 0.0));
-    run.spec.fleet[0].mission = Some(Mission {
-        items: vec![
-            MissionItem::Takeoff { altitude_agl_m: 20.0 },
-            MissionItem::Waypoint {
-                latitude_deg: wp.latitude_deg,
-                longitude_deg: wp.longitude_deg,
-                altitude_agl_m: 30.0,
-                hold_s: Some(3.0),
-            },
-            MissionItem::Land {},
-        ],
-        speed_mps: Some(5.0),
-    });
+    run.spec.fleet[0].mission = Some(fly_to_and_land(wp, 20.0, 30.0, Some(3.0), 5.0));
     let plan = plan_for(&run);
     let world = world_for(&plan);
     let mut shard = Shard::new(&plan, 0, world.clone()).unwrap();

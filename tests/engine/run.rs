@@ -8,10 +8,10 @@ use std::sync::atomic::AtomicBool;
 use sadesim::runner::{RunError, RunOptions, run_local};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::fixtures::RunBuilder;
-use sadesim_crds::fleet::{Area, HomePlacement, Mission, MissionItem};
+use sadesim_crds::fleet::{Area, HomePlacement};
 use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::run::{Clock, ClockMode};
-use sadesim_integration_tests::{plan, world};
+use sadesim_integration_tests::{fly_to_and_land, plan, world};
 
 fn out_root(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("sadesim-run-{}-{name}", std::process::id()));
@@ -37,19 +37,7 @@ fn scenario(n: u32, per_shard: u32) -> SimulationRun {
             let c =
                 frame.to_enu(sadesim_crds::geo::GeoPoint::new(a.center.latitude_deg, a.center.longitude_deg, 181.0));
             let wp = frame.to_geodetic(Enu::new(c.east_m, c.north_m + 40.0, 0.0));
-            r.spec.fleet[0].mission = Some(Mission {
-                items: vec![
-                    MissionItem::Takeoff { altitude_agl_m: 10.0 },
-                    MissionItem::Waypoint {
-                        latitude_deg: wp.latitude_deg,
-                        longitude_deg: wp.longitude_deg,
-                        altitude_agl_m: 12.0,
-                        hold_s: None,
-                    },
-                    MissionItem::Land {},
-                ],
-                speed_mps: Some(6.0),
-            });
+            r.spec.fleet[0].mission = Some(fly_to_and_land(wp, 10.0, 12.0, None, 6.0));
         })
         .build()
 }
@@ -151,19 +139,7 @@ fn flying_into_a_building_is_a_crash_event_and_the_run_goes_on() {
     r.spec.duration = "3m".parse().unwrap();
     r.spec.fleet[0].count = 2;
     r.spec.fleet[0].altitude.max_agl_m = 200.0;
-    r.spec.fleet[0].mission = Some(Mission {
-        items: vec![
-            MissionItem::Takeoff { altitude_agl_m: 15.0 },
-            MissionItem::Waypoint {
-                latitude_deg: target.latitude_deg,
-                longitude_deg: target.longitude_deg,
-                altitude_agl_m: 15.0,
-                hold_s: None,
-            },
-            MissionItem::Land {},
-        ],
-        speed_mps: Some(10.0),
-    });
+    r.spec.fleet[0].mission = Some(fly_to_and_land(target, 15.0, 15.0, None, 10.0));
     let report = run(&r, &root, false).unwrap();
     let events = bytes(&report.out_dir, "events.jsonl");
     assert!(events.contains(r#""event":"crashed","with":"building""#), "{events}");

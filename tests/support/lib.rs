@@ -3,6 +3,8 @@
 use std::sync::Arc;
 
 use sadesim_crds::SimulationRun;
+use sadesim_crds::fleet::{Mission, MissionItem};
+use sadesim_crds::geo::GeoPoint;
 use sadesim_crds::plan::RunPlan;
 use sim_worker::events::Event;
 use sim_worker::protocol::{DroneSnapshot, FromShard, ToShard};
@@ -35,6 +37,24 @@ pub fn fly(run: &SimulationRun, seconds: u64, sample_steps: u64) -> (Vec<Event>,
         track.push(drones[0].clone());
     }
     (events, track)
+}
+
+/// Take off to `takeoff_agl_m`, fly to `to` (a ground point: only its latitude and
+/// longitude count) at `agl_m`, hold `hold_s`, land there.
+pub fn fly_to_and_land(to: GeoPoint, takeoff_agl_m: f64, agl_m: f64, hold_s: Option<f64>, speed_mps: f64) -> Mission {
+    Mission {
+        items: vec![
+            MissionItem::Takeoff { altitude_agl_m: takeoff_agl_m },
+            MissionItem::Waypoint {
+                latitude_deg: to.latitude_deg,
+                longitude_deg: to.longitude_deg,
+                altitude_agl_m: agl_m,
+                hold_s,
+            },
+            MissionItem::Land {},
+        ],
+        speed_mps: Some(speed_mps),
+    }
 }
 
 /// The world a plan's shards share.
