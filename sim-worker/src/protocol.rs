@@ -34,6 +34,23 @@ pub struct DroneSnapshot {
     pub position_valid: bool,
 }
 
+/// How many drones are in the air, on the ground, crashed: what progress displays show.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[serde(rename_all = "camelCase")]
+pub struct FleetCounts {
+    pub airborne: u32,
+    pub on_ground: u32,
+    pub crashed: u32,
+}
+
+impl FleetCounts {
+    pub fn of(drones: &[DroneSnapshot]) -> Self {
+        let crashed = drones.iter().filter(|d| d.crashed).count() as u32;
+        let airborne = drones.iter().filter(|d| !d.on_ground && !d.crashed).count() as u32;
+        Self { airborne, on_ground: drones.len() as u32 - airborne - crashed, crashed }
+    }
+}
+
 /// Coordinator -> shard.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]

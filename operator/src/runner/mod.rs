@@ -12,7 +12,7 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
 use sim_worker::coordinator::{self, CoordinatorError, RunObserver, ShardLink};
 use sim_worker::events::Event;
-use sim_worker::protocol::DroneSnapshot;
+use sim_worker::protocol::{DroneSnapshot, FleetCounts};
 use sim_worker::record::{Recorder, RecorderOptions, RunSummary};
 use sim_worker::transport;
 use sim_worker::world::{World, WorldInputs};
@@ -140,18 +140,20 @@ impl RunObserver for Progress<'_> {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
         self.recorder.on_window(time_s, drones, events)?;
         if !self.bar.is_hidden() {
-            let airborne = drones.iter().filter(|d| !d.on_ground && !d.crashed).count();
-            let crashed = drones.iter().filter(|d| d.crashed).count();
-            let landed = drones.len() - airborne - crashed;
-            let rtf = time_s / self.started.elapsed().as_secs_f64().max(1e-9);
-            self.bar.set_position((time_s / self.duration_s * 1000.0) as u64);
-            self.bar.set_message(format!(
-                "sim {time_s:7.1}/{:.0} s  RTF {rtf:5.1}  airborne {airborne} on ground {landed} crashed {crashed}",
-                self.duration_s
-            ));
+            show_progress(&self.bar, time_s, self.duration_s, self.started, FleetCounts::of(drones));
         }
         Ok(())
     }
+}
+
+/// The progress bar's position and message: sim time, real-time factor, fleet counts.
+fn show_progress(bar: &ProgressBar, time_s: f64, duration_s: f64, started: std::time::Instant, c: FleetCounts) {
+    let rtf = time_s / started.elapsed().as_secs_f64().max(1e-9);
+    bar.set_position((time_s / duration_s * 1000.0) as u64);
+    bar.set_message(format!(
+        "sim {time_s:7.1}/{duration_s:.0} s  RTF {rtf:5.1}  airborne {} on ground {} crashed {}",
+        c.airborne, c.on_ground, c.crashed
+    ));
 }
 
 /// Runs a scenario locally.

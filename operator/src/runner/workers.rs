@@ -115,13 +115,8 @@ pub(super) fn run(
             interrupt(&coordinator);
         }
         match rx.recv_timeout(Duration::from_millis(100)) {
-            Ok(Report::Progress { sim_time_s, airborne, on_ground, crashed }) => {
-                let rtf = sim_time_s / started.elapsed().as_secs_f64().max(1e-9);
-                bar.set_position((sim_time_s / plan.duration_s * 1000.0) as u64);
-                bar.set_message(format!(
-                    "sim {sim_time_s:7.1}/{:.0} s  RTF {rtf:5.1}  airborne {airborne} on ground {on_ground} crashed {crashed}",
-                    plan.duration_s
-                ));
+            Ok(Report::Progress { sim_time_s, counts }) => {
+                super::show_progress(bar, sim_time_s, plan.duration_s, started, counts);
             }
             Ok(Report::Finished { summary: s }) => summary = Some(s),
             Ok(Report::Listening { .. }) => {}

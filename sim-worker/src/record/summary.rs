@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::events::{Event, EventKind};
-use crate::protocol::DroneSnapshot;
+use crate::protocol::{DroneSnapshot, FleetCounts};
 
 /// Per-drone outcome.
 #[derive(Serialize, Deserialize, Clone, Debug, Default, PartialEq)]
@@ -70,7 +70,8 @@ impl RunSummary {
                 *slot = Some(here);
             }
         }
-        self.airborne = drones.iter().filter(|s| !s.on_ground && !s.crashed).count() as u32;
-        self.crashed = drones.iter().filter(|s| s.crashed).count() as u32;
+        let counts = FleetCounts::of(drones);
+        self.airborne = counts.airborne;
+        self.crashed = counts.crashed;
     }
 }

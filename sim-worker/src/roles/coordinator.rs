@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 use super::RoleError;
 use crate::coordinator::{self, RunObserver, ShardLink};
 use crate::events::Event;
-use crate::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION};
+use crate::protocol::{DroneSnapshot, FleetCounts, FromShard, PROTOCOL_VERSION};
 use crate::record::{Recorder, RecorderOptions, RunSummary};
 use crate::transport::TcpLink;
 
@@ -23,7 +23,12 @@ pub enum Report {
     /// Bound and waiting for shards.
     Listening { address: String },
     /// Progress, about once per simulated second.
-    Progress { sim_time_s: f64, airborne: u32, on_ground: u32, crashed: u32 },
+    Progress {
+        sim_time_s: f64,
+        /// Flattened: the line reads `{"type":"progress","simTimeS":..,"airborne":..,...}`.
+        #[serde(flatten)]
+        counts: FleetCounts,
+    },
     /// The run is over and its files are written.
     Finished { summary: RunSummary },
 }
@@ -47,14 +52,7 @@ impl RunObserver for Reporting<'_> {
         self.recorder.on_window(time_s, drones, events)?;
         if time_s >= self.next_report_s {
             self.next_report_s = time_s.floor() + 1.0;
-            let airborne = drones.iter().filter(|d| !d.on_ground && !d.crashed).count() as u32;
-            let crashed = drones.iter().filter(|d| d.crashed).count() as u32;
-            report(&Report::Progress {
-                sim_time_s: time_s,
-                airborne,
-                on_ground: drones.len() as u32 - airborne - crashed,
-                crashed,
-            });
+            report(&Report::Progress { sim_time_s: time_s, counts: FleetCounts::of(drones) });
         }
         Ok(())
     }
@@ -120,5 +118,21 @@ impl ShardLink for Greeted {
             Some(h) => Ok(h),
             None => self.link.recv(),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn progress_lines_keep_their_flat_shape() {
+        let line = serde_json::to_string(&Report::Progress {
+            sim_time_s: 1.0,
+            counts: FleetCounts { airborne: 4, on_ground: 0, crashed: 0 },
+        })
+        .unwrap();
+        assert_eq!(line, r#"{"type":"progress","simTimeS":1.0,"airborne":4,"onGround":0,"crashed":0}"#);
+        assert!(matches!(serde_json::from_str::<Report>(&line).unwrap(), Report::Progress { .. }));
     }
 }
