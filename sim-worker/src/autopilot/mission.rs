@@ -19,6 +19,8 @@ pub enum MissionItem {
     ReturnToLaunch,
     /// Land at the current position.
     Land,
+    /// From here on fly at `speed_mps` horizontally (MAV_CMD_DO_CHANGE_SPEED); done at once.
+    ChangeSpeed { speed_mps: f64 },
 }
 
 /// A mission with its cruise speed.

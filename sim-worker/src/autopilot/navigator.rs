@@ -88,14 +88,21 @@ pub enum Command {
         target_en_m: Vector2<f64>,
         altitude_rel_home_m: f64,
     },
-    /// An offboard setpoint; switches to OFFBOARD when the stream is established.
-    Offboard(Setpoint),
+    /// An offboard setpoint (PX4 SET_POSITION_TARGET_*): followed while in OFFBOARD, kept
+    /// otherwise so that a switch to OFFBOARD has something to fly.
+    OffboardSetpoint(Setpoint),
+    /// Switch to OFFBOARD; refused unless a setpoint arrived within the offboard timeout
+    /// (PX4 denies the switch without a setpoint stream).
+    StartOffboard,
+    /// Make mission item `seq` the current one (MISSION_SET_CURRENT); flown from there when
+    /// in (or switched to) MISSION.
+    SetCurrentItem(usize),
     ReturnToLaunch,
     Land,
 }
 
 /// Why a command was refused.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum Rejection {
     #[error("arming refused: {0}")]
     ArmingCheck(String),
@@ -105,6 +112,10 @@ pub enum Rejection {
     NoMission,
     #[error("disarming refused: vehicle is airborne")]
     Airborne,
+    #[error("offboard refused: no setpoint received in the last {0} s")]
+    NoOffboardSetpoint(f64),
+    #[error("mission item {0} does not exist")]
+    NoSuchItem(usize),
 }
 
 /// Progress through the current mode.
@@ -186,6 +197,17 @@ impl Navigator {
     pub fn current_item(&self) -> usize {
         self.current_item
     }
+    /// The loaded mission.
+    pub fn mission(&self) -> Option<&MissionPlan> {
+        self.mission.as_ref()
+    }
+    /// Tunables in force (the MAVLink parameters change some of them).
+    pub fn config(&self) -> &NavigatorConfig {
+        &self.config
+    }
+    pub fn set_config(&mut self, config: NavigatorConfig) {
+        self.config = config;
+    }
     /// Events since the last call.
     pub fn take_events(&mut self) -> Vec<EventKind> {
         std::mem::take(&mut self.events)
@@ -260,6 +282,24 @@ impl Navigator {
                 self.current_item = 0;
                 Ok(())
             }
+            // Setpoints may stream before arming, as PX4 recommends before switching modes.
+            Command::OffboardSetpoint(sp) => {
+                self.offboard = Some((sp, t_s));
+                Ok(())
+            }
+            Command::SetCurrentItem(seq) => {
+                let count = self.mission.as_ref().map_or(0, |m| m.items.len());
+                if seq >= count {
+                    return Err(Rejection::NoSuchItem(seq));
+                }
+                self.current_item = seq;
+                if self.mode == FlightMode::Mission
+                    && let Some(est) = est
+                {
+                    self.begin_item(t_s, est);
+                }
+                Ok(())
+            }
             _ if !self.armed => Err(Rejection::NotArmed),
             Command::Takeoff { altitude_rel_home_m } => {
                 let est = est.ok_or(Rejection::NotArmed)?;
@@ -269,8 +309,12 @@ impl Navigator {
             }
             Command::StartMission => {
                 let est = est.ok_or(Rejection::NotArmed)?;
-                if self.mission.as_ref().is_none_or(|m| m.items.is_empty()) {
+                let count = self.mission.as_ref().map_or(0, |m| m.items.len());
+                if count == 0 {
                     return Err(Rejection::NoMission);
+                }
+                if self.current_item >= count {
+                    self.current_item = 0; // a finished mission starts over, as in PX4
                 }
                 self.set_mode(FlightMode::Mission);
                 self.begin_item(t_s, est);
@@ -289,8 +333,11 @@ impl Navigator {
                 self.phase = self.leg(t_s, est.position_enu_m, to, self.cruise_speed(), 0.0);
                 Ok(())
             }
-            Command::Offboard(sp) => {
-                self.offboard = Some((sp, t_s));
+            Command::StartOffboard => {
+                let fresh = self.offboard.is_some_and(|(_, at)| t_s - at <= self.config.offboard_timeout_s);
+                if !fresh {
+                    return Err(Rejection::NoOffboardSetpoint(self.config.offboard_timeout_s));
+                }
                 self.set_mode(FlightMode::Offboard);
                 Ok(())
             }
@@ -364,6 +411,12 @@ impl Navigator {
             MissionItem::Loiter { hold_s } => self.phase = Phase::Hold { at: p, until_s: Some(t_s + hold_s) },
             MissionItem::ReturnToLaunch => self.start_rtl(t_s, est),
             MissionItem::Land => self.start_land(t_s, est),
+            MissionItem::ChangeSpeed { speed_mps } => {
+                if let Some(m) = &mut self.mission {
+                    m.speed_mps = speed_mps;
+                }
+                self.item_done(t_s, est);
+            }
         }
     }
 

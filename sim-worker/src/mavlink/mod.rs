@@ -1,5 +1,9 @@
-//! The MAVLink edge of a drone (the MAVLink issue builds the endpoint, session state
-//! machine and router here). So far: PX4's flight-mode encoding, which the HEARTBEAT and
-//! DO_SET_MODE need and which must match PX4 bit for bit for ground stations and SDKs.
+//! The MAVLink edge of a drone: PX4's flight-mode encoding, framing, the per-drone session
+//! state machine (pure), the socket endpoint that carries it, and the fleet router.
+//!
+//! Frames at this edge are MAVLink's: NED (x north, y east, z down) for local positions,
+//! WGS84 lat/lon in 1e-7 degrees, altitudes in metres AMSL or relative to home. The engine
+//! inside is ENU; conversions happen here and nowhere else.
 
+pub mod frame;
 pub mod px4_mode;

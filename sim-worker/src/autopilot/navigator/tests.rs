@@ -149,9 +149,17 @@ fn offboard_follows_setpoints_and_falls_back_to_hold_when_they_stop() {
         yaw_rad: 0.0,
         velocity_ff: Vector3::zeros(),
     };
+    assert_eq!(
+        nav.command(Command::StartOffboard, 0.0, Some(&v.estimate()), &s),
+        Err(Rejection::NoOffboardSetpoint(1.0)),
+        "no setpoint stream yet"
+    );
     let mut t = 0.0;
     while t < 5.0 {
-        nav.command(Command::Offboard(target), t, Some(&v.estimate()), &v.status()).unwrap();
+        nav.command(Command::OffboardSetpoint(target), t, Some(&v.estimate()), &v.status()).unwrap();
+        if nav.mode() != FlightMode::Offboard {
+            nav.command(Command::StartOffboard, t, Some(&v.estimate()), &v.status()).unwrap();
+        }
         let sp = nav.update(t, Some(&v.estimate()), &v.status());
         v.track(&sp, 0.01);
         t += 0.01;

@@ -1,0 +1,311 @@
+//! MAVLink 2 framing: bytes in, checked frames out; messages in, bytes out.
+//!
+//! Written against the wire format (<https://mavlink.io/en/guide/serialization.html>) rather
+//! than the `mavlink` crate's blocking readers, because every endpoint must survive
+//! arbitrary bytes: a UDP datagram or a TCP stream may hold several frames, half a frame,
+//! garbage, a wrong checksum or a payload shortened by MAVLink 2's trailing-zero
+//! truncation. The parser never panics and never waits: it consumes what it can and keeps
+//! an incomplete tail for the next call. Message (de)serialisation itself is the `mavlink`
+//! crate's generated code for the common dialect.
+//!
+//! MAVLink 1 frames (STX 0xFE) are skipped: PX4 answers MAVLink 2 to MAVLink 2 peers and
+//! every client we target (QGroundControl, MAVSDK, pymavlink with `MAVLINK20=1`) speaks 2.
+
+use ::mavlink::dialects::common::MavMessage;
+use ::mavlink::error::ParserError;
+use ::mavlink::{MAVLinkV2MessageRaw, MavHeader, MavlinkVersion, Message};
+
+/// MAVLink 2 start-of-frame marker.
+pub const STX_V2: u8 = 0xFD;
+/// Header after the STX: len, incompat flags, compat flags, seq, sysid, compid, msgid (3).
+const HEADER_LEN: usize = 9;
+const CHECKSUM_LEN: usize = 2;
+const SIGNATURE_LEN: usize = 13;
+/// Incompatibility flag: the frame carries a 13-byte signature.
+const IFLAG_SIGNED: u8 = 0x01;
+/// Largest MAVLink 2 frame: STX + header + 255 payload + checksum + signature.
+pub const MAX_FRAME_LEN: usize = 1 + HEADER_LEN + 255 + CHECKSUM_LEN + SIGNATURE_LEN;
+/// Message ids of COMMAND_INT and COMMAND_LONG (both carry the command id at byte 28).
+const COMMAND_INT_ID: u32 = 75;
+const COMMAND_LONG_ID: u32 = 76;
+
+/// One frame with a good checksum.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// Sender system, component and sequence.
+    pub header: MavHeader,
+    pub message_id: u32,
+    /// The frame exactly as received (for routers, which forward without re-encoding).
+    pub bytes: Vec<u8>,
+    /// The decoded message, or why it could not be decoded.
+    pub message: Decoded,
+}
+
+/// What a checksummed frame decodes to.
+#[derive(Clone, Debug)]
+pub enum Decoded {
+    Message(MavMessage),
+    /// A COMMAND_LONG or COMMAND_INT whose command id the common dialect does not define.
+    /// It still deserves an answer: COMMAND_ACK with MAV_RESULT_UNSUPPORTED.
+    UnknownCommand {
+        command: u16,
+        target_system: u8,
+        target_component: u8,
+    },
+    /// A message id outside the common dialect, or a field with an undefined enum value.
+    Undecodable(String),
+}
+
+/// Counters of what the parser threw away (for logs and tests).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ParseStats {
+    pub frames: u64,
+    /// Frames whose checksum did not match (dropped).
+    pub bad_checksum: u64,
+    /// Bytes skipped while looking for a start marker.
+    pub skipped_bytes: u64,
+}
+
+/// Incremental MAVLink 2 parser for one byte stream (a TCP connection) or a sequence of
+/// datagrams (call [`FrameParser::reset`] between unrelated datagram sources if desired).
+#[derive(Debug, Default)]
+pub struct FrameParser {
+    buf: Vec<u8>,
+    pub stats: ParseStats,
+}
+
+/// The CRC-16/MCRF4XX (X.25) MAVLink uses, over `data` then the message's CRC_EXTRA byte.
+pub fn checksum(data: &[u8], extra: u8) -> u16 {
+    ::mavlink::calculate_crc(data, extra)
+}
+
+impl FrameParser {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Drops any partial frame (a datagram boundary on UDP means the tail is garbage).
+    pub fn reset(&mut self) {
+        self.buf.clear();
+    }
+
+    /// Appends `bytes` and returns every complete, checksummed frame found. Bytes that
+    /// cannot start a frame are skipped; an incomplete frame stays buffered.
+    pub fn push(&mut self, bytes: &[u8]) -> Vec<Frame> {
+        self.buf.extend_from_slice(bytes);
+        let mut frames = Vec::new();
+        let mut at = 0;
+        while at < self.buf.len() {
+            if self.buf[at] != STX_V2 {
+                at += 1;
+                self.stats.skipped_bytes += 1;
+                continue;
+            }
+            let rest = &self.buf[at..];
+            if rest.len() < 1 + HEADER_LEN {
+                break; // header incomplete
+            }
+            let payload_len = rest[1] as usize;
+            let signed = rest[2] & IFLAG_SIGNED != 0;
+            let total = 1 + HEADER_LEN + payload_len + CHECKSUM_LEN + if signed { SIGNATURE_LEN } else { 0 };
+            if rest.len() < total {
+                break; // frame incomplete
+            }
+            let message_id = u32::from(rest[7]) | u32::from(rest[8]) << 8 | u32::from(rest[9]) << 16;
+            let crc_end = 1 + HEADER_LEN + payload_len;
+            let received = u16::from_le_bytes([rest[crc_end], rest[crc_end + 1]]);
+            let extra = MavMessage::extra_crc(message_id);
+            if checksum(&rest[1..crc_end], extra) != received {
+                // Not a frame (or a corrupted one): resynchronise one byte later, since a
+                // real frame may start inside what looked like this one.
+                self.stats.bad_checksum += 1;
+                at += 1;
+                continue;
+            }
+            let header = MavHeader { sequence: rest[4], system_id: u32::from(rest[5]), component_id: rest[6] };
+            let payload = &rest[1 + HEADER_LEN..crc_end];
+            let message = decode(message_id, payload);
+            frames.push(Frame { header, message_id, bytes: rest[..total].to_vec(), message });
+            self.stats.frames += 1;
+            at += total;
+        }
+        self.buf.drain(..at);
+        // A buffer can only hold one incomplete frame; anything longer is garbage that
+        // began with STX and a large length. Bound memory per connection.
+        if self.buf.len() > MAX_FRAME_LEN {
+            let excess = self.buf.len() - MAX_FRAME_LEN;
+            self.buf.drain(..excess);
+            self.stats.skipped_bytes += excess as u64;
+        }
+        frames
+    }
+}
+
+/// Decodes a checksummed payload (possibly truncated: MAVLink 2 drops trailing zeros).
+fn decode(message_id: u32, payload: &[u8]) -> Decoded {
+    match MavMessage::parse(MavlinkVersion::V2, message_id, payload) {
+        Ok(m) => Decoded::Message(m),
+        Err(ParserError::InvalidEnum { enum_type, value })
+            if (message_id == COMMAND_LONG_ID || message_id == COMMAND_INT_ID) && enum_type.contains("MavCmd") =>
+        {
+            // Both messages put command (u16) at 28, target system at 30, component at 31.
+            let mut full = [0u8; 32];
+            let n = payload.len().min(32);
+            full[..n].copy_from_slice(&payload[..n]);
+            let _ = value;
+            Decoded::UnknownCommand {
+                command: u16::from_le_bytes([full[28], full[29]]),
+                target_system: full[30],
+                target_component: full[31],
+            }
+        }
+        Err(e) => Decoded::Undecodable(format!("message {message_id}: {e}")),
+    }
+}
+
+/// Encodes `message` as one MAVLink 2 frame from `header` (unsigned).
+pub fn encode(header: MavHeader, message: &MavMessage) -> Vec<u8> {
+    let mut raw = MAVLinkV2MessageRaw::new();
+    raw.serialize_message(header, message);
+    raw.raw_bytes().to_vec()
+}
+
+/// The system a message is addressed to: `Some(0)` or `None` mean everyone.
+pub fn target_system(message: &MavMessage) -> Option<u8> {
+    message.target_system_id()
+}
+
+#[cfg(test)]
+mod tests {
+    use ::mavlink::dialects::common::{
+        COMMAND_ACK_DATA, HEARTBEAT_DATA, MavAutopilot, MavCmd, MavModeFlag, MavResult, MavState, MavType,
+        PARAM_REQUEST_LIST_DATA,
+    };
+
+    use super::*;
+
+    fn heartbeat() -> MavMessage {
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: 0x0304_0000,
+            mavtype: MavType::MAV_TYPE_QUADROTOR,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+            base_mode: MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+            system_status: MavState::MAV_STATE_STANDBY,
+            mavlink_version: 3,
+        })
+    }
+
+    fn header(sys: u32) -> MavHeader {
+        MavHeader { system_id: sys, component_id: 1, sequence: 7 }
+    }
+
+    #[test]
+    fn round_trips_several_frames_in_one_buffer() {
+        let mut bytes = encode(header(3), &heartbeat());
+        bytes.extend(encode(
+            header(255),
+            &MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA { target_system: 3, target_component: 1 }),
+        ));
+        let frames = FrameParser::new().push(&bytes);
+        assert_eq!(frames.len(), 2);
+        assert_eq!(frames[0].header.system_id, 3);
+        assert_eq!(frames[0].header.sequence, 7);
+        assert!(matches!(frames[0].message, Decoded::Message(MavMessage::HEARTBEAT(_))));
+        match &frames[1].message {
+            Decoded::Message(m) => assert_eq!(target_system(m), Some(3)),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(frames[1].bytes, bytes[frames[0].bytes.len()..]);
+    }
+
+    #[test]
+    fn a_frame_split_across_pushes_is_reassembled() {
+        let bytes = encode(header(1), &heartbeat());
+        let mut p = FrameParser::new();
+        assert!(p.push(&bytes[..5]).is_empty());
+        assert!(p.push(&bytes[5..bytes.len() - 1]).is_empty());
+        assert_eq!(p.push(&bytes[bytes.len() - 1..]).len(), 1);
+    }
+
+    #[test]
+    fn wrong_checksum_is_dropped_and_the_next_frame_still_parses() {
+        let mut bad = encode(header(1), &heartbeat());
+        let n = bad.len();
+        bad[n - 1] ^= 0xFF;
+        let good = encode(header(2), &heartbeat());
+        let mut p = FrameParser::new();
+        let frames = p.push(&[bad, good].concat());
+        assert_eq!(frames.len(), 1);
+        assert_eq!(frames[0].header.system_id, 2);
+        assert_eq!(p.stats.bad_checksum, 1);
+    }
+
+    #[test]
+    fn truncated_payloads_decode_with_zeros() {
+        // An ack with result 0 (ACCEPTED) and zero extension fields: MAVLink 2 sends only
+        // the command id (the trailing zero bytes are cut).
+        let ack = MavMessage::COMMAND_ACK(COMMAND_ACK_DATA {
+            command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+            result: MavResult::MAV_RESULT_ACCEPTED,
+            ..Default::default()
+        });
+        let bytes = encode(header(1), &ack);
+        assert!(bytes[1] < 10, "payload was truncated to {} bytes", bytes[1]);
+        let frames = FrameParser::new().push(&bytes);
+        match &frames[0].message {
+            Decoded::Message(MavMessage::COMMAND_ACK(a)) => {
+                assert_eq!(a.command, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM);
+                assert_eq!(a.result, MavResult::MAV_RESULT_ACCEPTED);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// Builds a COMMAND_LONG frame by hand with any command number.
+    fn command_long(command: u16, target: u8) -> Vec<u8> {
+        let mut payload = vec![0u8; 33];
+        payload[28..30].copy_from_slice(&command.to_le_bytes());
+        payload[30] = target;
+        payload[31] = 1;
+        let mut frame = vec![STX_V2, payload.len() as u8, 0, 0, 9, 255, 190, COMMAND_LONG_ID as u8, 0, 0];
+        frame.extend(&payload);
+        let crc = checksum(&frame[1..], MavMessage::extra_crc(COMMAND_LONG_ID));
+        frame.extend(crc.to_le_bytes());
+        frame
+    }
+
+    #[test]
+    fn an_undefined_command_is_reported_with_its_number_and_target() {
+        let frames = FrameParser::new().push(&command_long(31_999, 5));
+        match frames[0].message {
+            Decoded::UnknownCommand { command, target_system, target_component } => {
+                assert_eq!((command, target_system, target_component), (31_999, 5, 1));
+            }
+            ref other => panic!("{other:?}"),
+        }
+        // A defined command decodes normally.
+        let frames = FrameParser::new().push(&command_long(400, 5));
+        assert!(matches!(frames[0].message, Decoded::Message(MavMessage::COMMAND_LONG(_))));
+    }
+
+    #[test]
+    fn garbage_never_panics_and_memory_stays_bounded() {
+        let mut p = FrameParser::new();
+        let mut x: u32 = 12345;
+        for _ in 0..20_000 {
+            let chunk: Vec<u8> = (0..97)
+                .map(|_| {
+                    x ^= x << 13;
+                    x ^= x >> 17;
+                    x ^= x << 5;
+                    if x % 7 == 0 { STX_V2 } else { x as u8 }
+                })
+                .collect();
+            p.push(&chunk);
+            assert!(p.buf.len() <= MAX_FRAME_LEN);
+        }
+        // Still works afterwards.
+        p.reset();
+        assert_eq!(p.push(&encode(header(1), &heartbeat())).len(), 1);
+    }
+}
