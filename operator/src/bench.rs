@@ -72,7 +72,7 @@ pub fn run(
         .replace("{seconds}", &seconds.to_string())
         .replace("{per_shard}", &drones_per_shard.to_string());
     let run = parse_run(&text).expect("the benchmark scenario is valid");
-    let options = RunOptions { out_root: Some(out_root), progress: false, processes: false, worker: None };
+    let options = RunOptions { out_root: Some(out_root), ..RunOptions::default() };
     let report = run_local(&run, &options, Arc::new(AtomicBool::new(false)))?;
     let s = &report.summary;
     let steps = f64::from(s.drones) * s.sim_time_s * 1000.0;

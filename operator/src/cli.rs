@@ -64,11 +64,13 @@ pub enum Command {
         #[arg(long, default_value_t = 100)]
         drones_per_shard: u32,
     },
-    /// Run a scenario locally: world, shards, coordinator and recorder in this process.
+    /// Run a scenario locally: world, shards, coordinator and recorder in this process,
+    /// and `spec.pilot` as a child process.
     ///
-    /// Writes plan.json, world.json, events.jsonl, trajectory.csv, trajectory.geojson and
-    /// summary.json into `<out>/<run>/<UTC time>/` (out: the archive folder of a file://
-    /// archive URL, else ./runs). Ctrl-C ends the run cleanly and keeps everything written.
+    /// Writes plan.json, fleet.json, world.json, events.jsonl, trajectory.csv,
+    /// trajectory.geojson and summary.json (and pilot.json, pilot.log with a pilot) into
+    /// `<out>/<run>/<UTC time>/` (out: the archive folder of a file:// archive URL, else
+    /// ./runs). Ctrl-C ends the run cleanly and keeps everything written.
     Run {
         /// Scenario file with exactly one run (use `-` for stdin).
         file: PathBuf,
@@ -86,6 +88,15 @@ pub enum Command {
         /// `scaled:FACTOR` (e.g. `scaled:4`).
         #[arg(long, value_parser = parse_clock)]
         clock: Option<sadesim_crds::run::Clock>,
+        /// Do not start `spec.pilot`: attach a pilot, SDK script or ground station yourself
+        /// (the fleet file is `fleet.json` in the run folder, or `sadesim plan --fleet`).
+        /// The run lasts until `duration` or Ctrl-C.
+        #[arg(long)]
+        no_pilot: bool,
+        /// Serve no MAVLink endpoints (scripted missions only; groups without a `mission`
+        /// are then refused).
+        #[arg(long)]
+        no_mavlink: bool,
     },
 }
 
@@ -131,8 +142,16 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
     match cli.command {
         Command::Validate { files } => validate_files(&files, out),
         Command::Plan { file, json, fleet, namespace } => plan_file(&file, json, fleet, namespace, out),
-        Command::Run { file, out: out_root, quiet, processes, clock } => {
-            let options = crate::runner::RunOptions { out_root, progress: !quiet, processes, worker: None };
+        Command::Run { file, out: out_root, quiet, processes, clock, no_pilot, no_mavlink } => {
+            let options = crate::runner::RunOptions {
+                out_root,
+                progress: !quiet,
+                processes,
+                worker: None,
+                scenario: (file.as_os_str() != "-").then(|| file.clone()),
+                start_pilot: !no_pilot,
+                mavlink: !no_mavlink,
+            };
             run_file(&file, options, clock, out)
         }
         Command::Bench { drones, seconds, drones_per_shard } => {
@@ -321,6 +340,10 @@ fn run_file(
                 s.crashed,
                 s.events
             )?;
+            if let Some(p) = &report.pilot {
+                let log = report.out_dir.join(&p.log);
+                writeln!(out, "  pilot: {}; log: {}", p.describe(), log.display())?;
+            }
             writeln!(out, "  output: {}", report.out_dir.display())?;
             if !run.spec.criteria.is_empty() {
                 // Not a pass: the compliance monitor that judges criteria is not built yet.

@@ -176,7 +176,7 @@ fn ctrl_c_ends_a_run_cleanly_and_keeps_its_output() {
     let file = dir.join("realtime.yaml");
     std::fs::write(&file, scenario).unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_sadesim"))
-        .args(["run", file.to_str().unwrap(), "--quiet", "--out", dir.to_str().unwrap()])
+        .args(["run", file.to_str().unwrap(), "--quiet", "--no-mavlink", "--out", dir.to_str().unwrap()])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -200,23 +200,59 @@ fn ctrl_c_ends_a_run_cleanly_and_keeps_its_output() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-#[test]
-fn run_refuses_what_is_not_built_yet_with_the_field() {
-    // The quickstart flown by an external MAVLink pilot instead of its scripted mission.
+/// The quickstart with `pilot` added before its zones; `mission: false` drops the missions.
+fn quickstart_with_pilot(pilot: &str, mission: bool) -> String {
     let scenario = std::fs::read_to_string(repo().join("examples/quickstart.yaml")).unwrap();
-    let start = scenario.find("      mission:").unwrap();
-    let end = scenario.find("  # A small restricted zone").unwrap();
-    let scenario = format!("{}  pilot:\n    command: [python3, pilot.py]\n\n{}", &scenario[..start], &scenario[end..]);
+    let zones = scenario.find("  # A small restricted zone").unwrap();
+    let start = if mission { zones } else { scenario.find("      mission:").unwrap() };
+    format!("{}  pilot:\n{pilot}\n{}", &scenario[..start], &scenario[zones..])
+}
+
+#[test]
+fn run_refuses_external_pilots_without_mavlink_naming_the_field() {
+    // The quickstart flown by an external MAVLink pilot instead of its scripted mission.
+    let scenario = quickstart_with_pilot("    command: [python3, pilot.py]\n", false);
     let dir = std::env::temp_dir().join(format!("sadesim-unsupported-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("pilot.yaml");
     std::fs::write(&file, scenario).unwrap();
-    let out = sadesim(&["run", file.to_str().unwrap(), "--quiet", "--out", dir.to_str().unwrap()]);
+    let out = sadesim(&["run", file.to_str().unwrap(), "--quiet", "--no-mavlink", "--out", dir.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2), "{}", text(&out));
     assert!(
-        text(&out).contains("not supported yet: spec.fleet: groups scouts are flown by an external MAVLink pilot"),
+        text(&out).contains(
+            "pilot.yaml: spec.fleet: groups scouts have no mission, so the pilot (spec.pilot) flies them over MAVLink: external pilots need the MAVLink endpoints; drop --no-mavlink"
+        ),
         "{}",
         text(&out)
     );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn run_starts_the_pilot_from_the_scenario_folder_and_reports_its_exit() {
+    let dir = std::env::temp_dir().join(format!("sadesim-pilot-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("pilots")).unwrap();
+    std::fs::write(dir.join("pilots/pilot.sh"), "echo flying; exit 4\n").unwrap();
+    let file = dir.join("run.yaml");
+    std::fs::write(&file, quickstart_with_pilot("    command: [sh, pilots/pilot.sh]\n", true)).unwrap();
+    let out_dir = dir.join("out");
+    // From another directory: the pilot's relative path is the scenario folder's.
+    let run = |extra: &str| {
+        let mut args =
+            vec!["run", file.to_str().unwrap(), "--quiet", "--no-mavlink", "--out", out_dir.to_str().unwrap()];
+        args.extend(extra.split_whitespace());
+        sadesim(&args)
+    };
+    let out = run("");
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(text(&out).contains("run quickstart ended (pilotExited)"), "{}", text(&out));
+    assert!(text(&out).contains("  pilot: started at 0.02 s, exited with code 4 at "), "{}", text(&out));
+    assert!(text(&out).contains("pilot.log"), "{}", text(&out));
+    // --no-pilot: nobody exits, the run lasts its three minutes.
+    let out = run("--no-pilot");
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(text(&out).contains("run quickstart ended (duration) at 180.0 s"), "{}", text(&out));
+    assert!(!text(&out).contains("pilot:"), "{}", text(&out));
     std::fs::remove_dir_all(&dir).unwrap();
 }

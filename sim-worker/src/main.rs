@@ -1,6 +1,7 @@
 //! `sim-worker <role>`: one runtime role of a run as its own process (DESIGN §3). The local
 //! runner (`sadesim run --processes`) and the Kubernetes pods start these.
 
+use std::net::IpAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -30,6 +31,16 @@ enum Role {
         /// Coordinator address, host:port.
         #[arg(long)]
         coordinator: String,
+        /// Address the drones' MAVLink endpoints bind (0.0.0.0 in a pod).
+        #[arg(long, default_value = "127.0.0.1")]
+        mavlink_bind: std::net::IpAddr,
+        /// Host that receives each drone's API link on UDP 14540+i, PX4 SITL style
+        /// (`none`: no API link; clients connect to the endpoints).
+        #[arg(long, default_value = "127.0.0.1")]
+        mavlink_api_host: String,
+        /// Run without MAVLink endpoints.
+        #[arg(long)]
+        no_mavlink: bool,
     },
     /// Accept every shard, run the lockstep clock, record the run into --out.
     Coordinator {
@@ -43,17 +54,47 @@ enum Role {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Serve one router segment's drones to ground stations (QGroundControl) on the
+    /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
+    Router {
+        /// RunPlan JSON written by the planner.
+        #[arg(long)]
+        plan: PathBuf,
+        /// Router segment index (drones with system ids 1..=250 each).
+        #[arg(long)]
+        segment: u32,
+        /// Interface for the GCS ports.
+        #[arg(long, default_value = "0.0.0.0")]
+        bind: IpAddr,
+        /// Host of the drone endpoints; `{run}` and `{shard}` are replaced by the run name and
+        /// the drone's shard index (Kubernetes: `{run}-shard-{shard}.{run}-shards`).
+        #[arg(long, default_value = roles::router::DEFAULT_DRONE_HOST)]
+        drone_host: String,
+    },
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.role {
-        Role::Shard { plan, shard, coordinator } => {
+        Role::Shard { plan, shard, coordinator, mavlink_bind, mavlink_api_host, no_mavlink } => {
             // Ctrl-C in a terminal reaches every process of the group. A shard stops when
             // the coordinator says so (or its connection closes), so the coordinator can
             // finish the run and write its files first.
             let _ = ctrlc::set_handler(|| {});
-            roles::read_plan(&plan).and_then(|plan| roles::shard::run(&plan, shard, &coordinator))
+            let api_host = match mavlink_api_host.as_str() {
+                "none" => Ok(None),
+                host => host.parse().map(Some).map_err(|_| {
+                    roles::RoleError::Protocol(format!("--mavlink-api-host {host:?}: expected an IP address or `none`"))
+                }),
+            };
+            api_host.and_then(|api_host| {
+                let mavlink = (!no_mavlink).then(|| sim_worker::shard::MavlinkOptions {
+                    bind_ip: mavlink_bind,
+                    api_host,
+                    ..sim_worker::shard::MavlinkOptions::local()
+                });
+                roles::read_plan(&plan).and_then(|plan| roles::shard::run(&plan, shard, &coordinator, mavlink.as_ref()))
+            })
         }
         Role::Coordinator { plan, listen, out } => {
             let stop = Arc::new(AtomicBool::new(false));
@@ -63,6 +104,16 @@ fn main() -> ExitCode {
                 std::fs::create_dir_all(&out)?;
                 roles::coordinator::run(&plan, listen.as_str(), &out, &stop).map(|_| ())
             })
+        }
+        Role::Router { plan, segment, bind, drone_host } => {
+            let stop = Arc::new(AtomicBool::new(false));
+            let flag = stop.clone();
+            // ctrlc's `termination` feature is off, so SIGTERM (a pod stopping) is not
+            // caught here and ends the process at once, which is fine for a router: it
+            // holds nothing that needs flushing.
+            let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+            let options = roles::router::RouterOptions { segment, bind, drone_host };
+            roles::read_plan(&plan).and_then(|plan| roles::router::run(&plan, &options, &stop).map(|_| ()))
         }
     };
     match result {

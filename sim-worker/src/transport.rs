@@ -52,8 +52,12 @@ pub fn spawn_thread(
     plan: &RunPlan,
     index: u32,
     world: Arc<World>,
+    mavlink: Option<&crate::shard::MavlinkOptions>,
 ) -> Result<(ThreadLink, JoinHandle<()>), crate::shard::ShardError> {
-    let shard = Shard::new(plan, index, world)?;
+    let mut shard = Shard::new(plan, index, world)?;
+    if let Some(options) = mavlink {
+        shard.open_mavlink(plan, options)?;
+    }
     let (to_shard, shard_rx) = channel::<ToShard>();
     let (shard_tx, from_shard) = channel::<FromShard>();
     let handle = std::thread::Builder::new()

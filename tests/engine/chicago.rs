@@ -14,7 +14,7 @@ fn chicago_case_study_flies_every_scripted_plan() {
     let mut run = sadesim_crds::parse_run(&std::fs::read_to_string(file).unwrap()).unwrap();
     run.spec.clock = Some(Clock { mode: ClockMode::AsFastAsPossible, factor: None });
     let root = std::env::temp_dir().join(format!("sadesim-chicago-{}", std::process::id()));
-    let options = RunOptions { out_root: Some(root.clone()), progress: false, processes: false, worker: None };
+    let options = RunOptions { out_root: Some(root.clone()), mavlink: false, ..RunOptions::default() };
     let report = run_local(&run, &options, Arc::new(AtomicBool::new(false))).unwrap();
     let s = &report.summary;
     assert_eq!((s.drones, s.shards, s.end_reason.as_str()), (32, 2, "duration"));

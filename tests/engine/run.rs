@@ -1,5 +1,5 @@
 //! The local runner end to end: determinism, independence from sharding, threads vs
-//! processes, crashes as events, and what it refuses.
+//! processes, crashes as events, and what it refuses. The pilot process: `pilot.rs`.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -44,7 +44,13 @@ fn scenario(n: u32, per_shard: u32) -> SimulationRun {
 
 fn run(run: &SimulationRun, root: &Path, processes: bool) -> Result<sadesim::runner::RunReport, RunError> {
     let worker = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/debug/sim-worker");
-    let options = RunOptions { out_root: Some(root.to_path_buf()), progress: false, processes, worker: Some(worker) };
+    let options = RunOptions {
+        out_root: Some(root.to_path_buf()),
+        processes,
+        worker: Some(worker),
+        mavlink: false,
+        ..RunOptions::default()
+    };
     run_local(run, &options, Arc::new(AtomicBool::new(false)))
 }
 
@@ -149,9 +155,10 @@ fn flying_into_a_building_is_a_crash_event_and_the_run_goes_on() {
 }
 
 #[test]
-fn external_pilots_are_refused_as_not_supported_yet() {
-    let r = RunBuilder::test().with_pilot(&["python3", "pilot.py"]).build();
+fn rendering_is_refused_as_not_supported_yet() {
+    let r =
+        RunBuilder::test().with(|r| r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true })).build();
     let err = run(&r, &out_root("unsupported"), false).unwrap_err();
     assert!(matches!(err, RunError::NotSupported(_)), "{err}");
-    assert!(err.to_string().contains("spec.fleet: groups alpha are flown by an external MAVLink pilot"), "{err}");
+    assert!(err.to_string().contains("spec.rendering.enabled: the renderer is not built yet"), "{err}");
 }

@@ -61,3 +61,11 @@ pub fn fly_to_and_land(to: GeoPoint, takeoff_agl_m: f64, agl_m: f64, hold_s: Opt
 pub fn world(plan: &RunPlan) -> Arc<World> {
     Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])))
 }
+
+/// Held by a test for as long as its run serves MAVLink endpoints (`RunOptions::mavlink`):
+/// they bind fixed ports (UDP 14540+i and 24600+i on 127.0.0.1), so two such runs in one
+/// test binary must not overlap. Every other test runs with `mavlink: false`.
+pub fn mavlink_ports() -> std::sync::MutexGuard<'static, ()> {
+    static PORTS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    PORTS.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+}

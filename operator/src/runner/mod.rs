@@ -1,6 +1,7 @@
 //! The local runner (`sadesim run`): every role of a run in this process — world, shards
-//! (one thread each), coordinator, recorder — with a progress bar, Ctrl-C handling and an
-//! output folder that holds the evidence even when the run is interrupted.
+//! (one thread each), coordinator, recorder, the pilot as a child process — with a
+//! progress bar, Ctrl-C handling and an output folder that holds the evidence even when
+//! the run is interrupted.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -11,18 +12,24 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
 use sim_worker::coordinator::{self, CoordinatorError, RunObserver, ShardLink};
-use sim_worker::events::Event;
+use sim_worker::events::{Event, EventKind};
+use sim_worker::mavlink::router::RouterHandle;
 use sim_worker::protocol::{DroneSnapshot, FleetCounts};
 use sim_worker::record::{Recorder, RecorderOptions, RunSummary};
+use sim_worker::roles::router::RouterOptions;
+use sim_worker::shard::MavlinkOptions;
 use sim_worker::transport;
 use sim_worker::world::{World, WorldInputs};
 
-use crate::planner::{self, PlanError};
+use crate::planner::{self, Addressing, PlanError};
 
+pub mod pilot;
 mod workers;
 
+use pilot::{PilotError, PilotRecord, Supervisor};
+
 /// How to run.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct RunOptions {
     /// Folder under which `<run>/<UTC time>/` is created. Default: the archive URL's folder
     /// for `file://` URLs, else `runs`.
@@ -35,6 +42,31 @@ pub struct RunOptions {
     /// The `sim-worker` binary for `processes` (default: `$SADESIM_WORKER`, else next to
     /// this executable).
     pub worker: Option<PathBuf>,
+    /// The scenario file: `spec.pilot` starts in its folder. `None` (read from stdin): the
+    /// current directory.
+    pub scenario: Option<PathBuf>,
+    /// Start `spec.pilot.command` when the pilots are released (default true). False
+    /// (`--no-pilot`): the user attaches a pilot, SDK script or ground station by hand and
+    /// the run lasts until `duration` or Ctrl-C.
+    pub start_pilot: bool,
+    /// Serve a MAVLink endpoint per drone (default true; `--no-mavlink` turns it off, for
+    /// runs of scripted missions that need no ports). Groups without a `mission` are flown
+    /// over MAVLink, so they are refused without it. The shards read this option.
+    pub mavlink: bool,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        Self {
+            out_root: None,
+            progress: false,
+            processes: false,
+            worker: None,
+            scenario: None,
+            start_pilot: true,
+            mavlink: true,
+        }
+    }
 }
 
 /// Why a run did not happen or did not finish.
@@ -45,6 +77,14 @@ pub enum RunError {
     /// The scenario asks for something this build cannot do yet.
     #[error("not supported yet: {0}")]
     NotSupported(String),
+    /// Groups flown over MAVLink in a run without MAVLink endpoints (`--no-mavlink`).
+    #[error(
+        "spec.fleet: groups {groups} have no mission, so the pilot (spec.pilot) flies them over MAVLink: external pilots need the MAVLink endpoints; drop --no-mavlink"
+    )]
+    NeedsMavlink { groups: String },
+    /// The pilot could not be prepared or started.
+    #[error(transparent)]
+    Pilot(#[from] PilotError),
     #[error("failed to write the output folder {path}: {source}")]
     Output { path: String, source: std::io::Error },
     #[error("failed to start shard {shard}: {source}")]
@@ -61,17 +101,17 @@ pub enum RunError {
 pub struct RunReport {
     pub out_dir: PathBuf,
     pub summary: RunSummary,
+    /// What happened to `spec.pilot` (also in `pilot.json`); `None` when no pilot was to
+    /// be started (no `spec.pilot`, or `--no-pilot`).
+    pub pilot: Option<PilotRecord>,
 }
 
-/// Refuses what the local runner cannot do yet, naming the field.
-fn check_supported(plan: &RunPlan) -> Result<(), RunError> {
+/// Refuses what the local runner cannot do (yet, or with these options), naming the field.
+fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError> {
     let spec = &plan.spec;
     let external: Vec<&str> = spec.fleet.iter().filter(|g| g.mission.is_none()).map(|g| g.name.as_str()).collect();
-    if !external.is_empty() {
-        return Err(RunError::NotSupported(format!(
-            "spec.fleet: groups {} are flown by an external MAVLink pilot (spec.pilot), which arrives with the MAVLink endpoints; give each group a `mission` to fly it with the built-in pilot",
-            external.join(", ")
-        )));
+    if !external.is_empty() && !options.mavlink {
+        return Err(RunError::NeedsMavlink { groups: external.join(", ") });
     }
     if let Some(i) = spec.fleet.iter().position(|g| g.geofence.is_some()) {
         return Err(RunError::NotSupported(format!(
@@ -128,21 +168,48 @@ fn write_json(dir: &Path, name: &str, value: &impl serde::Serialize) -> Result<(
     std::fs::write(&path, bytes).map_err(|source| RunError::Output { path: path.display().to_string(), source })
 }
 
-/// Shows progress and forwards every window to the recorder.
+/// Shows progress, forwards every window to the recorder, and starts and watches the
+/// pilot.
 struct Progress<'a> {
     recorder: &'a mut Recorder,
     bar: ProgressBar,
     duration_s: f64,
     started: std::time::Instant,
+    pilot: Option<&'a mut Supervisor>,
+    /// Set when the pilot could not be started: the run ends (and then fails) with it.
+    pilot_error: Option<PilotError>,
+    /// The pilot exited and `onExit` is `endRun`.
+    pilot_exited: bool,
 }
 
 impl RunObserver for Progress<'_> {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
+        // Recorded (and flushed) first: a pilot that starts now finds `pilotsReleased` in
+        // events.jsonl.
         self.recorder.on_window(time_s, drones, events)?;
+        if let Some(pilot) = self.pilot.as_deref_mut() {
+            pilot.advance(time_s);
+            if events.iter().any(|e| matches!(e.kind, EventKind::PilotsReleased))
+                && let Err(e) = pilot.start()
+            {
+                self.pilot_error = Some(e);
+            }
+            self.pilot_exited = pilot.poll();
+        }
         if !self.bar.is_hidden() {
             show_progress(&self.bar, time_s, self.duration_s, self.started, FleetCounts::of(drones));
         }
         Ok(())
+    }
+
+    fn stop_reason(&mut self) -> Option<String> {
+        if self.pilot_error.is_some() {
+            Some(pilot::PILOT_FAILED.into())
+        } else if self.pilot_exited {
+            Some(pilot::PILOT_EXITED.into())
+        } else {
+            None
+        }
     }
 }
 
@@ -163,7 +230,7 @@ fn show_progress(bar: &ProgressBar, time_s: f64, duration_s: f64, started: std::
 /// the output folder.
 pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool>) -> Result<RunReport, RunError> {
     let plan = planner::plan(run)?;
-    check_supported(&plan)?;
+    check_supported(&plan, options)?;
     let base = out_root(&plan, options).join(&plan.run.name);
     let stamp = utc_stamp(SystemTime::now());
     // Two runs started within the same second get `-2`, `-3`, ... rather than mixing files.
@@ -171,36 +238,79 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         .map(|n| if n == 1 { base.join(&stamp) } else { base.join(format!("{stamp}-{n}")) })
         .find(|d| !d.exists())
         .expect("some suffix is free");
+    // Everything about the pilot that can be wrong is found before the run starts.
+    let launch = match (&plan.spec.pilot, options.start_pilot) {
+        (Some(p), true) => Some(pilot::Launch::prepare(&plan, p, options.scenario.as_deref(), &out_dir)?),
+        _ => None,
+    };
     std::fs::create_dir_all(&out_dir)
         .map_err(|source| RunError::Output { path: out_dir.display().to_string(), source })?;
     write_json(&out_dir, "plan.json", &plan)?;
+    // Written for every run: pilots started by hand and ground stations use it too.
+    let fleet = planner::fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
+    write_json(&out_dir, pilot::FLEET_FILE, &fleet)?;
 
     let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
     write_json(&out_dir, "world.json", world.stats())?;
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));
     bar.enable_steady_tick(Duration::from_millis(200));
+    let mut supervisor = launch.map(Supervisor::new);
     let summary = if options.processes {
-        workers::run(&plan, options.worker.as_deref(), &out_dir, &bar, &stop)
+        workers::run(&plan, options.worker.as_deref(), options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut())
     } else {
-        run_threads(&plan, world, &out_dir, &bar, &stop)
+        run_threads(&plan, world, options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut())
     };
     bar.finish_and_clear();
-    Ok(RunReport { out_dir, summary: summary? })
+    // The run is over, whatever its end: stop a pilot still running and record it.
+    let record = supervisor.as_mut().map(Supervisor::finish);
+    if let Some(r) = &record {
+        let written = write_json(&out_dir, pilot::RECORD_FILE, r);
+        if summary.is_ok() {
+            written?;
+        }
+    }
+    Ok(RunReport { out_dir, summary: summary?, pilot: record })
 }
 
-/// Every role in this process: one thread per shard, the coordinator on this thread.
+/// The MAVLink routers of a local run: one per segment, on 127.0.0.1, drones on 127.0.0.1.
+fn start_routers(plan: &RunPlan) -> Result<Vec<RouterHandle>, RunError> {
+    let options = |segment| RouterOptions {
+        segment,
+        bind: std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST),
+        drone_host: sim_worker::roles::router::DEFAULT_DRONE_HOST.to_string(),
+    };
+    plan.segments
+        .iter()
+        .map(|s| {
+            let config = sim_worker::roles::router::config(plan, &options(s.index), &mut |host| {
+                host.parse().map_err(std::io::Error::other)
+            })
+            .map_err(|e| RunError::Worker(format!("MAVLink router of segment {}: {e}", s.index)))?;
+            sim_worker::mavlink::router::start(config)
+                .map_err(|e| RunError::Worker(format!("MAVLink router of segment {}: {e}", s.index)))
+        })
+        .collect()
+}
+
+/// Every role in this process: one thread per shard, the coordinator on this thread, the
+/// MAVLink routers on their own threads.
+#[allow(clippy::too_many_arguments)]
 fn run_threads(
     plan: &RunPlan,
     world: Arc<World>,
+    mavlink: bool,
     out_dir: &Path,
     bar: &ProgressBar,
     stop: &AtomicBool,
+    pilot: Option<&mut Supervisor>,
 ) -> Result<RunSummary, RunError> {
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
+    let mavlink_options = mavlink.then(MavlinkOptions::local);
+    let _routers = if mavlink { start_routers(plan)? } else { Vec::new() };
     for shard in &plan.shards {
-        let (link, handle) = transport::spawn_thread(plan, shard.index, world.clone())
+        let (link, handle) = transport::spawn_thread(plan, shard.index, world.clone(), mavlink_options.as_ref())
             .map_err(|source| RunError::Shard { shard: shard.index, source })?;
         links.push(Box::new(link));
         threads.push(handle);
@@ -212,13 +322,22 @@ fn run_threads(
         bar: bar.clone(),
         duration_s: plan.duration_s,
         started: std::time::Instant::now(),
+        pilot,
+        pilot_error: None,
+        pilot_exited: false,
     };
     let outcome = coordinator::run(plan, &mut links, &mut progress, stop);
+    let pilot_error = progress.pilot_error.take();
     drop(links);
     for t in threads {
         let _ = t.join();
     }
-    recorder.finish(&outcome?).map_err(output_err)
+    let summary = recorder.finish(&outcome?).map_err(output_err)?;
+    // The run ended cleanly (`pilotFailed`) and its files are complete; it still failed.
+    match pilot_error {
+        Some(e) => Err(e.into()),
+        None => Ok(summary),
+    }
 }
 
 #[cfg(test)]

@@ -1,8 +1,9 @@
 //! `sadesim run --processes`: the coordinator and each shard as `sim-worker` processes,
 //! talking the shard protocol over TCP on 127.0.0.1 — the same processes and messages as
-//! the pods of a Kubernetes run.
+//! the pods of a Kubernetes run. The coordinator says on stdout when it releases the
+//! pilots; when the pilot exits, a line on its stdin ends the run.
 
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -11,9 +12,10 @@ use std::time::{Duration, Instant};
 use indicatif::ProgressBar;
 use sadesim_crds::plan::RunPlan;
 use sim_worker::record::RunSummary;
-use sim_worker::roles::coordinator::Report;
+use sim_worker::roles::coordinator::{Control, Report};
 
 use super::RunError;
+use super::pilot::{self, PilotError, Supervisor};
 
 /// The `sim-worker` binary: the option, `$SADESIM_WORKER`, else next to this executable.
 fn worker_binary(configured: Option<&Path>) -> Result<PathBuf, RunError> {
@@ -50,12 +52,15 @@ fn interrupt(child: &Child) {
 }
 
 /// Runs the plan written at `out_dir/plan.json` with worker processes.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn run(
     plan: &RunPlan,
     worker: Option<&Path>,
+    mavlink: bool,
     out_dir: &Path,
     bar: &ProgressBar,
     stop: &AtomicBool,
+    mut pilot: Option<&mut Supervisor>,
 ) -> Result<RunSummary, RunError> {
     let worker = worker_binary(worker)?;
     let plan_path = out_dir.join("plan.json");
@@ -66,11 +71,13 @@ pub(super) fn run(
             .arg(&plan_path)
             .args(["--listen", "127.0.0.1:0", "--out"])
             .arg(out_dir)
+            .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(log_file(out_dir, "coordinator.log")?),
         "coordinator",
     )?;
     let stdout = coordinator.stdout.take().expect("stdout is piped");
+    let mut control = coordinator.stdin.take();
     let mut lines = BufReader::new(stdout).lines();
     let address = match lines.next().and_then(Result::ok).and_then(|l| serde_json::from_str::<Report>(&l).ok()) {
         Some(Report::Listening { address }) => address,
@@ -90,10 +97,26 @@ pub(super) fn run(
                 .arg("--plan")
                 .arg(&plan_path)
                 .args(["--shard", &shard.index.to_string(), "--coordinator", &address])
+                .args(if mavlink { &[][..] } else { &["--no-mavlink"][..] })
                 .stdout(Stdio::null())
                 .stderr(log_file(out_dir, &format!("shard-{}.log", shard.index))?),
             "shard",
         )?);
+    }
+    // One router process per segment, like the router pods of a cluster run.
+    if mavlink {
+        for segment in &plan.segments {
+            shards.push(spawn(
+                Command::new(&worker)
+                    .arg("router")
+                    .arg("--plan")
+                    .arg(&plan_path)
+                    .args(["--segment", &segment.index.to_string()])
+                    .stdout(Stdio::null())
+                    .stderr(log_file(out_dir, &format!("router-{}.log", segment.index))?),
+                "router",
+            )?);
+        }
     }
     // Progress lines arrive on a reader thread so Ctrl-C is noticed between them.
     let (tx, rx) = std::sync::mpsc::channel::<Report>();
@@ -109,6 +132,8 @@ pub(super) fn run(
     let started = Instant::now();
     let mut summary = None;
     let mut interrupted = false;
+    let mut pilot_error: Option<PilotError> = None;
+    let mut stop_sent = false;
     loop {
         if stop.load(Ordering::Relaxed) && !interrupted {
             interrupted = true;
@@ -116,14 +141,43 @@ pub(super) fn run(
         }
         match rx.recv_timeout(Duration::from_millis(100)) {
             Ok(Report::Progress { sim_time_s, counts }) => {
+                if let Some(p) = pilot.as_deref_mut() {
+                    p.advance(sim_time_s);
+                }
                 super::show_progress(bar, sim_time_s, plan.duration_s, started, counts);
+            }
+            Ok(Report::PilotsReleased { sim_time_s }) => {
+                if let Some(p) = pilot.as_deref_mut() {
+                    p.advance(sim_time_s);
+                    if let Err(e) = p.start() {
+                        pilot_error = Some(e);
+                    }
+                }
             }
             Ok(Report::Finished { summary: s }) => summary = Some(s),
             Ok(Report::Listening { .. }) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
         }
+        // The pilot exited (`endRun`) or could not start: the coordinator ends the run
+        // after its current window, with that reason.
+        let exited = pilot.as_deref_mut().is_some_and(Supervisor::poll);
+        let reason = if pilot_error.is_some() {
+            Some(pilot::PILOT_FAILED)
+        } else if exited {
+            Some(pilot::PILOT_EXITED)
+        } else {
+            None
+        };
+        if let (Some(reason), Some(stdin), false) = (reason, control.as_mut(), stop_sent) {
+            stop_sent = true;
+            let mut line = serde_json::to_vec(&Control::Stop { reason: reason.into() }).expect("serializable");
+            line.push(b'\n');
+            // A coordinator that already finished has closed its stdin: nothing to stop.
+            let _ = stdin.write_all(&line).and_then(|()| stdin.flush());
+        }
     }
+    drop(control);
     let _ = reader.join();
     let status = coordinator.wait().map_err(|e| RunError::Worker(format!("coordinator: {e}")))?;
     // Shards exit when the coordinator says Stop or its socket closes; give them a moment.
@@ -134,6 +188,9 @@ pub(super) fn run(
         }
         let _ = shard.kill();
         let _ = shard.wait();
+    }
+    if let Some(e) = pilot_error {
+        return Err(e.into());
     }
     summary.ok_or_else(|| {
         RunError::Worker(format!(

@@ -69,6 +69,15 @@ impl Fmu {
         VehicleStatus { on_ground, battery_remaining, gnss_healthy: self.estimator.gnss_healthy(self.time_s) }
     }
 
+    /// Arming checks pass (what SYS_STATUS reports as the pre-arm check).
+    pub fn armable(&self, on_ground: bool, battery_remaining: f64) -> bool {
+        let est = self.estimator.estimate();
+        self.navigator.arming_check(est.as_ref(), &self.status(on_ground, battery_remaining)).is_ok()
+    }
+    pub fn navigator_mut(&mut self) -> &mut Navigator {
+        &mut self.navigator
+    }
+
     /// Handles a pilot command.
     ///
     /// # Errors

@@ -240,27 +240,8 @@ impl Navigator {
                 if self.armed {
                     return Ok(());
                 }
-                let Some(est) = est else {
-                    return Err(Rejection::ArmingCheck("no position estimate (waiting for a GNSS fix)".into()));
-                };
-                if !status.gnss_healthy {
-                    return Err(Rejection::ArmingCheck("no GNSS fix".into()));
-                }
-                if est.eph_m > 5.0 {
-                    return Err(Rejection::ArmingCheck(format!(
-                        "horizontal position accuracy {:.1} m > 5 m",
-                        est.eph_m
-                    )));
-                }
-                if status.battery_remaining <= self.config.battery_low {
-                    return Err(Rejection::ArmingCheck(format!(
-                        "battery {:.0}% at or below the low threshold",
-                        status.battery_remaining * 100.0
-                    )));
-                }
-                if !status.on_ground {
-                    return Err(Rejection::ArmingCheck("not on the ground".into()));
-                }
+                self.arming_check(est, status)?;
+                let Some(est) = est else { return Err(Rejection::NotArmed) };
                 self.armed = true;
                 self.home_enu_m = est.position_enu_m;
                 self.yaw_rad = crate::autopilot::control::yaw_of(&est.attitude);
@@ -352,6 +333,33 @@ impl Navigator {
                 Ok(())
             }
         }
+    }
+
+    /// PX4's preflight checks that this simulation models: a position estimate from a GNSS
+    /// fix of good accuracy, a battery above the low threshold, resting on the ground.
+    ///
+    /// # Errors
+    /// [`Rejection::ArmingCheck`] naming the first failing check.
+    pub fn arming_check(&self, est: Option<&Estimate>, status: &VehicleStatus) -> Result<(), Rejection> {
+        let Some(est) = est else {
+            return Err(Rejection::ArmingCheck("no position estimate (waiting for a GNSS fix)".into()));
+        };
+        if !status.gnss_healthy {
+            return Err(Rejection::ArmingCheck("no GNSS fix".into()));
+        }
+        if est.eph_m > 5.0 {
+            return Err(Rejection::ArmingCheck(format!("horizontal position accuracy {:.1} m > 5 m", est.eph_m)));
+        }
+        if status.battery_remaining <= self.config.battery_low {
+            return Err(Rejection::ArmingCheck(format!(
+                "battery {:.0}% at or below the low threshold",
+                status.battery_remaining * 100.0
+            )));
+        }
+        if !status.on_ground {
+            return Err(Rejection::ArmingCheck("not on the ground".into()));
+        }
+        Ok(())
     }
 
     fn disarm(&mut self) {

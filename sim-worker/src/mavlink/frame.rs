@@ -41,7 +41,9 @@ pub struct Frame {
     pub message: Decoded,
 }
 
-/// What a checksummed frame decodes to.
+/// What a checksummed frame decodes to. (Frames live for one poll; boxing the message to
+/// shrink the rarer variants would cost an allocation per frame for nothing.)
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug)]
 pub enum Decoded {
     Message(MavMessage),
@@ -170,6 +172,42 @@ pub fn encode(header: MavHeader, message: &MavMessage) -> Vec<u8> {
     raw.raw_bytes().to_vec()
 }
 
+/// COMMAND_ACK for any command number, including ones the dialect's `MavCmd` cannot
+/// represent (an unknown command still deserves MAV_RESULT_UNSUPPORTED). Encoded by hand:
+/// command u16, result u8, progress u8, result_param2 i32, target system, target component.
+pub fn encode_command_ack(
+    header: MavHeader,
+    command: u16,
+    result: ::mavlink::dialects::common::MavResult,
+    target: (u8, u8),
+) -> Vec<u8> {
+    const COMMAND_ACK_ID: u32 = 77;
+    let mut payload = vec![0u8; 10];
+    payload[0..2].copy_from_slice(&command.to_le_bytes());
+    payload[2] = result as u8;
+    payload[8] = target.0;
+    payload[9] = target.1;
+    while payload.len() > 1 && payload.last() == Some(&0) {
+        payload.pop(); // MAVLink 2 trailing-zero truncation
+    }
+    let mut frame = vec![
+        STX_V2,
+        payload.len() as u8,
+        0,
+        0,
+        header.sequence,
+        header.system_id as u8,
+        header.component_id,
+        COMMAND_ACK_ID as u8,
+        0,
+        0,
+    ];
+    frame.extend(&payload);
+    let crc = checksum(&frame[1..], MavMessage::extra_crc(COMMAND_ACK_ID));
+    frame.extend(crc.to_le_bytes());
+    frame
+}
+
 /// The system a message is addressed to: `Some(0)` or `None` mean everyone.
 pub fn target_system(message: &MavMessage) -> Option<u8> {
     message.target_system_id()
@@ -289,6 +327,23 @@ mod tests {
     }
 
     #[test]
+    fn hand_encoded_acks_decode_like_typed_ones() {
+        let bytes = encode_command_ack(header(4), 400, MavResult::MAV_RESULT_DENIED, (255, 190));
+        match &FrameParser::new().push(&bytes)[0].message {
+            Decoded::Message(MavMessage::COMMAND_ACK(a)) => {
+                assert_eq!(a.command, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM);
+                assert_eq!(a.result, MavResult::MAV_RESULT_DENIED);
+                assert_eq!((a.target_system, a.target_component), (255, 190));
+            }
+            other => panic!("{other:?}"),
+        }
+        // An undefined command number survives the trip (the typed decoder then refuses it).
+        let bytes = encode_command_ack(header(4), 31_999, MavResult::MAV_RESULT_UNSUPPORTED, (255, 0));
+        assert_eq!(u16::from_le_bytes([bytes[10], bytes[11]]), 31_999);
+        assert_eq!(FrameParser::new().push(&bytes).len(), 1, "checksum is right");
+    }
+
+    #[test]
     fn garbage_never_panics_and_memory_stays_bounded() {
         let mut p = FrameParser::new();
         let mut x: u32 = 12345;
@@ -298,7 +353,7 @@ mod tests {
                     x ^= x << 13;
                     x ^= x >> 17;
                     x ^= x << 5;
-                    if x % 7 == 0 { STX_V2 } else { x as u8 }
+                    if x.is_multiple_of(7) { STX_V2 } else { x as u8 }
                 })
                 .collect();
             p.push(&chunk);

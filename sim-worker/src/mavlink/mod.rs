@@ -5,5 +5,12 @@
 //! WGS84 lat/lon in 1e-7 degrees, altitudes in metres AMSL or relative to home. The engine
 //! inside is ENU; conversions happen here and nowhere else.
 
+pub mod endpoint;
 pub mod frame;
+pub mod mission_protocol;
+pub mod params;
 pub mod px4_mode;
+pub mod router;
+pub mod session;
+pub mod streams;
+pub mod telemetry;

@@ -1,17 +1,20 @@
 //! `sim-worker coordinator`: accepts one TCP connection per shard, runs the lockstep loop
-//! with the recorder, and reports progress as JSON lines on stdout.
+//! with the recorder, and reports progress as JSON lines on stdout. When stdin is not a
+//! terminal it reads [`Control`] lines from it (`sadesim run --processes` ends the run
+//! this way when the pilot exits).
 
-use std::io::Write;
+use std::io::{BufRead, IsTerminal, Write};
 use std::net::{TcpListener, ToSocketAddrs};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
+use std::sync::{Arc, Mutex};
 
 use sadesim_crds::plan::RunPlan;
 use serde::{Deserialize, Serialize};
 
 use super::RoleError;
 use crate::coordinator::{self, RunObserver, ShardLink};
-use crate::events::Event;
+use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, FleetCounts, FromShard, PROTOCOL_VERSION};
 use crate::record::{Recorder, RecorderOptions, RunSummary};
 use crate::transport::TcpLink;
@@ -29,8 +32,19 @@ pub enum Report {
         #[serde(flatten)]
         counts: FleetCounts,
     },
+    /// The pilots were released at `sim_time_s` (the `pilotsReleased` event, already in
+    /// `events.jsonl`): time to start the pilot process.
+    PilotsReleased { sim_time_s: f64 },
     /// The run is over and its files are written.
     Finished { summary: RunSummary },
+}
+
+/// One line of the coordinator's stdin.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
+pub enum Control {
+    /// End the run after the current window with this reason (e.g. `pilotExited`).
+    Stop { reason: String },
 }
 
 /// Writes a report line to stdout (ignored when nobody reads it).
@@ -45,6 +59,8 @@ pub fn report(r: &Report) {
 struct Reporting<'a> {
     recorder: &'a mut Recorder,
     next_report_s: f64,
+    /// The reason of a [`Control::Stop`] read from stdin.
+    stop_request: Arc<Mutex<Option<String>>>,
 }
 
 impl RunObserver for Reporting<'_> {
@@ -54,8 +70,34 @@ impl RunObserver for Reporting<'_> {
             self.next_report_s = time_s.floor() + 1.0;
             report(&Report::Progress { sim_time_s: time_s, counts: FleetCounts::of(drones) });
         }
+        if let Some(e) = events.iter().find(|e| matches!(e.kind, EventKind::PilotsReleased)) {
+            report(&Report::PilotsReleased { sim_time_s: e.time_s });
+        }
         Ok(())
     }
+
+    fn stop_reason(&mut self) -> Option<String> {
+        self.stop_request.lock().ok()?.take()
+    }
+}
+
+/// Reads [`Control`] lines from stdin on a thread, unless stdin is a terminal (a
+/// coordinator started by hand in the background must not read it).
+fn read_control() -> Arc<Mutex<Option<String>>> {
+    let slot = Arc::new(Mutex::new(None));
+    if !std::io::stdin().is_terminal() {
+        let requests = slot.clone();
+        std::thread::spawn(move || {
+            for line in std::io::stdin().lock().lines().map_while(Result::ok) {
+                if let Ok(Control::Stop { reason }) = serde_json::from_str(&line)
+                    && let Ok(mut r) = requests.lock()
+                {
+                    *r = Some(reason);
+                }
+            }
+        });
+    }
+    slot
 }
 
 /// Accepts the plan's shards on `listen`, runs the run, records into `out_dir`.
@@ -96,7 +138,7 @@ pub fn run(
     let mut links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
     let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
     let mut recorder = Recorder::create(out_dir, plan, RecorderOptions::default()).map_err(record_err)?;
-    let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0 };
+    let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: read_control() };
     let outcome = coordinator::run(plan, &mut links, &mut observer, stop)?;
     let summary = recorder.finish(&outcome).map_err(record_err)?;
     report(&Report::Finished { summary: summary.clone() });
@@ -134,5 +176,13 @@ mod tests {
         .unwrap();
         assert_eq!(line, r#"{"type":"progress","simTimeS":1.0,"airborne":4,"onGround":0,"crashed":0}"#);
         assert!(matches!(serde_json::from_str::<Report>(&line).unwrap(), Report::Progress { .. }));
+    }
+
+    #[test]
+    fn pilot_lines_have_their_documented_shape() {
+        let released = serde_json::to_string(&Report::PilotsReleased { sim_time_s: 0.01 }).unwrap();
+        assert_eq!(released, r#"{"type":"pilotsReleased","simTimeS":0.01}"#);
+        let stop: Control = serde_json::from_str(r#"{"type":"stop","reason":"pilotExited"}"#).unwrap();
+        assert_eq!(stop, Control::Stop { reason: "pilotExited".into() });
     }
 }

@@ -2,6 +2,7 @@
 //! runner uses in-process, behind TCP.
 
 pub mod coordinator;
+pub mod router;
 pub mod shard;
 
 use std::path::Path;
@@ -27,6 +28,11 @@ pub enum RoleError {
     Record { path: String, source: std::io::Error },
     #[error("{0}")]
     Protocol(String),
+    #[error(transparent)]
+    Router(#[from] crate::mavlink::router::RouterError),
+    /// The plan and flags do not describe a router (unknown segment, bad `--drone-host`).
+    #[error("{0}")]
+    RouterSetup(String),
 }
 
 /// Reads a RunPlan written by the planner (`plan.json`).

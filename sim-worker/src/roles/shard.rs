@@ -19,11 +19,19 @@ pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(30);
 ///
 /// # Errors
 /// When the shard cannot be built or the coordinator cannot be reached.
-pub fn run(plan: &RunPlan, index: u32, coordinator: &str) -> Result<(), RoleError> {
+pub fn run(
+    plan: &RunPlan,
+    index: u32,
+    coordinator: &str,
+    mavlink: Option<&crate::shard::MavlinkOptions>,
+) -> Result<(), RoleError> {
     // The world is deterministic from the plan's inputs, so every shard builds the same
     // one (the assets role will fetch it from the cache instead).
     let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
-    let shard = Shard::new(plan, index, world)?;
+    let mut shard = Shard::new(plan, index, world)?;
+    if let Some(options) = mavlink {
+        shard.open_mavlink(plan, options)?;
+    }
     let started = Instant::now();
     let stream = loop {
         match TcpStream::connect(coordinator) {

@@ -8,11 +8,14 @@ use sadesim_crds::plan::PlannedDrone;
 use crate::autopilot::control::yaw_of;
 use crate::autopilot::fmu::{Fmu, SensorFrame};
 use crate::autopilot::mission::MissionPlan;
-use crate::autopilot::navigator::{Command, NavigatorConfig};
+use crate::autopilot::navigator::{Command, NavigatorConfig, Rejection};
 use crate::env::{EnvSample, SampleContext};
 use crate::events::EventKind;
+use crate::mavlink::endpoint::Endpoint;
+use crate::mavlink::session::{Session, Vehicle};
+use crate::mavlink::telemetry::{BatteryView, MissionProgress, PositionEstimate, VehicleView};
 use crate::protocol::DroneSnapshot;
-use crate::sensors::SensorSuite;
+use crate::sensors::{GnssFix, SensorSuite};
 use crate::vehicle::{Airframe, Battery, Motor, RigidState, wrench};
 use crate::world::World;
 
@@ -34,6 +37,32 @@ struct ScriptedPilot {
     next_try_s: f64,
 }
 
+/// A drone's MAVLink edge: its session (pure) and its sockets.
+#[derive(Debug)]
+pub struct MavlinkLink {
+    pub session: Session,
+    pub endpoint: Endpoint,
+}
+
+/// The autopilot as a MAVLink session sees it for one call.
+struct FmuVehicle<'a> {
+    fmu: &'a mut Fmu,
+    on_ground: bool,
+    battery: f64,
+}
+
+impl Vehicle for FmuVehicle<'_> {
+    fn command(&mut self, cmd: Command) -> Result<(), Rejection> {
+        self.fmu.command(cmd, self.on_ground, self.battery)
+    }
+    fn navigator_config(&self) -> NavigatorConfig {
+        *self.fmu.navigator().config()
+    }
+    fn set_navigator_config(&mut self, config: NavigatorConfig) {
+        self.fmu.navigator_mut().set_config(config);
+    }
+}
+
 /// A drone and its whole simulated stack.
 #[derive(Debug)]
 pub struct DroneSim {
@@ -53,6 +82,14 @@ pub struct DroneSim {
     height_agl_m: f64,
     origin_alt_msl_m: f64,
     events: Vec<EventKind>,
+    /// The last GNSS report (for GPS_RAW_INT).
+    last_gnss: Option<GnssFix>,
+    /// Where the drone started (its body origin at rest), ENU: the origin of its local NED
+    /// frame, as PX4's EKF origin is where it booted.
+    local_origin_enu_m: Vector3<f64>,
+    /// Ground height under the drone, ENU up, m.
+    ground_up_m: f64,
+    link: Option<Box<MavlinkLink>>,
 }
 
 impl DroneSim {
@@ -86,7 +123,97 @@ impl DroneSim {
             height_agl_m: GEAR_HEIGHT_M,
             origin_alt_msl_m,
             events: Vec::new(),
+            last_gnss: None,
+            local_origin_enu_m: home,
+            ground_up_m: home.z - GEAR_HEIGHT_M,
+            link: None,
         })
+    }
+
+    /// The navigator tunables in force.
+    pub fn navigator_config(&self) -> NavigatorConfig {
+        *self.fmu.navigator().config()
+    }
+
+    /// Gives the drone a MAVLink endpoint.
+    pub fn attach_mavlink(&mut self, link: MavlinkLink) {
+        self.link = Some(Box::new(link));
+    }
+    pub fn mavlink(&self) -> Option<&MavlinkLink> {
+        self.link.as_deref()
+    }
+    pub fn local_origin_enu_m(&self) -> Vector3<f64> {
+        self.local_origin_enu_m
+    }
+
+    /// Reads what peers sent and lets the session act on the autopilot.
+    pub fn mavlink_inbound(&mut self, time_s: f64) {
+        let Some(mut link) = self.link.take() else { return };
+        let frames = link.endpoint.receive();
+        if !frames.is_empty() {
+            let view = self.view(time_s);
+            let mut vehicle = FmuVehicle {
+                fmu: &mut self.fmu,
+                on_ground: self.on_ground,
+                battery: self.battery.remaining_fraction(),
+            };
+            for f in &frames {
+                link.session.handle(f, &view, &mut vehicle);
+            }
+        }
+        self.link = Some(link);
+    }
+
+    /// Sends what is due: replies and telemetry streams.
+    pub fn mavlink_outbound(&mut self, time_s: f64) {
+        let Some(mut link) = self.link.take() else { return };
+        let view = self.view(time_s);
+        let out = link.session.poll(&view);
+        link.endpoint.send(&out);
+        self.link = Some(link);
+    }
+
+    /// What MAVLink peers see of this drone at `time_s`.
+    pub fn view(&self, time_s: f64) -> VehicleView {
+        let est = self.fmu.estimate();
+        let nav = self.fmu.navigator();
+        let count = nav.mission().map_or(0, |m| m.items.len());
+        let current = nav.current_item();
+        let max_thrust = self.airframe.max_thrust_n();
+        let thrust: f64 = self.motors.iter().map(crate::vehicle::Motor::thrust_n).sum();
+        VehicleView {
+            time_s,
+            armed: self.fmu.is_armed(),
+            mode: self.fmu.mode(),
+            on_ground: self.on_ground,
+            crashed: self.crashed,
+            armable: !self.crashed && self.fmu.armable(self.on_ground, self.battery.remaining_fraction()),
+            estimate: est.map(|e| PositionEstimate {
+                position_enu_m: e.position_enu_m,
+                velocity_enu_mps: e.velocity_enu_mps,
+                eph_m: e.eph_m,
+                epv_m: e.epv_m,
+            }),
+            attitude: self.state.attitude,
+            rate_body_rps: self.state.rate_body_rps,
+            gnss: self.last_gnss,
+            battery: BatteryView {
+                voltage_v: self.battery.voltage_v(),
+                current_a: self.battery.current_a(),
+                remaining: self.battery.remaining_fraction(),
+                consumed_mah: self.battery.consumed_mah(),
+            },
+            home_enu_m: nav.home_enu_m(),
+            local_origin_enu_m: self.local_origin_enu_m,
+            mission: MissionProgress {
+                current: current.min(count.saturating_sub(1)),
+                count,
+                finished: count > 0 && current >= count,
+            },
+            throttle: if max_thrust > 0.0 { thrust / max_thrust } else { 0.0 },
+            airspeed_mps: (self.state.velocity_enu_mps - self.wind_enu_mps).norm(),
+            ground_up_m: self.ground_up_m,
+        }
     }
 
     pub fn position_enu_m(&self) -> Vector3<f64> {
@@ -142,6 +269,9 @@ impl DroneSim {
         // Sensors.
         let imu = self.sensors.imu.measure(accel_enu, self.state.rate_body_rps, &self.state.attitude, dt_s);
         let gnss = self.sensors.gnss.update(t_end, self.state.position_enu_m, self.state.velocity_enu_mps, &env.gnss);
+        if gnss.is_some() {
+            self.last_gnss = gnss;
+        }
         let baro = step.is_multiple_of(BARO_DIVIDER).then(|| {
             let alt_msl = self.origin_alt_msl_m + self.state.position_enu_m.z;
             self.sensors.barometer.measure(alt_msl, dt_s * BARO_DIVIDER as f64)
@@ -185,7 +315,8 @@ impl DroneSim {
     /// on its gear; faster is a crash.
     fn ground_contact(&mut self, world: &World) {
         let p = self.state.position_enu_m;
-        let floor = world.ground_up_m(p.x, p.y) + GEAR_HEIGHT_M;
+        self.ground_up_m = world.ground_up_m(p.x, p.y);
+        let floor = self.ground_up_m + GEAR_HEIGHT_M;
         self.height_agl_m = p.z - floor + GEAR_HEIGHT_M;
         if p.z > floor {
             if p.z > floor + 0.02 {
@@ -224,7 +355,13 @@ impl DroneSim {
     }
 
     pub fn take_events(&mut self) -> Vec<EventKind> {
-        std::mem::take(&mut self.events)
+        let events = std::mem::take(&mut self.events);
+        if !events.is_empty()
+            && let Some(link) = &mut self.link
+        {
+            link.session.on_events(&events);
+        }
+        events
     }
 
     pub fn snapshot(&self) -> DroneSnapshot {

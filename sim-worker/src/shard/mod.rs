@@ -19,7 +19,7 @@ use crate::sensors::SensorSuite;
 use crate::vehicle;
 use crate::world::World;
 
-pub use drone::{CRASH_HORIZONTAL_MPS, CRASH_VERTICAL_MPS, DroneSim};
+pub use drone::{CRASH_HORIZONTAL_MPS, CRASH_VERTICAL_MPS, DroneSim, MavlinkLink};
 
 /// Why a shard could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -33,6 +33,36 @@ pub enum ShardError {
     /// The flight controller cannot be built for an airframe.
     #[error("failed to build the controller: {0}")]
     Control(#[from] crate::autopilot::control::ControlError),
+    /// A MAVLink endpoint could not open its sockets.
+    #[error(transparent)]
+    Mavlink(#[from] crate::mavlink::endpoint::EndpointError),
+}
+
+/// How a shard's drones expose MAVLink.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MavlinkOptions {
+    /// Address the endpoints bind (127.0.0.1 locally; 0.0.0.0 in a pod).
+    pub bind_ip: std::net::IpAddr,
+    /// Host that receives each drone's API link on port 14540+i (PX4 SITL style); `None`
+    /// sends no API link (in a cluster, clients connect to the endpoints instead).
+    pub api_host: Option<std::net::IpAddr>,
+    /// Wall-clock UNIX time at sim time 0, µs (SYSTEM_TIME).
+    pub unix_epoch_at_start_us: u64,
+}
+
+impl MavlinkOptions {
+    /// Endpoints on 127.0.0.1, API links to 127.0.0.1: `sadesim run`.
+    pub fn local() -> Self {
+        let now = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+        let localhost = std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
+        Self { bind_ip: localhost, api_host: Some(localhost), unix_epoch_at_start_us: now.as_micros() as u64 }
+    }
+}
+
+/// PX4's SYS_AUTOSTART for our airframe presets (the Gazebo x500 is 4001; other quads
+/// report the generic quadrotor-x id, also 4001).
+fn sys_autostart(_airframe: &str) -> i32 {
+    4001
 }
 
 impl GroundHeight for World {
@@ -123,6 +153,39 @@ impl Shard {
         })
     }
 
+    /// Opens a MAVLink endpoint for every drone of the shard.
+    ///
+    /// # Errors
+    /// The first endpoint that cannot bind (its port is named); none stay open then.
+    pub fn open_mavlink(&mut self, plan: &RunPlan, options: &MavlinkOptions) -> Result<(), ShardError> {
+        use crate::mavlink::endpoint::{Endpoint, EndpointConfig};
+        use crate::mavlink::session::Session;
+        use crate::mavlink::telemetry::VehicleIdentity;
+        let frame = LocalFrame::new(plan.spec.origin.geo());
+        let mut links = Vec::with_capacity(self.drones.len());
+        for drone in &self.drones {
+            let d = &drone.plan;
+            let endpoint = Endpoint::open(EndpointConfig {
+                system_id: d.system_id,
+                bind_ip: options.bind_ip,
+                port: d.ports.endpoint,
+                api_target: options.api_host.map(|h| std::net::SocketAddr::new(h, d.ports.api_udp)),
+            })?;
+            let id = VehicleIdentity {
+                system_id: d.system_id,
+                frame,
+                unix_epoch_at_start_us: options.unix_epoch_at_start_us,
+                uid: u64::from(d.index) + 1,
+            };
+            let session = Session::new(id, sys_autostart(&d.airframe), &drone.navigator_config());
+            links.push(drone::MavlinkLink { session, endpoint });
+        }
+        for (drone, link) in self.drones.iter_mut().zip(links) {
+            drone.attach_mavlink(link);
+        }
+        Ok(())
+    }
+
     /// The greeting sent when the shard is built.
     pub fn hello(&self) -> FromShard {
         FromShard::Hello { version: PROTOCOL_VERSION, shard: self.index, drones: self.drones.len() as u32 }
@@ -155,6 +218,12 @@ impl Shard {
     /// Simulates up to (excluding) `until_step`, returning the events.
     pub fn advance(&mut self, until_step: u64) -> Vec<Event> {
         let mut events = Vec::new();
+        // MAVLink I/O once per window: commands act from the window's start, telemetry
+        // leaves at its end (10 ms granularity at the default window).
+        let t_start = self.step as f64 * self.dt_s;
+        for drone in &mut self.drones {
+            drone.mavlink_inbound(t_start);
+        }
         while self.step < until_step {
             let t = self.step as f64 * self.dt_s;
             for (i, drone) in self.drones.iter_mut().enumerate() {
@@ -185,6 +254,10 @@ impl Shard {
                 }));
             }
             self.step += 1;
+        }
+        let t_end = self.step as f64 * self.dt_s;
+        for drone in &mut self.drones {
+            drone.mavlink_outbound(t_end);
         }
         events
     }

@@ -1,0 +1,295 @@
+//! `sim-worker router`: the MAVLink router of one segment (DESIGN §3), set up from the plan.
+//!
+//! The plan gives the segment's GCS ports and, per drone, its system id, shard and endpoint
+//! port; only the host of the drone endpoints depends on where the run is deployed, so it
+//! is a flag: `127.0.0.1` locally, the shard pods' DNS names on Kubernetes.
+//!
+//! Reports are JSON lines on stdout: `{"type":"listening",...}` once the sockets are bound,
+//! `{"type":"stopped","stats":{...}}` at the end.
+
+use std::collections::HashMap;
+use std::io::Write;
+use std::net::{IpAddr, SocketAddr, ToSocketAddrs};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use sadesim_crds::plan::RunPlan;
+use serde::Serialize;
+
+use super::RoleError;
+use crate::mavlink::router::{self, RoutedDrone, RouterConfig, RouterStats};
+
+/// `--drone-host` when not given: every shard runs on this machine.
+pub const DEFAULT_DRONE_HOST: &str = "127.0.0.1";
+/// How long the router keeps trying to resolve drone hosts: shard pods appear in DNS only
+/// once they are scheduled, which may be after the router pod starts.
+pub const RESOLVE_TIMEOUT: Duration = Duration::from_secs(60);
+/// Pause between resolution attempts.
+const RESOLVE_RETRY: Duration = Duration::from_millis(500);
+
+/// What `sim-worker router` was asked to serve.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RouterOptions {
+    /// Router segment index into `plan.segments`.
+    pub segment: u32,
+    /// Interface of the GCS sockets (`0.0.0.0`: every interface, as a pod behind a Service
+    /// needs).
+    pub bind: IpAddr,
+    /// Host of the drone endpoints, a name or an address. `{run}` is replaced by the run's
+    /// name and `{shard}` by the drone's shard index, so on Kubernetes
+    /// `{run}-shard-{shard}.{run}-shards` names pod `{shard}` of the Indexed Job
+    /// `<run>-shard` behind the headless Service `<run>-shards`.
+    pub drone_host: String,
+}
+
+/// One line of the router's stdout.
+#[derive(Serialize, Clone, Debug, PartialEq)]
+#[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
+pub enum Report {
+    /// Bound and routing.
+    Listening { segment: u32, gcs_udp: String, gcs_tcp: String, drones: usize },
+    /// Stopped (SIGINT/SIGTERM); the counters of the whole run.
+    Stopped { stats: RouterStats },
+}
+
+fn report(r: &Report) {
+    let mut out = std::io::stdout().lock();
+    let _ = serde_json::to_writer(&mut out, r);
+    let _ = out.write_all(b"\n");
+    let _ = out.flush();
+}
+
+/// Serves segment `options.segment` of `plan` until `stop` is set.
+///
+/// # Errors
+/// A segment the plan does not have, a `--drone-host` with an unknown placeholder or a host
+/// that does not resolve within [`RESOLVE_TIMEOUT`], or a GCS port in use.
+pub fn run(plan: &RunPlan, options: &RouterOptions, stop: &AtomicBool) -> Result<RouterStats, RoleError> {
+    let deadline = Instant::now() + RESOLVE_TIMEOUT;
+    let config = config(plan, options, &mut |host| loop {
+        match resolve(host) {
+            Ok(ip) => return Ok(ip),
+            Err(e) if Instant::now() >= deadline || stop.load(Ordering::Relaxed) => return Err(e),
+            Err(_) => std::thread::sleep(RESOLVE_RETRY),
+        }
+    })?;
+    let drones = config.drones.len();
+    let mut handle = router::start(config)?;
+    report(&Report::Listening {
+        segment: options.segment,
+        gcs_udp: handle.gcs_udp().to_string(),
+        gcs_tcp: handle.gcs_tcp().to_string(),
+        drones,
+    });
+    while !stop.load(Ordering::Relaxed) {
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    handle.stop();
+    let stats = handle.stats();
+    report(&Report::Stopped { stats });
+    Ok(stats)
+}
+
+/// The router configuration of one segment; `resolve` turns a drone host into an address
+/// (called once per distinct host).
+///
+/// # Errors
+/// Unknown segment, bad `--drone-host` template, or a host `resolve` fails on.
+pub fn config(
+    plan: &RunPlan,
+    options: &RouterOptions,
+    resolve: &mut dyn FnMut(&str) -> std::io::Result<IpAddr>,
+) -> Result<RouterConfig, RoleError> {
+    let segment = plan.segments.get(options.segment as usize).ok_or_else(|| {
+        RoleError::RouterSetup(format!(
+            "--segment {}: the plan has {} router segment(s), numbered from 0",
+            options.segment,
+            plan.segments.len()
+        ))
+    })?;
+    let mut resolved: HashMap<String, IpAddr> = HashMap::new();
+    let mut drones = Vec::new();
+    for d in plan.drones.iter().filter(|d| d.segment == options.segment) {
+        let host = drone_host(&options.drone_host, &plan.run.name, d.shard)?;
+        let ip = match resolved.get(&host) {
+            Some(ip) => *ip,
+            None => {
+                let ip = resolve(&host).map_err(|e| {
+                    RoleError::RouterSetup(format!("--drone-host: failed to resolve {host} (drone {}): {e}", d.name))
+                })?;
+                resolved.insert(host, ip);
+                ip
+            }
+        };
+        drones.push(RoutedDrone { system_id: d.system_id, endpoint: SocketAddr::new(ip, d.ports.endpoint) });
+    }
+    Ok(RouterConfig {
+        segment: options.segment,
+        gcs_udp: SocketAddr::new(options.bind, segment.gcs_udp),
+        gcs_tcp: SocketAddr::new(options.bind, segment.gcs_tcp),
+        drones,
+    })
+}
+
+/// Expands `{run}` and `{shard}` in a `--drone-host` template.
+///
+/// # Errors
+/// Any other brace left after expansion (a mistyped placeholder would otherwise become a
+/// host name that never resolves).
+pub fn drone_host(template: &str, run: &str, shard: u32) -> Result<String, RoleError> {
+    let host = template.replace("{run}", run).replace("{shard}", &shard.to_string());
+    if host.contains(['{', '}']) || host.is_empty() {
+        return Err(RoleError::RouterSetup(format!(
+            "--drone-host {template:?}: expected a host name or address; only {{run}} and {{shard}} are replaced"
+        )));
+    }
+    Ok(host)
+}
+
+/// Resolves a host, preferring IPv4 (the drone endpoints bind IPv4 locally).
+fn resolve(host: &str) -> std::io::Result<IpAddr> {
+    if let Ok(ip) = host.parse::<IpAddr>() {
+        return Ok(ip);
+    }
+    let addrs: Vec<SocketAddr> = (host, 0).to_socket_addrs()?.collect();
+    addrs
+        .iter()
+        .find(|a| a.is_ipv4())
+        .or(addrs.first())
+        .map(SocketAddr::ip)
+        .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::NotFound, "no address"))
+}
+
+#[cfg(test)]
+mod tests {
+    use std::net::Ipv4Addr;
+
+    use sadesim_crds::fixtures::RunBuilder;
+    use sadesim_crds::geo::{Enu, GeoPoint};
+    use sadesim_crds::plan::{
+        DronePorts, Home, PLAN_FORMAT_VERSION, PlannedDrone, ResourcePlan, RoleResources, RouterSegment, RunRef,
+        ServicePorts,
+    };
+
+    use super::*;
+
+    /// A plan with `n` drones in two segments (sysids restart at 1), two drones per shard.
+    fn plan(n: u32, per_segment: u32) -> RunPlan {
+        let run = RunBuilder::test().build();
+        let none = RoleResources { cpu_millis: 0, memory_mib: 0 };
+        let drones = (0..n)
+            .map(|i| PlannedDrone {
+                index: i,
+                name: format!("g-{i}"),
+                group: "g".into(),
+                group_index: 0,
+                member: i,
+                operator: "op".into(),
+                role: Default::default(),
+                airframe: "x500".into(),
+                system_id: (i % per_segment + 1) as u8,
+                component_id: 1,
+                segment: i / per_segment,
+                shard: i / 2,
+                ports: DronePorts { api_udp: 14540 + i as u16, endpoint: 24600 + i as u16 },
+                home: Home {
+                    local: Enu::default(),
+                    global: GeoPoint { latitude_deg: 0.0, longitude_deg: 0.0, altitude_msl_m: 0.0 },
+                },
+                scripted: true,
+            })
+            .collect();
+        let segments = (0..n.div_ceil(per_segment))
+            .map(|s| RouterSegment {
+                index: s,
+                first_drone: s * per_segment,
+                drone_count: per_segment.min(n - s * per_segment),
+                gcs_udp: 14550 + s as u16,
+                gcs_tcp: 5760 + s as u16,
+            })
+            .collect();
+        RunPlan {
+            format_version: PLAN_FORMAT_VERSION,
+            run: RunRef { name: "demo".into(), namespace: "default".into(), uid: None },
+            spec: run.spec,
+            duration_s: 1.0,
+            physics_rate_hz: 1000,
+            sync_window_steps: 10,
+            seed: 1,
+            drones,
+            shards: Vec::new(),
+            segments,
+            asset_cache_key: String::new(),
+            services: ServicePorts { coordinator: 7400, airspace_http: 8480, renderer_http: 8490, metrics: 9090 },
+            resources: ResourcePlan {
+                assets: none,
+                shards: Vec::new(),
+                coordinator: none,
+                router: none,
+                renderer: None,
+                pilot: None,
+            },
+        }
+    }
+
+    fn options(segment: u32, drone_host: &str) -> RouterOptions {
+        RouterOptions { segment, bind: IpAddr::V4(Ipv4Addr::UNSPECIFIED), drone_host: drone_host.into() }
+    }
+
+    #[test]
+    fn a_segment_gets_its_ports_and_only_its_drones() {
+        let plan = plan(7, 4);
+        let config = config(&plan, &options(1, DEFAULT_DRONE_HOST), &mut resolve).unwrap();
+        assert_eq!(config.gcs_udp, "0.0.0.0:14551".parse().unwrap());
+        assert_eq!(config.gcs_tcp, "0.0.0.0:5761".parse().unwrap());
+        let drones: Vec<(u8, String)> = config.drones.iter().map(|d| (d.system_id, d.endpoint.to_string())).collect();
+        assert_eq!(
+            drones,
+            [(1, "127.0.0.1:24604".into()), (2, "127.0.0.1:24605".into()), (3, "127.0.0.1:24606".into())]
+        );
+    }
+
+    #[test]
+    fn drone_hosts_follow_the_template_and_resolve_once_per_shard() {
+        let plan = plan(4, 250);
+        let mut asked = Vec::new();
+        let config = config(&plan, &options(0, "{run}-shard-{shard}.{run}-shards"), &mut |host| {
+            asked.push(host.to_string());
+            Ok(IpAddr::V4(Ipv4Addr::new(10, 0, 0, asked.len() as u8)))
+        })
+        .unwrap();
+        assert_eq!(asked, ["demo-shard-0.demo-shards", "demo-shard-1.demo-shards"]);
+        let ips: Vec<String> = config.drones.iter().map(|d| d.endpoint.to_string()).collect();
+        assert_eq!(ips, ["10.0.0.1:24600", "10.0.0.1:24601", "10.0.0.2:24602", "10.0.0.2:24603"]);
+    }
+
+    #[test]
+    fn bad_segments_and_templates_are_refused_with_the_flag_named() {
+        let plan = plan(3, 250);
+        let e = config(&plan, &options(1, DEFAULT_DRONE_HOST), &mut resolve).unwrap_err().to_string();
+        assert!(e.contains("--segment 1") && e.contains("1 router segment"), "{e}");
+        let e = config(&plan, &options(0, "{run}-{shards}"), &mut resolve).unwrap_err().to_string();
+        assert!(e.contains("--drone-host") && e.contains("{shards}"), "{e}");
+        let e = config(&plan, &options(0, "nowhere"), &mut |_| Err(std::io::ErrorKind::NotFound.into()))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("failed to resolve nowhere"), "{e}");
+    }
+
+    #[test]
+    fn the_role_serves_until_stopped() {
+        let mut plan = plan(2, 250);
+        let mut opts = options(0, DEFAULT_DRONE_HOST);
+        opts.bind = IpAddr::V4(Ipv4Addr::LOCALHOST);
+        // The plan's fixed ports would collide with parallel tests: take free ones.
+        plan.segments[0].gcs_udp = 0;
+        plan.segments[0].gcs_tcp = 0;
+        let drone = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        for d in &mut plan.drones {
+            d.ports.endpoint = drone.local_addr().unwrap().port();
+        }
+        let stop = AtomicBool::new(true);
+        let stats = run(&plan, &opts, &stop).unwrap();
+        assert_eq!(stats.gcs_udp_clients, 0);
+    }
+}
