@@ -63,6 +63,10 @@ pub enum Command {
         /// Drones per shard (one thread per shard).
         #[arg(long, default_value_t = 100)]
         drones_per_shard: u32,
+        /// Also run with MAVLink endpoints and routers on (PX4 default telemetry rates) and
+        /// report the CPU cost of MAVLink as a ratio of the run without.
+        #[arg(long)]
+        mavlink: bool,
     },
     /// Run a scenario locally: world, shards, coordinator and recorder in this process,
     /// and `spec.pilot` as a child process.
@@ -154,22 +158,41 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             };
             run_file(&file, options, clock, out)
         }
-        Command::Bench { drones, seconds, drones_per_shard } => {
+        Command::Bench { drones, seconds, drones_per_shard, mavlink } => {
             let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
-            let result = crate::bench::run(drones, seconds, drones_per_shard, root.clone())
-                .map_err(|source| CliError::Run { path: "bench".into(), source })?;
+            let variants: &[bool] = if mavlink { &[false, true] } else { &[false] };
+            let mut results = Vec::new();
+            for &with_mavlink in variants {
+                let result = crate::bench::run(drones, seconds, drones_per_shard, root.clone(), with_mavlink)
+                    .map_err(|source| CliError::Run { path: "bench".into(), source })?;
+                writeln!(
+                    out,
+                    "bench{}: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall{} = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
+                    if with_mavlink { " (MAVLink on)" } else { "" },
+                    count(result.drones as usize, "drone"),
+                    count(result.shards as usize, "shard"),
+                    result.sim_time_s,
+                    result.wall_time_s,
+                    result.cpu_time_s.map(|c| format!(", {c:.2} s CPU")).unwrap_or_default(),
+                    result.drone_steps_per_s,
+                    result.sim_time_s / result.wall_time_s,
+                    std::thread::available_parallelism().map_or(1, usize::from)
+                )?;
+                results.push(result);
+            }
             let _ = std::fs::remove_dir_all(&root);
-            writeln!(
-                out,
-                "bench: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
-                count(result.drones as usize, "drone"),
-                count(result.shards as usize, "shard"),
-                result.sim_time_s,
-                result.wall_time_s,
-                result.drone_steps_per_s,
-                result.sim_time_s / result.wall_time_s,
-                std::thread::available_parallelism().map_or(1, usize::from)
-            )?;
+            if let [off, on] = results.as_slice() {
+                let ratio = |a: f64, b: f64| (b - a) / a * 100.0;
+                writeln!(
+                    out,
+                    "MAVLink cost: +{:.1} % wall time{}",
+                    ratio(off.wall_time_s, on.wall_time_s),
+                    off.cpu_time_s
+                        .zip(on.cpu_time_s)
+                        .map(|(a, b)| format!(", +{:.1} % CPU time", ratio(a, b)))
+                        .unwrap_or_default()
+                )?;
+            }
             Ok(Outcome::Success)
         }
         Command::Crd => {

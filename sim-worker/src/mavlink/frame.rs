@@ -56,6 +56,8 @@ pub enum Decoded {
     },
     /// A message id outside the common dialect, or a field with an undefined enum value.
     Undecodable(String),
+    /// Not decoded: the parser was made with [`FrameParser::checksum_only`].
+    NotDecoded,
 }
 
 /// Counters of what the parser threw away (for logs and tests).
@@ -73,6 +75,8 @@ pub struct ParseStats {
 #[derive(Debug, Default)]
 pub struct FrameParser {
     buf: Vec<u8>,
+    /// Check frames without decoding their payloads (routers forwarding telemetry).
+    skip_decoding: bool,
     pub stats: ParseStats,
 }
 
@@ -84,6 +88,13 @@ pub fn checksum(data: &[u8], extra: u8) -> u16 {
 impl FrameParser {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A parser that checks framing and checksums but leaves payloads undecoded
+    /// ([`Decoded::NotDecoded`]): a router forwarding telemetry needs no more, and decoding
+    /// every frame of a fleet would cost more than the forwarding itself.
+    pub fn checksum_only() -> Self {
+        Self { skip_decoding: true, ..Self::default() }
     }
 
     /// Drops any partial frame (a datagram boundary on UDP means the tail is garbage).
@@ -126,7 +137,7 @@ impl FrameParser {
             }
             let header = MavHeader { sequence: rest[4], system_id: u32::from(rest[5]), component_id: rest[6] };
             let payload = &rest[1 + HEADER_LEN..crc_end];
-            let message = decode(message_id, payload);
+            let message = if self.skip_decoding { Decoded::NotDecoded } else { decode(message_id, payload) };
             frames.push(Frame { header, message_id, bytes: rest[..total].to_vec(), message });
             self.stats.frames += 1;
             at += total;

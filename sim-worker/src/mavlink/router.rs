@@ -476,6 +476,9 @@ impl Shared {
             add(&self.counters.dropped_unknown_source, 1);
             return;
         }
+        if lock(&self.udp_peers).peers.is_empty() && lock(&self.tcp_clients).is_empty() {
+            return; // nobody to forward to: not worth checking
+        }
         parser.reset();
         let frames = self.parse(parser, datagram);
         let own = |f: &Frame| {
@@ -578,14 +581,14 @@ fn destination(frame: &Frame) -> Option<u8> {
     match &frame.message {
         Decoded::Message(m) => target_system(m),
         Decoded::UnknownCommand { target_system, .. } => Some(*target_system),
-        Decoded::Undecodable(_) => None,
+        Decoded::Undecodable(_) | Decoded::NotDecoded => None,
     }
 }
 
 /// The drone-side thread: registration heartbeats and telemetry to the ground stations.
 fn drone_side(shared: &Shared) {
     let mut buf = vec![0u8; MAX_DATAGRAM];
-    let mut parser = FrameParser::new();
+    let mut parser = FrameParser::checksum_only();
     let mut sequence: u8 = 0;
     let mut next_heartbeat = Instant::now();
     while !shared.stopping() {

@@ -98,7 +98,7 @@ impl Session {
                 }
                 return;
             }
-            Decoded::Undecodable(_) => {
+            Decoded::Undecodable(_) | Decoded::NotDecoded => {
                 self.stats.ignored += 1;
                 return;
             }
@@ -601,3 +601,6 @@ fn local_setpoint(t: &SET_POSITION_TARGET_LOCAL_NED_DATA, view: &VehicleView) ->
         _ => None,
     }
 }
+
+#[cfg(test)]
+mod tests;
