@@ -28,6 +28,12 @@ pub const MAX_DATAGRAM: usize = 1400;
 pub const MAX_UDP_PEERS: usize = 8;
 /// TCP connections accepted at once; more are closed at once.
 pub const MAX_TCP_PEERS: usize = 8;
+/// A peer that sent HEARTBEATs and then fell silent this long is forgotten (MAVLink's
+/// heartbeat protocol: a component is lost after a few missed heartbeats). Peers that never
+/// sent a heartbeat (a bare pymavlink `udpout` script) are kept until evicted.
+pub const PEER_HEARTBEAT_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
+/// The TCP listener is checked every this many polls (connections wait at most that long).
+const ACCEPT_EVERY_POLLS: u64 = 5;
 /// Datagrams read per poll: a flood cannot keep the shard from simulating (the kernel
 /// drops what does not fit its buffer).
 const MAX_DATAGRAMS_PER_POLL: usize = 256;
@@ -44,6 +50,8 @@ pub struct EndpointConfig {
     pub port: u16,
     /// The API link target (PX4 SITL's 14540+i), if any.
     pub api_target: Option<SocketAddr>,
+    /// Silence after which a heartbeating UDP peer is forgotten ([`PEER_HEARTBEAT_TIMEOUT`]).
+    pub peer_timeout: std::time::Duration,
 }
 
 /// Why an endpoint could not open.
@@ -61,6 +69,8 @@ struct UdpPeer {
     address: SocketAddr,
     /// Poll counter when last heard from.
     heard: u64,
+    /// Wall time of the last HEARTBEAT from this peer (liveness is a wall-clock matter).
+    heartbeat_at: Option<std::time::Instant>,
 }
 
 #[derive(Debug)]
@@ -144,10 +154,12 @@ impl Endpoint {
             match self.udp.recv_from(&mut buf) {
                 Ok((n, from)) => {
                     self.stats.datagrams_in += 1;
-                    self.remember(from);
                     // Each datagram stands alone: a frame never spans two.
                     self.parser.reset();
-                    frames.extend(self.parser.push(&buf[..n]));
+                    let got = self.parser.push(&buf[..n]);
+                    let heartbeat = got.iter().any(|f| f.message_id == 0);
+                    self.remember(from, heartbeat);
+                    frames.extend(got);
                 }
                 Err(e) if e.kind() == ErrorKind::WouldBlock => break,
                 // ICMP errors from an earlier send (e.g. nobody on the API port) surface
@@ -155,7 +167,11 @@ impl Endpoint {
                 Err(_) => continue,
             }
         }
-        self.accept_tcp();
+        let now = std::time::Instant::now();
+        self.udp_peers.retain(|p| p.heartbeat_at.is_none_or(|t| now.duration_since(t) < self.config.peer_timeout));
+        if self.polls % ACCEPT_EVERY_POLLS == 1 {
+            self.accept_tcp();
+        }
         for peer in &mut self.tcp_peers {
             let mut read = 0;
             while read < MAX_TCP_BYTES_PER_POLL {
@@ -183,12 +199,14 @@ impl Endpoint {
         frames
     }
 
-    fn remember(&mut self, from: SocketAddr) {
+    fn remember(&mut self, from: SocketAddr, heartbeat: bool) {
         if Some(from) == self.config.api_target {
             return; // the API link already receives everything
         }
+        let heartbeat_at = heartbeat.then(std::time::Instant::now);
         if let Some(p) = self.udp_peers.iter_mut().find(|p| p.address == from) {
             p.heard = self.polls;
+            p.heartbeat_at = heartbeat_at.or(p.heartbeat_at);
             return;
         }
         if self.udp_peers.len() >= MAX_UDP_PEERS
@@ -196,7 +214,7 @@ impl Endpoint {
         {
             self.udp_peers.swap_remove(oldest);
         }
-        self.udp_peers.push(UdpPeer { address: from, heard: self.polls });
+        self.udp_peers.push(UdpPeer { address: from, heard: self.polls, heartbeat_at });
     }
 
     fn accept_tcp(&mut self) {
@@ -268,8 +286,14 @@ mod tests {
     use crate::mavlink::frame::{Decoded, encode};
 
     fn open(api_target: Option<SocketAddr>) -> Endpoint {
-        Endpoint::open(EndpointConfig { system_id: 9, bind_ip: IpAddr::V4(Ipv4Addr::LOCALHOST), port: 0, api_target })
-            .expect("binds an ephemeral port")
+        Endpoint::open(EndpointConfig {
+            system_id: 9,
+            bind_ip: IpAddr::V4(Ipv4Addr::LOCALHOST),
+            port: 0,
+            api_target,
+            peer_timeout: Duration::from_millis(300),
+        })
+        .expect("binds an ephemeral port")
     }
 
     fn heartbeat(sys: u32) -> Vec<u8> {
@@ -304,6 +328,35 @@ mod tests {
         assert_eq!(got.len(), 3, "three frames packed in one datagram");
         assert_eq!(got.iter().map(|f| f.header.sequence).collect::<Vec<_>>(), vec![0, 1, 2]);
         assert_eq!(got[0].header.system_id, 9);
+    }
+
+    /// Sends one heartbeat from `client`, then counts datagrams reaching it.
+    fn datagrams_after(e: &mut Endpoint, client: &UdpSocket, wait: Duration) -> usize {
+        std::thread::sleep(wait);
+        let mut buf = [0u8; 2048];
+        client.set_nonblocking(true).unwrap();
+        while client.recv(&mut buf).is_ok() {} // what earlier sends left behind
+        client.set_nonblocking(false).unwrap();
+        e.receive();
+        e.send(&[Outgoing::Message(MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()))]);
+        client.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
+        usize::from(client.recv(&mut buf).is_ok())
+    }
+
+    #[test]
+    fn a_peer_whose_heartbeats_stop_is_forgotten_but_a_silent_one_is_kept() {
+        let mut e = open(None);
+        let heartbeating = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let silent = UdpSocket::bind("127.0.0.1:0").unwrap();
+        heartbeating.send_to(&heartbeat(255), e.local_addr().unwrap()).unwrap();
+        // A frame that is not a heartbeat (garbage works too: any datagram registers).
+        silent.send_to(b"hello", e.local_addr().unwrap()).unwrap();
+        receive_until(&mut e, 1);
+        assert_eq!(datagrams_after(&mut e, &heartbeating, Duration::ZERO), 1);
+        assert_eq!(datagrams_after(&mut e, &silent, Duration::ZERO), 1);
+        // 300 ms without a heartbeat: the heartbeating peer is gone, the silent one stays.
+        assert_eq!(datagrams_after(&mut e, &heartbeating, Duration::from_millis(400)), 0);
+        assert_eq!(datagrams_after(&mut e, &silent, Duration::ZERO), 1);
     }
 
     #[test]
@@ -348,6 +401,7 @@ mod tests {
             bind_ip: IpAddr::V4(Ipv4Addr::LOCALHOST),
             port,
             api_target: None,
+            peer_timeout: PEER_HEARTBEAT_TIMEOUT,
         })
         .unwrap_err()
         .to_string();

@@ -451,6 +451,10 @@ impl Shared {
 
     /// Sends the router's HEARTBEAT to every drone endpoint, which makes the endpoint send
     /// its telemetry here.
+    fn has_ground_stations(&self) -> bool {
+        !lock(&self.udp_peers).peers.is_empty() || !lock(&self.tcp_clients).is_empty()
+    }
+
     fn register_with_drones(&self, sequence: u8) {
         let header = MavHeader { system_id: u32::from(ROUTER_SYSTEM_ID), component_id: ROUTER_COMPONENT_ID, sequence };
         let heartbeat = encode(
@@ -476,7 +480,7 @@ impl Shared {
             add(&self.counters.dropped_unknown_source, 1);
             return;
         }
-        if lock(&self.udp_peers).peers.is_empty() && lock(&self.tcp_clients).is_empty() {
+        if !self.has_ground_stations() {
             return; // nobody to forward to: not worth checking
         }
         parser.reset();
@@ -594,7 +598,11 @@ fn drone_side(shared: &Shared) {
     while !shared.stopping() {
         let now = Instant::now();
         if now >= next_heartbeat {
-            shared.register_with_drones(sequence);
+            // Only while someone listens: drones forget a peer whose heartbeats stop, so a
+            // router without ground stations costs the drones nothing.
+            if shared.has_ground_stations() {
+                shared.register_with_drones(sequence);
+            }
             sequence = sequence.wrapping_add(1);
             next_heartbeat = now + HEARTBEAT_PERIOD;
         }
@@ -892,10 +900,13 @@ mod tests {
     #[test]
     fn a_gcs_sees_every_drone_of_the_segment_but_not_the_router() {
         let (drones, router) = fleet(32);
+        // No ground station yet: the drones are left alone (their telemetry would go nowhere).
+        thread::sleep(HEARTBEAT_PERIOD + Duration::from_millis(200));
+        assert!(drones.iter().all(|d| d.registrations.load(Ordering::Relaxed) == 0));
+        let gcs = udp_gcs(&router);
         wait_for("every drone registered", || {
             drones.iter().all(|d| d.registrations.load(Ordering::Relaxed) > 0).then_some(())
         });
-        let gcs = udp_gcs(&router);
         let frames = udp_until(&gcs, "32 system ids", |f| sysids(f).len() >= 32);
         assert_eq!(sysids(&frames), (1..=32).collect());
         assert!(router.stats().datagrams_to_gcs > 0);

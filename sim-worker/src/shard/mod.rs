@@ -85,7 +85,16 @@ pub struct Shard {
     step: u64,
     dt_s: f64,
     released: bool,
+    /// Sim time of the next MAVLink I/O.
+    next_mavlink_io_s: f64,
 }
+
+/// Sim seconds between MAVLink I/O rounds (a 50 Hz link). Every round costs a receive and a
+/// datagram per peer for each drone; at 100 Hz the sockets cost a 250-drone shard more than
+/// its physics (docs/performance.md). 20 ms is below what SDKs and ground stations notice
+/// (MAVSDK's offboard needs > 2 Hz; PX4 itself batches its MAVLink output), and 100 Hz
+/// streams still count right: two ATTITUDE messages travel in one datagram.
+pub const MAVLINK_IO_PERIOD_S: f64 = 0.02;
 
 /// The environment is sampled every this many physics steps (100 Hz at 1 kHz) and held in
 /// between: wind gusts and GNSS conditions change over tenths of seconds (the Dryden
@@ -150,6 +159,7 @@ impl Shard {
             step: 0,
             dt_s: 1.0 / f64::from(plan.physics_rate_hz),
             released: false,
+            next_mavlink_io_s: 0.0,
         })
     }
 
@@ -170,6 +180,7 @@ impl Shard {
                 bind_ip: options.bind_ip,
                 port: d.ports.endpoint,
                 api_target: options.api_host.map(|h| std::net::SocketAddr::new(h, d.ports.api_udp)),
+                peer_timeout: crate::mavlink::endpoint::PEER_HEARTBEAT_TIMEOUT,
             })?;
             let id = VehicleIdentity {
                 system_id: d.system_id,
@@ -218,12 +229,6 @@ impl Shard {
     /// Simulates up to (excluding) `until_step`, returning the events.
     pub fn advance(&mut self, until_step: u64) -> Vec<Event> {
         let mut events = Vec::new();
-        // MAVLink I/O once per window: commands act from the window's start, telemetry
-        // leaves at its end (10 ms granularity at the default window).
-        let t_start = self.step as f64 * self.dt_s;
-        for drone in &mut self.drones {
-            drone.mavlink_inbound(t_start);
-        }
         while self.step < until_step {
             let t = self.step as f64 * self.dt_s;
             for (i, drone) in self.drones.iter_mut().enumerate() {
@@ -255,9 +260,15 @@ impl Shard {
             }
             self.step += 1;
         }
+        // MAVLink I/O at window ends, at most every MAVLINK_IO_PERIOD_S of sim time:
+        // what arrived acts from here on, telemetry due by now leaves packed together.
         let t_end = self.step as f64 * self.dt_s;
-        for drone in &mut self.drones {
-            drone.mavlink_outbound(t_end);
+        if t_end + 1e-9 >= self.next_mavlink_io_s {
+            self.next_mavlink_io_s = t_end + MAVLINK_IO_PERIOD_S;
+            for drone in &mut self.drones {
+                drone.mavlink_inbound(t_end);
+                drone.mavlink_outbound(t_end);
+            }
         }
         events
     }
