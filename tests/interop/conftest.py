@@ -25,3 +25,19 @@ def sadesim() -> str:
 @pytest.fixture(scope="session")
 def venv_bin() -> pathlib.Path:
     return pathlib.Path(os.environ.get("VIRTUAL_ENV", REPO / ".venv")) / "bin"
+
+
+@pytest.fixture(scope="session")
+def start_run(sadesim, tmp_path_factory):
+    """`start_run(doc)` -> a `simrun.SimRun` context manager for the SimulationRun `doc`:
+    `sadesim run --no-pilot` in a fresh temporary folder, stopped with SIGINT on exit.
+
+    The MAVLink ports are fixed, so use it from module-scoped fixtures and never run the
+    interop tests in parallel (no `pytest -n`) or beside another run that uses MAVLink.
+    """
+    from simrun import SimRun
+
+    def start(doc):
+        return SimRun(sadesim, tmp_path_factory.mktemp(doc["metadata"]["name"]), doc)
+
+    return start

@@ -9,7 +9,7 @@ mod ports;
 mod resources;
 
 use sadesim_crds::fleet::{Area, FleetGroup, HomePlacement};
-use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
+use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::{Home, PLAN_FORMAT_VERSION, PlannedDrone, PlannedShard, RouterSegment, RunPlan, RunRef};
 use sadesim_crds::polygon;
 use sadesim_crds::random::{Purpose, Rng};
@@ -198,12 +198,10 @@ fn home(
         // Round-robin over the areas so each gets its share (the paper's "various parks").
         HomePlacement::Areas(areas) => in_area(&areas[k as usize % areas.len()])?,
     };
-    // On the ground at the origin's altitude: the point's MSL altitude is the origin's, and
-    // its ENU `up` is slightly negative away from the origin (Earth curvature, -0.08 m at
-    // 1 km), which keeps homes consistent with the world's curvature-aware ground.
-    let on_plane = frame.to_geodetic(Enu::new(east_m, north_m, 0.0));
-    let global = GeoPoint { altitude_msl_m: frame.origin().altitude_msl_m, ..on_plane };
-    Some(Home { local: frame.to_enu(global), global })
+    // On the world's ground there (gentle terrain and the Earth's curvature included), so
+    // the fleet file's home altitude is the ground's MSL altitude under the drone.
+    let local = Enu::new(east_m, north_m, world.ground_up_m(east_m, north_m));
+    Some(Home { local, global: frame.to_geodetic(local) })
 }
 
 /// Everything that shapes the world assets, hashed: exactly the world generator's inputs

@@ -640,6 +640,10 @@ impl PlanBuilder {
                 positionless(item)?;
                 self.change_speed(item)?
             }
+            // Wait where the drone is (MAVSDK sends this for a mission item's
+            // `loiter_time_s`). Only the relative delay (param1 >= 0) is supported; the
+            // time-of-day form (param1 = -1 with hours/minutes/seconds) is refused.
+            MavCmd::MAV_CMD_NAV_DELAY => MissionItem::Loiter { hold_s: hold_time(item.param1)? },
             _ => return Err(R::MAV_MISSION_UNSUPPORTED),
         };
         self.items.push(converted);

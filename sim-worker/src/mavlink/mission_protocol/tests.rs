@@ -778,3 +778,16 @@ fn invalid_coordinates_and_parameters_name_the_parameter() {
     let nan_hold = MISSION_ITEM_INT_DATA { param1: f32::NAN, ..wp };
     assert!(matches!(to_plan(&[nan_hold], &c).unwrap().items[0], MissionItem::Waypoint { hold_s: 0.0, .. }));
 }
+
+#[test]
+fn nav_delay_waits_where_the_drone_is_and_the_time_of_day_form_is_refused() {
+    let f = frame();
+    let c = ctx(&f);
+    let mut delay = item(1, MavCmd::MAV_CMD_NAV_DELAY, MavFrame::MAV_FRAME_MISSION, 0, 0, 0.0);
+    delay.param1 = 4.0;
+    let items = vec![waypoint(&f, 0, 10.0, 10.0, 20.0), delay.clone()];
+    let plan = to_plan(&items, &c).unwrap();
+    assert_eq!(plan.items[1], MissionItem::Loiter { hold_s: 4.0 });
+    delay.param1 = -1.0; // "at a time of day"
+    assert_eq!(to_plan(&[delay], &c), Err((0, R::MAV_MISSION_INVALID_PARAM1)));
+}
