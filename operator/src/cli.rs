@@ -67,6 +67,10 @@ pub enum Command {
         /// report the CPU cost of MAVLink as a ratio of the run without.
         #[arg(long)]
         mavlink: bool,
+        /// With --mavlink: alternate the two variants this many times and compare medians
+        /// (this machine's speed drifts by tens of percent between minutes).
+        #[arg(long, default_value_t = 3)]
+        repeat: u32,
     },
     /// Run a scenario locally: world, shards, coordinator and recorder in this process,
     /// and `spec.pilot` as a child process.
@@ -158,11 +162,12 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             };
             run_file(&file, options, clock, out)
         }
-        Command::Bench { drones, seconds, drones_per_shard, mavlink } => {
+        Command::Bench { drones, seconds, drones_per_shard, mavlink, repeat } => {
             let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
-            let variants: &[bool] = if mavlink { &[false, true] } else { &[false] };
+            let variants: Vec<bool> =
+                if mavlink { (0..repeat.max(1)).flat_map(|_| [false, true]).collect() } else { vec![false] };
             let mut results = Vec::new();
-            for &with_mavlink in variants {
+            for &with_mavlink in &variants {
                 let result = crate::bench::run(drones, seconds, drones_per_shard, root.clone(), with_mavlink)
                     .map_err(|source| CliError::Run { path: "bench".into(), source })?;
                 writeln!(
@@ -181,16 +186,23 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 results.push(result);
             }
             let _ = std::fs::remove_dir_all(&root);
-            if let [off, on] = results.as_slice() {
+            if mavlink {
+                let median = |on: bool, f: &dyn Fn(&crate::bench::BenchResult) -> Option<f64>| {
+                    let mut v: Vec<f64> = results.iter().filter(|r| r.mavlink == on).filter_map(f).collect();
+                    v.sort_by(f64::total_cmp);
+                    v.get(v.len() / 2).copied()
+                };
+                let wall = |r: &crate::bench::BenchResult| Some(r.wall_time_s);
+                let cpu = |r: &crate::bench::BenchResult| r.cpu_time_s;
                 let ratio = |a: f64, b: f64| (b - a) / a * 100.0;
+                let cost = |f: &dyn Fn(&crate::bench::BenchResult) -> Option<f64>| {
+                    median(false, f).zip(median(true, f)).map(|(a, b)| ratio(a, b))
+                };
                 writeln!(
                     out,
-                    "MAVLink cost: +{:.1} % wall time{}",
-                    ratio(off.wall_time_s, on.wall_time_s),
-                    off.cpu_time_s
-                        .zip(on.cpu_time_s)
-                        .map(|(a, b)| format!(", +{:.1} % CPU time", ratio(a, b)))
-                        .unwrap_or_default()
+                    "MAVLink cost (medians of {repeat}): {}{}",
+                    cost(&wall).map(|c| format!("{c:+.1} % wall time")).unwrap_or_default(),
+                    cost(&cpu).map(|c| format!(", {c:+.1} % CPU time")).unwrap_or_default()
                 )?;
             }
             Ok(Outcome::Success)

@@ -71,6 +71,9 @@ impl Fmu {
 
     /// Arming checks pass (what SYS_STATUS reports as the pre-arm check).
     pub fn armable(&self, on_ground: bool, battery_remaining: f64) -> bool {
+        if !on_ground || self.navigator.is_armed() {
+            return false; // asked every 10 ms of flight: skip the checks' message formatting
+        }
         let est = self.estimator.estimate();
         self.navigator.arming_check(est.as_ref(), &self.status(on_ground, battery_remaining)).is_ok()
     }

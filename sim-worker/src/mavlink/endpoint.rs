@@ -18,12 +18,14 @@ use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream, UdpSocket};
 
 use ::mavlink::MavHeader;
 
-use crate::mavlink::frame::{Frame, FrameParser};
+use crate::mavlink::frame::{Frame, FrameParser, MAX_FRAME_LEN};
 use crate::mavlink::session::{COMPONENT_ID, Outgoing};
 
 /// Datagrams are filled up to this many bytes (below the 1500-byte Ethernet MTU with IP
 /// and UDP headers, so nothing fragments on a real network).
 pub const MAX_DATAGRAM: usize = 1400;
+/// Queued datagrams kept between flushes (a second of a busy drone's telemetry).
+const MAX_PENDING_DATAGRAMS: usize = 64;
 /// UDP peers remembered; the least recently heard is dropped for a new one.
 pub const MAX_UDP_PEERS: usize = 8;
 /// TCP connections accepted at once; more are closed at once.
@@ -90,6 +92,8 @@ pub struct EndpointStats {
     pub tcp_accepted: u64,
     pub tcp_refused: u64,
     pub send_errors: u64,
+    /// Queued datagrams dropped because nothing flushed them.
+    pub dropped_datagrams: u64,
 }
 
 /// One drone's sockets.
@@ -103,6 +107,8 @@ pub struct Endpoint {
     parser: FrameParser,
     sequence: u8,
     polls: u64,
+    /// Encoded datagrams waiting for the next flush.
+    pending: Vec<Vec<u8>>,
     pub stats: EndpointStats,
 }
 
@@ -136,6 +142,7 @@ impl Endpoint {
             parser: FrameParser::new(),
             sequence: 0,
             polls: 0,
+            pending: Vec::new(),
             stats: EndpointStats::default(),
         })
     }
@@ -229,12 +236,10 @@ impl Endpoint {
         }
     }
 
-    /// Encodes `messages` with this link's sequence numbers and sends them to every peer.
-    pub fn send(&mut self, messages: &[Outgoing]) {
-        if messages.is_empty() {
-            return;
-        }
-        let mut datagrams: Vec<Vec<u8>> = vec![Vec::with_capacity(MAX_DATAGRAM)];
+    /// Encodes `messages` with this link's sequence numbers into the outgoing datagrams,
+    /// sent at the next [`Endpoint::flush`]. Messages are built when due (their rates and
+    /// timestamps stay right); only the sending is batched.
+    pub fn queue(&mut self, messages: &[Outgoing]) {
         for m in messages {
             let header = MavHeader {
                 system_id: u32::from(self.config.system_id),
@@ -242,14 +247,26 @@ impl Endpoint {
                 sequence: self.sequence,
             };
             self.sequence = self.sequence.wrapping_add(1);
-            let frame = m.encode(header);
-            let last = datagrams.last_mut().expect("never empty");
-            if !last.is_empty() && last.len() + frame.len() > MAX_DATAGRAM {
-                datagrams.push(frame);
-            } else {
-                last.extend(frame);
+            // A frame is at most MAX_FRAME_LEN bytes: start a new datagram when it may not fit.
+            let fits = self.pending.last().is_some_and(|d| d.len() + MAX_FRAME_LEN <= MAX_DATAGRAM);
+            if !fits {
+                if self.pending.len() >= MAX_PENDING_DATAGRAMS {
+                    self.pending.remove(0); // nobody flushed for long: oldest first out
+                    self.stats.dropped_datagrams += 1;
+                }
+                self.pending.push(Vec::with_capacity(MAX_DATAGRAM));
             }
+            let datagram = self.pending.last_mut().expect("pushed above");
+            m.encode_into(datagram, header);
         }
+    }
+
+    /// Sends the queued datagrams to every peer.
+    pub fn flush(&mut self) {
+        if self.pending.is_empty() {
+            return;
+        }
+        let datagrams = std::mem::take(&mut self.pending);
         let targets = self.config.api_target.into_iter().chain(self.udp_peers.iter().map(|p| p.address));
         for target in targets {
             for d in &datagrams {
@@ -263,7 +280,7 @@ impl Endpoint {
             for d in &datagrams {
                 match peer.stream.write(d) {
                     Ok(n) if n == d.len() => {}
-                    // A slow reader: drop the rest of this window's telemetry for it. A
+                    // A slow reader: drop the rest of this round's telemetry for it. A
                     // partial write would leave half a frame, which the peer's parser skips.
                     Ok(_) => return true,
                     Err(e) if e.kind() == ErrorKind::WouldBlock => return true,
@@ -272,6 +289,12 @@ impl Endpoint {
             }
             true
         });
+    }
+
+    /// [`Endpoint::queue`] then [`Endpoint::flush`].
+    pub fn send(&mut self, messages: &[Outgoing]) {
+        self.queue(messages);
+        self.flush();
     }
 }
 

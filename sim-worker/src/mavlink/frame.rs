@@ -178,9 +178,16 @@ fn decode(message_id: u32, payload: &[u8]) -> Decoded {
 
 /// Encodes `message` as one MAVLink 2 frame from `header` (unsigned).
 pub fn encode(header: MavHeader, message: &MavMessage) -> Vec<u8> {
+    let mut out = Vec::new();
+    encode_into(&mut out, header, message);
+    out
+}
+
+/// Appends the frame of `message` to `out` (no allocation when `out` has room).
+pub fn encode_into(out: &mut Vec<u8>, header: MavHeader, message: &MavMessage) {
     let mut raw = MAVLinkV2MessageRaw::new();
     raw.serialize_message(header, message);
-    raw.raw_bytes().to_vec()
+    out.extend_from_slice(raw.raw_bytes());
 }
 
 /// COMMAND_ACK for any command number, including ones the dialect's `MavCmd` cannot

@@ -489,10 +489,17 @@ pub enum Outgoing {
 impl Outgoing {
     /// One MAVLink 2 frame from `header`.
     pub fn encode(&self, header: ::mavlink::MavHeader) -> Vec<u8> {
+        let mut out = Vec::new();
+        self.encode_into(&mut out, header);
+        out
+    }
+
+    /// Appends the frame to `out`.
+    pub fn encode_into(&self, out: &mut Vec<u8>, header: ::mavlink::MavHeader) {
         match self {
-            Outgoing::Message(m) => crate::mavlink::frame::encode(header, m),
+            Outgoing::Message(m) => crate::mavlink::frame::encode_into(out, header, m),
             Outgoing::UnknownCommandAck { command, result, target } => {
-                crate::mavlink::frame::encode_command_ack(header, *command, *result, *target)
+                out.extend(crate::mavlink::frame::encode_command_ack(header, *command, *result, *target));
             }
         }
     }

@@ -63,6 +63,9 @@ pub struct VehicleView {
     pub estimate: Option<PositionEstimate>,
     /// Body (FLU) -> world (ENU).
     pub attitude: UnitQuaternion<f64>,
+    /// The same as body (FRD) -> NED, what MAVLink reports ([`attitude_ned_frd`]); kept
+    /// here so the several messages built from one view convert it once.
+    pub attitude_ned: UnitQuaternion<f64>,
     /// Body rates, FLU, rad/s.
     pub rate_body_rps: Vector3<f64>,
     /// The last GNSS report.
@@ -269,7 +272,7 @@ pub fn gps_raw_int(v: &VehicleView, id: &VehicleIdentity) -> MavMessage {
 }
 
 fn euler_ned(v: &VehicleView) -> (f32, f32, f32) {
-    let (roll, pitch, yaw) = attitude_ned_frd(&v.attitude).euler_angles();
+    let (roll, pitch, yaw) = v.attitude_ned.euler_angles();
     (roll as f32, pitch as f32, yaw as f32)
 }
 
@@ -292,7 +295,7 @@ pub fn attitude(v: &VehicleView) -> MavMessage {
 }
 
 pub fn attitude_quaternion(v: &VehicleView) -> MavMessage {
-    let q = attitude_ned_frd(&v.attitude);
+    let q = v.attitude_ned;
     let (rollspeed, pitchspeed, yawspeed) = rates_frd(v);
     MavMessage::ATTITUDE_QUATERNION(ATTITUDE_QUATERNION_DATA {
         time_boot_ms: time_boot_ms(v),
@@ -546,6 +549,7 @@ mod tests {
                 epv_m: 1.2,
             }),
             attitude: UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_2),
+            attitude_ned: attitude_ned_frd(&UnitQuaternion::from_euler_angles(0.0, 0.0, std::f64::consts::FRAC_PI_2)),
             rate_body_rps: Vector3::new(0.1, 0.2, 0.3),
             gnss: None,
             battery: BatteryView { voltage_v: 15.8, current_a: 20.0, remaining: 0.8, consumed_mah: 1000.0 },

@@ -146,8 +146,18 @@ impl DroneSim {
         self.local_origin_enu_m
     }
 
-    /// Reads what peers sent and lets the session act on the autopilot.
-    pub fn mavlink_inbound(&mut self, time_s: f64) {
+    /// Builds the telemetry due at `time_s` and queues it (sent at the next exchange).
+    pub fn mavlink_collect(&mut self, time_s: f64) {
+        let Some(mut link) = self.link.take() else { return };
+        let view = self.view(time_s);
+        let out = link.session.poll(&view);
+        link.endpoint.queue(&out);
+        self.link = Some(link);
+    }
+
+    /// Reads what peers sent, lets the session act on the autopilot, and sends everything
+    /// queued (replies included).
+    pub fn mavlink_exchange(&mut self, time_s: f64) {
         let Some(mut link) = self.link.take() else { return };
         let frames = link.endpoint.receive();
         if !frames.is_empty() {
@@ -162,15 +172,10 @@ impl DroneSim {
             }
         }
         self.link = Some(link);
-    }
-
-    /// Sends what is due: replies and telemetry streams.
-    pub fn mavlink_outbound(&mut self, time_s: f64) {
-        let Some(mut link) = self.link.take() else { return };
-        let view = self.view(time_s);
-        let out = link.session.poll(&view);
-        link.endpoint.send(&out);
-        self.link = Some(link);
+        self.mavlink_collect(time_s);
+        if let Some(link) = &mut self.link {
+            link.endpoint.flush();
+        }
     }
 
     /// What MAVLink peers see of this drone at `time_s`.
@@ -195,6 +200,7 @@ impl DroneSim {
                 epv_m: e.epv_m,
             }),
             attitude: self.state.attitude,
+            attitude_ned: crate::mavlink::telemetry::attitude_ned_frd(&self.state.attitude),
             rate_body_rps: self.state.rate_body_rps,
             gnss: self.last_gnss,
             battery: BatteryView {

@@ -89,11 +89,12 @@ pub struct Shard {
     next_mavlink_io_s: f64,
 }
 
-/// Sim seconds between MAVLink I/O rounds (a 50 Hz link). Every round costs a receive and a
-/// datagram per peer for each drone; at 100 Hz the sockets cost a 250-drone shard more than
-/// its physics (docs/performance.md). 20 ms is below what SDKs and ground stations notice
-/// (MAVSDK's offboard needs > 2 Hz; PX4 itself batches its MAVLink output), and 100 Hz
-/// streams still count right: two ATTITUDE messages travel in one datagram.
+/// Sim seconds between MAVLink socket rounds. Every round costs a receive and a datagram
+/// per peer for each drone; every 10 ms the sockets cost a 250-drone shard more than its
+/// physics (docs/performance.md). Messages are still built at their own rates (100 Hz
+/// ATTITUDE is 100 ATTITUDE messages a second, each with its own timestamp), only sent in
+/// batches; 20 ms adds at most 20 ms of latency, below what SDKs and ground stations
+/// notice (MAVSDK's offboard needs > 2 Hz setpoints).
 pub const MAVLINK_IO_PERIOD_S: f64 = 0.02;
 
 /// The environment is sampled every this many physics steps (100 Hz at 1 kHz) and held in
@@ -260,14 +261,19 @@ impl Shard {
             }
             self.step += 1;
         }
-        // MAVLink I/O at window ends, at most every MAVLINK_IO_PERIOD_S of sim time:
-        // what arrived acts from here on, telemetry due by now leaves packed together.
+        // MAVLink at window ends: telemetry is built when due (its rates and timestamps
+        // follow PX4's), and every MAVLINK_IO_PERIOD_S of sim time the sockets are read,
+        // commands act, and everything queued leaves packed into datagrams.
         let t_end = self.step as f64 * self.dt_s;
-        if t_end + 1e-9 >= self.next_mavlink_io_s {
+        let exchange = t_end + 1e-9 >= self.next_mavlink_io_s;
+        if exchange {
             self.next_mavlink_io_s = t_end + MAVLINK_IO_PERIOD_S;
-            for drone in &mut self.drones {
-                drone.mavlink_inbound(t_end);
-                drone.mavlink_outbound(t_end);
+        }
+        for drone in &mut self.drones {
+            if exchange {
+                drone.mavlink_exchange(t_end);
+            } else {
+                drone.mavlink_collect(t_end);
             }
         }
         events

@@ -52,6 +52,7 @@ fn view(t: f64) -> VehicleView {
             epv_m: 0.8,
         }),
         attitude: UnitQuaternion::identity(),
+        attitude_ned: crate::mavlink::telemetry::attitude_ned_frd(&UnitQuaternion::identity()),
         rate_body_rps: Vector3::zeros(),
         gnss: None,
         battery: BatteryView { voltage_v: 16.0, current_a: 10.0, remaining: 0.9, consumed_mah: 100.0 },
