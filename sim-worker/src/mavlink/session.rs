@@ -78,10 +78,6 @@ impl Session {
         }
     }
 
-    pub fn system_id(&self) -> u8 {
-        self.id.system_id
-    }
-
     /// Handles one frame from a peer.
     pub fn handle(&mut self, frame: &Frame, view: &VehicleView, vehicle: &mut dyn Vehicle) {
         let from = (frame.header.system_id as u8, frame.header.component_id);
@@ -434,20 +430,21 @@ impl Session {
             Position::Int { x, y } => (f64::from(x) * 1e-7, f64::from(y) * 1e-7),
             Position::Float => (f64::from(a.params[4]), f64::from(a.params[5])),
         };
+        // NaN, or lat/lon both 0 (MAVLink's "unset"), keeps the current position.
+        let unset = lat == 0.0 && lon == 0.0;
         let here = self.id.frame.to_geodetic(sadesim_crds::geo::Enu {
             east_m: est.position_enu_m.x,
             north_m: est.position_enu_m.y,
             up_m: est.position_enu_m.z,
         });
-        let keep = |v: f64, current: f64| if v.is_finite() && !(v == 0.0 && a.params[4] == 0.0) { v } else { current };
-        let (lat, lon) = (keep(lat, here.latitude_deg), keep(lon, here.longitude_deg));
-        let alt = if a.params[6].is_finite() { f64::from(a.params[6]) } else { f64::NAN };
+        let pick = |v: f64, current: f64| if v.is_finite() && !unset { v } else { current };
+        let (lat, lon) = (pick(lat, here.latitude_deg), pick(lon, here.longitude_deg));
         let frame = match a.position {
             Position::Int { .. } => a.frame,
             Position::Float => MavFrame::MAV_FRAME_GLOBAL,
         };
-        let target = if alt.is_finite() {
-            match self.global_to_enu(lat, lon, alt, frame, view) {
+        let target = if a.params[6].is_finite() {
+            match self.global_to_enu(lat, lon, f64::from(a.params[6]), frame, view) {
                 Some(t) => t,
                 None => return MavResult::MAV_RESULT_UNSUPPORTED,
             }

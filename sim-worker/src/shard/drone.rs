@@ -139,12 +139,6 @@ impl DroneSim {
     pub fn attach_mavlink(&mut self, link: MavlinkLink) {
         self.link = Some(Box::new(link));
     }
-    pub fn mavlink(&self) -> Option<&MavlinkLink> {
-        self.link.as_deref()
-    }
-    pub fn local_origin_enu_m(&self) -> Vector3<f64> {
-        self.local_origin_enu_m
-    }
 
     /// Builds the telemetry due at `time_s` and queues it (sent at the next exchange).
     pub fn mavlink_collect(&mut self, time_s: f64) {

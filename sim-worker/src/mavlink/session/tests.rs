@@ -425,3 +425,29 @@ fn an_uploaded_mission_is_loaded_into_the_autopilot() {
     let Some(Command::LoadMission(plan)) = v.commands.last() else { panic!("{:?}", v.commands) };
     assert_eq!(plan.items.len(), 1);
 }
+
+#[test]
+fn reposition_with_an_unset_position_changes_only_the_altitude() {
+    let mut s = session();
+    let mut v = FakeVehicle::default();
+    s.handle(
+        &from_gcs(MavMessage::COMMAND_INT(COMMAND_INT_DATA {
+            param4: f32::NAN,
+            x: 0,
+            y: 0,
+            z: 40.0,
+            command: MavCmd::MAV_CMD_DO_REPOSITION,
+            target_system: 7,
+            target_component: 1,
+            frame: MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+            ..Default::default()
+        })),
+        &view(0.0),
+        &mut v,
+    );
+    let Some(Command::GoTo { target_en_m, altitude_rel_home_m }) = v.commands.last() else {
+        panic!("{:?}", v.commands)
+    };
+    assert!((target_en_m.x - 10.0).abs() < 0.01 && (target_en_m.y - 20.0).abs() < 0.01, "{target_en_m}");
+    assert!((altitude_rel_home_m - 40.0).abs() < 1e-6);
+}
