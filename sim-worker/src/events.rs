@@ -69,6 +69,97 @@ pub enum EventKind {
         command: String,
         reason: String,
     },
+    /// The airspace authority received entry request `request` for `zone`.
+    ZoneRequested {
+        zone: String,
+        request: u64,
+        operator: String,
+        /// Requested altitude band inside the zone, metres AGL.
+        min_agl_m: f64,
+        max_agl_m: f64,
+    },
+    /// Request `request` was granted: `lease` is valid until `expires_at_s`.
+    ZoneGranted {
+        zone: String,
+        request: u64,
+        lease: String,
+        expires_at_s: f64,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        min_altitude_agl_m: Option<f64>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        max_altitude_agl_m: Option<f64>,
+    },
+    /// Request `request` was denied (`insufficient_credentials`, `capacity_exhausted`,
+    /// `unsafe_altitude`, `zone_inactive`).
+    ZoneDenied {
+        zone: String,
+        request: u64,
+        reason: String,
+        message: String,
+    },
+    LeaseRenewed {
+        zone: String,
+        lease: String,
+        expires_at_s: f64,
+    },
+    LeaseReleased {
+        zone: String,
+        lease: String,
+    },
+    LeaseExpired {
+        zone: String,
+        lease: String,
+    },
+    /// The drone entered an active zone's volume; `authorized`: it held a valid lease.
+    ZoneEntered {
+        zone: String,
+        authorized: bool,
+        at: Place,
+    },
+    /// The drone left the zone (or the zone ended) after `duration_s` inside.
+    ZoneExited {
+        zone: String,
+        duration_s: f64,
+        at: Place,
+    },
+    /// A compliance rule started being broken (see `airspace::monitor::ViolationKind`).
+    ViolationStarted {
+        rule: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        zone: Option<String>,
+        /// The other drone, for separation losses.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        other: Option<u32>,
+        /// The limit broken (metres: AGL altitude, or distance for separation).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        limit_m: Option<f64>,
+        at: Place,
+        detail: String,
+    },
+    /// The rule is respected again after `duration_s`; `worst_m`: the furthest value
+    /// reached (lowest or highest AGL altitude, closest distance).
+    ViolationEnded {
+        rule: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        zone: Option<String>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        other: Option<u32>,
+        duration_s: f64,
+        worst_m: f64,
+    },
+}
+
+/// Where something happened: world ENU and geodetic, with the height above the ground.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Default)]
+#[serde(rename_all = "camelCase")]
+pub struct Place {
+    pub east_m: f64,
+    pub north_m: f64,
+    pub up_m: f64,
+    pub latitude_deg: f64,
+    pub longitude_deg: f64,
+    pub altitude_msl_m: f64,
+    pub height_agl_m: f64,
 }
 
 /// One event with its time and drone.

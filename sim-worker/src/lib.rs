@@ -9,6 +9,7 @@
 //! the run origin, see `sadesim_crds::geo`); body **FLU** (x forward, y left, z up).
 //! MAVLink's NED/FRD appear only at the MAVLink edge.
 
+pub mod airspace;
 pub mod autopilot;
 pub mod coordinator;
 pub mod env;

@@ -1,0 +1,82 @@
+//! Airspace management (DESIGN §6 `airspace`, the paper's SADE Zones and DO3).
+//!
+//! - [`volume`]: zones as volumes in the run's local ENU frame (polygon, floor and ceiling
+//!   AGL or MSL, time window) with point and segment queries. Pure geometry.
+//! - [`authority`]: the airspace authority's decisions on entry requests (credentials,
+//!   capacity, altitude, activity) and its lease table. Pure: a function of (zone policy,
+//!   leases, request, sim time).
+//! - [`service`]: the authority's HTTP/JSON API (axum), part of the coordinator role.
+//!   `docs/airspace-api.yaml` is its OpenAPI description.
+//! - [`monitor`]: the compliance monitor on ground truth, every coordinator window
+//!   (100 Hz at the default 1 kHz physics and 10-step windows): zone entries and exits,
+//!   entries without a lease, constraint and altitude-limit breaches, separation.
+//! - [`criteria`]: the run's pass/fail verdict from the scenario's `criteria`.
+//!
+//! Time is simulated seconds since the start of the run everywhere in this module.
+//! Positions are world ENU metres (x east, y north, z up from the origin's ground).
+
+pub mod authority;
+pub mod criteria;
+pub mod monitor;
+pub mod service;
+pub mod volume;
+
+use std::sync::{Arc, Mutex};
+
+use sadesim_crds::geo::LocalFrame;
+use sadesim_crds::plan::RunPlan;
+
+use crate::events::Event;
+
+/// What the HTTP service and the coordinator's observer share.
+#[derive(Debug)]
+pub struct AirspaceState {
+    pub authority: authority::Authority,
+    pub zones: Vec<volume::ZoneVolume>,
+    pub frame: LocalFrame,
+    /// Sim time of the latest window, seconds: requests between windows are decided and
+    /// stamped at it.
+    pub time_s: f64,
+    /// Every airspace event of the run so far (requests, verdicts, leases, entries,
+    /// violations), served by `GET /events`; index + 1 is the event's sequence number.
+    pub history: Vec<Event>,
+    /// Events not yet handed to the recorder.
+    unrecorded: Vec<Event>,
+}
+
+/// Shared between the HTTP service's tasks and the coordinator thread.
+pub type SharedAirspace = Arc<Mutex<AirspaceState>>;
+
+impl AirspaceState {
+    /// The zones and authority of a run; `secret_env` resolves `secretKeyRef` credentials
+    /// (see [`authority::Authority::from_plan`]).
+    pub fn new(plan: &RunPlan, secret_env: &dyn Fn(&str) -> Option<String>) -> Self {
+        let frame = LocalFrame::new(plan.spec.origin.geo());
+        Self {
+            authority: authority::Authority::from_plan(plan, secret_env),
+            zones: plan.spec.zones.iter().map(|z| volume::ZoneVolume::new(z, &frame)).collect(),
+            frame,
+            time_s: 0.0,
+            history: Vec::new(),
+            unrecorded: Vec::new(),
+        }
+    }
+
+    /// Moves the authority's new events into the history (call after every change).
+    pub fn collect_authority_events(&mut self) {
+        let events = self.authority.take_events();
+        self.publish(events);
+    }
+
+    /// Adds events (from the authority or the monitor) to the history and the recorder's
+    /// queue.
+    pub fn publish(&mut self, events: Vec<Event>) {
+        self.history.extend(events.iter().cloned());
+        self.unrecorded.extend(events);
+    }
+
+    /// Events for the recorder since the last call.
+    pub fn take_unrecorded(&mut self) -> Vec<Event> {
+        std::mem::take(&mut self.unrecorded)
+    }
+}
