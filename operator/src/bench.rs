@@ -2,6 +2,10 @@
 //! navigator, controller, motors, rigid body, contacts, recording) in drone-steps per
 //! wall-clock second, on a synthetic scenario: `drones` x500s over downtown Chicago flying
 //! random waypoints as fast as possible.
+//!
+//! `sadesim bench --airspace` measures the airspace authority's HTTP API instead: the
+//! service with the Chicago case study's zone and fleet on 127.0.0.1, under an open-loop
+//! load of entry requests, `GET /zones` and `GET /events` (see `sim_worker::airspace::load`).
 
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -108,4 +112,41 @@ fn process_cpu_time_s() -> Option<f64> {
     let utime: f64 = fields.get(11)?.parse().ok()?;
     let stime: f64 = fields.get(12)?.parse().ok()?;
     Some((utime + stime) / 100.0)
+}
+
+/// The scenario whose zone, fleet and credentials the airspace benchmark serves.
+const CHICAGO: &str = include_str!("../../examples/chicago-museum.yaml");
+
+/// Errors of the airspace benchmark.
+#[derive(Debug, thiserror::Error)]
+pub enum AirspaceBenchError {
+    /// The embedded Chicago example does not plan (a bug in this build).
+    #[error("failed to plan the Chicago example: {0}")]
+    Plan(String),
+    /// The service could not listen on 127.0.0.1.
+    #[error("failed to start the airspace service: {0}")]
+    Start(#[from] std::io::Error),
+}
+
+/// Serves the airspace API with the Chicago example's zones and credentials on a free
+/// port of 127.0.0.1 and loads it with `rate_per_s` requests per second for `seconds`
+/// over `connections` keep-alive connections. The sim clock stays at 0 (no flight), so
+/// leases never expire and verdicts are the same all along.
+///
+/// # Errors
+/// The example does not plan, or the service cannot start.
+pub fn run_airspace(
+    rate_per_s: f64,
+    seconds: f64,
+    connections: usize,
+) -> Result<sim_worker::airspace::load::LoadReport, AirspaceBenchError> {
+    use sim_worker::airspace::{AirspaceState, load, service};
+    let run = parse_run(CHICAGO).map_err(|e| AirspaceBenchError::Plan(e.to_string()))?;
+    let plan = crate::planner::plan(&run).map_err(|e| AirspaceBenchError::Plan(e.to_string()))?;
+    let state = AirspaceState::new(&plan, &|name| std::env::var(name).ok());
+    let state = std::sync::Arc::new(std::sync::Mutex::new(state));
+    let service = service::start(state, std::net::SocketAddr::from(([127, 0, 0, 1], 0)))?;
+    let report = load::run(service.addr, rate_per_s, seconds, connections);
+    service.stop();
+    Ok(report)
 }

@@ -52,14 +52,15 @@ pub enum Command {
     Crd,
     /// Measure simulation throughput (drone-steps per second) on a synthetic scenario:
     /// x500s flying random waypoints over Chicago at 1 kHz with wind, GNSS noise and
-    /// recording, as fast as possible. Results go in docs/performance.md.
+    /// recording, as fast as possible. With --airspace, measure the airspace authority's
+    /// HTTP API instead. Results go in docs/performance.md.
     Bench {
         /// Drones in the fleet.
         #[arg(long, default_value_t = 32)]
         drones: u32,
-        /// Simulated seconds.
-        #[arg(long, default_value_t = 60)]
-        seconds: u32,
+        /// Simulated seconds (default 60); with --airspace, seconds of load (default 10).
+        #[arg(long)]
+        seconds: Option<u32>,
         /// Drones per shard (one thread per shard).
         #[arg(long, default_value_t = 100)]
         drones_per_shard: u32,
@@ -71,6 +72,17 @@ pub enum Command {
         /// (this machine's speed drifts by tens of percent between minutes).
         #[arg(long, default_value_t = 3)]
         repeat: u32,
+        /// Load the airspace authority's HTTP API (Chicago example's zone and fleet, on
+        /// 127.0.0.1) with entry requests, GET /zones and GET /events, open-loop, and report
+        /// latency percentiles. Exits 1 when any request failed.
+        #[arg(long, conflicts_with = "mavlink")]
+        airspace: bool,
+        /// With --airspace: requests per second (default 1000).
+        #[arg(long, requires = "airspace")]
+        rate: Option<u32>,
+        /// With --airspace: keep-alive connections, one client thread each (default 8).
+        #[arg(long, requires = "airspace")]
+        connections: Option<usize>,
     },
     /// Run a scenario locally: world, shards, coordinator and recorder in this process,
     /// and `spec.pilot` as a child process.
@@ -136,6 +148,9 @@ pub enum CliError {
     /// A run could not start or finish.
     #[error("{path}: {source}")]
     Run { path: String, source: crate::runner::RunError },
+    /// The airspace benchmark could not start.
+    #[error("bench --airspace: {0}")]
+    AirspaceBench(#[from] crate::bench::AirspaceBenchError),
     /// Writing the output failed.
     #[error("failed to write output: {0}")]
     Write(#[from] std::io::Error),
@@ -162,7 +177,19 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             };
             run_file(&file, options, clock, out)
         }
-        Command::Bench { drones, seconds, drones_per_shard, mavlink, repeat } => {
+        Command::Bench { airspace: true, seconds, rate, connections, .. } => {
+            let report = crate::bench::run_airspace(
+                f64::from(rate.unwrap_or(1000)),
+                f64::from(seconds.unwrap_or(10)),
+                connections.unwrap_or(8),
+            )?;
+            writeln!(out, "{report}")?;
+            writeln!(out, "  ({} cores available, shared by the service and the client)", cores_available())?;
+            let clean = report.errors == 0 && report.answered == report.requests;
+            Ok(if clean { Outcome::Success } else { Outcome::Problems })
+        }
+        Command::Bench { drones, seconds, drones_per_shard, mavlink, repeat, .. } => {
+            let seconds = seconds.unwrap_or(60);
             let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
             let variants: Vec<bool> =
                 if mavlink { (0..repeat.max(1)).flat_map(|_| [false, true]).collect() } else { vec![false] };
@@ -232,6 +259,11 @@ pub fn read_scenario(path: &Path) -> Result<String, CliError> {
             format!("not UTF-8 text (invalid byte at offset {at})"),
         ))
     })
+}
+
+/// CPU cores this process may use.
+fn cores_available() -> usize {
+    std::thread::available_parallelism().map_or(1, usize::from)
 }
 
 /// "1 problem", "3 problems".
@@ -380,16 +412,17 @@ fn run_file(
                 writeln!(out, "  pilot: {}; log: {}", p.describe(), log.display())?;
             }
             writeln!(out, "  output: {}", report.out_dir.display())?;
-            if !run.spec.criteria.is_empty() {
-                // Not a pass: the compliance monitor that judges criteria is not built yet.
-                let n = run.spec.criteria.len();
-                let what = if n == 1 { "1 criterion".to_string() } else { format!("{n} criteria") };
-                writeln!(
-                    out,
-                    "  note: {what} not evaluated yet (the compliance monitor arrives with the airspace issue)"
-                )?;
+            let failed = match &s.verdict {
+                Some(v) if !v.criteria.is_empty() => {
+                    report_verdict(out, v)?;
+                    !v.passed
+                }
+                _ => false,
+            };
+            if s.end_reason == "interrupted" {
+                return Ok(Outcome::Interrupted);
             }
-            Ok(if s.end_reason == "interrupted" { Outcome::Interrupted } else { Outcome::Success })
+            Ok(if failed { Outcome::Problems } else { Outcome::Success })
         }
         Err(RunError::Plan(planner::PlanError::Invalid(errors))) => {
             report_problems(out, &path, &errors)?;
@@ -401,6 +434,24 @@ fn run_file(
         }
         Err(source) => Err(CliError::Run { path, source }),
     }
+}
+
+/// Prints the criteria verdict: one line per criterion, then each failure.
+fn report_verdict(out: &mut dyn Write, v: &sim_worker::airspace::criteria::RunVerdict) -> std::io::Result<()> {
+    let passed = v.criteria.iter().filter(|c| c.passed).count();
+    let word = if v.passed { "PASSED" } else { "FAILED" };
+    writeln!(out, "  criteria {word}: {passed} of {} passed", v.criteria.len())?;
+    for c in &v.criteria {
+        let mark = if c.passed { "pass" } else { "FAIL" };
+        writeln!(out, "    {mark} {} {}: {}", c.path, c.criterion, c.summary)?;
+        for f in c.failures.iter().take(20) {
+            writeln!(out, "         - {f}")?;
+        }
+        if c.failures.len() > 20 {
+            writeln!(out, "         ... and {} more (see summary.json)", c.failures.len() - 20)?;
+        }
+    }
+    Ok(())
 }
 
 fn plan_file(

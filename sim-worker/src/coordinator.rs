@@ -60,6 +60,11 @@ pub trait RunObserver {
     /// # Errors
     /// A message; the run stops (outputs already written are kept).
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String>;
+    /// Asked before each window: the valid zone leases as `[drone, zone]` pairs when they
+    /// changed since the last call (the shards' geofences let drones into leased zones).
+    fn leases_changed(&mut self) -> Option<Vec<[u32; 2]>> {
+        None
+    }
     /// Asked after each window: `Some(reason)` ends the run (e.g. the pilot exited).
     fn stop_reason(&mut self) -> Option<String> {
         None
@@ -140,8 +145,9 @@ fn run_inner(
         if !wait.is_zero() {
             std::thread::sleep(wait);
         }
+        let leases = observer.leases_changed();
         for (i, link) in links.iter_mut().enumerate() {
-            link.send(&ToShard::Advance { until_step: until, release_pilots: release })
+            link.send(&ToShard::Advance { until_step: until, release_pilots: release, leases: leases.clone() })
                 .map_err(|source| CoordinatorError::Link { shard: i, source })?;
         }
         drones.clear();

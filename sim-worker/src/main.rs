@@ -53,6 +53,10 @@ enum Role {
         /// Output folder (created if missing).
         #[arg(long)]
         out: PathBuf,
+        /// Address of the airspace authority's HTTP API (default: 127.0.0.1 at the plan's
+        /// `services.airspaceHttp` port; 0.0.0.0 in a pod).
+        #[arg(long)]
+        airspace_bind: Option<std::net::SocketAddr>,
     },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
@@ -96,13 +100,15 @@ fn main() -> ExitCode {
                 roles::read_plan(&plan).and_then(|plan| roles::shard::run(&plan, shard, &coordinator, mavlink.as_ref()))
             })
         }
-        Role::Coordinator { plan, listen, out } => {
+        Role::Coordinator { plan, listen, out, airspace_bind } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
             roles::read_plan(&plan).and_then(|plan| {
                 std::fs::create_dir_all(&out)?;
-                roles::coordinator::run(&plan, listen.as_str(), &out, &stop).map(|_| ())
+                let airspace = airspace_bind
+                    .unwrap_or_else(|| std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.airspace_http)));
+                roles::coordinator::run(&plan, listen.as_str(), airspace, &out, &stop).map(|_| ())
             })
         }
         Role::Router { plan, segment, bind, drone_host } => {

@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use crate::events::{Event, FlightMode};
 
 /// Bumped on any incompatible change; peers refuse other versions.
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// A drone's state at a window boundary (ground truth), for the merged snapshot, the
 /// recorder and everything that couples drones.
@@ -59,7 +59,16 @@ pub enum ToShard {
     /// scripted pilots. (The merged snapshot stays with the coordinator, which runs every
     /// drone-coupling check; a shard-side consumer such as detect-and-avoid would add it
     /// here.)
-    Advance { until_step: u64, release_pilots: bool },
+    ///
+    /// `leases`, when present, replaces the set of valid zone leases as `[drone, zone]`
+    /// pairs (global drone index, index in `spec.zones`): the built-in geofence lets a
+    /// drone into the zones it holds a lease for. Sent only when the set changed.
+    Advance {
+        until_step: u64,
+        release_pilots: bool,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        leases: Option<Vec<[u32; 2]>>,
+    },
     /// End of run: flush and exit.
     Stop,
 }

@@ -29,7 +29,7 @@ pub fn fly(run: &SimulationRun, seconds: u64, sample_steps: u64) -> (Vec<Event>,
     for window in 1..=seconds * steps_per_s / sample_steps {
         let until_step = warm_up + window * sample_steps;
         let Some(FromShard::Advanced { drones, events: e, .. }) =
-            shard.handle(ToShard::Advance { until_step, release_pilots: true })
+            shard.handle(ToShard::Advance { until_step, release_pilots: true, leases: None })
         else {
             panic!("the shard stopped")
         };

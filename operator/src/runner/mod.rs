@@ -11,6 +11,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use indicatif::{ProgressBar, ProgressStyle};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
+use sim_worker::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use sim_worker::coordinator::{self, CoordinatorError, RunObserver, ShardLink};
 use sim_worker::events::{Event, EventKind};
 use sim_worker::mavlink::router::RouterHandle;
@@ -112,11 +113,6 @@ fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError>
     let external: Vec<&str> = spec.fleet.iter().filter(|g| g.mission.is_none()).map(|g| g.name.as_str()).collect();
     if !external.is_empty() && !options.mavlink {
         return Err(RunError::NeedsMavlink { groups: external.join(", ") });
-    }
-    if let Some(i) = spec.fleet.iter().position(|g| g.geofence.is_some()) {
-        return Err(RunError::NotSupported(format!(
-            "spec.fleet[{i}].geofence: the built-in geofence arrives with the airspace authority; remove it for now"
-        )));
     }
     if spec.rendering().enabled {
         return Err(RunError::NotSupported(
@@ -246,8 +242,15 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     std::fs::create_dir_all(&out_dir)
         .map_err(|source| RunError::Output { path: out_dir.display().to_string(), source })?;
     write_json(&out_dir, "plan.json", &plan)?;
+    // The airspace authority answers before the pilot starts. In `--processes` runs the
+    // coordinator process serves it on the planned port instead.
+    let mut airspace = Airspace::new(&plan, &|key| std::env::var(key).ok());
+    let airspace_addr = if options.processes { None } else { Some(serve_airspace(&mut airspace, &plan)?) };
     // Written for every run: pilots started by hand and ground stations use it too.
-    let fleet = planner::fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
+    let mut fleet = planner::fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
+    if let Some(addr) = airspace_addr {
+        fleet.airspace_url = format!("http://{addr}");
+    }
     write_json(&out_dir, pilot::FLEET_FILE, &fleet)?;
 
     let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
@@ -259,7 +262,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     let summary = if options.processes {
         workers::run(&plan, options.worker.as_deref(), options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut())
     } else {
-        run_threads(&plan, world, options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut())
+        run_threads(&plan, world, options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
     bar.finish_and_clear();
     // The run is over, whatever its end: stop a pilot still running and record it.
@@ -271,6 +274,20 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         }
     }
     Ok(RunReport { out_dir, summary: summary?, pilot: record })
+}
+
+/// Serves the airspace API on 127.0.0.1 at the planned port, or on a free port when that is
+/// taken (another run on this machine): the fleet file gives pilots the address either way.
+fn serve_airspace(airspace: &mut Airspace, plan: &RunPlan) -> Result<std::net::SocketAddr, RunError> {
+    let planned = std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.airspace_http));
+    let err = |e: std::io::Error| RunError::Worker(format!("airspace API: cannot listen on 127.0.0.1: {e}"));
+    match airspace.serve(planned) {
+        Ok(addr) => Ok(addr),
+        Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => {
+            airspace.serve(std::net::SocketAddr::from(([127, 0, 0, 1], 0))).map_err(err)
+        }
+        Err(e) => Err(err(e)),
+    }
 }
 
 /// The MAVLink routers of a local run: one per segment, on 127.0.0.1, drones on 127.0.0.1.
@@ -304,6 +321,7 @@ fn run_threads(
     bar: &ProgressBar,
     stop: &AtomicBool,
     pilot: Option<&mut Supervisor>,
+    airspace: &mut Airspace,
 ) -> Result<RunSummary, RunError> {
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
@@ -326,13 +344,16 @@ fn run_threads(
         pilot_error: None,
         pilot_exited: false,
     };
-    let outcome = coordinator::run(plan, &mut links, &mut progress, stop);
+    let outcome = coordinator::run(plan, &mut links, &mut WithAirspace::new(airspace, &mut progress), stop);
     let pilot_error = progress.pilot_error.take();
     drop(links);
     for t in threads {
         let _ = t.join();
     }
-    let summary = recorder.finish(&outcome?).map_err(output_err)?;
+    let outcome = outcome?;
+    write_json(out_dir, AIRSPACE_FILE, &airspace.record())?;
+    recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
+    let summary = recorder.finish(&outcome).map_err(output_err)?;
     // The run ended cleanly (`pilotFailed`) and its files are complete; it still failed.
     match pilot_error {
         Some(e) => Err(e.into()),

@@ -80,7 +80,7 @@ pub(super) fn run(
     let mut control = coordinator.stdin.take();
     let mut lines = BufReader::new(stdout).lines();
     let address = match lines.next().and_then(Result::ok).and_then(|l| serde_json::from_str::<Report>(&l).ok()) {
-        Some(Report::Listening { address }) => address,
+        Some(Report::Listening { address, .. }) => address,
         _ => {
             let _ = coordinator.kill();
             return Err(RunError::Worker(format!(

@@ -7,6 +7,8 @@
 //!   leases, request, sim time).
 //! - [`service`]: the authority's HTTP/JSON API (axum), part of the coordinator role.
 //!   `docs/airspace-api.yaml` is its OpenAPI description.
+//! - [`load`]: a small blocking HTTP/1.1 client and the API's load generator
+//!   (`sadesim bench --airspace`).
 //! - [`monitor`]: the compliance monitor on ground truth, every coordinator window
 //!   (100 Hz at the default 1 kHz physics and 10-step windows): zone entries and exits,
 //!   entries without a lease, constraint and altitude-limit breaches, separation.
@@ -17,7 +19,9 @@
 
 pub mod authority;
 pub mod criteria;
+pub mod load;
 pub mod monitor;
+pub mod runtime;
 pub mod service;
 pub mod volume;
 
@@ -25,6 +29,7 @@ use std::sync::{Arc, Mutex};
 
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
+use sadesim_crds::zones::Zone;
 
 use crate::events::Event;
 
@@ -33,6 +38,9 @@ use crate::events::Event;
 pub struct AirspaceState {
     pub authority: authority::Authority,
     pub zones: Vec<volume::ZoneVolume>,
+    /// The scenario's zones as written (`spec.zones`, same order as `zones`): the API
+    /// serves their lat/lon outlines and policies.
+    pub zone_specs: Vec<Zone>,
     pub frame: LocalFrame,
     /// Sim time of the latest window, seconds: requests between windows are decided and
     /// stamped at it.
@@ -55,6 +63,7 @@ impl AirspaceState {
         Self {
             authority: authority::Authority::from_plan(plan, secret_env),
             zones: plan.spec.zones.iter().map(|z| volume::ZoneVolume::new(z, &frame)).collect(),
+            zone_specs: plan.spec.zones.clone(),
             frame,
             time_s: 0.0,
             history: Vec::new(),

@@ -3,6 +3,7 @@
 pub mod control;
 pub mod estimator;
 pub mod fmu;
+pub mod geofence;
 pub mod mission;
 pub mod navigator;
 

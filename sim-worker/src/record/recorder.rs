@@ -6,6 +6,7 @@ use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 
 use super::{DroneSummary, EventLog, RunSummary, TrajectoryCsv, TrajectoryGeoJson};
+use crate::airspace::criteria::RunVerdict;
 use crate::coordinator::{RunObserver, RunOutcome};
 use crate::events::{Event, EventKind};
 use crate::protocol::DroneSnapshot;
@@ -88,6 +89,11 @@ impl Recorder {
 
     pub fn summary(&self) -> &RunSummary {
         &self.summary
+    }
+
+    /// The verdict on the scenario's criteria, written into `summary.json` by [`Recorder::finish`].
+    pub fn set_verdict(&mut self, verdict: RunVerdict) {
+        self.summary.verdict = Some(verdict);
     }
 
     /// Writes the end-of-run files and returns the summary.

@@ -2,6 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::airspace::criteria::RunVerdict;
 use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, FleetCounts};
 
@@ -40,6 +41,9 @@ pub struct RunSummary {
     pub events: u64,
     pub pilots_released_at_s: Option<f64>,
     pub per_drone: Vec<DroneSummary>,
+    /// The scenario's criteria judged at the end (absent when the run did not get that far).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub verdict: Option<RunVerdict>,
 }
 
 impl RunSummary {

@@ -4,7 +4,7 @@
 //! this way when the pilot exits).
 
 use std::io::{BufRead, IsTerminal, Write};
-use std::net::{TcpListener, ToSocketAddrs};
+use std::net::{SocketAddr, TcpListener, ToSocketAddrs};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
@@ -13,6 +13,7 @@ use sadesim_crds::plan::RunPlan;
 use serde::{Deserialize, Serialize};
 
 use super::RoleError;
+use crate::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use crate::coordinator::{self, RunObserver, ShardLink};
 use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, FleetCounts, FromShard, PROTOCOL_VERSION};
@@ -23,8 +24,8 @@ use crate::transport::TcpLink;
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
 pub enum Report {
-    /// Bound and waiting for shards.
-    Listening { address: String },
+    /// Bound and waiting for shards; the airspace API listens at `airspace`.
+    Listening { address: String, airspace: String },
     /// Progress, about once per simulated second.
     Progress {
         sim_time_s: f64,
@@ -107,11 +108,18 @@ fn read_control() -> Arc<Mutex<Option<String>>> {
 pub fn run(
     plan: &RunPlan,
     listen: impl ToSocketAddrs,
+    airspace_bind: SocketAddr,
     out_dir: &Path,
     stop: &AtomicBool,
 ) -> Result<RunSummary, RoleError> {
+    // The airspace API is up before any shard connects, so it answers as soon as pilots
+    // are released. Credentials from Secrets arrive as SADESIM_CREDENTIAL_<GROUP>.
+    let mut airspace = Airspace::new(plan, &|key| std::env::var(key).ok());
+    let airspace_addr = airspace
+        .serve(airspace_bind)
+        .map_err(|e| RoleError::Protocol(format!("airspace API: cannot listen on {airspace_bind}: {e}")))?;
     let listener = TcpListener::bind(listen)?;
-    report(&Report::Listening { address: listener.local_addr()?.to_string() });
+    report(&Report::Listening { address: listener.local_addr()?.to_string(), airspace: airspace_addr.to_string() });
     let mut links: Vec<Option<Box<dyn ShardLink>>> = (0..plan.shards.len()).map(|_| None).collect();
     for _ in 0..plan.shards.len() {
         let (stream, _) = listener.accept()?;
@@ -139,7 +147,10 @@ pub fn run(
     let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
     let mut recorder = Recorder::create(out_dir, plan, RecorderOptions::default()).map_err(record_err)?;
     let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: read_control() };
-    let outcome = coordinator::run(plan, &mut links, &mut observer, stop)?;
+    let outcome = coordinator::run(plan, &mut links, &mut WithAirspace::new(&mut airspace, &mut observer), stop)?;
+    let json = serde_json::to_vec_pretty(&airspace.record()).map_err(std::io::Error::other).map_err(record_err)?;
+    std::fs::write(out_dir.join(AIRSPACE_FILE), json).map_err(record_err)?;
+    recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
     let summary = recorder.finish(&outcome).map_err(record_err)?;
     report(&Report::Finished { summary: summary.clone() });
     Ok(summary)

@@ -3,14 +3,17 @@
 //! contact comes from the shard's rapier world.
 
 use nalgebra::{UnitQuaternion, Vector3};
+use sadesim_crds::fleet::GeofenceAction;
 use sadesim_crds::plan::PlannedDrone;
 
 use crate::autopilot::control::yaw_of;
+use crate::airspace::volume::ZoneVolume;
 use crate::autopilot::fmu::{Fmu, SensorFrame};
+use crate::autopilot::geofence::Geofence;
 use crate::autopilot::mission::MissionPlan;
 use crate::autopilot::navigator::{Command, NavigatorConfig, Rejection};
 use crate::env::{EnvSample, SampleContext};
-use crate::events::EventKind;
+use crate::events::{EventKind, FlightMode};
 use crate::mavlink::endpoint::Endpoint;
 use crate::mavlink::session::{Session, Vehicle};
 use crate::mavlink::telemetry::{BatteryView, MissionProgress, PositionEstimate, VehicleView};
@@ -90,6 +93,8 @@ pub struct DroneSim {
     /// Ground height under the drone, ENU up, m.
     ground_up_m: f64,
     link: Option<Box<MavlinkLink>>,
+    /// The group's built-in geofence (`spec.fleet[].geofence`), when set.
+    geofence: Option<Geofence>,
 }
 
 impl DroneSim {
@@ -127,7 +132,46 @@ impl DroneSim {
             local_origin_enu_m: home,
             ground_up_m: home.z - GEAR_HEIGHT_M,
             link: None,
+            geofence: None,
         })
+    }
+
+    /// Turns the built-in geofence on over `zones` zones (all forbidden until leased).
+    pub fn enable_geofence(&mut self, action: GeofenceAction, zones: usize) {
+        self.geofence = Some(Geofence::new(action, zones));
+    }
+
+    /// The zones (indices in `spec.zones`) the drone holds a valid lease for.
+    pub fn set_permitted_zones(&mut self, zones: impl IntoIterator<Item = usize>) {
+        if let Some(g) = &mut self.geofence {
+            g.set_permitted(zones);
+        }
+    }
+
+    /// Runs the geofence on the estimated state at the end of a window (`time_s`) and
+    /// takes its action: HOLD or RTL, with a `failsafe` event naming the zone.
+    pub fn check_geofence(&mut self, time_s: f64, zones: &[ZoneVolume], world: &World) {
+        let (Some(fence), Some(est)) = (&mut self.geofence, self.fmu.estimate()) else { return };
+        if self.crashed || self.on_ground {
+            return;
+        }
+        let Some(breach) =
+            fence.check(time_s, est.position_enu_m, est.velocity_enu_mps, self.fmu.mode(), zones, world)
+        else {
+            return;
+        };
+        let (command, mode) = match breach.action {
+            GeofenceAction::Hold => (Command::Hold, FlightMode::Hold),
+            GeofenceAction::ReturnToLaunch => (Command::ReturnToLaunch, FlightMode::ReturnToLaunch),
+        };
+        let zone = zones.get(breach.zone).map_or("?", |z| z.name.as_str());
+        match self.fmu.command(command, self.on_ground, self.battery.remaining_fraction()) {
+            Ok(()) => self.events.push(EventKind::Failsafe { reason: format!("geofence:{zone}"), action: mode }),
+            Err(e) => self.events.push(EventKind::CommandRejected {
+                command: format!("geofence:{zone}"),
+                reason: e.to_string(),
+            }),
+        }
     }
 
     /// The navigator tunables in force.

@@ -9,6 +9,7 @@ use sadesim_crds::fleet::HomePlacement;
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 
+use crate::airspace::volume::ZoneVolume;
 use crate::autopilot::navigator::NavigatorConfig;
 use crate::env::{EnvSample, Environment};
 use crate::events::Event;
@@ -87,6 +88,8 @@ pub struct Shard {
     released: bool,
     /// Sim time of the next MAVLink I/O.
     next_mavlink_io_s: f64,
+    /// The run's zones, for the geofences; empty when no drone of the shard has one.
+    zones: Vec<ZoneVolume>,
 }
 
 /// Sim seconds between MAVLink socket rounds. Every round costs a receive and a datagram
@@ -135,7 +138,7 @@ impl Shard {
                 ..NavigatorConfig::default()
             };
             let sensors = SensorSuite::new(env_spec.gnss.as_ref(), plan.seed, d.index);
-            drones.push(DroneSim::new(
+            let mut drone = DroneSim::new(
                 d.clone(),
                 airframe,
                 sensors,
@@ -143,8 +146,13 @@ impl Shard {
                 navigator,
                 spec.origin.altitude_msl_m,
                 mission,
-            )?);
+            )?;
+            if let Some(action) = group.geofence {
+                drone.enable_geofence(action, spec.zones.len());
+            }
+            drones.push(drone);
         }
+        let fenced = planned.iter().any(|d| spec.fleet[d.group_index as usize].geofence.is_some());
         let indices: Vec<u32> = planned.iter().map(|d| d.index).collect();
         let groups: Vec<String> = planned.iter().map(|d| d.group.clone()).collect();
         let env = Environment::from_spec(&env_spec, plan.seed, &indices, &groups);
@@ -161,6 +169,7 @@ impl Shard {
             dt_s: 1.0 / f64::from(plan.physics_rate_hz),
             released: false,
             next_mavlink_io_s: 0.0,
+            zones: if fenced { spec.zones.iter().map(|z| ZoneVolume::new(z, &frame)).collect() } else { Vec::new() },
         })
     }
 
@@ -210,9 +219,12 @@ impl Shard {
     /// Handles one coordinator message; `None` means the shard is done.
     pub fn handle(&mut self, msg: ToShard) -> Option<FromShard> {
         match msg {
-            ToShard::Advance { until_step, release_pilots } => {
+            ToShard::Advance { until_step, release_pilots, leases } => {
                 if release_pilots {
                     self.released = true;
+                }
+                if let Some(leases) = leases {
+                    self.set_leases(&leases);
                 }
                 let events = self.advance(until_step);
                 Some(FromShard::Advanced {
@@ -224,6 +236,14 @@ impl Shard {
                 })
             }
             ToShard::Stop => None,
+        }
+    }
+
+    /// The valid leases (`[drone, zone]`, global drone index), for the geofences.
+    fn set_leases(&mut self, leases: &[[u32; 2]]) {
+        for drone in &mut self.drones {
+            let index = drone.plan.index;
+            drone.set_permitted_zones(leases.iter().filter(|l| l[0] == index).map(|l| l[1] as usize));
         }
     }
 
@@ -260,6 +280,12 @@ impl Shard {
                 }));
             }
             self.step += 1;
+        }
+        // The geofence acts on the window's final state, before the pilot's next commands.
+        if !self.zones.is_empty() {
+            for drone in &mut self.drones {
+                drone.check_geofence(self.step as f64 * self.dt_s, &self.zones, &self.world);
+            }
         }
         // MAVLink at window ends: telemetry is built when due (its rates and timestamps
         // follow PX4's), and every MAVLINK_IO_PERIOD_S of sim time the sockets are read,

@@ -189,3 +189,9 @@ impl fmt::Debug for World {
         f.debug_struct("World").field("stats", &self.stats).finish_non_exhaustive()
     }
 }
+
+impl crate::airspace::volume::Ground for World {
+    fn ground_up_m(&self, east_m: f64, north_m: f64) -> f64 {
+        World::ground_up_m(self, east_m, north_m)
+    }
+}
