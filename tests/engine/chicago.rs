@@ -1,39 +1,140 @@
-//! The paper's case study, flown end to end with the built-in scripted pilots:
-//! `sadesim run examples/chicago-museum.yaml --clock asFastAsPossible`.
+//! The paper's case study end to end (§4): `examples/chicago-museum.yaml` flown by the
+//! case-study pilot (`examples/pilots/chicago`) over MAVLink and the airspace API, with
+//! the compliance monitor judging the criteria; and its non-compliant variant, which must
+//! fail with the violations listed.
+//!
+//! The pilot binary is `target/debug/chicago-pilot` (`tests/run.sh` builds it before the
+//! tests; `cargo build -p chicago-pilot` by hand).
 
-use std::path::Path;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use sadesim::runner::{RunOptions, run_local};
+use sadesim::runner::{RunOptions, RunReport, run_local};
 use sadesim_crds::run::{Clock, ClockMode};
+use sadesim_integration_tests::mavlink_ports;
+use serde_json::Value;
+
+fn examples() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples")
+}
+
+/// Flies `examples/<file>` as fast as possible with the debug pilot binary (the example's
+/// own command, `cargo run --release`, would build a second copy).
+fn fly(file: &str) -> RunReport {
+    let pilot = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/debug/chicago-pilot");
+    assert!(pilot.exists(), "{} is missing: run `cargo build -p chicago-pilot` first", pilot.display());
+    let scenario = examples().join(file);
+    let mut run = sadesim_crds::parse_run(&std::fs::read_to_string(&scenario).unwrap()).unwrap();
+    run.spec.clock = Some(Clock { mode: ClockMode::AsFastAsPossible, factor: None });
+    let command = &mut run.spec.pilot.as_mut().expect("the example has a pilot").command;
+    // Keep the example's own arguments (after `--`), swap the program.
+    let args: Vec<String> = command.iter().skip_while(|a| *a != "--").skip(1).cloned().collect();
+    *command = std::iter::once(pilot.display().to_string()).chain(args).collect();
+    let root = std::env::temp_dir().join(format!("sadesim-chicago-{}-{file}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let options = RunOptions { out_root: Some(root), scenario: Some(scenario), ..RunOptions::default() };
+    run_local(&run, &options, Arc::new(AtomicBool::new(false))).unwrap()
+}
+
+fn json(dir: &Path, file: &str) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join(file)).unwrap()).unwrap()
+}
+
+fn events(dir: &Path) -> Vec<Value> {
+    std::fs::read_to_string(dir.join("events.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
+}
+
+/// Group of each drone index, from the summary.
+fn groups(summary: &Value) -> BTreeMap<u64, String> {
+    summary["perDrone"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| (d["index"].as_u64().unwrap(), d["group"].as_str().unwrap().to_string()))
+        .collect()
+}
 
 #[test]
-fn chicago_case_study_flies_every_scripted_plan() {
-    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/chicago-museum.yaml");
-    let mut run = sadesim_crds::parse_run(&std::fs::read_to_string(file).unwrap()).unwrap();
-    run.spec.clock = Some(Clock { mode: ClockMode::AsFastAsPossible, factor: None });
-    let root = std::env::temp_dir().join(format!("sadesim-chicago-{}", std::process::id()));
-    let options = RunOptions { out_root: Some(root.clone()), mavlink: false, ..RunOptions::default() };
-    let report = run_local(&run, &options, Arc::new(AtomicBool::new(false))).unwrap();
-    let s = &report.summary;
-    assert_eq!((s.drones, s.shards, s.end_reason.as_str()), (32, 2, "duration"));
-    assert_eq!(s.crashed, 0, "{:?}", s.per_drone.iter().filter(|d| d.crashed).collect::<Vec<_>>());
-    for d in &s.per_drone {
-        assert!(d.took_off && d.landed, "{} did not fly its plan: {d:?}", d.name);
-        assert_eq!(d.failsafes, 0, "{}: {d:?}", d.name);
-        // Mission items reached: takeoff + the waypoint(s); the final RTL lands instead.
-        let (expected_items, ceiling) = match d.group.as_str() {
-            "public-safety" => (2, 121.92),
-            "journalists" => (4, 121.92),
-            "recreational" => (9, 30.48),
-            other => panic!("unexpected group {other}"),
-        };
-        assert_eq!(d.waypoints_reached, expected_items, "{}: {d:?}", d.name);
-        assert!(d.max_height_agl_m <= ceiling + 1.5, "{} flew to {:.1} m AGL", d.name, d.max_height_agl_m);
+fn chicago_case_study_passes_its_criteria_with_mavlink() {
+    let _ports = mavlink_ports();
+    let report = fly("chicago-museum.yaml");
+    let dir = &report.out_dir;
+    let verdict = report.summary.verdict.as_ref().expect("a verdict");
+    assert!(verdict.passed, "{verdict:#?}\npilot log: {}", std::fs::read_to_string(dir.join("pilot.log")).unwrap());
+    assert_eq!(verdict.criteria.len(), 7);
+    assert_eq!(report.summary.crashed, 0);
+
+    let summary = json(dir, "summary.json");
+    let group = groups(&summary);
+    let airspace = json(dir, "airspace.json");
+    // Every drone asked for the museum zone: the 5 public-safety drones were granted, the
+    // 27 others denied for their credentials.
+    let mut verdicts: BTreeMap<u64, Vec<(String, Option<String>)>> = BTreeMap::new();
+    for r in airspace["requests"].as_array().unwrap() {
+        assert_eq!(r["zone"], "museum-tfr");
+        let v = (r["verdict"].as_str().unwrap().to_string(), r["reason"].as_str().map(str::to_string));
+        verdicts.entry(r["drone"].as_u64().unwrap()).or_default().push(v);
     }
-    // Public safety reached the museum at 375 ft: above the zone's 350 ft minimum.
-    let dps_max = s.per_drone.iter().filter(|d| d.group == "public-safety").map(|d| d.max_height_agl_m);
-    assert!(dps_max.fold(f64::INFINITY, f64::min) > 106.68);
-    std::fs::remove_dir_all(&root).unwrap();
+    assert_eq!(verdicts.len(), 32, "drones that asked: {:?}", verdicts.keys());
+    for (drone, vs) in &verdicts {
+        let expected = if group[drone] == "public-safety" {
+            ("granted".to_string(), None)
+        } else {
+            ("denied".to_string(), Some("insufficient_credentials".to_string()))
+        };
+        assert!(vs.iter().all(|v| *v == expected), "drone {drone} ({}): {vs:?}", group[drone]);
+    }
+    // All five DPS drones were inside, never below 350 ft AGL; nobody else was.
+    let presences = airspace["presences"].as_array().unwrap();
+    for p in presences {
+        let drone = p["drone"].as_u64().unwrap();
+        assert_eq!(group[&drone], "public-safety", "{p}");
+        assert_eq!(p["authorized"], true, "{p}");
+        assert!(p["minAglM"].as_f64().unwrap() >= 106.68, "{p}");
+    }
+    let inside: std::collections::BTreeSet<u64> = presences.iter().map(|p| p["drone"].as_u64().unwrap()).collect();
+    assert_eq!(inside.len(), 5, "{presences:?}");
+    assert!(airspace["violations"].as_array().unwrap().is_empty(), "{}", airspace["violations"]);
+
+    // The events log has every request and its verdict.
+    let events = events(dir);
+    let count = |kind: &str| events.iter().filter(|e| e["event"] == kind).count();
+    let requests = airspace["requests"].as_array().unwrap().len();
+    assert_eq!(count("zoneRequested"), requests);
+    assert_eq!(count("zoneGranted") + count("zoneDenied"), requests);
+    assert_eq!(count("zoneEntered"), presences.len());
+    std::fs::remove_dir_all(dir.parent().unwrap().parent().unwrap()).unwrap();
+}
+
+#[test]
+fn chicago_journalists_ignoring_denials_fail_the_run_with_mavlink() {
+    let _ports = mavlink_ports();
+    let report = fly("chicago-museum-noncompliant.yaml");
+    let dir = &report.out_dir;
+    let verdict = report.summary.verdict.as_ref().expect("a verdict");
+    assert!(!verdict.passed);
+    let failed: Vec<&str> = verdict.criteria.iter().filter(|c| !c.passed).map(|c| c.criterion.as_str()).collect();
+    assert!(failed.contains(&"noUnauthorizedEntries"), "{verdict:#?}");
+    let entries = verdict.criteria.iter().find(|c| c.criterion == "noUnauthorizedEntries").unwrap();
+    // Every journalist is listed, by name, with time and place.
+    for k in 0..10 {
+        let name = format!("journalists-{k} ");
+        assert!(entries.failures.iter().any(|f| f.starts_with(&name)), "{name}missing: {:#?}", entries.failures);
+    }
+    assert!(entries.failures.iter().all(|f| f.contains("museum-tfr") && f.contains(" N ") && f.contains("AGL")));
+    // The violations are in the events log too.
+    let group = groups(&json(dir, "summary.json"));
+    let violations: Vec<Value> = events(dir).into_iter().filter(|e| e["event"] == "violationStarted").collect();
+    assert!(!violations.is_empty());
+    for v in &violations {
+        assert_eq!(v["rule"], "unauthorizedEntry", "{v}");
+        assert_eq!(group[&v["drone"].as_u64().unwrap()], "journalists", "{v}");
+    }
+    std::fs::remove_dir_all(dir.parent().unwrap().parent().unwrap()).unwrap();
 }

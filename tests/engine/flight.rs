@@ -30,8 +30,11 @@ fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
     let mut closest = f64::INFINITY;
     let target = frame.to_enu(wp);
     for window in 1..=900 {
-        let msg = shard
-            .handle(sim_worker::protocol::ToShard::Advance { until_step: 500 + window * 100, release_pilots: true, leases: None });
+        let msg = shard.handle(sim_worker::protocol::ToShard::Advance {
+            until_step: 500 + window * 100,
+            release_pilots: true,
+            leases: None,
+        });
         let Some(sim_worker::protocol::FromShard::Advanced { drones, events: e, .. }) = msg else { panic!() };
         events.extend(e);
         let s = &drones[0];

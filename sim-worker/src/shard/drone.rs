@@ -6,8 +6,8 @@ use nalgebra::{UnitQuaternion, Vector3};
 use sadesim_crds::fleet::GeofenceAction;
 use sadesim_crds::plan::PlannedDrone;
 
-use crate::autopilot::control::yaw_of;
 use crate::airspace::volume::ZoneVolume;
+use crate::autopilot::control::yaw_of;
 use crate::autopilot::fmu::{Fmu, SensorFrame};
 use crate::autopilot::geofence::Geofence;
 use crate::autopilot::mission::MissionPlan;
@@ -155,8 +155,7 @@ impl DroneSim {
         if self.crashed || self.on_ground {
             return;
         }
-        let Some(breach) =
-            fence.check(time_s, est.position_enu_m, est.velocity_enu_mps, self.fmu.mode(), zones, world)
+        let Some(breach) = fence.check(time_s, est.position_enu_m, est.velocity_enu_mps, self.fmu.mode(), zones, world)
         else {
             return;
         };
@@ -167,10 +166,9 @@ impl DroneSim {
         let zone = zones.get(breach.zone).map_or("?", |z| z.name.as_str());
         match self.fmu.command(command, self.on_ground, self.battery.remaining_fraction()) {
             Ok(()) => self.events.push(EventKind::Failsafe { reason: format!("geofence:{zone}"), action: mode }),
-            Err(e) => self.events.push(EventKind::CommandRejected {
-                command: format!("geofence:{zone}"),
-                reason: e.to_string(),
-            }),
+            Err(e) => self
+                .events
+                .push(EventKind::CommandRejected { command: format!("geofence:{zone}"), reason: e.to_string() }),
         }
     }
 

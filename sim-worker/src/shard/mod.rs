@@ -138,15 +138,8 @@ impl Shard {
                 ..NavigatorConfig::default()
             };
             let sensors = SensorSuite::new(env_spec.gnss.as_ref(), plan.seed, d.index);
-            let mut drone = DroneSim::new(
-                d.clone(),
-                airframe,
-                sensors,
-                &world,
-                navigator,
-                spec.origin.altitude_msl_m,
-                mission,
-            )?;
+            let mut drone =
+                DroneSim::new(d.clone(), airframe, sensors, &world, navigator, spec.origin.altitude_msl_m, mission)?;
             if let Some(action) = group.geofence {
                 drone.enable_geofence(action, spec.zones.len());
             }
