@@ -118,6 +118,72 @@ pub enum Command {
         #[arg(long)]
         no_mavlink: bool,
     },
+    /// Run archives: list, verify, download and upload run folders with their
+    /// manifest.json (sizes and SHA-256 of every file).
+    ///
+    /// An archive is a URL: file:///abs/folder, file://relative/folder, s3://bucket/prefix,
+    /// gs://bucket/prefix, az://container/prefix, or a plain folder path. A run in it is
+    /// `<archive>/<namespace>/<run>/<uid>/`; a local run folder (`runs/<run>/<UTC time>/`)
+    /// is one too. Object-store credentials come from the usual environment variables
+    /// (AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY, AWS_REGION, AWS_ENDPOINT_URL,
+    /// AWS_ALLOW_HTTP; GOOGLE_*; AZURE_*).
+    Archive {
+        #[command(subcommand)]
+        command: ArchiveCommand,
+    },
+}
+
+/// `sadesim archive ...`
+#[derive(Debug, Subcommand)]
+pub enum ArchiveCommand {
+    /// List the runs in an archive: path, files, size, complete (manifest.json written) or
+    /// incomplete (an upload that did not finish).
+    Ls {
+        /// Archive URL or folder.
+        url: String,
+    },
+    /// Re-read every file of a run and check its size and SHA-256 against manifest.json.
+    ///
+    /// Exits 0 when everything matches, 1 when a file differs, is missing, is not in the
+    /// manifest, or the manifest is missing (incomplete run), naming each file.
+    Verify {
+        /// The run folder: URL/NAMESPACE/RUN/UID (e.g. s3://bucket/runs/default/quickstart/20261122T010058Z)
+        /// or a local run folder (runs/quickstart/20261122T010058Z).
+        location: String,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Download a run into a folder, checking every file against manifest.json (exit 1 on
+    /// any mismatch, as `verify`).
+    Get {
+        /// The run folder, as for `verify`.
+        location: String,
+        /// Folder to download into (created if needed; files there are overwritten).
+        dir: PathBuf,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Upload a local run folder to URL/NAMESPACE/RUN/UID/, manifest.json last.
+    Put {
+        /// The local run folder (e.g. runs/quickstart/20261122T010058Z).
+        dir: PathBuf,
+        /// Archive URL or folder.
+        url: String,
+        /// Namespace segment of the layout.
+        #[arg(long, default_value = "default")]
+        namespace: String,
+        /// Run name (default: the name of DIR's parent folder, as in runs/<run>/<UTC time>).
+        #[arg(long)]
+        run: Option<String>,
+        /// Uid of this execution (default: DIR's name).
+        #[arg(long)]
+        uid: Option<String>,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
 }
 
 /// What a command reports back to `main`.
@@ -151,6 +217,12 @@ pub enum CliError {
     /// The airspace benchmark could not start.
     #[error("bench --airspace: {0}")]
     AirspaceBench(#[from] crate::bench::AirspaceBenchError),
+    /// An archive command could not be carried out.
+    #[error(transparent)]
+    Archive(#[from] crate::archive::ArchiveError),
+    /// `archive put` without `--run`/`--uid` on a folder whose names cannot supply them.
+    #[error("{dir}: cannot take --{flag} from the folder's name; give --{flag}")]
+    ArchiveName { dir: String, flag: &'static str },
     /// Writing the output failed.
     #[error("failed to write output: {0}")]
     Write(#[from] std::io::Error),
@@ -238,7 +310,99 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             out.write_all(sadesim_crds::crd::crd_yaml().as_bytes())?;
             Ok(Outcome::Success)
         }
+        Command::Archive { command } => archive_command(command, out),
     }
+}
+
+/// `sadesim archive ...`: exit 1 (`Problems`) when a run does not match its manifest.
+fn archive_command(command: ArchiveCommand, out: &mut dyn Write) -> Result<Outcome, CliError> {
+    use crate::archive::Archive;
+    use indicatif::HumanBytes;
+
+    match command {
+        ArchiveCommand::Ls { url } => {
+            let archive = Archive::open(&url)?;
+            let runs = archive.list()?;
+            if runs.is_empty() {
+                writeln!(out, "no runs in {}", archive.url())?;
+                return Ok(Outcome::Success);
+            }
+            let width = runs.iter().map(|r| r.path.len()).max().unwrap_or(0).max(3);
+            writeln!(out, "{:<width$}  {:>6}  {:>10}  status", "run", "files", "size")?;
+            for r in &runs {
+                let status = if r.complete { "complete" } else { "incomplete (no manifest.json)" };
+                writeln!(out, "{:<width$}  {:>6}  {:>10}  {status}", r.path, r.files, HumanBytes(r.bytes).to_string())?;
+            }
+            writeln!(out, "{} in {}", count(runs.len(), "run"), archive.url())?;
+            Ok(Outcome::Success)
+        }
+        ArchiveCommand::Verify { location, quiet } => {
+            let mut archive = Archive::open(&location)?;
+            archive.set_progress(!quiet);
+            let report = archive.verify("")?;
+            report_check(out, &report, "verified")
+        }
+        ArchiveCommand::Get { location, dir, quiet } => {
+            let mut archive = Archive::open(&location)?;
+            archive.set_progress(!quiet);
+            let report = archive.get("", &dir)?;
+            let outcome = report_check(out, &report, "downloaded")?;
+            writeln!(out, "  into {}", dir.display())?;
+            Ok(outcome)
+        }
+        ArchiveCommand::Put { dir, url, namespace, run, uid, quiet } => {
+            let name_of = |p: Option<&Path>, flag| {
+                p.and_then(|p| p.file_name())
+                    .and_then(|n| n.to_str())
+                    .map(String::from)
+                    .ok_or_else(|| CliError::ArchiveName { dir: dir.display().to_string(), flag })
+            };
+            let absolute = std::path::absolute(&dir).unwrap_or_else(|_| dir.clone());
+            let uid = match uid {
+                Some(u) => u,
+                None => name_of(Some(&absolute), "uid")?,
+            };
+            let run = match run {
+                Some(r) => r,
+                None => name_of(absolute.parent(), "run")?,
+            };
+            let mut archive = Archive::open(&url)?;
+            archive.set_progress(!quiet);
+            let uploaded = archive.upload_run(&dir, &namespace, &run, &uid)?;
+            let m = &uploaded.manifest;
+            writeln!(
+                out,
+                "uploaded {} ({}) to {}/ ({} written last)",
+                count(m.file_count, "file"),
+                HumanBytes(m.total_bytes),
+                uploaded.url,
+                crate::archive::MANIFEST_FILE
+            )?;
+            Ok(Outcome::Success)
+        }
+    }
+}
+
+/// Prints a verify/get report: one line per problem, then the verdict.
+fn report_check(out: &mut dyn Write, report: &crate::archive::VerifyReport, verb: &str) -> Result<Outcome, CliError> {
+    use indicatif::HumanBytes;
+    if report.passed() {
+        writeln!(
+            out,
+            "ok: {}: {} {} ({}) match {}",
+            report.url,
+            verb,
+            count(report.files_checked, "file"),
+            HumanBytes(report.bytes_checked),
+            crate::archive::MANIFEST_FILE
+        )?;
+        return Ok(Outcome::Success);
+    }
+    writeln!(out, "error: {}: {}", report.url, count(report.problems.len(), "problem"))?;
+    for p in &report.problems {
+        writeln!(out, "  {p}")?;
+    }
+    Ok(Outcome::Problems)
 }
 
 /// Reads a scenario file (or stdin for `-`) without ever holding more than the size limit.
@@ -412,6 +576,9 @@ fn run_file(
                 writeln!(out, "  pilot: {}; log: {}", p.describe(), log.display())?;
             }
             writeln!(out, "  output: {}", report.out_dir.display())?;
+            if let Some(url) = &report.archive {
+                writeln!(out, "  archived: {url}/")?;
+            }
             let failed = match &s.verdict {
                 Some(v) if !v.criteria.is_empty() => {
                     report_verdict(out, v)?;

@@ -256,3 +256,39 @@ fn run_starts_the_pilot_from_the_scenario_folder_and_reports_its_exit() {
     assert!(!text(&out).contains("pilot:"), "{}", text(&out));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn run_exits_1_when_a_criterion_fails_and_lists_the_failures() {
+    let dir = std::env::temp_dir().join(format!("sadesim-criteria-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |name: &str, scenario: &str| {
+        let file = dir.join(name);
+        std::fs::write(&file, scenario).unwrap();
+        sadesim(&["run", file.to_str().unwrap(), "--quiet", "--no-mavlink", "--out", dir.to_str().unwrap()])
+    };
+    // As shipped, the quickstart keeps its 60 m limit: it passes.
+    let scenario = std::fs::read_to_string(repo().join("examples/quickstart.yaml")).unwrap();
+    let ok = run("pass.yaml", &scenario);
+    assert_eq!(ok.status.code(), Some(0), "{}", text(&ok));
+    assert!(text(&ok).contains("criteria PASSED: 2 of 2 passed"), "{}", text(&ok));
+    // Move its zone onto Crown Fountain, the second waypoint, above 20 m: every scout
+    // flies in without a lease. Exit 1, every scout named with the zone.
+    let intruding = scenario
+        .replace(
+            "        - {latitudeDeg: 41.8801, longitudeDeg: -87.6242}\n        - {latitudeDeg: 41.8790, longitudeDeg: -87.6242}\n        - {latitudeDeg: 41.8790, longitudeDeg: -87.6228}\n        - {latitudeDeg: 41.8801, longitudeDeg: -87.6228}",
+            "        - {latitudeDeg: 41.8820, longitudeDeg: -87.6245}\n        - {latitudeDeg: 41.8812, longitudeDeg: -87.6245}\n        - {latitudeDeg: 41.8812, longitudeDeg: -87.6235}\n        - {latitudeDeg: 41.8820, longitudeDeg: -87.6235}",
+        )
+        .replace("      ceiling: {heightM: 60, reference: agl}", "      floor: {heightM: 20, reference: agl}\n      ceiling: {heightM: 60, reference: agl}")
+        .replace("    - altitudeLimitsRespected: {}", "    - altitudeLimitsRespected: {}\n    - noUnauthorizedEntries: {}");
+    assert_eq!(intruding.matches("41.8812").count(), 2, "the quickstart's zone changed: update this test");
+    let failed = run("fail.yaml", &intruding);
+    let out = text(&failed);
+    assert_eq!(failed.status.code(), Some(1), "{out}");
+    assert!(out.contains("criteria FAILED: 2 of 3 passed"), "{out}");
+    assert!(out.contains("FAIL spec.criteria[2] noUnauthorizedEntries"), "{out}");
+    for k in 0..4 {
+        assert!(out.contains(&format!("- scouts-{k} inside museum")), "scouts-{k} not listed: {out}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

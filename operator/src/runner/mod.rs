@@ -95,6 +95,10 @@ pub enum RunError {
     /// A `sim-worker` process could not be started or failed.
     #[error("{0}")]
     Worker(String),
+    /// `manifest.json` could not be written, or `spec.archive.url` cannot be opened or the
+    /// upload to it failed.
+    #[error("archive: {0}")]
+    Archive(#[from] crate::archive::ArchiveError),
 }
 
 /// What a finished run reports.
@@ -105,6 +109,8 @@ pub struct RunReport {
     /// What happened to `spec.pilot` (also in `pilot.json`); `None` when no pilot was to
     /// be started (no `spec.pilot`, or `--no-pilot`).
     pub pilot: Option<PilotRecord>,
+    /// URL of the uploaded run folder when `spec.archive.url` is an object store.
+    pub archive: Option<String>,
 }
 
 /// Refuses what the local runner cannot do (yet, or with these options), naming the field.
@@ -119,13 +125,10 @@ fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError>
             "spec.rendering.enabled: the renderer is not built yet; set it to false".into(),
         ));
     }
-    if let Some(a) = &spec.archive
-        && !a.url.starts_with("file://")
-    {
-        return Err(RunError::NotSupported(format!(
-            "spec.archive.url {:?}: local runs archive to a folder (file://) until object storage archives arrive",
-            a.url
-        )));
+    // Object stores are written at the end of the run: a bad URL or store configuration
+    // (credentials, account) fails now, not after the run.
+    if let Some(a) = &spec.archive {
+        crate::archive::Archive::open(&a.url)?;
     }
     Ok(())
 }
@@ -245,12 +248,11 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     // The airspace authority answers before the pilot starts. In `--processes` runs the
     // coordinator process serves it on the planned port instead.
     let mut airspace = Airspace::new(&plan, &|key| std::env::var(key).ok());
-    let airspace_addr = if options.processes { None } else { Some(serve_airspace(&mut airspace, &plan)?) };
+    let airspace_addr =
+        if options.processes { free_airspace_address(&plan) } else { serve_airspace(&mut airspace, &plan)? };
     // Written for every run: pilots started by hand and ground stations use it too.
     let mut fleet = planner::fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
-    if let Some(addr) = airspace_addr {
-        fleet.airspace_url = format!("http://{addr}");
-    }
+    fleet.airspace_url = format!("http://{airspace_addr}");
     write_json(&out_dir, pilot::FLEET_FILE, &fleet)?;
 
     let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
@@ -260,7 +262,16 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     bar.enable_steady_tick(Duration::from_millis(200));
     let mut supervisor = launch.map(Supervisor::new);
     let summary = if options.processes {
-        workers::run(&plan, options.worker.as_deref(), options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut())
+        workers::run(
+            &plan,
+            options.worker.as_deref(),
+            options.mavlink,
+            &out_dir,
+            &bar,
+            &stop,
+            supervisor.as_mut(),
+            airspace_addr,
+        )
     } else {
         run_threads(&plan, world, options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
@@ -273,7 +284,17 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             written?;
         }
     }
-    Ok(RunReport { out_dir, summary: summary?, pilot: record })
+    // Archived whatever the run's end (DESIGN §8): manifest.json, then the upload.
+    let archive_url = plan.spec.archive.as_ref().map(|a| a.url.as_str());
+    let archived = crate::archive::archive_run_folder(
+        &out_dir,
+        archive_url,
+        &plan.run.namespace,
+        &plan.run.name,
+        options.progress,
+    );
+    let summary = summary?;
+    Ok(RunReport { out_dir, summary, pilot: record, archive: archived?.map(|a| a.url) })
 }
 
 /// Serves the airspace API on 127.0.0.1 at the planned port, or on a free port when that is
@@ -288,6 +309,16 @@ fn serve_airspace(airspace: &mut Airspace, plan: &RunPlan) -> Result<std::net::S
         }
         Err(e) => Err(err(e)),
     }
+}
+
+/// For `--processes`: the planned airspace address on 127.0.0.1 if it is free now, else a
+/// free port (the coordinator process binds it a moment later; another program taking it
+/// in between makes the coordinator fail with the address named).
+fn free_airspace_address(plan: &RunPlan) -> std::net::SocketAddr {
+    let planned = std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.airspace_http));
+    let probe = std::net::TcpListener::bind(planned)
+        .or_else(|_| std::net::TcpListener::bind(std::net::SocketAddr::from(([127, 0, 0, 1], 0))));
+    probe.and_then(|l| l.local_addr()).unwrap_or(planned)
 }
 
 /// The MAVLink routers of a local run: one per segment, on 127.0.0.1, drones on 127.0.0.1.

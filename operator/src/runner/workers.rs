@@ -61,6 +61,7 @@ pub(super) fn run(
     bar: &ProgressBar,
     stop: &AtomicBool,
     mut pilot: Option<&mut Supervisor>,
+    airspace: std::net::SocketAddr,
 ) -> Result<RunSummary, RunError> {
     let worker = worker_binary(worker)?;
     let plan_path = out_dir.join("plan.json");
@@ -71,6 +72,8 @@ pub(super) fn run(
             .arg(&plan_path)
             .args(["--listen", "127.0.0.1:0", "--out"])
             .arg(out_dir)
+            .arg("--airspace-bind")
+            .arg(airspace.to_string())
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(log_file(out_dir, "coordinator.log")?),

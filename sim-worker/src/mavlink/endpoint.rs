@@ -1,22 +1,40 @@
-//! The sockets of one drone's MAVLink endpoint: thin, non-blocking, polled by the shard at
-//! each sync window (so I/O never runs concurrently with the drone it feeds).
+//! The sockets of one drone's MAVLink endpoint: thin, non-blocking, serviced by the shard at
+//! its MAVLink exchanges (so I/O never runs concurrently with the drone it feeds).
 //!
 //! Addressing follows PX4 SITL so SDK defaults work unchanged:
 //! - the *API link*: telemetry is sent to `api_target` (127.0.0.1:14540+i locally), where
 //!   `udpin://0.0.0.0:14540` clients (MAVSDK, pymavlink `udpin:`) listen; their replies come
-//!   back to our socket;
+//!   back to our port;
 //! - *connecting clients*: anyone who sends a datagram to our UDP port (`udpout://host:port`,
 //!   the form that works across pods) becomes a peer and receives telemetry from then on;
 //! - *TCP*: clients connecting to the same port number over TCP (`tcpout://host:port`).
 //!
 //! Several frames are packed into one datagram, as PX4 does, which keeps the syscall count
-//! per drone at one per peer and window. Telemetry is lossy by nature: a TCP peer that
+//! per drone at one per peer and exchange. Telemetry is lossy by nature: a TCP peer that
 //! cannot keep up loses frames rather than stalling the simulation.
+//!
+//! # What it costs, and how that is kept small (docs/performance.md, MAVLink)
+//! - **Readiness**: a shard registers all its endpoints with one [`EndpointPoll`]; one
+//!   zero-timeout wait per exchange tells which sockets have something, and only those are
+//!   read (a `recvfrom` on each of 250 idle sockets every 20 ms was a tenth of the cost).
+//!   An endpoint never registered (unit tests, tools) reads every socket at every call.
+//! - **The API link backs off while nobody listens** (a departure from PX4, which sends
+//!   blindly; docs/architecture.md, MAVLink). It has its own socket, connected to the
+//!   target and bound to the endpoint's port (`SO_REUSEPORT`, so clients still see one
+//!   address), which lets the kernel's ICMP "port unreachable" come back as
+//!   `ECONNREFUSED`. After that only the 1 Hz HEARTBEAT is sent there; the full stream
+//!   resumes after a heartbeat that is not refused (at the next exchange, 20 ms later) or
+//!   as soon as anything arrives from the target. A client that starts listening on
+//!   14540 sees a heartbeat within a second and the full stream 20 ms after it.
+//! - Datagram buffers are reused from one exchange to the next.
 
 use std::io::{ErrorKind, Read, Write};
-use std::net::{IpAddr, SocketAddr, TcpListener, TcpStream, UdpSocket};
+use std::net::{IpAddr, SocketAddr};
 
 use ::mavlink::MavHeader;
+use ::mavlink::Message;
+use mio::net::{TcpListener, TcpStream, UdpSocket};
+use mio::{Events, Interest, Poll, Token};
 
 use crate::mavlink::frame::{Frame, FrameParser, MAX_FRAME_LEN};
 use crate::mavlink::session::{COMPONENT_ID, Outgoing};
@@ -34,13 +52,16 @@ pub const MAX_TCP_PEERS: usize = 8;
 /// heartbeat protocol: a component is lost after a few missed heartbeats). Peers that never
 /// sent a heartbeat (a bare pymavlink `udpout` script) are kept until evicted.
 pub const PEER_HEARTBEAT_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
-/// The TCP listener is checked every this many polls (connections wait at most that long).
+/// Without readiness events (an endpoint not registered with an [`EndpointPoll`]), the TCP
+/// listener is checked every this many polls (connections wait at most that long).
 const ACCEPT_EVERY_POLLS: u64 = 5;
-/// Datagrams read per poll: a flood cannot keep the shard from simulating (the kernel
-/// drops what does not fit its buffer).
+/// Datagrams read per socket and poll: a flood cannot keep the shard from simulating (the
+/// kernel drops what does not fit its buffer).
 const MAX_DATAGRAMS_PER_POLL: usize = 256;
 /// Bytes read per TCP peer per poll, for the same reason.
 const MAX_TCP_BYTES_PER_POLL: usize = 64 * 1024;
+/// Message id of HEARTBEAT, the only message the API link carries while nobody listens.
+const HEARTBEAT_ID: u32 = 0;
 
 /// Where one drone's endpoint listens and sends.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -82,6 +103,22 @@ struct TcpPeer {
     closed: bool,
 }
 
+/// The API link's own socket and what we believe about its target.
+#[derive(Debug)]
+struct ApiLink {
+    /// Bound to the endpoint's address (shared with [`Endpoint::udp`] through
+    /// `SO_REUSEPORT`) and connected to the target: the kernel hands it the target's
+    /// datagrams and reports ICMP port-unreachable for it as `ECONNREFUSED`.
+    socket: UdpSocket,
+    /// Someone is believed to listen: send everything. Otherwise heartbeats only.
+    listening: bool,
+    /// A heartbeat went out while not listening; the next flush checks whether it was
+    /// refused.
+    probe_sent: bool,
+    /// The HEARTBEAT frame queued since the last flush (the probe while not listening).
+    heartbeat: Vec<u8>,
+}
+
 /// Counters for logs and tests.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct EndpointStats {
@@ -94,6 +131,103 @@ pub struct EndpointStats {
     pub send_errors: u64,
     /// Queued datagrams dropped because nothing flushed them.
     pub dropped_datagrams: u64,
+    /// Times the API link found nobody listening and fell back to heartbeats.
+    pub api_refused: u64,
+}
+
+/// Which socket of an endpoint a readiness event is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SocketKind {
+    /// The endpoint's UDP port (connecting clients, the router).
+    Udp,
+    /// The TCP listener.
+    TcpListener,
+    /// The API link's socket.
+    Api,
+}
+
+impl SocketKind {
+    const ALL: [SocketKind; 3] = [SocketKind::Udp, SocketKind::TcpListener, SocketKind::Api];
+
+    fn token(self, index: usize) -> Token {
+        Token(index * Self::ALL.len() + self as usize)
+    }
+
+    fn from_token(token: Token) -> (usize, SocketKind) {
+        let n = Self::ALL.len();
+        (token.0 / n, Self::ALL[token.0 % n])
+    }
+}
+
+/// One readiness wait for many endpoints (a shard's): endpoints are registered under an
+/// index (the drone's position in the shard), and [`EndpointPoll::dispatch`] names the
+/// sockets that became readable since the last call, without waiting.
+///
+/// Readiness is edge-triggered: an endpoint keeps a socket marked until a read finds it
+/// empty, so a socket left with data (the per-poll read limit) is read again next time.
+#[derive(Debug)]
+pub struct EndpointPoll {
+    poll: Poll,
+    events: Events,
+    /// One more than the largest registered index.
+    endpoints: usize,
+}
+
+/// Readiness events fetched per wait; more are fetched by further waits in the same call.
+const EVENTS_PER_WAIT: usize = 1024;
+
+impl EndpointPoll {
+    /// # Errors
+    /// When the OS refuses a readiness queue (epoll instance).
+    pub fn new() -> std::io::Result<Self> {
+        Ok(Self { poll: Poll::new()?, events: Events::with_capacity(EVENTS_PER_WAIT), endpoints: 0 })
+    }
+
+    /// Registers the sockets of `endpoint` under `index`; from now on it reads a socket
+    /// only when [`Endpoint::mark_ready`] said so.
+    ///
+    /// # Errors
+    /// When a socket cannot be registered (the endpoint then stays unregistered and keeps
+    /// reading every socket).
+    pub fn register(&mut self, endpoint: &mut Endpoint, index: usize) -> std::io::Result<()> {
+        let registry = self.poll.registry();
+        registry.register(&mut endpoint.udp, SocketKind::Udp.token(index), Interest::READABLE)?;
+        registry.register(&mut endpoint.tcp, SocketKind::TcpListener.token(index), Interest::READABLE)?;
+        if let Some(api) = &mut endpoint.api {
+            registry.register(&mut api.socket, SocketKind::Api.token(index), Interest::READABLE)?;
+        }
+        endpoint.registered = true;
+        // Whatever arrived before registration: read everything once.
+        endpoint.ready = [true; 3];
+        self.endpoints = self.endpoints.max(index + 1);
+        Ok(())
+    }
+
+    /// Calls `mark(index, socket)` for every socket that became readable (or got an error)
+    /// since the last call; never waits. If the wait itself fails, every registered socket
+    /// is marked, so nothing is missed.
+    pub fn dispatch(&mut self, mut mark: impl FnMut(usize, SocketKind)) {
+        // A full batch may mean more are pending: bounded, since each wait drains events.
+        for _ in 0..=(self.endpoints * SocketKind::ALL.len()) / EVENTS_PER_WAIT {
+            if self.poll.poll(&mut self.events, Some(std::time::Duration::ZERO)).is_err() {
+                for index in 0..self.endpoints {
+                    for kind in SocketKind::ALL {
+                        mark(index, kind);
+                    }
+                }
+                return;
+            }
+            let mut n = 0;
+            for event in &self.events {
+                let (index, kind) = SocketKind::from_token(event.token());
+                mark(index, kind);
+                n += 1;
+            }
+            if n < EVENTS_PER_WAIT {
+                return;
+            }
+        }
+    }
 }
 
 /// One drone's sockets.
@@ -102,47 +236,86 @@ pub struct Endpoint {
     config: EndpointConfig,
     udp: UdpSocket,
     tcp: TcpListener,
+    api: Option<ApiLink>,
     udp_peers: Vec<UdpPeer>,
     tcp_peers: Vec<TcpPeer>,
     parser: FrameParser,
     sequence: u8,
     polls: u64,
-    /// Encoded datagrams waiting for the next flush.
-    pending: Vec<Vec<u8>>,
+    /// Registered with an [`EndpointPoll`]: sockets are read only when marked ready.
+    registered: bool,
+    /// Per [`SocketKind`]: readable (or not read to the end yet) since the last poll.
+    ready: [bool; 3],
+    /// Datagram buffers; the first `filled` hold frames waiting for the next flush, the
+    /// rest are empty and kept for reuse.
+    datagrams: Vec<Vec<u8>>,
+    filled: usize,
     pub stats: EndpointStats,
 }
 
 impl Endpoint {
-    /// Binds UDP and TCP on `config.bind_ip:config.port`.
+    /// Binds UDP and TCP on `config.bind_ip:config.port`, and the API link's socket.
     ///
     /// # Errors
     /// When a socket cannot be bound (the message names the system and address).
     pub fn open(config: EndpointConfig) -> Result<Self, EndpointError> {
-        let address = SocketAddr::new(config.bind_ip, config.port);
-        let err = |source: std::io::Error| {
-            let hint = if source.kind() == ErrorKind::AddrInUse {
-                " (is another run or PX4 SITL using this port? `sadesim run --no-mavlink` runs without endpoints)"
-            } else {
-                ""
-            };
-            EndpointError { system_id: config.system_id, address, source, hint }
+        let mut address = SocketAddr::new(config.bind_ip, config.port);
+        let err = |address: SocketAddr| {
+            move |source: std::io::Error| {
+                let hint = if source.kind() == ErrorKind::AddrInUse {
+                    " (is another run or PX4 SITL using this port? `sadesim run --no-mavlink` runs without endpoints)"
+                } else {
+                    ""
+                };
+                EndpointError { system_id: config.system_id, address, source, hint }
+            }
         };
-        let udp = UdpSocket::bind(address).map_err(err)?;
-        udp.set_nonblocking(true).map_err(err)?;
-        // Same number over TCP (also when port 0 let the OS pick the UDP one).
-        let bound = udp.local_addr().map_err(err)?;
-        let tcp = TcpListener::bind(bound).map_err(err)?;
-        tcp.set_nonblocking(true).map_err(err)?;
+        // A plain bind first: it fails when anyone holds the port (also a group of
+        // SO_REUSEPORT sockets, such as another run's endpoint), and picks the port when 0
+        // was asked for.
+        let plain = std::net::UdpSocket::bind(address).map_err(err(address))?;
+        address = plain.local_addr().map_err(err(address))?;
+        let (udp, api) = match config.api_target {
+            None => (plain, None),
+            Some(target) => {
+                drop(plain);
+                let udp = reuse_port_socket(address).map_err(err(address))?;
+                let api = reuse_port_socket(address).map_err(err(address))?;
+                api.connect(target).map_err(err(address))?;
+                (udp, Some(api))
+            }
+        };
+        udp.set_nonblocking(true).map_err(err(address))?;
+        // Same number over TCP.
+        let tcp = std::net::TcpListener::bind(address).map_err(err(address))?;
+        tcp.set_nonblocking(true).map_err(err(address))?;
+        let api = match api {
+            Some(socket) => {
+                socket.set_nonblocking(true).map_err(err(address))?;
+                Some(ApiLink {
+                    socket: UdpSocket::from_std(socket),
+                    // As PX4: stream from the start; the first refusal quiets the link.
+                    listening: true,
+                    probe_sent: false,
+                    heartbeat: Vec::new(),
+                })
+            }
+            None => None,
+        };
         Ok(Self {
             config,
-            udp,
-            tcp,
+            udp: UdpSocket::from_std(udp),
+            tcp: TcpListener::from_std(tcp),
+            api,
             udp_peers: Vec::new(),
             tcp_peers: Vec::new(),
             parser: FrameParser::new(),
             sequence: 0,
             polls: 0,
-            pending: Vec::new(),
+            registered: false,
+            ready: [true; 3],
+            datagrams: Vec::new(),
+            filled: 0,
             stats: EndpointStats::default(),
         })
     }
@@ -152,31 +325,41 @@ impl Endpoint {
         self.udp.local_addr()
     }
 
+    /// The API link currently carries the full telemetry (someone is believed to listen).
+    pub fn api_link_live(&self) -> bool {
+        self.api.as_ref().is_some_and(|a| a.listening)
+    }
+
+    /// [`EndpointPoll::dispatch`] found `socket` readable.
+    pub fn mark_ready(&mut self, socket: SocketKind) {
+        self.ready[socket as usize] = true;
+    }
+
+    fn should_read(&self, socket: SocketKind) -> bool {
+        !self.registered || self.ready[socket as usize]
+    }
+
     /// Everything that arrived since the last call, as checksummed frames.
     pub fn receive(&mut self) -> Vec<Frame> {
         self.polls += 1;
         let mut frames = Vec::new();
         let mut buf = [0u8; 2048];
-        for _ in 0..MAX_DATAGRAMS_PER_POLL {
-            match self.udp.recv_from(&mut buf) {
-                Ok((n, from)) => {
-                    self.stats.datagrams_in += 1;
-                    // Each datagram stands alone: a frame never spans two.
-                    self.parser.reset();
-                    let got = self.parser.push(&buf[..n]);
-                    let heartbeat = got.iter().any(|f| f.message_id == 0);
-                    self.remember(from, heartbeat);
-                    frames.extend(got);
-                }
-                Err(e) if e.kind() == ErrorKind::WouldBlock => break,
-                // ICMP errors from an earlier send (e.g. nobody on the API port) surface
-                // here on some systems; they concern that send, not this socket.
-                Err(_) => continue,
-            }
+        if self.should_read(SocketKind::Udp) {
+            self.receive_udp(&mut frames, &mut buf);
         }
-        let now = std::time::Instant::now();
-        self.udp_peers.retain(|p| p.heartbeat_at.is_none_or(|t| now.duration_since(t) < self.config.peer_timeout));
-        if self.polls % ACCEPT_EVERY_POLLS == 1 {
+        if self.api.is_some() && self.should_read(SocketKind::Api) {
+            self.receive_api(&mut frames, &mut buf);
+        }
+        if !self.udp_peers.is_empty() {
+            let now = std::time::Instant::now();
+            self.udp_peers.retain(|p| p.heartbeat_at.is_none_or(|t| now.duration_since(t) < self.config.peer_timeout));
+        }
+        let accept = if self.registered {
+            self.ready[SocketKind::TcpListener as usize]
+        } else {
+            self.polls % ACCEPT_EVERY_POLLS == 1
+        };
+        if accept {
             self.accept_tcp();
         }
         for peer in &mut self.tcp_peers {
@@ -206,6 +389,58 @@ impl Endpoint {
         frames
     }
 
+    fn receive_udp(&mut self, frames: &mut Vec<Frame>, buf: &mut [u8]) {
+        for _ in 0..MAX_DATAGRAMS_PER_POLL {
+            match self.udp.recv_from(buf) {
+                Ok((n, from)) => {
+                    self.stats.datagrams_in += 1;
+                    // Each datagram stands alone: a frame never spans two.
+                    self.parser.reset();
+                    let got = self.parser.push(&buf[..n]);
+                    let heartbeat = got.iter().any(|f| f.message_id == HEARTBEAT_ID);
+                    self.remember(from, heartbeat);
+                    frames.extend(got);
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                    self.ready[SocketKind::Udp as usize] = false;
+                    return;
+                }
+                // ICMP errors from an earlier send surface here on some systems; they
+                // concern that send, not this socket.
+                Err(_) => {}
+            }
+        }
+    }
+
+    /// Datagrams from the API link's target (its replies: commands, its heartbeats).
+    fn receive_api(&mut self, frames: &mut Vec<Frame>, buf: &mut [u8]) {
+        let Some(api) = &mut self.api else { return };
+        for _ in 0..MAX_DATAGRAMS_PER_POLL {
+            match api.socket.recv(buf) {
+                Ok(n) => {
+                    // Someone is there: the full stream again.
+                    api.listening = true;
+                    self.stats.datagrams_in += 1;
+                    self.parser.reset();
+                    frames.extend(self.parser.push(&buf[..n]));
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                    self.ready[SocketKind::Api as usize] = false;
+                    return;
+                }
+                Err(e) if e.kind() == ErrorKind::ConnectionRefused => {
+                    // An earlier datagram found nobody (reading the error clears it).
+                    if api.listening {
+                        self.stats.api_refused += 1;
+                    }
+                    api.listening = false;
+                    api.probe_sent = false;
+                }
+                Err(_) => {}
+            }
+        }
+    }
+
     fn remember(&mut self, from: SocketAddr, heartbeat: bool) {
         if Some(from) == self.config.api_target {
             return; // the API link already receives everything
@@ -225,14 +460,26 @@ impl Endpoint {
     }
 
     fn accept_tcp(&mut self) {
-        while let Ok((stream, _)) = self.tcp.accept() {
-            if self.tcp_peers.len() >= MAX_TCP_PEERS || stream.set_nonblocking(true).is_err() {
-                self.stats.tcp_refused += 1;
-                continue; // dropped: closes the connection
+        loop {
+            match self.tcp.accept() {
+                Ok((stream, _)) => {
+                    if self.tcp_peers.len() >= MAX_TCP_PEERS {
+                        self.stats.tcp_refused += 1;
+                        continue; // dropped: closes the connection
+                    }
+                    let _ = stream.set_nodelay(true);
+                    self.stats.tcp_accepted += 1;
+                    self.tcp_peers.push(TcpPeer { stream, parser: FrameParser::new(), closed: false });
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => {
+                    self.ready[SocketKind::TcpListener as usize] = false;
+                    return;
+                }
+                // A connection reset before we took it: try the next one. Anything else
+                // (out of descriptors) waits for the next poll.
+                Err(e) if e.kind() == ErrorKind::ConnectionAborted => {}
+                Err(_) => return,
             }
-            let _ = stream.set_nodelay(true);
-            self.stats.tcp_accepted += 1;
-            self.tcp_peers.push(TcpPeer { stream, parser: FrameParser::new(), closed: false });
         }
     }
 
@@ -248,36 +495,53 @@ impl Endpoint {
             };
             self.sequence = self.sequence.wrapping_add(1);
             // A frame is at most MAX_FRAME_LEN bytes: start a new datagram when it may not fit.
-            let fits = self.pending.last().is_some_and(|d| d.len() + MAX_FRAME_LEN <= MAX_DATAGRAM);
+            let fits = self.filled > 0 && self.datagrams[self.filled - 1].len() + MAX_FRAME_LEN <= MAX_DATAGRAM;
             if !fits {
-                if self.pending.len() >= MAX_PENDING_DATAGRAMS {
-                    self.pending.remove(0); // nobody flushed for long: oldest first out
-                    self.stats.dropped_datagrams += 1;
-                }
-                self.pending.push(Vec::with_capacity(MAX_DATAGRAM));
+                self.start_datagram();
             }
-            let datagram = self.pending.last_mut().expect("pushed above");
+            let datagram = &mut self.datagrams[self.filled - 1];
+            let at = datagram.len();
             m.encode_into(datagram, header);
+            if let (Some(api), Outgoing::Message(message)) = (&mut self.api, m)
+                && message.message_id() == HEARTBEAT_ID
+            {
+                api.heartbeat.clear();
+                api.heartbeat.extend_from_slice(&datagram[at..]);
+            }
         }
     }
 
-    /// Sends the queued datagrams to every peer.
-    pub fn flush(&mut self) {
-        if self.pending.is_empty() {
-            return;
+    /// Makes an empty datagram the last filled one, reusing a buffer when there is one.
+    fn start_datagram(&mut self) {
+        if self.filled == MAX_PENDING_DATAGRAMS {
+            // Nobody flushed for long: the oldest goes first (its buffer is reused).
+            self.datagrams[..self.filled].rotate_left(1);
+            self.filled -= 1;
+            self.stats.dropped_datagrams += 1;
         }
-        let datagrams = std::mem::take(&mut self.pending);
-        let targets = self.config.api_target.into_iter().chain(self.udp_peers.iter().map(|p| p.address));
-        for target in targets {
-            for d in &datagrams {
-                match self.udp.send_to(d, target) {
+        if self.filled == self.datagrams.len() {
+            self.datagrams.push(Vec::with_capacity(MAX_DATAGRAM));
+        }
+        self.datagrams[self.filled].clear();
+        self.filled += 1;
+    }
+
+    /// Sends the queued datagrams to every peer (the API link: see the module docs).
+    pub fn flush(&mut self) {
+        let datagrams = &self.datagrams[..self.filled];
+        if let Some(api) = &mut self.api {
+            send_api(api, datagrams, &mut self.stats);
+        }
+        for peer in &self.udp_peers {
+            for d in datagrams {
+                match self.udp.send_to(d, peer.address) {
                     Ok(_) => self.stats.datagrams_out += 1,
                     Err(_) => self.stats.send_errors += 1,
                 }
             }
         }
         self.tcp_peers.retain_mut(|peer| {
-            for d in &datagrams {
+            for d in datagrams {
                 match peer.stream.write(d) {
                     Ok(n) if n == d.len() => {}
                     // A slow reader: drop the rest of this round's telemetry for it. A
@@ -289,6 +553,10 @@ impl Endpoint {
             }
             true
         });
+        for d in &mut self.datagrams[..self.filled] {
+            d.clear();
+        }
+        self.filled = 0;
     }
 
     /// [`Endpoint::queue`] then [`Endpoint::flush`].
@@ -298,136 +566,53 @@ impl Endpoint {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use std::net::Ipv4Addr;
-    use std::time::{Duration, Instant};
-
-    use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavMessage};
-
-    use super::*;
-    use crate::mavlink::frame::{Decoded, encode};
-
-    fn open(api_target: Option<SocketAddr>) -> Endpoint {
-        Endpoint::open(EndpointConfig {
-            system_id: 9,
-            bind_ip: IpAddr::V4(Ipv4Addr::LOCALHOST),
-            port: 0,
-            api_target,
-            peer_timeout: Duration::from_millis(300),
-        })
-        .expect("binds an ephemeral port")
-    }
-
-    fn heartbeat(sys: u32) -> Vec<u8> {
-        encode(
-            MavHeader { system_id: sys, component_id: 190, sequence: 0 },
-            &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()),
-        )
-    }
-
-    fn receive_until(e: &mut Endpoint, n: usize) -> Vec<Frame> {
-        let deadline = Instant::now() + Duration::from_secs(5);
-        let mut frames = Vec::new();
-        while frames.len() < n && Instant::now() < deadline {
-            frames.extend(e.receive());
-            std::thread::sleep(Duration::from_millis(2));
-        }
-        frames
-    }
-
-    #[test]
-    fn a_udp_client_that_speaks_first_receives_telemetry() {
-        let mut e = open(None);
-        let client = UdpSocket::bind("127.0.0.1:0").unwrap();
-        client.send_to(&heartbeat(255), e.local_addr().unwrap()).unwrap();
-        let frames = receive_until(&mut e, 1);
-        assert!(matches!(frames[0].message, Decoded::Message(MavMessage::HEARTBEAT(_))));
-        e.send(&vec![Outgoing::Message(MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())); 3]);
-        client.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
-        let mut buf = [0u8; 2048];
-        let n = client.recv(&mut buf).unwrap();
-        let got = FrameParser::new().push(&buf[..n]);
-        assert_eq!(got.len(), 3, "three frames packed in one datagram");
-        assert_eq!(got.iter().map(|f| f.header.sequence).collect::<Vec<_>>(), vec![0, 1, 2]);
-        assert_eq!(got[0].header.system_id, 9);
-    }
-
-    /// Sends one heartbeat from `client`, then counts datagrams reaching it.
-    fn datagrams_after(e: &mut Endpoint, client: &UdpSocket, wait: Duration) -> usize {
-        std::thread::sleep(wait);
-        let mut buf = [0u8; 2048];
-        client.set_nonblocking(true).unwrap();
-        while client.recv(&mut buf).is_ok() {} // what earlier sends left behind
-        client.set_nonblocking(false).unwrap();
-        e.receive();
-        e.send(&[Outgoing::Message(MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()))]);
-        client.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
-        usize::from(client.recv(&mut buf).is_ok())
-    }
-
-    #[test]
-    fn a_peer_whose_heartbeats_stop_is_forgotten_but_a_silent_one_is_kept() {
-        let mut e = open(None);
-        let heartbeating = UdpSocket::bind("127.0.0.1:0").unwrap();
-        let silent = UdpSocket::bind("127.0.0.1:0").unwrap();
-        heartbeating.send_to(&heartbeat(255), e.local_addr().unwrap()).unwrap();
-        // A frame that is not a heartbeat (garbage works too: any datagram registers).
-        silent.send_to(b"hello", e.local_addr().unwrap()).unwrap();
-        receive_until(&mut e, 1);
-        assert_eq!(datagrams_after(&mut e, &heartbeating, Duration::ZERO), 1);
-        assert_eq!(datagrams_after(&mut e, &silent, Duration::ZERO), 1);
-        // 300 ms without a heartbeat: the heartbeating peer is gone, the silent one stays.
-        assert_eq!(datagrams_after(&mut e, &heartbeating, Duration::from_millis(400)), 0);
-        assert_eq!(datagrams_after(&mut e, &silent, Duration::ZERO), 1);
-    }
-
-    #[test]
-    fn the_api_link_gets_telemetry_without_asking() {
-        let listener = UdpSocket::bind("127.0.0.1:0").unwrap();
-        let mut e = open(Some(listener.local_addr().unwrap()));
-        e.send(&[Outgoing::Message(MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()))]);
-        listener.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
-        let mut buf = [0u8; 2048];
-        let (n, from) = listener.recv_from(&mut buf).unwrap();
-        assert_eq!(from, e.local_addr().unwrap(), "replies go back to the endpoint");
-        assert_eq!(FrameParser::new().push(&buf[..n]).len(), 1);
-    }
-
-    #[test]
-    fn tcp_clients_send_and_receive_and_garbage_is_dropped() {
-        let mut e = open(None);
-        let mut client = TcpStream::connect(e.local_addr().unwrap()).unwrap();
-        let mut garbage: Vec<u8> = (0..5000u32).map(|i| (i.wrapping_mul(2_654_435_761u32) >> 24) as u8).collect();
-        // A false start marker in the garbage may claim up to 280 bytes: the parser then
-        // waits for them, so real frames right after it are found once that many arrived.
-        for _ in 0..20 {
-            garbage.extend(heartbeat(200));
-        }
-        client.write_all(&garbage).unwrap();
-        let frames = receive_until(&mut e, 5);
-        assert!(frames.len() >= 5, "{} frames", frames.len());
-        assert!(frames.iter().all(|f| f.header.system_id == 200));
-        e.send(&[Outgoing::Message(MavMessage::HEARTBEAT(HEARTBEAT_DATA::default()))]);
-        client.set_read_timeout(Some(Duration::from_secs(5))).unwrap();
-        let mut buf = [0u8; 512];
-        let n = client.read(&mut buf).unwrap();
-        assert_eq!(FrameParser::new().push(&buf[..n]).len(), 1);
-    }
-
-    #[test]
-    fn a_port_in_use_is_named_in_the_error() {
-        let e = open(None);
-        let port = e.local_addr().unwrap().port();
-        let err = Endpoint::open(EndpointConfig {
-            system_id: 3,
-            bind_ip: IpAddr::V4(Ipv4Addr::LOCALHOST),
-            port,
-            api_target: None,
-            peer_timeout: PEER_HEARTBEAT_TIMEOUT,
-        })
-        .unwrap_err()
-        .to_string();
-        assert!(err.contains(&format!("127.0.0.1:{port}")) && err.contains("system 3"), "{err}");
-    }
+/// A UDP socket with `SO_REUSEPORT` bound to `address`: the endpoint's port and its API
+/// link share the port (the kernel gives the connected one its peer's datagrams).
+fn reuse_port_socket(address: SocketAddr) -> std::io::Result<std::net::UdpSocket> {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let socket = Socket::new(Domain::for_address(address), Type::DGRAM, Some(Protocol::UDP))?;
+    socket.set_reuse_port(true)?;
+    socket.bind(&address.into())?;
+    Ok(socket.into())
 }
+
+/// The API link's share of a flush: everything while someone listens, otherwise only the
+/// heartbeat, whose fate decides at the next flush whether the link comes back.
+fn send_api(api: &mut ApiLink, datagrams: &[Vec<u8>], stats: &mut EndpointStats) {
+    if !api.listening && std::mem::take(&mut api.probe_sent) {
+        // On loopback the ICMP answer to the last probe is back long before now; on a
+        // real network a late one quiets the link again at the next send.
+        if matches!(api.socket.take_error(), Ok(None)) {
+            api.listening = true;
+        }
+    }
+    if api.listening {
+        for d in datagrams {
+            match api.socket.send(d) {
+                Ok(_) => stats.datagrams_out += 1,
+                Err(e) if e.kind() == ErrorKind::ConnectionRefused => {
+                    // An earlier datagram was refused (this one was not sent).
+                    stats.api_refused += 1;
+                    api.listening = false;
+                    break;
+                }
+                Err(_) => stats.send_errors += 1,
+            }
+        }
+    }
+    if !api.listening && !api.heartbeat.is_empty() {
+        match api.socket.send(&api.heartbeat) {
+            Ok(_) => {
+                stats.datagrams_out += 1;
+                api.probe_sent = true;
+            }
+            // A refusal left over (consumed now): the next heartbeat probes again.
+            Err(e) if e.kind() == ErrorKind::ConnectionRefused => {}
+            Err(_) => stats.send_errors += 1,
+        }
+    }
+    api.heartbeat.clear();
+}
+
+#[cfg(test)]
+mod tests;

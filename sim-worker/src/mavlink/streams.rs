@@ -185,16 +185,16 @@ impl StreamScheduler {
     }
 
     /// The message ids due at sim time `now_s`, ascending, each scheduled for its next grid
-    /// time.
+    /// time. (Called for every drone at every sync window, so it does not allocate.)
     ///
     /// # Assumptions
     /// `now_s` does not decrease between calls (a call earlier than a stream's due time
     /// simply finds nothing due). A non-finite `now_s` finds nothing due and changes nothing.
-    pub fn due(&mut self, now_s: f64) -> Vec<u32> {
+    pub fn due(&mut self, now_s: f64) -> Due {
+        let mut due = Due { ids: [0; STREAM_COUNT], len: 0 };
         if !now_s.is_finite() {
-            return Vec::new();
+            return due;
         }
-        let mut due = Vec::new();
         for stream in &mut self.streams {
             let Some(us) = stream.interval_us() else { continue };
             let grid_s = match stream.next_due_s {
@@ -211,13 +211,46 @@ impl StreamScheduler {
             }
             stream.last_due_s = Some(grid_s);
             stream.next_due_s = Some(next);
-            due.push(stream.message_id);
+            due.ids[due.len] = stream.message_id;
+            due.len += 1;
         }
         due
     }
 
     fn stream_mut(&mut self, message_id: u32) -> Option<&mut Stream> {
         self.streams.iter_mut().find(|s| s.message_id == message_id)
+    }
+}
+
+/// Streams a scheduler has: one per PX4 default.
+const STREAM_COUNT: usize = PX4_ONBOARD_RATES_HZ.len();
+
+/// The message ids [`StreamScheduler::due`] found due, ascending: a slice (`contains`,
+/// `is_empty`, `iter`) and an iterator by value, without a heap allocation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Due {
+    ids: [u32; STREAM_COUNT],
+    len: usize,
+}
+
+impl std::ops::Deref for Due {
+    type Target = [u32];
+    fn deref(&self) -> &[u32] {
+        &self.ids[..self.len]
+    }
+}
+
+impl IntoIterator for Due {
+    type Item = u32;
+    type IntoIter = std::iter::Take<std::array::IntoIter<u32, STREAM_COUNT>>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.ids.into_iter().take(self.len)
+    }
+}
+
+impl PartialEq<Vec<u32>> for Due {
+    fn eq(&self, other: &Vec<u32>) -> bool {
+        **self == **other
     }
 }
 

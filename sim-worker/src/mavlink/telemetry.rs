@@ -519,8 +519,9 @@ pub fn build(message_id: u32, v: &VehicleView, id: &VehicleIdentity) -> Option<M
 /// Message ids [`build`] can produce.
 pub const PRODUCIBLE: [u32; 15] = [0, 1, 2, 24, 30, 31, 32, 33, 42, 74, 141, 147, 148, 242, 245];
 
+/// Shared with the frame tests, which encode every message this module builds.
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use sadesim_crds::geo::GeoPoint;
 
     use super::*;

@@ -191,6 +191,13 @@ impl DroneSim {
         self.link = Some(link);
     }
 
+    /// The shard's readiness wait found this drone's `socket` readable.
+    pub fn mavlink_mark_ready(&mut self, socket: crate::mavlink::endpoint::SocketKind) {
+        if let Some(link) = &mut self.link {
+            link.endpoint.mark_ready(socket);
+        }
+    }
+
     /// Reads what peers sent, lets the session act on the autopilot, and sends everything
     /// queued (replies included).
     pub fn mavlink_exchange(&mut self, time_s: f64) {

@@ -88,16 +88,19 @@ pub struct Shard {
     released: bool,
     /// Sim time of the next MAVLink I/O.
     next_mavlink_io_s: f64,
+    /// Readiness of every drone's MAVLink sockets (index = position in `drones`).
+    mavlink_poll: Option<crate::mavlink::endpoint::EndpointPoll>,
     /// The run's zones, for the geofences; empty when no drone of the shard has one.
     zones: Vec<ZoneVolume>,
 }
 
-/// Sim seconds between MAVLink socket rounds. Every round costs a receive and a datagram
-/// per peer for each drone; every 10 ms the sockets cost a 250-drone shard more than its
-/// physics (docs/performance.md). Messages are still built at their own rates (100 Hz
-/// ATTITUDE is 100 ATTITUDE messages a second, each with its own timestamp), only sent in
-/// batches; 20 ms adds at most 20 ms of latency, below what SDKs and ground stations
-/// notice (MAVSDK's offboard needs > 2 Hz setpoints).
+/// Sim seconds between MAVLink socket rounds. Every round costs a datagram per peer for
+/// each drone (reads only where the shard's readiness wait found data); every 10 ms the
+/// sockets cost a 250-drone shard more than its physics (docs/performance.md). Messages
+/// are still built at their own rates (100 Hz ATTITUDE is 100 ATTITUDE messages a second,
+/// each with its own timestamp), only sent in batches; 20 ms adds at most 20 ms of
+/// latency, below what SDKs and ground stations notice (MAVSDK's offboard needs > 2 Hz
+/// setpoints).
 pub const MAVLINK_IO_PERIOD_S: f64 = 0.02;
 
 /// The environment is sampled every this many physics steps (100 Hz at 1 kHz) and held in
@@ -162,6 +165,7 @@ impl Shard {
             dt_s: 1.0 / f64::from(plan.physics_rate_hz),
             released: false,
             next_mavlink_io_s: 0.0,
+            mavlink_poll: None,
             zones: if fenced { spec.zones.iter().map(|z| ZoneVolume::new(z, &frame)).collect() } else { Vec::new() },
         })
     }
@@ -171,20 +175,27 @@ impl Shard {
     /// # Errors
     /// The first endpoint that cannot bind (its port is named); none stay open then.
     pub fn open_mavlink(&mut self, plan: &RunPlan, options: &MavlinkOptions) -> Result<(), ShardError> {
-        use crate::mavlink::endpoint::{Endpoint, EndpointConfig};
+        use crate::mavlink::endpoint::{Endpoint, EndpointConfig, EndpointPoll};
         use crate::mavlink::session::Session;
         use crate::mavlink::telemetry::VehicleIdentity;
         let frame = LocalFrame::new(plan.spec.origin.geo());
         let mut links = Vec::with_capacity(self.drones.len());
-        for drone in &self.drones {
+        // Without a readiness queue (should the OS refuse one) every socket is read at
+        // every exchange: slower, not wrong.
+        let mut poll = EndpointPoll::new().ok();
+        for (index, drone) in self.drones.iter().enumerate() {
             let d = &drone.plan;
-            let endpoint = Endpoint::open(EndpointConfig {
+            let mut endpoint = Endpoint::open(EndpointConfig {
                 system_id: d.system_id,
                 bind_ip: options.bind_ip,
                 port: d.ports.endpoint,
                 api_target: options.api_host.map(|h| std::net::SocketAddr::new(h, d.ports.api_udp)),
                 peer_timeout: crate::mavlink::endpoint::PEER_HEARTBEAT_TIMEOUT,
             })?;
+            if let Some(p) = &mut poll {
+                // Unregistered, the endpoint reads all its sockets: still correct.
+                let _ = p.register(&mut endpoint, index);
+            }
             let id = VehicleIdentity {
                 system_id: d.system_id,
                 frame,
@@ -197,6 +208,7 @@ impl Shard {
         for (drone, link) in self.drones.iter_mut().zip(links) {
             drone.attach_mavlink(link);
         }
+        self.mavlink_poll = poll;
         Ok(())
     }
 
@@ -287,6 +299,16 @@ impl Shard {
         let exchange = t_end + 1e-9 >= self.next_mavlink_io_s;
         if exchange {
             self.next_mavlink_io_s = t_end + MAVLINK_IO_PERIOD_S;
+            // One readiness wait for the whole shard: only sockets with something to read
+            // are read.
+            if let Some(poll) = &mut self.mavlink_poll {
+                let drones = &mut self.drones;
+                poll.dispatch(|index, socket| {
+                    if let Some(drone) = drones.get_mut(index) {
+                        drone.mavlink_mark_ready(socket);
+                    }
+                });
+            }
         }
         for drone in &mut self.drones {
             if exchange {
