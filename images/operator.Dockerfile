@@ -1,11 +1,21 @@
-# The `sadesim` binary (CLI and, with the operator issue, the Kubernetes operator).
-# Build from the repository root:  docker build -f images/operator.Dockerfile -t sadesim .
+# syntax=docker/dockerfile:1
+# The `sadesim` binary: the CLI and the Kubernetes operator (`sadesim operator`), which the
+# Helm chart runs with `args: [operator]`.
+#
+# Runtime: distroless `nonroot` (glibc, CA certificates for the API server and object
+# stores; no shell, no package manager).
+#
+# Build from the repository root:
+#   docker build -f images/operator.Dockerfile -t ghcr.io/sadesim/sadesim:0.1.0 .
 FROM rust:1.95-bookworm AS build
 WORKDIR /src
 COPY . .
-RUN cargo build --release --locked -p sadesim
+RUN --mount=type=cache,target=/usr/local/cargo/registry \
+    --mount=type=cache,target=/src/target \
+    cargo build --release --locked -p sadesim \
+ && install -D -m 0755 -t /out target/release/sadesim
 
 FROM gcr.io/distroless/cc-debian12:nonroot
-COPY --from=build /src/target/release/sadesim /usr/local/bin/sadesim
+COPY --from=build /out/sadesim /usr/local/bin/sadesim
 USER 65532:65532
 ENTRYPOINT ["/usr/local/bin/sadesim"]

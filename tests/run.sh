@@ -18,7 +18,8 @@ cargo build --workspace --locked
 
 echo "==> helm lint / template"
 .tools/bin/helm lint --strict charts/sadesim
-.tools/bin/helm template sadesim charts/sadesim --include-crds > /dev/null
+.tools/bin/helm template sadesim charts/sadesim --include-crds \
+  | .venv/bin/kubernetes-validate --strict --quiet -k 1.33.0 -
 
 echo "==> Python interop tests"
 .venv/bin/python -m pytest -q tests/interop

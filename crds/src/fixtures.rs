@@ -42,6 +42,7 @@ impl RunBuilder {
             pilot: None,
             rendering: None,
             sharding: None,
+            recording: None,
             archive: None,
             criteria: vec![],
             queue: None,

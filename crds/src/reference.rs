@@ -609,6 +609,7 @@ mod tests {
             "pilot",
             "rendering",
             "sharding",
+            "recording",
             "archive",
             "criteria",
             "queue",

@@ -45,57 +45,77 @@ pub const DEFAULT_WORLD_EXTENT_M: f64 = 3000.0;
     printcolumn = r#"{"name":"Age","type":"date","jsonPath":".metadata.creationTimestamp"}"#
 )]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
+#[x_kube(validation = Rule::new("has(self.clock) == has(oldSelf.clock) && has(self.physicsRateHz) == has(oldSelf.physicsRateHz) && has(self.seed) == has(oldSelf.seed) && has(self.world) == has(oldSelf.world) && has(self.environment) == has(oldSelf.environment) && has(self.zones) == has(oldSelf.zones) && has(self.pilot) == has(oldSelf.pilot) && has(self.rendering) == has(oldSelf.rendering) && has(self.sharding) == has(oldSelf.sharding) && has(self.recording) == has(oldSelf.recording) && has(self.archive) == has(oldSelf.archive) && has(self.criteria) == has(oldSelf.criteria) && has(self.queue) == has(oldSelf.queue)").message("spec fields cannot be added or removed once the run exists: only spec.abort may change (create a new run instead)"))]
 #[x_kube(validation = Rule::new("has(self.pilot) || self.fleet.all(g, has(g.mission))").message("spec.pilot is required: a fleet group without a mission is flown over MAVLink by the pilot"))]
 pub struct SimulationRunSpec {
     /// Geodetic origin of the run's local ENU frame, on the ground at the centre of the world.
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub origin: Origin,
     /// Simulated time the run lasts (Go duration, e.g. `15m`). The run may end earlier when
     /// the pilot exits or the run is aborted.
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub duration: Duration,
     /// How simulated time relates to wall-clock time. Default `realtime`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub clock: Option<Clock>,
     /// Physics steps per simulated second. Default 1000 Hz.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 50, max = 10000))]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub physics_rate_hz: Option<u32>,
     /// Seed of every random stream in the run (DESIGN §5). Same seed, same run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub seed: Option<u64>,
     /// The world: ground, buildings, extent.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub world: Option<World>,
     /// Environment factors sampled by physics and sensors: wind, GNSS.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub environment: Option<Environment>,
     /// Drone groups. Drones get global indices in group order.
     #[schemars(length(min = 1, max = 64))]
     #[x_kube(merge_strategy = ListMerge::Map(vec!["name".into()]))]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub fleet: Vec<FleetGroup>,
     /// Airspace zones (SADE Zones) enforced by the airspace authority.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 64))]
     #[x_kube(merge_strategy = ListMerge::Map(vec!["name".into()]))]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub zones: Vec<Zone>,
     /// The software pilot under test: flies every group that has no scripted mission.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub pilot: Option<Pilot>,
     /// Live 3D rendering.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub rendering: Option<Rendering>,
     /// How physics is split across shards.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub sharding: Option<Sharding>,
+    /// What is recorded (MCAP, ULog) and at which rates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
+    pub recording: Option<Recording>,
     /// Where the run's evidence is archived.
     #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub archive: Option<Archive>,
     /// Pass/fail criteria evaluated at the end of the run.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 64))]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub criteria: Vec<Criterion>,
     /// Kueue LocalQueue to admit the run through (Kubernetes only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1, max = 63), pattern(r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"))]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub queue: Option<String>,
     /// Set to true to stop the run: pilot first, then shards, then the archive is written.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
@@ -123,6 +143,9 @@ impl SimulationRunSpec {
     }
     pub fn rendering(&self) -> Rendering {
         self.rendering.clone().unwrap_or_default()
+    }
+    pub fn recording(&self) -> Recording {
+        self.recording.clone().unwrap_or_default()
     }
     /// Total drones over all groups.
     pub fn total_drones(&self) -> u64 {
@@ -355,6 +378,100 @@ pub struct Rendering {
     /// Start the renderer (browser 3D view). Default false.
     #[serde(default)]
     pub enabled: bool,
+}
+
+/// What the recorder writes besides events, trajectory and summary (always written).
+///
+/// Streams are sampled at sync-window boundaries (every `syncWindowSteps` physics steps,
+/// 10 ms by default), so a rate above the window rate records once per window.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Recording {
+    /// Write `recording.mcap` (Foxglove schemas). Default true.
+    #[serde(default = "default_true")]
+    pub mcap: bool,
+    /// Write one PX4 ULog per drone under `ulog/`. Default true.
+    #[serde(default = "default_true")]
+    pub ulog: bool,
+    /// MCAP chunk compression. Default `zstd`.
+    #[serde(default)]
+    pub compression: Compression,
+    /// Samples per simulated second of each stream.
+    #[serde(default)]
+    pub rates: RecordingRates,
+}
+
+fn default_true() -> bool {
+    true
+}
+
+impl Default for Recording {
+    fn default() -> Self {
+        Self { mcap: true, ulog: true, compression: Compression::default(), rates: RecordingRates::default() }
+    }
+}
+
+/// MCAP chunk compression.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase")]
+pub enum Compression {
+    #[default]
+    Zstd,
+    Lz4,
+    None,
+}
+
+/// Recording rates, Hz of simulated time. GNSS fixes are recorded as the receiver makes
+/// them (its own rate); events, zone changes and logs as they happen.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct RecordingRates {
+    /// Ground-truth pose, velocity and frame transforms in `recording.mcap`, 0.1..1000.
+    /// Default 100. The ULog files log their `*_groundtruth` topics at `estimatorHz`, as
+    /// PX4 SITL does.
+    #[serde(default = "RecordingRates::default_ground_truth_hz")]
+    #[schemars(range(min = 0.1, max = 1000.0))]
+    pub ground_truth_hz: f64,
+    /// Estimator output (position, velocity, attitude), 0.1..1000. Default 10 (PX4's
+    /// default logging profile logs `vehicle_local_position` at 10 Hz).
+    #[serde(default = "RecordingRates::default_estimator_hz")]
+    #[schemars(range(min = 0.1, max = 1000.0))]
+    pub estimator_hz: f64,
+    /// Motor commands, 0.1..1000. Default 10 (PX4's default profile logs
+    /// `actuator_outputs` at 10 Hz).
+    #[serde(default = "RecordingRates::default_actuators_hz")]
+    #[schemars(range(min = 0.1, max = 1000.0))]
+    pub actuators_hz: f64,
+    /// Battery, flight mode and wind at each drone, 0.1..1000. Default 10.
+    #[serde(default = "RecordingRates::default_status_hz")]
+    #[schemars(range(min = 0.1, max = 1000.0))]
+    pub status_hz: f64,
+}
+
+impl RecordingRates {
+    fn default_ground_truth_hz() -> f64 {
+        100.0
+    }
+    fn default_estimator_hz() -> f64 {
+        10.0
+    }
+    fn default_actuators_hz() -> f64 {
+        10.0
+    }
+    fn default_status_hz() -> f64 {
+        10.0
+    }
+}
+
+impl Default for RecordingRates {
+    fn default() -> Self {
+        Self {
+            ground_truth_hz: Self::default_ground_truth_hz(),
+            estimator_hz: Self::default_estimator_hz(),
+            actuators_hz: Self::default_actuators_hz(),
+            status_hz: Self::default_status_hz(),
+        }
+    }
 }
 
 /// How drones are split into physics shards.

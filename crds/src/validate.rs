@@ -246,6 +246,15 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
     let sharding = spec.sharding();
     p.range_int("spec.sharding.dronesPerShard", sharding.drones_per_shard.into(), 1, 2000);
     p.range_int("spec.sharding.syncWindowSteps", sharding.sync_window_steps.into(), 1, 1000);
+    let rates = spec.recording().rates;
+    for (field, hz) in [
+        ("groundTruthHz", rates.ground_truth_hz),
+        ("estimatorHz", rates.estimator_hz),
+        ("actuatorsHz", rates.actuators_hz),
+        ("statusHz", rates.status_hz),
+    ] {
+        p.range(format!("spec.recording.rates.{field}"), hz, 0.1, 1000.0);
+    }
 
     if let Some(archive) = &spec.archive {
         check_archive_url(&archive.url, p);

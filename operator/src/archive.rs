@@ -569,6 +569,86 @@ impl Archive {
         Ok(Uploaded { url, manifest })
     }
 
+    /// Adds files the operator owns under `owned_prefix` (e.g. `logs/`) to the run folder
+    /// `<archive>/<namespace>/<run>/<uid>/` and rewrites its `manifest.json`: the entries
+    /// already there outside `owned_prefix` (the coordinator's own upload) are kept, and
+    /// every object under `owned_prefix` (earlier additions too) is hashed as stored.
+    /// `files` are `(path relative to the run folder, content)`, each under `owned_prefix`.
+    ///
+    /// # Caveats
+    /// A role that uploads its own `manifest.json` afterwards replaces this one; call this
+    /// again after it has finished.
+    ///
+    /// # Errors
+    /// [`ArchiveError::BadName`] for a name that is not one segment or a path outside
+    /// `owned_prefix`; [`ArchiveError::Upload`], [`ArchiveError::List`],
+    /// [`ArchiveError::Download`] naming the object; [`ArchiveError::BadManifest`] when the
+    /// existing manifest cannot be read.
+    pub fn add_files(
+        &self,
+        namespace: &str,
+        run: &str,
+        uid: &str,
+        owned_prefix: &str,
+        files: &[(String, Vec<u8>)],
+    ) -> Result<Manifest, ArchiveError> {
+        for (field, value) in [("namespace", namespace), ("run", run), ("uid", uid)] {
+            check_segment(value).map_err(|reason| ArchiveError::BadName {
+                field,
+                value: value.into(),
+                expected: format!("expected one path segment: {reason}"),
+            })?;
+        }
+        let rel = format!("{namespace}/{run}/{uid}");
+        let folder = child_path(&self.prefix, &rel);
+        let url = self.url_of(&rel);
+        for (path, bytes) in files {
+            if !path.starts_with(owned_prefix) || check_relative_path(path).is_err() {
+                return Err(ArchiveError::BadName {
+                    field: "path",
+                    value: path.clone(),
+                    expected: format!("expected a relative path under {owned_prefix}"),
+                });
+            }
+            let location = child_path(&folder, path);
+            self.runtime.block_on(self.store.put(&location, PutPayload::from(bytes.clone()))).map_err(|source| {
+                ArchiveError::Upload { file: path.clone(), url: format!("{url}/{path}"), source: Box::new(source) }
+            })?;
+        }
+        let manifest_url = format!("{url}/{MANIFEST_FILE}");
+        let existing =
+            self.runtime.block_on(async { self.store.get(&folder.clone().join(MANIFEST_FILE)).await?.bytes().await });
+        let mut entries = match existing {
+            Ok(bytes) => Manifest::parse(&bytes, &url)?.files,
+            Err(object_store::Error::NotFound { .. }) => Vec::new(),
+            Err(source) => return Err(ArchiveError::Download { url: manifest_url, source: Box::new(source) }),
+        };
+        entries.retain(|f| !f.path.starts_with(owned_prefix));
+        let owned = child_path(&folder, owned_prefix);
+        let metas: Vec<object_store::ObjectMeta> =
+            self.runtime.block_on(self.store.list(Some(&owned)).try_collect()).map_err(|source| {
+                ArchiveError::List { url: format!("{url}/{owned_prefix}"), source: Box::new(source) }
+            })?;
+        for meta in metas {
+            let Some(parts) = meta.location.prefix_match(&folder) else { continue };
+            let path = parts.map(|p| p.as_ref().to_string()).collect::<Vec<_>>().join("/");
+            let bytes = self
+                .runtime
+                .block_on(async { self.store.get(&meta.location).await?.bytes().await })
+                .map_err(|source| ArchiveError::Download { url: format!("{url}/{path}"), source: Box::new(source) })?;
+            entries.push(ManifestFile { path, size: bytes.len() as u64, sha256: hex(&Sha256::digest(&bytes)) });
+        }
+        let manifest = Manifest::new(namespace, run, uid, entries);
+        self.runtime
+            .block_on(self.store.put(&folder.clone().join(MANIFEST_FILE), PutPayload::from(manifest.to_json())))
+            .map_err(|source| ArchiveError::Upload {
+                file: MANIFEST_FILE.into(),
+                url: manifest_url,
+                source: Box::new(source),
+            })?;
+        Ok(manifest)
+    }
+
     /// Uploads one file, hashing what it sends: the manifest describes the bytes uploaded.
     async fn upload_file(
         &self,

@@ -3,6 +3,9 @@
 //! wall-clock second, on a synthetic scenario: `drones` x500s over downtown Chicago flying
 //! random waypoints as fast as possible.
 //!
+//! `sadesim bench --recording` alternates runs with `spec.recording` off (no
+//! `recording.mcap`, no ULogs) and on, and reports what the recordings cost.
+//!
 //! `sadesim bench --airspace` measures the airspace authority's HTTP API instead: the
 //! service with the Chicago case study's zone and fleet on 127.0.0.1, under an open-loop
 //! load of entry requests, `GET /zones` and `GET /events` (see `sim_worker::airspace::load`).
@@ -28,6 +31,7 @@ spec:
     wind: {speedMps: 5, directionFromDeg: 270, turbulence: light}
     gnss: {rateHz: 5}
   sharding: {dronesPerShard: {per_shard}}
+  recording: {mcap: {mcap}, ulog: {ulog}}
   world:
     openAreas:
       - {name: flight area, center: {latitudeDeg: 41.8796, longitudeDeg: -87.6237}, radiusM: 700}
@@ -49,6 +53,52 @@ spec:
               maxAltitudeAglM: 60
 "#;
 
+/// Which recordings a benchmark run writes (`spec.recording.mcap`, `spec.recording.ulog`),
+/// at the default rates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Recordings {
+    pub mcap: bool,
+    pub ulog: bool,
+}
+
+impl Recordings {
+    /// Both, as a scenario without `spec.recording`.
+    pub const ALL: Self = Self { mcap: true, ulog: true };
+    /// Neither: the baseline of `--recording`.
+    pub const NONE: Self = Self { mcap: false, ulog: false };
+
+    /// For reports: `MCAP + ULog`, `MCAP`, `ULog` or `recordings off`.
+    pub fn label(self) -> &'static str {
+        match (self.mcap, self.ulog) {
+            (true, true) => "MCAP + ULog",
+            (true, false) => "MCAP",
+            (false, true) => "ULog",
+            (false, false) => "recordings off",
+        }
+    }
+}
+
+/// What `bench --recording` turns on in the runs it compares with recordings off.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RecordingSet {
+    /// `recording.mcap` and the ULogs (the defaults of `spec.recording`).
+    All,
+    /// `recording.mcap` only.
+    Mcap,
+    /// The ULogs only.
+    Ulog,
+}
+
+impl RecordingSet {
+    pub fn recordings(self) -> Recordings {
+        match self {
+            Self::All => Recordings::ALL,
+            Self::Mcap => Recordings { mcap: true, ulog: false },
+            Self::Ulog => Recordings { mcap: false, ulog: true },
+        }
+    }
+}
+
 /// Result of one benchmark run.
 #[derive(Debug)]
 pub struct BenchResult {
@@ -61,6 +111,8 @@ pub struct BenchResult {
     pub cpu_time_s: Option<f64>,
     /// MAVLink endpoints and routers were on.
     pub mavlink: bool,
+    /// The recordings written.
+    pub recordings: Recordings,
     /// Drone-steps (drones x physics steps) per wall second.
     pub drone_steps_per_s: f64,
     pub report: RunReport,
@@ -76,8 +128,11 @@ pub fn run(
     drones_per_shard: u32,
     out_root: std::path::PathBuf,
     mavlink: bool,
+    recordings: Recordings,
 ) -> Result<BenchResult, RunError> {
     let text = SCENARIO
+        .replace("{mcap}", &recordings.mcap.to_string())
+        .replace("{ulog}", &recordings.ulog.to_string())
         .replace("{drones}", &drones.to_string())
         .replace("{seconds}", &seconds.to_string())
         .replace("{per_shard}", &drones_per_shard.to_string());
@@ -98,6 +153,7 @@ pub fn run(
         drone_steps_per_s: steps / s.wall_time_s.max(1e-9),
         cpu_time_s,
         mavlink,
+        recordings,
         report,
     })
 }

@@ -68,8 +68,13 @@ pub enum Command {
         /// report the CPU cost of MAVLink as a ratio of the run without.
         #[arg(long)]
         mavlink: bool,
-        /// With --mavlink: alternate the two variants this many times and compare medians
-        /// (this machine's speed drifts by tens of percent between minutes).
+        /// Also run with `spec.recording` off (no recording.mcap, no ULogs) and report the CPU
+        /// cost of the recordings as a ratio of the run without: `all` (default) turns both on
+        /// in the other runs, `mcap` or `ulog` one of them.
+        #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "all", conflicts_with_all = ["mavlink", "airspace"])]
+        recording: Option<crate::bench::RecordingSet>,
+        /// With --mavlink or --recording: alternate the two variants this many times and
+        /// compare medians (this machine's speed drifts by tens of percent between minutes).
         #[arg(long, default_value_t = 3)]
         repeat: u32,
         /// Load the airspace authority's HTTP API (Chicago example's zone and fleet, on
@@ -131,6 +136,99 @@ pub enum Command {
         #[command(subcommand)]
         command: ArchiveCommand,
     },
+    /// Rebuild a run's report (report.html, report/*.svg, report/*.png) from the files in
+    /// its run folder.
+    Report {
+        /// Run folder (`runs/<run>/<UTC time>/`, or one fetched with `archive get`).
+        run_dir: PathBuf,
+    },
+    /// Print the Kubernetes objects the operator would create for each run in FILE (YAML,
+    /// one document per object), for review in GitOps pull requests.
+    Manifests {
+        /// Scenario files (use `-` for stdin); the objects of all runs are printed as one
+        /// YAML stream.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Namespace of the run (default: the document's, else `default`).
+        #[arg(long)]
+        namespace: Option<String>,
+    },
+    /// Build a run's world assets (city footprints as GeoJSON, world statistics) into the
+    /// archive's asset cache `<archive>/assets/<cache key>/world/`, unless a verified entry
+    /// is there. The operator runs this as the `<run>-assets` Job.
+    Assets {
+        /// RunPlan JSON (`sadesim plan FILE --json`).
+        #[arg(long)]
+        plan: PathBuf,
+        /// Archive URL holding the cache (s3://, gs://, az:// or file://).
+        #[arg(long)]
+        archive: String,
+    },
+    /// Run the Kubernetes operator: reconcile SimulationRuns in the cluster of the current
+    /// kubeconfig or service account.
+    ///
+    /// Logs JSON lines to stderr; stops cleanly on SIGTERM. The Lease for leader election is
+    /// `sadesim-operator` in POD_NAMESPACE, held as POD_NAME.
+    Operator(OperatorArgs),
+}
+
+/// Flags of `sadesim operator` (each also read from the environment variable shown).
+#[derive(Debug, clap::Args)]
+pub struct OperatorArgs {
+    /// Image of sim-worker (assets, shard, coordinator, router and renderer roles).
+    #[arg(long, env = "SADESIM_WORKER_IMAGE", default_value = "ghcr.io/sadesim/sim-worker:0.1.0")]
+    pub worker_image: String,
+    /// Archive URL for runs without spec.archive (s3://bucket/prefix, gs://..., az://...).
+    #[arg(long, env = "SADESIM_DEFAULT_ARCHIVE_URL")]
+    pub default_archive_url: Option<String>,
+    /// Secret whose keys become environment variables of the roles that write the archive.
+    #[arg(long, env = "SADESIM_OBJECT_STORE_SECRET")]
+    pub object_store_secret: Option<String>,
+    /// Service type of the MAVLink router Services.
+    #[arg(long, env = "SADESIM_ROUTER_SERVICE_TYPE", default_value = "ClusterIP",
+          value_parser = ["ClusterIP", "NodePort", "LoadBalancer"])]
+    pub router_service_type: String,
+    /// Let Kueue admit runs whose spec.queue names a LocalQueue (true|false).
+    #[arg(long, env = "SADESIM_KUEUE", value_name = "BOOL", num_args = 0..=1, default_value = "false",
+          default_missing_value = "true", action = clap::ArgAction::Set,
+          value_parser = clap::builder::BoolishValueParser::new())]
+    pub kueue: bool,
+    /// Runs active at once per namespace without Kueue (0 = unlimited).
+    #[arg(long, env = "SADESIM_MAX_CONCURRENT_RUNS", default_value_t = 0)]
+    pub max_concurrent_runs: u32,
+    /// Address of /metrics and /healthz.
+    #[arg(long, env = "SADESIM_METRICS_ADDR", default_value = "0.0.0.0:8080")]
+    pub metrics_addr: std::net::SocketAddr,
+    /// Elect a leader through a Lease before reconciling (true|false).
+    #[arg(long, env = "SADESIM_LEADER_ELECTION", value_name = "BOOL", num_args = 0..=1, default_value = "true",
+          default_missing_value = "true", action = clap::ArgAction::Set,
+          value_parser = clap::builder::BoolishValueParser::new())]
+    pub leader_election: bool,
+    /// Reconcile without electing a leader (a single replica).
+    #[arg(long)]
+    pub no_leader_election: bool,
+}
+
+impl OperatorArgs {
+    /// The validated options (POD_NAMESPACE and POD_NAME name the Lease's namespace and
+    /// holder).
+    pub fn options(self) -> crate::k8s::controller::OperatorOptions {
+        let env = |k: &str| std::env::var(k).ok().filter(|v| !v.is_empty());
+        crate::k8s::controller::OperatorOptions {
+            settings: crate::k8s::children::ClusterSettings {
+                worker_image: self.worker_image,
+                default_archive_url: self.default_archive_url.filter(|u| !u.is_empty()),
+                object_store_secret: self.object_store_secret.filter(|s| !s.is_empty()),
+                router_service_type: self.router_service_type,
+                kueue: self.kueue,
+            },
+            max_concurrent_runs: self.max_concurrent_runs,
+            metrics_addr: self.metrics_addr,
+            leader_election: self.leader_election && !self.no_leader_election,
+            lease_namespace: env("POD_NAMESPACE"),
+            identity: env("POD_NAME"),
+        }
+    }
 }
 
 /// `sadesim archive ...`
@@ -226,6 +324,9 @@ pub enum CliError {
     /// Writing the output failed.
     #[error("failed to write output: {0}")]
     Write(#[from] std::io::Error),
+    /// A report, manifests or operator command failed (the message names what and why).
+    #[error("{0}")]
+    Failed(String),
 }
 
 /// Runs a parsed command, writing its report to `out`.
@@ -260,19 +361,30 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             let clean = report.errors == 0 && report.answered == report.requests;
             Ok(if clean { Outcome::Success } else { Outcome::Problems })
         }
-        Command::Bench { drones, seconds, drones_per_shard, mavlink, repeat, .. } => {
+        Command::Bench { drones, seconds, drones_per_shard, mavlink, recording, repeat, .. } => {
+            use crate::bench::{BenchResult, Recordings};
             let seconds = seconds.unwrap_or(60);
             let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
-            let variants: Vec<bool> =
-                if mavlink { (0..repeat.max(1)).flat_map(|_| [false, true]).collect() } else { vec![false] };
+            // (MAVLink on, recordings written) per run; the "off" variant of each pair first.
+            let variants: Vec<(bool, Recordings)> = match (mavlink, recording) {
+                (true, _) => {
+                    (0..repeat.max(1)).flat_map(|_| [(false, Recordings::ALL), (true, Recordings::ALL)]).collect()
+                }
+                (false, Some(set)) => {
+                    (0..repeat.max(1)).flat_map(|_| [(false, Recordings::NONE), (false, set.recordings())]).collect()
+                }
+                (false, None) => vec![(false, Recordings::ALL)],
+            };
             let mut results = Vec::new();
-            for &with_mavlink in &variants {
-                let result = crate::bench::run(drones, seconds, drones_per_shard, root.clone(), with_mavlink)
-                    .map_err(|source| CliError::Run { path: "bench".into(), source })?;
+            for &(with_mavlink, recordings) in &variants {
+                let result =
+                    crate::bench::run(drones, seconds, drones_per_shard, root.clone(), with_mavlink, recordings)
+                        .map_err(|source| CliError::Run { path: "bench".into(), source })?;
                 writeln!(
                     out,
-                    "bench{}: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall{} = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
+                    "bench{}{}: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall{} = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
                     if with_mavlink { " (MAVLink on)" } else { "" },
+                    if recording.is_some() { format!(" ({})", recordings.label()) } else { String::new() },
                     count(result.drones as usize, "drone"),
                     count(result.shards as usize, "shard"),
                     result.sim_time_s,
@@ -285,21 +397,28 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 results.push(result);
             }
             let _ = std::fs::remove_dir_all(&root);
-            if mavlink {
-                let median = |on: bool, f: &dyn Fn(&crate::bench::BenchResult) -> Option<f64>| {
-                    let mut v: Vec<f64> = results.iter().filter(|r| r.mavlink == on).filter_map(f).collect();
+            // What the pairs compare: the report's label, and which runs are the "on" variant.
+            let label = match recording {
+                _ if mavlink => Some("MAVLink cost".to_string()),
+                Some(set) => Some(format!("Recording cost ({})", set.recordings().label())),
+                None => None,
+            };
+            let is_on = |r: &BenchResult| if mavlink { r.mavlink } else { r.recordings != Recordings::NONE };
+            if let Some(label) = label {
+                let median = |on: bool, f: &dyn Fn(&BenchResult) -> Option<f64>| {
+                    let mut v: Vec<f64> = results.iter().filter(|r| is_on(r) == on).filter_map(f).collect();
                     v.sort_by(f64::total_cmp);
                     v.get(v.len() / 2).copied()
                 };
-                let wall = |r: &crate::bench::BenchResult| Some(r.wall_time_s);
-                let cpu = |r: &crate::bench::BenchResult| r.cpu_time_s;
+                let wall = |r: &BenchResult| Some(r.wall_time_s);
+                let cpu = |r: &BenchResult| r.cpu_time_s;
                 let ratio = |a: f64, b: f64| (b - a) / a * 100.0;
-                let cost = |f: &dyn Fn(&crate::bench::BenchResult) -> Option<f64>| {
+                let cost = |f: &dyn Fn(&BenchResult) -> Option<f64>| {
                     median(false, f).zip(median(true, f)).map(|(a, b)| ratio(a, b))
                 };
                 writeln!(
                     out,
-                    "MAVLink cost (medians of {repeat}): {}{}",
+                    "{label} (medians of {repeat}): {}{}",
                     cost(&wall).map(|c| format!("{c:+.1} % wall time")).unwrap_or_default(),
                     cost(&cpu).map(|c| format!(", {c:+.1} % CPU time")).unwrap_or_default()
                 )?;
@@ -311,6 +430,44 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             Ok(Outcome::Success)
         }
         Command::Archive { command } => archive_command(command, out),
+        Command::Report { run_dir } => {
+            let files = crate::report::write_report(&run_dir).map_err(CliError::Failed)?;
+            writeln!(out, "report: {}", files.html.display())?;
+            Ok(Outcome::Success)
+        }
+        Command::Manifests { files, namespace } => {
+            let settings = crate::k8s::children::ClusterSettings::default();
+            for (i, file) in files.iter().enumerate() {
+                let text = read_scenario(file)?;
+                if i > 0 {
+                    // One YAML stream: a document separator between files.
+                    writeln!(out, "---")?;
+                }
+                crate::k8s::manifests::write_manifests(&text, namespace.as_deref(), &settings, out)
+                    .map_err(|e| CliError::Failed(format!("{}: {e}", file.display())))?;
+            }
+            Ok(Outcome::Success)
+        }
+        Command::Assets { plan, archive } => {
+            let bytes =
+                std::fs::read(&plan).map_err(|source| CliError::Read { path: plan.display().to_string(), source })?;
+            let plan: sadesim_crds::plan::RunPlan = serde_json::from_slice(&bytes)
+                .map_err(|e| CliError::Failed(format!("{}: not a RunPlan: {e}", plan.display())))?;
+            let scratch = std::env::temp_dir().join(format!("sadesim-assets-{}", std::process::id()));
+            let outcome = crate::assets::build_assets(&plan, &archive, &scratch);
+            let _ = std::fs::remove_dir_all(&scratch);
+            match outcome.map_err(|e| CliError::Failed(e.to_string()))? {
+                crate::assets::AssetsOutcome::CacheHit { url } => writeln!(out, "asset cache hit: {url}")?,
+                crate::assets::AssetsOutcome::Built { url, buildings } => {
+                    writeln!(out, "assets built: {buildings} buildings -> {url}")?;
+                }
+            }
+            Ok(Outcome::Success)
+        }
+        Command::Operator(args) => {
+            crate::k8s::controller::run(args.options()).map_err(CliError::Failed)?;
+            Ok(Outcome::Success)
+        }
     }
 }
 

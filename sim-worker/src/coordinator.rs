@@ -24,12 +24,18 @@ pub trait ShardLink: Send {
     /// # Errors
     /// When the shard is gone or sent something unreadable.
     fn recv(&mut self) -> Result<FromShard, LinkError>;
+    /// Where the shard is (`host:port` of a TCP peer), to name it when it fails.
+    fn peer(&self) -> Option<String> {
+        None
+    }
 }
 
 /// A broken shard connection.
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
-    #[error("shard connection closed")]
+    /// The shard's end went away without `Stopped` (its process exited or was killed,
+    /// its thread ended).
+    #[error("connection closed")]
     Closed,
     #[error("failed to talk to the shard: {0}")]
     Io(#[from] std::io::Error),
@@ -50,6 +56,52 @@ pub enum CoordinatorError {
     Unexpected { shard: usize, message: String },
     #[error("the observer failed: {0}")]
     Observer(String),
+    /// A shard failed once [`run`] had started; see [`RunFailure`]. [`run`] returns the
+    /// shard variants above only inside this one, and otherwise only `Observer`.
+    #[error("{0}")]
+    RunFailed(Box<RunFailure>),
+}
+
+/// `endReason` prefix of a run that a shard failure ended.
+pub const SHARD_FAILED: &str = "shardFailed";
+
+/// A run ended by a failed shard (its process died, its host went away, it reported
+/// `Failed` or broke the protocol). The coordinator ends such a run as cleanly as it can:
+/// the surviving shards are told to stop, and the observer gets a last window at the time
+/// of the last window every shard completed, carrying a `runEnded` event whose reason is
+/// [`RunFailure::end_reason`]. `outcome` describes the run up to there, so the caller can
+/// still finish its recording (summary, recordings) before reporting the failure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunFailure {
+    /// Plan index of the failed shard.
+    pub shard: u32,
+    /// The shard's address (`host:port` of its TCP connection), when known.
+    pub peer: Option<String>,
+    /// What went wrong, e.g. `connection closed`.
+    pub cause: String,
+    /// The run up to the last complete window; `reason` is [`RunFailure::end_reason`].
+    pub outcome: RunOutcome,
+}
+
+impl RunFailure {
+    /// `shardFailed: shard 1 (10.77.0.3:40122) failed: connection closed`: the reason in
+    /// `runEnded` and `endReason`, machine-matchable by its [`SHARD_FAILED`] prefix.
+    pub fn end_reason(&self) -> String {
+        format!("{SHARD_FAILED}: {}", self.describe())
+    }
+
+    fn describe(&self) -> String {
+        match &self.peer {
+            Some(peer) => format!("shard {} ({peer}) failed: {}", self.shard, self.cause),
+            None => format!("shard {} failed: {}", self.shard, self.cause),
+        }
+    }
+}
+
+impl std::fmt::Display for RunFailure {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} (the run ended at {:.2} s of simulated time)", self.describe(), self.outcome.sim_time_s)
+    }
 }
 
 /// What the coordinator reports each window, and asks about ending early.
@@ -85,27 +137,104 @@ pub struct RunOutcome {
 /// Runs the lockstep loop until `duration`, `stop` or the observer ends it.
 ///
 /// # Errors
-/// A [`CoordinatorError`] when a shard fails or the observer cannot record; the shards are
-/// told to stop either way.
+/// [`CoordinatorError::RunFailed`] when a shard fails (the observer has then seen the
+/// final window, see [`RunFailure`]); [`CoordinatorError::Observer`] when the observer
+/// cannot record. The shards are told to stop either way.
 pub fn run(
     plan: &RunPlan,
     links: &mut [Box<dyn ShardLink>],
     observer: &mut dyn RunObserver,
     stop: &AtomicBool,
 ) -> Result<RunOutcome, CoordinatorError> {
-    let result = run_inner(plan, links, observer, stop);
+    let mut state = LoopState { step: 0, drones: Vec::with_capacity(plan.drones.len()), released_at_s: None };
+    let started = Instant::now();
+    let result = run_inner(plan, links, observer, stop, &mut state);
     for link in links.iter_mut() {
         let _ = link.send(&ToShard::Stop); // best effort: a dead shard needs no stop
     }
-    result
+    let error = match result {
+        Ok(reason) => {
+            let sim_time_s = state.time_s(plan);
+            let end = [Event { time_s: sim_time_s, drone: None, kind: EventKind::RunEnded { reason: reason.clone() } }];
+            observer.on_window(sim_time_s, &state.drones, &end).map_err(CoordinatorError::Observer)?;
+            return Ok(RunOutcome {
+                reason,
+                sim_time_s,
+                wall_time: started.elapsed(),
+                released_at_s: state.released_at_s,
+            });
+        }
+        Err(e) => e,
+    };
+    let Some((shard, cause)) = shard_cause(&error) else { return Err(error) };
+    let sim_time_s = state.time_s(plan);
+    let mut failure = RunFailure {
+        shard,
+        peer: links.get(shard as usize).and_then(|l| l.peer()),
+        cause,
+        outcome: RunOutcome {
+            reason: String::new(),
+            sim_time_s,
+            wall_time: started.elapsed(),
+            released_at_s: state.released_at_s,
+        },
+    };
+    failure.outcome.reason = failure.end_reason();
+    let end = [Event { time_s: sim_time_s, drone: None, kind: EventKind::RunEnded { reason: failure.end_reason() } }];
+    observer
+        .on_window(sim_time_s, &state.drones, &end)
+        .map_err(|e| CoordinatorError::Observer(format!("{failure}; then recording the end of the run failed: {e}")))?;
+    Err(CoordinatorError::RunFailed(Box::new(failure)))
 }
 
+/// The failed shard's plan index and what happened, for the errors a shard causes.
+fn shard_cause(error: &CoordinatorError) -> Option<(u32, String)> {
+    /// A message long enough to recognise, short enough for a log line and `endReason`
+    /// (an unexpected message may be a whole window of snapshots).
+    const MAX_CHARS: usize = 300;
+    let (shard, cause) = match error {
+        CoordinatorError::Link { shard, source: LinkError::Io(e) } => (*shard as u32, e.to_string()),
+        CoordinatorError::Link { shard, source } => (*shard as u32, source.to_string()),
+        CoordinatorError::ShardFailed { shard, reason } => (*shard, format!("it reported: {reason}")),
+        CoordinatorError::Version { shard, version } => {
+            (*shard, format!("it speaks protocol version {version}, expected {PROTOCOL_VERSION}"))
+        }
+        CoordinatorError::Unexpected { shard, message } => (*shard as u32, format!("unexpected message: {message}")),
+        CoordinatorError::Observer(_) | CoordinatorError::RunFailed(_) => return None,
+    };
+    let cause = match cause.char_indices().nth(MAX_CHARS) {
+        Some((cut, _)) => format!("{}...", &cause[..cut]),
+        None => cause,
+    };
+    Some((shard, cause))
+}
+
+/// What the loop has completed: kept outside it so a failed run can still be ended at
+/// the last window every shard finished.
+struct LoopState {
+    /// The next step to simulate (every shard is there).
+    step: u64,
+    /// Every drone at `step`, by global index.
+    drones: Vec<DroneSnapshot>,
+    /// Sim time when pilots were released.
+    released_at_s: Option<f64>,
+}
+
+impl LoopState {
+    fn time_s(&self, plan: &RunPlan) -> f64 {
+        // The same expression as the loop's window times, to the last bit.
+        self.step as f64 * (1.0 / f64::from(plan.physics_rate_hz))
+    }
+}
+
+/// The lockstep loop; returns the end reason of a run that ended normally.
 fn run_inner(
     plan: &RunPlan,
     links: &mut [Box<dyn ShardLink>],
     observer: &mut dyn RunObserver,
     stop: &AtomicBool,
-) -> Result<RunOutcome, CoordinatorError> {
+    state: &mut LoopState,
+) -> Result<String, CoordinatorError> {
     for (i, link) in links.iter_mut().enumerate() {
         match link.recv().map_err(|source| CoordinatorError::Link { shard: i, source })? {
             FromShard::Hello { version, .. } if version == PROTOCOL_VERSION => {}
@@ -119,26 +248,26 @@ fn run_inner(
     let window = u64::from(plan.sync_window_steps);
     let pacer = Pacer::new(&plan.spec.clock());
     let started = Instant::now();
-    let mut step = 0u64;
     let mut all_ready = false;
-    let mut released_at_s = None;
-    let mut drones: Vec<DroneSnapshot> = Vec::with_capacity(plan.drones.len());
+    // The window being received; swapped into `state.drones` once every shard answered.
+    let mut incoming: Vec<DroneSnapshot> = Vec::with_capacity(plan.drones.len());
     let mut start_events = vec![Event {
         time_s: 0.0,
         drone: None,
         kind: EventKind::RunStarted { drones: plan.drones.len() as u32, shards: plan.shards.len() as u32 },
     }];
 
-    let reason = loop {
+    loop {
         if stop.load(Ordering::Relaxed) {
-            break "interrupted".to_string();
+            return Ok("interrupted".to_string());
         }
+        let step = state.step;
         let until = (step + window).min(total_steps);
-        let release = all_ready && released_at_s.is_none();
+        let release = all_ready && state.released_at_s.is_none();
         let mut events = std::mem::take(&mut start_events);
         if release {
             let t = step as f64 * dt_s;
-            released_at_s = Some(t);
+            state.released_at_s = Some(t);
             events.push(Event { time_s: t, drone: None, kind: EventKind::PilotsReleased });
         }
         let wait = pacer.wait_before(until as f64 * dt_s, started.elapsed());
@@ -150,34 +279,34 @@ fn run_inner(
             link.send(&ToShard::Advance { until_step: until, release_pilots: release, leases: leases.clone() })
                 .map_err(|source| CoordinatorError::Link { shard: i, source })?;
         }
-        drones.clear();
+        incoming.clear();
         all_ready = true;
         for (i, link) in links.iter_mut().enumerate() {
             match link.recv().map_err(|source| CoordinatorError::Link { shard: i, source })? {
                 FromShard::Advanced { step: s, ready, drones: d, events: e, .. } if s == until => {
                     all_ready &= ready;
-                    drones.extend(d);
+                    incoming.extend(d);
                     events.extend(e);
                 }
                 FromShard::Failed { shard, reason } => return Err(CoordinatorError::ShardFailed { shard, reason }),
                 other => return Err(CoordinatorError::Unexpected { shard: i, message: format!("{other:?}") }),
             }
         }
-        drones.sort_by_key(|d| d.index);
+        incoming.sort_by_key(|d| d.index);
+        std::mem::swap(&mut state.drones, &mut incoming);
         // Events of one window come from several shards: order them by time, then drone.
         events.sort_by(|a, b| a.time_s.total_cmp(&b.time_s).then(a.drone.cmp(&b.drone)));
-        step = until;
-        let time_s = step as f64 * dt_s;
-        observer.on_window(time_s, &drones, &events).map_err(CoordinatorError::Observer)?;
-        if step >= total_steps {
-            break "duration".to_string();
+        state.step = until;
+        let time_s = until as f64 * dt_s;
+        observer.on_window(time_s, &state.drones, &events).map_err(CoordinatorError::Observer)?;
+        if until >= total_steps {
+            return Ok("duration".to_string());
         }
         if let Some(reason) = observer.stop_reason() {
-            break reason;
+            return Ok(reason);
         }
-    };
-    let sim_time_s = step as f64 * dt_s;
-    let end = [Event { time_s: sim_time_s, drone: None, kind: EventKind::RunEnded { reason: reason.clone() } }];
-    observer.on_window(sim_time_s, &drones, &end).map_err(CoordinatorError::Observer)?;
-    Ok(RunOutcome { reason, sim_time_s, wall_time: started.elapsed(), released_at_s })
+    }
 }
+
+#[cfg(test)]
+mod tests;

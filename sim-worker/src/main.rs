@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
 
 use clap::{Parser, Subcommand};
 use sim_worker::roles;
@@ -41,6 +42,10 @@ enum Role {
         /// Run without MAVLink endpoints.
         #[arg(long)]
         no_mavlink: bool,
+        /// Seconds to keep trying to reach the coordinator (it may start later, on another
+        /// host); each attempt is bounded, so a wrong address fails within this time.
+        #[arg(long, value_name = "SECONDS", default_value_t = roles::shard::CONNECT_TIMEOUT.as_secs_f64(), value_parser = seconds)]
+        connect_timeout: f64,
     },
     /// Accept every shard, run the lockstep clock, record the run into --out.
     Coordinator {
@@ -57,6 +62,11 @@ enum Role {
         /// `services.airspaceHttp` port; 0.0.0.0 in a pod).
         #[arg(long)]
         airspace_bind: Option<std::net::SocketAddr>,
+        /// Seconds to wait for a shard's answer to a window before failing the run (its
+        /// host down or the network cut: no FIN arrives); 0 waits forever. A shard whose
+        /// process dies fails the run at once.
+        #[arg(long, value_name = "SECONDS", default_value_t = roles::coordinator::SHARD_TIMEOUT.as_secs_f64(), value_parser = seconds)]
+        shard_timeout: f64,
     },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
@@ -77,10 +87,18 @@ enum Role {
     },
 }
 
+/// A number of seconds for a flag: finite, not negative, at most a day.
+fn seconds(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(s) if s.is_finite() && (0.0..=86_400.0).contains(&s) => Ok(s),
+        _ => Err(format!("expected seconds between 0 and 86400, got {text:?}")),
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.role {
-        Role::Shard { plan, shard, coordinator, mavlink_bind, mavlink_api_host, no_mavlink } => {
+        Role::Shard { plan, shard, coordinator, mavlink_bind, mavlink_api_host, no_mavlink, connect_timeout } => {
             // Ctrl-C in a terminal reaches every process of the group. A shard stops when
             // the coordinator says so (or its connection closes), so the coordinator can
             // finish the run and write its files first.
@@ -97,10 +115,12 @@ fn main() -> ExitCode {
                     api_host,
                     ..sim_worker::shard::MavlinkOptions::local()
                 });
-                roles::read_plan(&plan).and_then(|plan| roles::shard::run(&plan, shard, &coordinator, mavlink.as_ref()))
+                let timeout = Duration::from_secs_f64(connect_timeout);
+                roles::read_plan(&plan)
+                    .and_then(|plan| roles::shard::run(&plan, shard, &coordinator, mavlink.as_ref(), timeout))
             })
         }
-        Role::Coordinator { plan, listen, out, airspace_bind } => {
+        Role::Coordinator { plan, listen, out, airspace_bind, shard_timeout } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
@@ -108,7 +128,8 @@ fn main() -> ExitCode {
                 std::fs::create_dir_all(&out)?;
                 let airspace = airspace_bind
                     .unwrap_or_else(|| std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.airspace_http)));
-                roles::coordinator::run(&plan, listen.as_str(), airspace, &out, &stop).map(|_| ())
+                let timeout = (shard_timeout > 0.0).then(|| Duration::from_secs_f64(shard_timeout));
+                roles::coordinator::run(&plan, listen.as_str(), airspace, &out, &stop, timeout).map(|_| ())
             })
         }
         Role::Router { plan, segment, bind, drone_host } => {

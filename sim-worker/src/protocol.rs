@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 use crate::events::{Event, FlightMode};
 
 /// Bumped on any incompatible change; peers refuse other versions.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// A drone's state at a window boundary (ground truth), for the merged snapshot, the
 /// recorder and everything that couples drones.
@@ -32,6 +32,71 @@ pub struct DroneSnapshot {
     pub battery_remaining: f64,
     /// The estimator has a position (GNSS fix received).
     pub position_valid: bool,
+    /// What the flight stack saw and did: recorded into MCAP and ULog.
+    pub detail: DroneDetail,
+}
+
+/// The flight stack's side of a drone at a window boundary, for the recordings. Frames:
+/// world ENU (metres from the run origin, z up) and body FLU, like the rest of the snapshot.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default)]
+#[serde(rename_all = "camelCase")]
+pub struct DroneDetail {
+    /// Ground-truth body rates, FLU, rad/s.
+    pub rate_body_rps: [f64; 3],
+    /// The estimator's output, `None` before its first GNSS fix.
+    pub estimate: Option<EstimateDetail>,
+    /// The latest GNSS receiver output (a new fix when `time_s` changes), `None` before the first.
+    pub gnss: Option<GnssDetail>,
+    /// Motor commands, normalized 0..1 (rotor speed / max speed), rotor order of the
+    /// airframe; only the first `motor_count` entries are meaningful.
+    pub motor_commands: [f64; 8],
+    pub motor_count: u8,
+    /// Battery terminal voltage, V.
+    pub battery_voltage_v: f64,
+    /// Battery current, A.
+    pub battery_current_a: f64,
+    /// Charge used since the start, mAh.
+    pub battery_consumed_mah: f64,
+    /// Wind at the drone (mean + turbulence), ENU, m/s.
+    pub wind_enu_mps: [f64; 3],
+    /// Where the drone booted (its local NED origin, like PX4's EKF origin), ENU, m.
+    pub local_origin_enu_m: [f64; 3],
+}
+
+/// The estimator's output (what the controllers fly on).
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default)]
+#[serde(rename_all = "camelCase")]
+pub struct EstimateDetail {
+    /// ENU, m.
+    pub position_enu_m: [f64; 3],
+    /// ENU, m/s.
+    pub velocity_enu_mps: [f64; 3],
+    /// Body (FLU) -> ENU, (w, x, y, z).
+    pub attitude_wxyz: [f64; 4],
+    /// 1-sigma horizontal / vertical position uncertainty, m.
+    pub eph_m: f64,
+    pub epv_m: f64,
+}
+
+/// One GNSS receiver output.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default)]
+#[serde(rename_all = "camelCase")]
+pub struct GnssDetail {
+    /// Simulated time of the measurement, s.
+    pub time_s: f64,
+    /// Measured position, ENU, m (meaningless without a 3D fix).
+    pub position_enu_m: [f64; 3],
+    /// Measured velocity, ENU, m/s.
+    pub velocity_enu_mps: [f64; 3],
+    /// MAVLink GPS_FIX_TYPE (3 = 3D fix, 1 = no fix).
+    pub fix_type: u8,
+    pub satellites: u8,
+    /// 1-sigma accuracies, m; `None` (JSON null) without a fix.
+    pub eph_m: Option<f64>,
+    pub epv_m: Option<f64>,
+    /// Dilutions of precision; `None` without a fix.
+    pub hdop: Option<f64>,
+    pub vdop: Option<f64>,
 }
 
 /// How many drones are in the air, on the ground, crashed: what progress displays show.

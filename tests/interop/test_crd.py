@@ -69,3 +69,62 @@ def test_schema_rejects_out_of_range_and_unknown_enum(repo, validator):
     bad = copy.deepcopy(doc)
     bad["spec"]["origin"]["latitudeDeg"] = 91
     assert list(validator.iter_errors(bad))
+
+
+def transition_rules(sadesim):
+    """Every CEL rule of spec and its direct fields that compares with `oldSelf`, as
+    (field or None for spec itself, rule), evaluated the way the API server does on update:
+    a field's rule only when the field exists in both old and new objects."""
+    crd = yaml.safe_load(crd_text(sadesim))
+    spec = crd["spec"]["versions"][0]["schema"]["openAPIV3Schema"]["properties"]["spec"]
+    rules = [(None, r["rule"]) for r in spec.get("x-kubernetes-validations", []) if "oldSelf" in r["rule"]]
+    for name, prop in spec["properties"].items():
+        rules += [(name, r["rule"]) for r in prop.get("x-kubernetes-validations", []) if "oldSelf" in r["rule"]]
+    return rules
+
+
+def update_allowed(rules, old, new):
+    """Whether the API server's transition rules accept changing spec `old` into `new`;
+    returns the fields (None: spec) whose rule refused."""
+    import celpy
+
+    env = celpy.Environment()
+    refused = []
+    for field, rule in rules:
+        if field is None:
+            values = {"self": new, "oldSelf": old}
+        elif field in new and field in old:
+            values = {"self": new[field], "oldSelf": old[field]}
+        else:
+            continue
+        program = env.program(env.compile(rule))
+        if not program.evaluate({k: celpy.json_to_cel(v) for k, v in values.items()}):
+            refused.append(field)
+    return refused
+
+
+def test_spec_is_immutable_after_creation_except_abort(sadesim, repo):
+    """The CRD's CEL transition rules, evaluated with cel-python: every spec field but
+    `abort` is refused a change, and optional fields cannot be added or removed."""
+    rules = transition_rules(sadesim)
+    fields = {f for f, _ in rules if f}
+    spec_props = set(yaml.safe_load(crd_text(sadesim))["spec"]["versions"][0]["schema"]["openAPIV3Schema"]["properties"]["spec"]["properties"])
+    assert fields == spec_props - {"abort"}, "every field but abort has a transition rule"
+    old = yaml.safe_load((repo / "examples" / "chicago-museum.yaml").read_text())["spec"]
+    assert update_allowed(rules, old, copy.deepcopy(old)) == []
+    aborted = copy.deepcopy(old)
+    aborted["abort"] = True
+    assert update_allowed(rules, old, aborted) == []
+
+    longer = copy.deepcopy(old)
+    longer["duration"] = "20m"
+    assert update_allowed(rules, old, longer) == ["duration"]
+    more = copy.deepcopy(old)
+    more["fleet"][0]["count"] += 1
+    assert update_allowed(rules, old, more) == ["fleet"]
+    seeded = copy.deepcopy(old)
+    seeded.pop("seed", None) if "seed" in old else seeded.update(seed=7)
+    assert update_allowed(rules, old, seeded) == [None], "adding or removing a field is refused"
+    both = copy.deepcopy(aborted)
+    both["duration"] = "1m"
+    assert update_allowed(rules, old, both) == ["duration"], "abort does not carry other changes through"

@@ -111,7 +111,13 @@ pub struct RunReport {
     pub pilot: Option<PilotRecord>,
     /// URL of the uploaded run folder when `spec.archive.url` is an object store.
     pub archive: Option<String>,
+    /// Why `report.html` could not be written (also printed as a warning and kept in
+    /// `report-error.txt`); `None` when the report was written.
+    pub report_error: Option<String>,
 }
+
+/// Where a report failure is recorded in the run folder (the run's other files stay).
+pub const REPORT_ERROR_FILE: &str = "report-error.txt";
 
 /// Refuses what the local runner cannot do (yet, or with these options), naming the field.
 fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError> {
@@ -284,6 +290,13 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             written?;
         }
     }
+    // The report is evidence too: written before manifest.json so the manifest lists it.
+    // It cannot lose the run's files: a failure is a warning, kept in the folder.
+    let report_error = crate::report::write_report(&out_dir).err();
+    if let Some(e) = &report_error {
+        eprintln!("warning: the run's report was not written: {e}");
+        let _ = std::fs::write(out_dir.join(REPORT_ERROR_FILE), format!("{e}\n"));
+    }
     // Archived whatever the run's end (DESIGN §8): manifest.json, then the upload.
     let archive_url = plan.spec.archive.as_ref().map(|a| a.url.as_str());
     let archived = crate::archive::archive_run_folder(
@@ -294,7 +307,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         options.progress,
     );
     let summary = summary?;
-    Ok(RunReport { out_dir, summary, pilot: record, archive: archived?.map(|a| a.url) })
+    Ok(RunReport { out_dir, summary, pilot: record, archive: archived?.map(|a| a.url), report_error })
 }
 
 /// Serves the airspace API on 127.0.0.1 at the planned port, or on a free port when that is

@@ -134,6 +134,8 @@ pub(super) fn run(
     });
     let started = Instant::now();
     let mut summary = None;
+    // The coordinator's `failed` line: why it exits without `finished`.
+    let mut failure: Option<String> = None;
     let mut interrupted = false;
     let mut pilot_error: Option<PilotError> = None;
     let mut stop_sent = false;
@@ -158,6 +160,7 @@ pub(super) fn run(
                 }
             }
             Ok(Report::Finished { summary: s }) => summary = Some(s),
+            Ok(Report::Failed { reason, .. }) => failure = Some(reason),
             Ok(Report::Listening { .. }) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
@@ -196,8 +199,10 @@ pub(super) fn run(
         return Err(e.into());
     }
     summary.ok_or_else(|| {
+        let why = failure
+            .map_or_else(|| "without finishing the run".to_string(), |reason| format!("after a failure: {reason}"));
         RunError::Worker(format!(
-            "the coordinator exited ({status}) without finishing the run; see {}",
+            "the coordinator exited ({status}) {why}; see {}",
             out_dir.join("coordinator.log").display()
         ))
     })

@@ -1,14 +1,18 @@
 //! Evidence of a run, written incrementally so an interrupted run keeps what it had:
 //! events as JSON lines, the trajectory as CSV (every drone, at a fixed rate) and GeoJSON
-//! (one line per drone, for any map tool), and a summary. MCAP and ULog come with the
-//! evidence issue and plug in as further writers of the same observer.
+//! (one line per drone, for any map tool), a summary, `recording.mcap` (Foxglove schemas)
+//! and one PX4 ULog per drone (`spec.recording` turns the last two off).
 
 mod events;
+pub mod mcap_file;
 mod recorder;
 mod summary;
 mod trajectory;
+pub mod ulog_file;
 
 pub use events::EventLog;
+pub use mcap_file::{MCAP_FILE, McapRecorder};
 pub use recorder::{Recorder, RecorderOptions};
 pub use summary::{DroneSummary, RunSummary};
 pub use trajectory::{TRAJECTORY_CSV_HEADER, TrajectoryCsv, TrajectoryGeoJson};
+pub use ulog_file::{ULOG_DIR, UlogRecorder};

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 
-use super::{DroneSummary, EventLog, RunSummary, TrajectoryCsv, TrajectoryGeoJson};
+use super::{DroneSummary, EventLog, McapRecorder, RunSummary, TrajectoryCsv, TrajectoryGeoJson, UlogRecorder};
 use crate::airspace::criteria::RunVerdict;
 use crate::coordinator::{RunObserver, RunOutcome};
 use crate::events::{Event, EventKind};
@@ -42,6 +42,10 @@ pub struct Recorder {
     summary: RunSummary,
     last_positions: Vec<Option<[f64; 2]>>,
     last: Vec<DroneSnapshot>,
+    /// `recording.mcap`, unless `spec.recording.mcap` is false.
+    mcap: Option<McapRecorder>,
+    /// `ulog/*.ulg`, unless `spec.recording.ulog` is false.
+    ulog: Option<UlogRecorder>,
 }
 
 impl Recorder {
@@ -66,7 +70,12 @@ impl Recorder {
                 .collect(),
             ..Default::default()
         };
+        let recording = plan.spec.recording();
+        let mcap = if recording.mcap { Some(McapRecorder::create(dir, plan)?) } else { None };
+        let ulog = if recording.ulog { Some(UlogRecorder::create(dir, plan)?) } else { None };
         Ok(Self {
+            mcap,
+            ulog,
             dir: dir.to_path_buf(),
             frame: LocalFrame::new(plan.spec.origin.geo()),
             events: EventLog::create(&dir.join("events.jsonl"))?,
@@ -101,6 +110,12 @@ impl Recorder {
     /// # Errors
     /// I/O errors.
     pub fn finish(mut self, outcome: &RunOutcome) -> std::io::Result<RunSummary> {
+        if let Some(mcap) = self.mcap.take() {
+            mcap.finish()?;
+        }
+        if let Some(ulog) = self.ulog.take() {
+            ulog.finish()?;
+        }
         self.tracks.write(&self.dir.join("trajectory.geojson"), &self.plan)?;
         self.summary.end_reason = outcome.reason.clone();
         self.summary.sim_time_s = outcome.sim_time_s;
@@ -117,6 +132,12 @@ impl RunObserver for Recorder {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
         let io = |e: std::io::Error| format!("failed to record: {e}");
         self.events.write(events).map_err(io)?;
+        if let Some(mcap) = &mut self.mcap {
+            mcap.write_window(time_s, drones, events).map_err(io)?;
+        }
+        if let Some(ulog) = &mut self.ulog {
+            ulog.write_window(time_s, drones, events).map_err(io)?;
+        }
         // A row at the first window boundary at or after each multiple of the period, so
         // rows line up across runs whatever the sync window.
         let next_multiple = |t: f64, hz: f64| ((t * hz + 1e-9).floor() + 1.0) / hz;

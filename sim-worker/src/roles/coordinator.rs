@@ -2,19 +2,26 @@
 //! with the recorder, and reports progress as JSON lines on stdout. When stdin is not a
 //! terminal it reads [`Control`] lines from it (`sadesim run --processes` ends the run
 //! this way when the pilot exits).
+//!
+//! A shard that dies mid-run (its process exits, its host or network goes away, it
+//! stops answering for `shard_timeout`) fails the run: the surviving shards are told to
+//! stop, the run's files are finished up to the last complete window (`events.jsonl`
+//! ends with `runEnded`, `summary.json` has `endReason: "shardFailed: ..."`), a
+//! [`Report::Failed`] line goes to stdout and the process exits non-zero.
 
 use std::io::{BufRead, IsTerminal, Write};
-use std::net::{SocketAddr, TcpListener, ToSocketAddrs};
+use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 use sadesim_crds::plan::RunPlan;
 use serde::{Deserialize, Serialize};
 
 use super::RoleError;
 use crate::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
-use crate::coordinator::{self, RunObserver, ShardLink};
+use crate::coordinator::{self, CoordinatorError, LinkError, RunFailure, RunObserver, ShardLink};
 use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, FleetCounts, FromShard, PROTOCOL_VERSION};
 use crate::record::{Recorder, RecorderOptions, RunSummary};
@@ -38,7 +45,37 @@ pub enum Report {
     PilotsReleased { sim_time_s: f64 },
     /// The run is over and its files are written.
     Finished { summary: RunSummary },
+    /// The run failed; the process exits non-zero after this line.
+    ///
+    /// `role: shard`: shard `shard` (at `address`) failed mid-run, `reason` says how;
+    /// the run's files are written up to the failure and `summary` is `summary.json`
+    /// (`endReason: "shardFailed: ..."`). `role: coordinator`: this process could not
+    /// start or go on (listen, accept, record); no `summary`.
+    Failed {
+        role: FailedRole,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        shard: Option<u32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        address: Option<String>,
+        reason: String,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        summary: Option<RunSummary>,
+    },
 }
+
+/// Which role a [`Report::Failed`] blames.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(rename_all = "camelCase")]
+pub enum FailedRole {
+    Shard,
+    Coordinator,
+}
+
+/// Default of `--shard-timeout`: the longest wait for a shard's answer to a window. A shard
+/// whose process dies is noticed at once (its connection closes); this bounds the wait
+/// for one whose host went down or whose network was cut, where no FIN ever arrives. A
+/// window takes milliseconds, so this only needs to cover a stalled machine.
+pub const SHARD_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// One line of the coordinator's stdin.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
@@ -101,16 +138,42 @@ fn read_control() -> Arc<Mutex<Option<String>>> {
     slot
 }
 
-/// Accepts the plan's shards on `listen`, runs the run, records into `out_dir`.
+/// Accepts the plan's shards on `listen`, runs the run, records into `out_dir`. A shard
+/// that sends nothing for `shard_timeout` (`None`: wait forever) during the run fails it.
 ///
 /// # Errors
-/// Network, protocol, shard and recording failures.
+/// Network, protocol, shard and recording failures; each is also reported as a
+/// [`Report::Failed`] line.
 pub fn run(
     plan: &RunPlan,
     listen: impl ToSocketAddrs,
     airspace_bind: SocketAddr,
     out_dir: &Path,
     stop: &AtomicBool,
+    shard_timeout: Option<Duration>,
+) -> Result<RunSummary, RoleError> {
+    let result = serve(plan, listen, airspace_bind, out_dir, stop, shard_timeout);
+    match &result {
+        // Reported with the shard's details and the summary by `finish_failed`.
+        Err(RoleError::Coordinator(CoordinatorError::RunFailed(_))) | Ok(_) => {}
+        Err(e) => report(&Report::Failed {
+            role: FailedRole::Coordinator,
+            shard: None,
+            address: None,
+            reason: e.to_string(),
+            summary: None,
+        }),
+    }
+    result
+}
+
+fn serve(
+    plan: &RunPlan,
+    listen: impl ToSocketAddrs,
+    airspace_bind: SocketAddr,
+    out_dir: &Path,
+    stop: &AtomicBool,
+    shard_timeout: Option<Duration>,
 ) -> Result<RunSummary, RoleError> {
     // The airspace API is up before any shard connects, so it answers as soon as pilots
     // are released. Credentials from Secrets arrive as SADESIM_CREDENTIAL_<GROUP>.
@@ -122,32 +185,42 @@ pub fn run(
     report(&Report::Listening { address: listener.local_addr()?.to_string(), airspace: airspace_addr.to_string() });
     let mut links: Vec<Option<Box<dyn ShardLink>>> = (0..plan.shards.len()).map(|_| None).collect();
     for _ in 0..plan.shards.len() {
-        let (stream, _) = listener.accept()?;
-        let mut link = TcpLink::new(stream)?;
-        // The Hello tells which shard connected; the coordinator reads it again below, so
-        // keep it for the loop by re-queueing through a small wrapper.
-        let hello = link.recv().map_err(|e| RoleError::Protocol(format!("shard greeting: {e}")))?;
+        let (stream, peer) = listener.accept()?;
+        let mut link = Greeted::new(stream, peer, shard_timeout)?;
+        // The Hello tells which shard connected; `Greeted` replays it to the loop.
+        let hello = link.link.recv().map_err(|e| RoleError::Protocol(format!("shard greeting from {peer}: {e}")))?;
         let FromShard::Hello { shard, version, drones } = hello.clone() else {
-            return Err(RoleError::Protocol(format!("expected a Hello, got {hello:?}")));
+            return Err(RoleError::Protocol(format!("expected a Hello from {peer}, got {hello:?}")));
         };
         if version != PROTOCOL_VERSION {
             return Err(RoleError::Protocol(format!(
-                "shard {shard} speaks protocol {version}, expected {PROTOCOL_VERSION}"
+                "shard {shard} ({peer}) speaks protocol {version}, expected {PROTOCOL_VERSION}"
             )));
         }
         let slot = links
             .get_mut(shard as usize)
-            .ok_or_else(|| RoleError::Protocol(format!("shard {shard} is not in the plan")))?;
+            .ok_or_else(|| RoleError::Protocol(format!("shard {shard} ({peer}) is not in the plan")))?;
         if slot.is_some() {
-            return Err(RoleError::Protocol(format!("shard {shard} connected twice")));
+            return Err(RoleError::Protocol(format!("shard {shard} connected twice (again from {peer})")));
         }
-        *slot = Some(Box::new(Greeted { hello: Some(FromShard::Hello { shard, version, drones }), link }));
+        // On stderr (the role's log), so a run across hosts says who was where.
+        eprintln!("shard {shard} connected from {peer} ({drones} drones)");
+        link.hello = Some(FromShard::Hello { shard, version, drones });
+        *slot = Some(Box::new(link));
     }
     let mut links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
     let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
     let mut recorder = Recorder::create(out_dir, plan, RecorderOptions::default()).map_err(record_err)?;
     let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: read_control() };
-    let outcome = coordinator::run(plan, &mut links, &mut WithAirspace::new(&mut airspace, &mut observer), stop)?;
+    let result = coordinator::run(plan, &mut links, &mut WithAirspace::new(&mut airspace, &mut observer), stop);
+    drop(links); // close every shard connection now: the survivors exit without waiting for us
+    let outcome = match result {
+        Ok(outcome) => outcome,
+        Err(CoordinatorError::RunFailed(failure)) => {
+            return Err(finish_failed(&airspace, recorder, failure, out_dir));
+        }
+        Err(e) => return Err(e.into()),
+    };
     let json = serde_json::to_vec_pretty(&airspace.record()).map_err(std::io::Error::other).map_err(record_err)?;
     std::fs::write(out_dir.join(AIRSPACE_FILE), json).map_err(record_err)?;
     recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
@@ -156,21 +229,92 @@ pub fn run(
     Ok(summary)
 }
 
-/// A link whose first message (the Hello, already read to identify the shard) is replayed.
+/// A shard failed: writes what the run has (airspace record, recordings closed, summary
+/// with the failure as `endReason`; no verdict, the criteria were not judged on a whole
+/// run), reports it on stdout and stderr, and returns the error to exit with.
+fn finish_failed(airspace: &Airspace, recorder: Recorder, failure: Box<RunFailure>, out_dir: &Path) -> RoleError {
+    let mut written = serde_json::to_vec_pretty(&airspace.record())
+        .map_err(std::io::Error::other)
+        .and_then(|json| std::fs::write(out_dir.join(AIRSPACE_FILE), json));
+    let summary = recorder.finish(&failure.outcome);
+    let summary = match summary {
+        Ok(s) => Some(s),
+        Err(e) => {
+            written = written.and(Err(e));
+            None
+        }
+    };
+    report(&Report::Failed {
+        role: FailedRole::Shard,
+        shard: Some(failure.shard),
+        address: failure.peer.clone(),
+        reason: failure.to_string(),
+        summary,
+    });
+    match written {
+        Ok(()) => eprintln!("the run's files up to the failure are in {}", out_dir.display()),
+        Err(e) => eprintln!("writing the run's files into {} after the failure failed too: {e}", out_dir.display()),
+    }
+    RoleError::Coordinator(CoordinatorError::RunFailed(failure))
+}
+
+/// A shard's TCP connection whose first message (the Hello, already read to identify the
+/// shard) is replayed, and which knows the shard's address.
 struct Greeted {
     hello: Option<FromShard>,
     link: TcpLink,
+    peer: SocketAddr,
+    timeout: Option<Duration>,
+}
+
+impl Greeted {
+    fn new(stream: TcpStream, peer: SocketAddr, timeout: Option<Duration>) -> std::io::Result<Self> {
+        // On the socket, so the clones inside `TcpLink` share them. A write blocks only
+        // when the shard stopped reading and the socket buffers are full.
+        stream.set_read_timeout(timeout)?;
+        stream.set_write_timeout(timeout)?;
+        Ok(Self { hello: None, link: TcpLink::new(stream)?, peer, timeout })
+    }
+
+    /// Names socket errors for what they mean here: a timeout is a shard that stopped
+    /// answering; a reset, like an end of stream, a shard that is gone (which of the two
+    /// a dead process leaves depends on whether we were writing or reading).
+    fn explain(&self, e: LinkError) -> LinkError {
+        use std::io::ErrorKind::{BrokenPipe, ConnectionAborted, ConnectionReset, UnexpectedEof};
+        match (e, self.timeout) {
+            (LinkError::Io(io), _)
+                if matches!(io.kind(), ConnectionReset | BrokenPipe | ConnectionAborted | UnexpectedEof) =>
+            {
+                LinkError::Closed
+            }
+            (LinkError::Io(io), Some(t))
+                if matches!(io.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) =>
+            {
+                LinkError::Io(std::io::Error::new(
+                    std::io::ErrorKind::TimedOut,
+                    format!(
+                        "no answer for {} s (--shard-timeout); its host may be down or the network cut",
+                        t.as_secs_f64()
+                    ),
+                ))
+            }
+            (e, _) => e,
+        }
+    }
 }
 
 impl ShardLink for Greeted {
-    fn send(&mut self, msg: &crate::protocol::ToShard) -> Result<(), coordinator::LinkError> {
-        self.link.send(msg)
+    fn send(&mut self, msg: &crate::protocol::ToShard) -> Result<(), LinkError> {
+        self.link.send(msg).map_err(|e| self.explain(e))
     }
-    fn recv(&mut self) -> Result<FromShard, coordinator::LinkError> {
+    fn recv(&mut self) -> Result<FromShard, LinkError> {
         match self.hello.take() {
             Some(h) => Ok(h),
-            None => self.link.recv(),
+            None => self.link.recv().map_err(|e| self.explain(e)),
         }
+    }
+    fn peer(&self) -> Option<String> {
+        Some(self.peer.to_string())
     }
 }
 
@@ -195,5 +339,31 @@ mod tests {
         assert_eq!(released, r#"{"type":"pilotsReleased","simTimeS":0.01}"#);
         let stop: Control = serde_json::from_str(r#"{"type":"stop","reason":"pilotExited"}"#).unwrap();
         assert_eq!(stop, Control::Stop { reason: "pilotExited".into() });
+    }
+
+    #[test]
+    fn failure_lines_name_the_role_and_the_shard() {
+        let shard = Report::Failed {
+            role: FailedRole::Shard,
+            shard: Some(1),
+            address: Some("10.77.0.3:40122".into()),
+            reason: "shard 1 (10.77.0.3:40122) failed: connection closed".into(),
+            summary: None,
+        };
+        let line = serde_json::to_string(&shard).unwrap();
+        assert_eq!(
+            line,
+            r#"{"type":"failed","role":"shard","shard":1,"address":"10.77.0.3:40122","reason":"shard 1 (10.77.0.3:40122) failed: connection closed"}"#
+        );
+        assert_eq!(serde_json::from_str::<Report>(&line).unwrap(), shard);
+        let own = serde_json::to_string(&Report::Failed {
+            role: FailedRole::Coordinator,
+            shard: None,
+            address: None,
+            reason: "network: address in use".into(),
+            summary: None,
+        })
+        .unwrap();
+        assert_eq!(own, r#"{"type":"failed","role":"coordinator","reason":"network: address in use"}"#);
     }
 }

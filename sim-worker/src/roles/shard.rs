@@ -1,29 +1,49 @@
 //! `sim-worker shard`: builds one shard from the plan, connects to the coordinator and
 //! serves the protocol until told to stop.
+//!
+//! Across hosts the coordinator may come up after the shard (another pod, DNS not yet
+//! resolving), so connecting is retried, each attempt bounded, until `connect_timeout`.
+//! Losing the coordinator before it said `Stop` is an error (exit 2 with the address):
+//! the run is over and this shard's part of it was not recorded to the end.
 
-use std::net::TcpStream;
+use std::io::{BufReader, BufWriter};
+use std::net::{TcpStream, ToSocketAddrs};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use sadesim_crds::plan::RunPlan;
 
 use super::RoleError;
+use crate::coordinator::LinkError;
+use crate::protocol::ToShard;
 use crate::shard::Shard;
 use crate::transport;
 use crate::world::{World, WorldInputs};
 
-/// How long a shard keeps trying to reach a coordinator that is not up yet.
-pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(30);
+/// Default of `--connect-timeout`: how long a shard keeps trying to reach a coordinator
+/// that is not up yet (its pod scheduled later, its Service name not yet resolving).
+pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(60);
 
-/// Runs shard `index` of `plan` against the coordinator at `coordinator` (host:port).
+/// Longest single connection attempt. Without a bound, a SYN to an address nobody answers
+/// (a host that is down, a firewall dropping packets) waits out the kernel's retries,
+/// about two minutes, whatever `connect_timeout` says.
+const ATTEMPT_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Pause between attempts (a refused connection fails at once).
+const RETRY_PAUSE: Duration = Duration::from_millis(200);
+
+/// Runs shard `index` of `plan` against the coordinator at `coordinator` (host:port),
+/// trying to reach it for up to `connect_timeout`.
 ///
 /// # Errors
-/// When the shard cannot be built or the coordinator cannot be reached.
+/// When the shard cannot be built, the coordinator cannot be reached in time, or the
+/// connection to it is lost before it says `Stop`.
 pub fn run(
     plan: &RunPlan,
     index: u32,
     coordinator: &str,
     mavlink: Option<&crate::shard::MavlinkOptions>,
+    connect_timeout: Duration,
 ) -> Result<(), RoleError> {
     // The world is deterministic from the plan's inputs, so every shard builds the same
     // one (the assets role will fetch it from the cache instead).
@@ -32,17 +52,102 @@ pub fn run(
     if let Some(options) = mavlink {
         shard.open_mavlink(plan, options)?;
     }
-    let started = Instant::now();
-    let stream = loop {
-        match TcpStream::connect(coordinator) {
-            Ok(s) => break s,
-            Err(e) if started.elapsed() < CONNECT_TIMEOUT => {
-                let _ = e;
-                std::thread::sleep(Duration::from_millis(100));
+    let stream = connect(coordinator, connect_timeout)?;
+    // On stderr (the role's log), so a run across hosts says who was where.
+    let local = stream.local_addr().map_or_else(|_| "?".into(), |a| a.to_string());
+    eprintln!(
+        "shard {index}: {} drones; connected to the coordinator at {coordinator} from {local}",
+        shard.drones().len()
+    );
+    serve(shard, stream, coordinator)
+}
+
+/// Connects to `coordinator`, resolving and retrying until `timeout` has passed.
+///
+/// # Errors
+/// [`RoleError::Protocol`] naming the address, the time waited and the last error.
+pub fn connect(coordinator: &str, timeout: Duration) -> Result<TcpStream, RoleError> {
+    let deadline = Instant::now() + timeout;
+    let mut attempts = 0u32;
+    loop {
+        attempts += 1;
+        let last_error = match coordinator.to_socket_addrs() {
+            Ok(addresses) => {
+                let mut last = "the name resolves to no address".to_string();
+                for address in addresses {
+                    let left = deadline.saturating_duration_since(Instant::now());
+                    // A zero timeout is refused by the OS call: give a last attempt 1 ms.
+                    match TcpStream::connect_timeout(&address, left.clamp(Duration::from_millis(1), ATTEMPT_TIMEOUT)) {
+                        Ok(stream) => return Ok(stream),
+                        Err(e) => last = format!("{address}: {e}"),
+                    }
+                }
+                last
             }
-            Err(e) => return Err(RoleError::Io(e)),
+            Err(e) => format!("cannot resolve it: {e}"),
+        };
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(RoleError::Protocol(format!(
+                "cannot reach the coordinator at {coordinator} within {} s ({attempts} attempts; last: {last_error}); \
+                 check --coordinator and that the coordinator is listening there",
+                timeout.as_secs_f64()
+            )));
         }
+        std::thread::sleep(left.min(RETRY_PAUSE));
+    }
+}
+
+/// Serves the shard protocol over `stream` until the coordinator says `Stop`.
+fn serve(mut shard: Shard, stream: TcpStream, coordinator: &str) -> Result<(), RoleError> {
+    stream.set_nodelay(true)?;
+    let mut reader = BufReader::new(stream.try_clone()?);
+    let mut writer = BufWriter::new(stream);
+    let mut line = String::new();
+    let lost = |what: String| {
+        RoleError::Protocol(format!(
+            "lost the coordinator at {coordinator}: {what} before it ended the run (it exited or failed; see its output)"
+        ))
     };
-    transport::serve_tcp(shard, stream)?;
-    Ok(())
+    transport::write_line(&mut writer, &shard.hello()).map_err(|e| lost(e.to_string()))?;
+    loop {
+        let msg = match transport::read_line::<ToShard>(&mut reader, &mut line) {
+            Ok(Some(msg)) => msg,
+            Ok(None) | Err(LinkError::Closed) => return Err(lost("the connection closed".into())),
+            Err(LinkError::Io(e)) => return Err(lost(e.to_string())),
+            Err(LinkError::Decode(e)) => return Err(lost(format!("unreadable message: {e}"))),
+        };
+        // `None` is the answer to Stop: the run is over.
+        let Some(reply) = shard.handle(msg) else { return Ok(()) };
+        transport::write_line(&mut writer, &reply).map_err(|e| lost(e.to_string()))?;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_address_nobody_listens_on_fails_within_the_timeout_naming_it() {
+        // Bind then drop: the port is free, so every attempt is refused.
+        let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+        let address = format!("127.0.0.1:{port}");
+        let err = connect(&address, Duration::from_millis(500)).unwrap_err().to_string();
+        assert!(err.contains(&format!("cannot reach the coordinator at {address} within 0.5 s")), "{err}");
+        assert!(err.contains("attempts; last: 127.0.0.1:"), "{err}");
+    }
+
+    #[test]
+    fn a_name_that_does_not_resolve_is_reported_as_such() {
+        let err = connect("no-such-host.invalid:7400", Duration::from_millis(300)).unwrap_err().to_string();
+        assert!(err.contains("no-such-host.invalid:7400") && err.contains("cannot resolve it"), "{err}");
+    }
+
+    #[test]
+    fn a_listening_coordinator_is_reached() {
+        let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let address = listener.local_addr().unwrap().to_string();
+        let stream = connect(&address, Duration::from_secs(5)).unwrap();
+        assert_eq!(stream.peer_addr().unwrap().to_string(), address);
+    }
 }

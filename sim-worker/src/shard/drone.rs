@@ -17,7 +17,7 @@ use crate::events::{EventKind, FlightMode};
 use crate::mavlink::endpoint::Endpoint;
 use crate::mavlink::session::{Session, Vehicle};
 use crate::mavlink::telemetry::{BatteryView, MissionProgress, PositionEstimate, VehicleView};
-use crate::protocol::DroneSnapshot;
+use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail};
 use crate::sensors::{GnssFix, SensorSuite};
 use crate::vehicle::{Airframe, Battery, Motor, RigidState, wrench};
 use crate::world::World;
@@ -429,6 +429,47 @@ impl DroneSim {
             crashed: self.crashed,
             battery_remaining: self.battery.remaining_fraction(),
             position_valid: self.fmu.estimate().is_some(),
+            detail: self.detail(),
+        }
+    }
+
+    fn detail(&self) -> DroneDetail {
+        let v3 = |v: Vector3<f64>| [v.x, v.y, v.z];
+        let finite = |x: f64| x.is_finite().then_some(x);
+        let mut motor_commands = [0.0; 8];
+        for (slot, motor) in motor_commands.iter_mut().zip(&self.motors) {
+            *slot = motor.command();
+        }
+        DroneDetail {
+            rate_body_rps: v3(self.state.rate_body_rps),
+            estimate: self.fmu.estimate().map(|e| {
+                let q = e.attitude.quaternion();
+                EstimateDetail {
+                    position_enu_m: v3(e.position_enu_m),
+                    velocity_enu_mps: v3(e.velocity_enu_mps),
+                    attitude_wxyz: [q.w, q.i, q.j, q.k],
+                    eph_m: e.eph_m,
+                    epv_m: e.epv_m,
+                }
+            }),
+            gnss: self.last_gnss.map(|g| GnssDetail {
+                time_s: g.time_s,
+                position_enu_m: v3(g.position_enu_m),
+                velocity_enu_mps: v3(g.velocity_enu_mps),
+                fix_type: g.fix_type,
+                satellites: g.satellites,
+                eph_m: finite(g.eph_m),
+                epv_m: finite(g.epv_m),
+                hdop: finite(g.hdop),
+                vdop: finite(g.vdop),
+            }),
+            motor_commands,
+            motor_count: self.motors.len().min(8) as u8,
+            battery_voltage_v: self.battery.voltage_v(),
+            battery_current_a: self.battery.current_a(),
+            battery_consumed_mah: self.battery.consumed_mah(),
+            wind_enu_mps: v3(self.wind_enu_mps),
+            local_origin_enu_m: v3(self.local_origin_enu_m),
         }
     }
 }

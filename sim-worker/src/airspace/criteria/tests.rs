@@ -310,6 +310,7 @@ fn the_monitor_s_records_make_the_failure_lines() {
             crashed: false,
             battery_remaining: 1.0,
             position_valid: true,
+            detail: Default::default(),
         };
         (time_s, s)
     };

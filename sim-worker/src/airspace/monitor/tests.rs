@@ -29,6 +29,7 @@ fn over(index: u32, p: [f64; 3], ground_up_m: f64) -> DroneSnapshot {
         crashed: false,
         battery_remaining: 1.0,
         position_valid: true,
+        detail: Default::default(),
     }
 }
 

@@ -1,0 +1,161 @@
+//! `sadesim assets`: builds a run's world assets once into the archive's asset cache, where
+//! renderers, reports and people load the city from.
+//!
+//! The physics roles do not wait for these files: the procedural city is generated from
+//! the plan in tens of milliseconds by every shard, bit for bit the same, so the cache
+//! holds what is expensive to *re*-derive outside the simulator (the city as GeoJSON for
+//! map tools, its statistics). Sources that are costly to build (OSM extracts, DEMs) will
+//! plug in here; their roles will then read the cache.
+//!
+//! Layout: `<archive>/assets/<asset cache key>/world/` with `world.json`,
+//! `buildings.geojson` and `manifest.json` (checksums, written last) — a cache entry is
+//! complete exactly when `sadesim archive verify <archive>/assets/<key>/world` passes.
+
+use std::path::Path;
+
+use sadesim_crds::geo::{Enu, LocalFrame};
+use sadesim_crds::plan::RunPlan;
+use serde_json::json;
+use sim_worker::world::{World, WorldInputs};
+
+use crate::archive::{Archive, ArchiveError};
+
+/// Namespace segment of the cache inside an archive.
+pub const ASSETS_NAMESPACE: &str = "assets";
+/// Folder of one cache entry under the key.
+pub const WORLD_FOLDER: &str = "world";
+
+/// What [`build_assets`] did.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum AssetsOutcome {
+    /// The cache already held a complete, verified entry for the key.
+    CacheHit { url: String },
+    /// The assets were built and uploaded.
+    Built { url: String, buildings: usize },
+}
+
+/// Errors of [`build_assets`].
+#[derive(Debug, thiserror::Error)]
+pub enum AssetsError {
+    #[error("asset cache: {0}")]
+    Archive(#[from] ArchiveError),
+    #[error("asset cache: cannot write {path}: {source}")]
+    Write { path: String, source: std::io::Error },
+}
+
+/// The city's buildings as a GeoJSON FeatureCollection (WGS84 polygons; `heightM` and
+/// `baseAltitudeMslM` properties), for map tools and 3D viewers.
+pub fn buildings_geojson(world: &World, frame: &LocalFrame) -> serde_json::Value {
+    let origin_alt = frame.origin().altitude_msl_m;
+    let features: Vec<_> = world
+        .buildings()
+        .iter()
+        .map(|b| {
+            let corner = |de: f64, dn: f64| {
+                let p = frame.to_geodetic(Enu {
+                    east_m: b.center_east_m + de * b.half_east_m,
+                    north_m: b.center_north_m + dn * b.half_north_m,
+                    up_m: b.base_up_m,
+                });
+                // 1e-7 deg (~1 cm) is all a footprint needs; it keeps the file small.
+                let round = |x: f64| (x * 1e7).round() / 1e7;
+                json!([round(p.longitude_deg), round(p.latitude_deg)])
+            };
+            let ring = [corner(-1., -1.), corner(1., -1.), corner(1., 1.), corner(-1., 1.), corner(-1., -1.)];
+            json!({
+                "type": "Feature",
+                "geometry": {"type": "Polygon", "coordinates": [ring]},
+                "properties": {
+                    "heightM": (b.height_m * 100.0).round() / 100.0,
+                    "baseAltitudeMslM": ((origin_alt + b.base_up_m) * 100.0).round() / 100.0,
+                },
+            })
+        })
+        .collect();
+    json!({"type": "FeatureCollection", "features": features})
+}
+
+/// Builds the assets of `plan` into the archive at `archive_url` unless a verified entry
+/// for the plan's asset cache key is there already.
+///
+/// # Errors
+/// Archive errors (open, verify listing, upload) and local write errors, each naming the
+/// URL or file.
+pub fn build_assets(plan: &RunPlan, archive_url: &str, scratch: &Path) -> Result<AssetsOutcome, AssetsError> {
+    let archive = Archive::open(archive_url)?;
+    let entry = format!("{ASSETS_NAMESPACE}/{}/{WORLD_FOLDER}", plan.asset_cache_key);
+    let url = format!("{}/{entry}/", archive.url().trim_end_matches('/'));
+    // A missing or incomplete entry is a miss; only a complete, matching one is a hit.
+    if let Ok(report) = archive.verify(&entry)
+        && report.passed()
+    {
+        return Ok(AssetsOutcome::CacheHit { url });
+    }
+    let world = World::generate(&WorldInputs::from_spec(&plan.spec, &[]));
+    let frame = LocalFrame::new(plan.spec.origin.geo());
+    let dir = scratch.join(&plan.asset_cache_key);
+    let write = |name: &str, value: &serde_json::Value| {
+        let path = dir.join(name);
+        std::fs::create_dir_all(&dir)
+            .and_then(|()| std::fs::write(&path, serde_json::to_vec(value).map_err(std::io::Error::other)?))
+            .map_err(|source| AssetsError::Write { path: path.display().to_string(), source })
+    };
+    write(
+        "world.json",
+        &serde_json::to_value(world.stats())
+            .map_err(|e| AssetsError::Write { path: "world.json".into(), source: std::io::Error::other(e) })?,
+    )?;
+    write("buildings.geojson", &buildings_geojson(&world, &frame))?;
+    archive.upload_run(&dir, ASSETS_NAMESPACE, &plan.asset_cache_key, WORLD_FOLDER)?;
+    Ok(AssetsOutcome::Built { url, buildings: world.buildings().len() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plan() -> RunPlan {
+        let run = sadesim_crds::fixtures::RunBuilder::test().build();
+        crate::planner::plan(&run).expect("the fixture plans")
+    }
+
+    #[test]
+    fn builds_once_then_hits_the_cache_and_rebuilds_a_damaged_entry() {
+        let tmp = std::env::temp_dir().join(format!("sadesim-assets-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&tmp);
+        let archive = format!("file://{}", tmp.join("archive").display());
+        let plan = plan();
+        let first = build_assets(&plan, &archive, &tmp.join("scratch1")).expect("builds");
+        let AssetsOutcome::Built { url, buildings } = &first else { panic!("expected a build, got {first:?}") };
+        assert!(url.ends_with(&format!("/assets/{}/world/", plan.asset_cache_key)), "{url}");
+        let entry = tmp.join("archive").join("assets").join(&plan.asset_cache_key).join("world");
+        let geo: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(entry.join("buildings.geojson")).expect("geojson")).expect("json");
+        assert_eq!(geo["features"].as_array().expect("features").len(), *buildings);
+        assert!(entry.join("manifest.json").exists());
+
+        let second = build_assets(&plan, &archive, &tmp.join("scratch2")).expect("hits");
+        assert!(matches!(second, AssetsOutcome::CacheHit { .. }), "{second:?}");
+
+        // A damaged entry no longer verifies: it is rebuilt, not trusted.
+        std::fs::write(entry.join("world.json"), b"{}").expect("damage");
+        let third = build_assets(&plan, &archive, &tmp.join("scratch3")).expect("rebuilds");
+        assert!(matches!(third, AssetsOutcome::Built { .. }), "{third:?}");
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+
+    #[test]
+    fn footprints_are_closed_rings_near_the_origin() {
+        let plan = plan();
+        let world = World::generate(&WorldInputs::from_spec(&plan.spec, &[]));
+        let frame = LocalFrame::new(plan.spec.origin.geo());
+        let geo = buildings_geojson(&world, &frame);
+        let first = &geo["features"][0]["geometry"]["coordinates"][0];
+        assert_eq!(first[0], first[4], "closed ring");
+        let origin = frame.origin();
+        let lon = first[0][0].as_f64().expect("lon");
+        let lat = first[0][1].as_f64().expect("lat");
+        // Inside the world square (a few km): within 0.1 deg of the origin.
+        assert!((lat - origin.latitude_deg).abs() < 0.1 && (lon - origin.longitude_deg).abs() < 0.1);
+    }
+}

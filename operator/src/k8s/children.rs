@@ -1,0 +1,337 @@
+//! The child objects of a SimulationRun (pure): what a run becomes on a cluster.
+//!
+//! | child | kind | name | why |
+//! |---|---|---|---|
+//! | config | ConfigMap | `<run>-config` | `plan.json`, read by every role |
+//! | config | ConfigMap | `<run>-fleet` | `fleet.json`, read by the pilot |
+//! | assets | Job | `<run>-assets` | builds the world into the asset cache (cache miss only) |
+//! | coordinator | Service | `<run>-airspace` | shard link (TCP 7400) and airspace API (HTTP 8480) |
+//! | coordinator | Pod | `<run>-coordinator` | lockstep clock, recorder, airspace authority, archive upload |
+//! | router | Service, Pod | `<run>-mavlink-<s>`, `<run>-router-<s>` | one MAVLink GCS endpoint per segment |
+//! | shard | Service (headless) | `<run>-shards` | DNS `<run>-shard-<i>.<run>-shards.<ns>.svc` per shard pod |
+//! | shard | Job (Indexed) | `<run>-shard` | one pod per shard, `JOB_COMPLETION_INDEX` = shard |
+//! | renderer | Service, Deployment | `<run>-renderer` | browser 3D view (rendering on only) |
+//! | pilot | Job | `<run>-pilot` | the user's image, once every shard is ready |
+//!
+//! The Service and host names are the ones the planner writes into the fleet file
+//! ([`crate::planner::Addressing::Cluster`]), so a pilot and the router reach the same pods.
+//!
+//! # Guarantees
+//! - Every child carries an ownerReference to the run (controller, blockOwnerDeletion) and
+//!   the labels [`RUN_LABEL`] and [`ROLE_LABEL`]; pod templates carry them too.
+//! - Every pod runs as uid/gid 65532, non-root, read-only root filesystem, no privilege
+//!   escalation, every capability dropped, seccomp `RuntimeDefault`, no service-account
+//!   token.
+//! - No object sets `spec.suspend`: with Kueue, Kueue owns it (docs/kubernetes.md).
+//! - The result depends only on the inputs (same run, same bytes).
+
+mod config;
+mod kueue;
+mod pilot;
+mod pod;
+mod workers;
+
+use k8s_openapi::api::apps::v1::Deployment;
+use k8s_openapi::api::batch::v1::Job;
+use k8s_openapi::api::core::v1::{ConfigMap, Pod, Service};
+use sadesim_crds::SimulationRun;
+use sadesim_crds::plan::RunPlan;
+use serde::Serialize;
+
+pub use config::{CONFIG_MAP_LIMIT_BYTES, config_map_sizes};
+pub use kueue::{KUEUE_QUEUE_LABEL, kueue_queue};
+pub use pod::{CONFIG_DIR, FLEET_PATH, OUT_DIR, PLAN_PATH, RUN_AS_ID};
+
+/// Label with the run's name on every child.
+pub const RUN_LABEL: &str = "sadesim.io/run";
+/// Label with the child's role (`config`, `assets`, `shard`, `coordinator`, `router`,
+/// `renderer`, `pilot`).
+pub const ROLE_LABEL: &str = "sadesim.io/role";
+/// Label with the router segment index on router Pods and Services.
+pub const SEGMENT_LABEL: &str = "sadesim.io/segment";
+/// Annotation with the plan's asset cache key (ConfigMap and assets Job).
+pub const ASSET_KEY_ANNOTATION: &str = "sadesim.io/asset-cache-key";
+/// API version and kind of the owner.
+pub const OWNER_API_VERSION: &str = "sadesim.io/v1alpha1";
+pub const OWNER_KIND: &str = "SimulationRun";
+
+/// Operator-wide settings that shape children (Helm values -> operator flags/env).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClusterSettings {
+    /// Image of `sim-worker` (assets, shard, coordinator, router, renderer roles). It also
+    /// holds `sadesim`, which the coordinator pod runs to upload the run folder.
+    pub worker_image: String,
+    /// Archive URL used when `spec.archive` is absent (e.g. `s3://sadesim-runs`).
+    pub default_archive_url: Option<String>,
+    /// Secret whose keys become environment variables of roles that write the archive
+    /// (AWS_*, GOOGLE_*, AZURE_*).
+    pub object_store_secret: Option<String>,
+    /// Service type of the MAVLink router Services: `ClusterIP`, `NodePort` or `LoadBalancer`.
+    pub router_service_type: String,
+    /// Kueue integration on: runs with `spec.queue` get Kueue's labels.
+    pub kueue: bool,
+}
+
+impl Default for ClusterSettings {
+    fn default() -> Self {
+        Self {
+            worker_image: "ghcr.io/sadesim/sim-worker:0.1.0".into(),
+            default_archive_url: None,
+            object_store_secret: None,
+            router_service_type: "ClusterIP".into(),
+            kueue: false,
+        }
+    }
+}
+
+/// Which optional children exist at this point of the run's life.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Stage {
+    /// The asset cache misses: create the assets Job.
+    pub assets_job: bool,
+    /// Every shard reported ready: create the pilot Job.
+    pub pilot: bool,
+}
+
+impl Stage {
+    /// Everything (what `sadesim manifests` prints).
+    pub const ALL: Stage = Stage { assets_job: true, pilot: true };
+}
+
+/// One child object, typed. Serializes as the object itself (with apiVersion and kind).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Child {
+    ConfigMap(ConfigMap),
+    Job(Job),
+    Service(Service),
+    Pod(Pod),
+    Deployment(Deployment),
+}
+
+impl Child {
+    /// `kind` of the object.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Child::ConfigMap(_) => "ConfigMap",
+            Child::Job(_) => "Job",
+            Child::Service(_) => "Service",
+            Child::Pod(_) => "Pod",
+            Child::Deployment(_) => "Deployment",
+        }
+    }
+
+    /// `metadata.name` of the object.
+    pub fn name(&self) -> &str {
+        let meta = match self {
+            Child::ConfigMap(o) => &o.metadata,
+            Child::Job(o) => &o.metadata,
+            Child::Service(o) => &o.metadata,
+            Child::Pod(o) => &o.metadata,
+            Child::Deployment(o) => &o.metadata,
+        };
+        meta.name.as_deref().unwrap_or_default()
+    }
+
+    /// `metadata.labels` of the object.
+    pub fn labels(&self) -> Option<&std::collections::BTreeMap<String, String>> {
+        match self {
+            Child::ConfigMap(o) => o.metadata.labels.as_ref(),
+            Child::Job(o) => o.metadata.labels.as_ref(),
+            Child::Service(o) => o.metadata.labels.as_ref(),
+            Child::Pod(o) => o.metadata.labels.as_ref(),
+            Child::Deployment(o) => o.metadata.labels.as_ref(),
+        }
+    }
+}
+
+/// Names of the children, in one place (the controller looks children up by these).
+pub mod names {
+    /// ConfigMap with `plan.json`.
+    pub fn config(run: &str) -> String {
+        format!("{run}-config")
+    }
+    /// ConfigMap with `fleet.json`.
+    pub fn fleet(run: &str) -> String {
+        format!("{run}-fleet")
+    }
+    /// The assets Job.
+    pub fn assets_job(run: &str) -> String {
+        format!("{run}-assets")
+    }
+    /// The shards' Indexed Job: its pods are `<run>-shard-<index>` (hostname too).
+    pub fn shard_job(run: &str) -> String {
+        format!("{run}-shard")
+    }
+    /// The shards' headless Service (the pods' DNS subdomain).
+    pub fn shard_service(run: &str) -> String {
+        format!("{run}-shards")
+    }
+    /// DNS name of shard `shard`'s pod, as in the fleet file.
+    pub fn shard_host(run: &str, namespace: &str, shard: u32) -> String {
+        format!("{run}-shard-{shard}.{}.{namespace}.svc", shard_service(run))
+    }
+    /// The router's `--drone-host` template: [`shard_host`] with `{run}` and `{shard}` left
+    /// for the router to fill in.
+    pub fn drone_host_template(namespace: &str) -> String {
+        format!("{{run}}-shard-{{shard}}.{{run}}-shards.{namespace}.svc")
+    }
+    /// The coordinator Pod.
+    pub fn coordinator_pod(run: &str) -> String {
+        format!("{run}-coordinator")
+    }
+    /// The coordinator's Service: shard link and airspace API.
+    pub fn airspace_service(run: &str) -> String {
+        format!("{run}-airspace")
+    }
+    /// DNS name of the coordinator's Service.
+    pub fn airspace_host(run: &str, namespace: &str) -> String {
+        format!("{}.{namespace}.svc", airspace_service(run))
+    }
+    /// Router Pod of segment `segment`.
+    pub fn router_pod(run: &str, segment: u32) -> String {
+        format!("{run}-router-{segment}")
+    }
+    /// Router Service of segment `segment` (the fleet file's GCS URL host).
+    pub fn mavlink_service(run: &str, segment: u32) -> String {
+        format!("{run}-mavlink-{segment}")
+    }
+    /// Renderer Deployment and Service.
+    pub fn renderer(run: &str) -> String {
+        format!("{run}-renderer")
+    }
+    /// The pilot Job.
+    pub fn pilot_job(run: &str) -> String {
+        format!("{run}-pilot")
+    }
+}
+
+/// The archive URL of a run: `spec.archive.url`, else the operator's default.
+pub fn archive_url<'a>(plan: &'a RunPlan, settings: &'a ClusterSettings) -> Option<&'a str> {
+    plan.spec.archive.as_ref().map(|a| a.url.as_str()).or(settings.default_archive_url.as_deref())
+}
+
+/// The archive URL the coordinator uploads to: [`archive_url`] when it is an object store
+/// (`s3://`, `gs://`, `az://`). A `file://` archive would be a folder inside the pod, lost
+/// with it, so none is used (see [`problems`]).
+pub fn upload_url<'a>(plan: &'a RunPlan, settings: &'a ClusterSettings) -> Option<&'a str> {
+    archive_url(plan, settings).filter(|u| crate::archive::is_object_store(u))
+}
+
+/// Where the run's evidence lands: `<archive>/<namespace>/<run>/<uid>/` (the layout of
+/// `sadesim archive put`), when the run has an object-store archive and a uid.
+pub fn archive_location(plan: &RunPlan, settings: &ClusterSettings) -> Option<String> {
+    let url = upload_url(plan, settings)?;
+    let uid = plan.run.uid.as_deref()?;
+    Some(format!("{}/{}/{}/{uid}/", url.trim_end_matches('/'), plan.run.namespace, plan.run.name))
+}
+
+/// Where the assets of `plan` are cached: `<archive>/assets/<asset cache key>/world/`
+/// (written by `sadesim assets`).
+pub fn asset_cache_location(plan: &RunPlan, settings: &ClusterSettings) -> Option<String> {
+    let url = upload_url(plan, settings)?;
+    Some(format!(
+        "{}/{}/{}/{}/",
+        url.trim_end_matches('/'),
+        crate::assets::ASSETS_NAMESPACE,
+        plan.asset_cache_key,
+        crate::assets::WORLD_FOLDER
+    ))
+}
+
+/// Something about a run that matters on a cluster.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Problem {
+    /// The field to change (`spec.pilot.image`).
+    pub field: String,
+    /// What is wrong and what to do.
+    pub message: String,
+    /// The run cannot work on a cluster (the operator fails it with `Valid=False` and
+    /// creates nothing); otherwise it runs but loses something (e.g. no archive).
+    pub fatal: bool,
+}
+
+impl std::fmt::Display for Problem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.field, self.message)
+    }
+}
+
+/// What keeps `plan` from running on a cluster with `settings` (fatal), or makes it lose
+/// something (not fatal). Valid local runs can still fail here: a pilot needs an image, and
+/// the plan must fit a ConfigMap.
+pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
+    let mut out = Vec::new();
+    if let Some(pilot) = &plan.spec.pilot
+        && pilot.image.is_none()
+    {
+        out.push(Problem {
+            field: "spec.pilot.image".into(),
+            message: "required on Kubernetes: the pilot runs as a Job from this image (`command` only overrides its entrypoint)".into(),
+            fatal: true,
+        });
+    }
+    if plan.spec.rendering().enabled {
+        // Same rule as `sadesim run`: no fake success for a role that does not exist yet.
+        out.push(Problem {
+            field: "spec.rendering.enabled".into(),
+            message: "the renderer is not built yet; set it to false".into(),
+            fatal: true,
+        });
+    }
+    out.extend(config::size_problems(plan));
+    match archive_url(plan, settings) {
+        None => out.push(Problem {
+            field: "spec.archive.url".into(),
+            message: "not set and the operator has no default archive: the run's evidence is not archived (only the coordinator's log remains)".into(),
+            fatal: false,
+        }),
+        Some(url) if !crate::archive::is_object_store(url) => out.push(Problem {
+            field: "spec.archive.url".into(),
+            message: format!(
+                "{url:?} is a folder inside the coordinator pod, lost with it: use s3://, gs:// or az:// on Kubernetes (or omit it to use the operator's default archive)"
+            ),
+            fatal: false,
+        }),
+        Some(_) => {}
+    }
+    out
+}
+
+/// The children of `run` (planned as `plan`) at `stage`, in apply order: ConfigMaps, the
+/// assets Job, coordinator Service and Pod, router Services and Pods, the shards' headless
+/// Service and Job, the renderer, the pilot Job.
+///
+/// The pilot Job is left out when `spec.pilot` has no image and the assets Job when the
+/// run has no object-store archive to cache into; [`problems`] says why.
+pub fn children(run: &SimulationRun, plan: &RunPlan, settings: &ClusterSettings, stage: Stage) -> Vec<Child> {
+    let ctx = pod::Context::new(run, plan, settings);
+    let mut out =
+        vec![Child::ConfigMap(config::plan_config_map(&ctx)), Child::ConfigMap(config::fleet_config_map(&ctx))];
+    if stage.assets_job
+        && let Some(job) = workers::assets_job(&ctx)
+    {
+        out.push(Child::Job(job));
+    }
+    out.push(Child::Service(workers::airspace_service(&ctx)));
+    out.push(Child::Pod(workers::coordinator_pod(&ctx)));
+    for segment in &plan.segments {
+        out.push(Child::Service(workers::mavlink_service(&ctx, segment)));
+        out.push(Child::Pod(workers::router_pod(&ctx, segment)));
+    }
+    out.push(Child::Service(workers::shard_service(&ctx)));
+    out.push(Child::Job(workers::shard_job(&ctx)));
+    if plan.spec.rendering().enabled {
+        out.push(Child::Service(workers::renderer_service(&ctx)));
+        out.push(Child::Deployment(workers::renderer_deployment(&ctx)));
+    }
+    if stage.pilot
+        && let Some(job) = pilot::pilot_job(&ctx)
+    {
+        out.push(Child::Job(job));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,61 @@
+//! The pilot under test as a Job from the user's image (DESIGN §3, role "pilot"): the
+//! cluster counterpart of `runner::pilot`, with the same environment.
+
+use k8s_openapi::api::batch::v1::{Job, JobSpec};
+use k8s_openapi::api::core::v1::{Container, PodTemplateSpec};
+use sadesim_crds::plan::RoleResources;
+
+use super::pod::{
+    CONFIG_DIR, Context, FLEET_PATH, OUT_DIR, TMP_DIR, config_volume, container_security, empty_dir, env, mount,
+    pod_spec, resources,
+};
+use super::{kueue, names};
+
+/// `<run>-pilot`, or `None` when the run has no pilot or its pilot has no image (see
+/// `problems`). Environment, in order: `spec.pilot.env`, `SADESIM_FLEET` (the mounted
+/// fleet file, in-cluster addresses), `SADESIM_RUN`, `SADESIM_NAMESPACE`, `SADESIM_RUN_UID`,
+/// `SADESIM_OUT` (a writable folder), `HOME` (`/tmp` unless `spec.pilot.env` sets it: the
+/// root filesystem is read-only) and `SADESIM_CREDENTIAL_<GROUP>` per group with a
+/// credential. The pilot runs once: a pilot that fails is a finding, not something to retry.
+pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
+    let pilot = ctx.plan.spec.pilot.as_ref()?;
+    let image = pilot.image.clone()?;
+    let mut vars: Vec<_> = pilot.env.iter().map(|e| env(&e.name, e.value.clone())).collect();
+    vars.push(env("SADESIM_FLEET", FLEET_PATH));
+    vars.extend(ctx.run_env());
+    vars.push(env("SADESIM_OUT", OUT_DIR));
+    if !pilot.env.iter().any(|e| e.name == "HOME") {
+        vars.push(env("HOME", TMP_DIR));
+    }
+    vars.extend(ctx.credential_env());
+    let planned = ctx.plan.resources.pilot.unwrap_or(RoleResources { cpu_millis: 500, memory_mib: 512 });
+    let container = Container {
+        name: "pilot".into(),
+        image: Some(image),
+        command: (!pilot.command.is_empty()).then(|| pilot.command.clone()),
+        env: Some(vars),
+        resources: Some(resources(planned)),
+        security_context: Some(container_security()),
+        volume_mounts: Some(vec![
+            mount("fleet", CONFIG_DIR, true),
+            mount("tmp", TMP_DIR, false),
+            mount("out", OUT_DIR, false),
+        ]),
+        termination_message_policy: Some("FallbackToLogsOnError".into()),
+        ..Default::default()
+    };
+    let mut fleet = config_volume(names::fleet(ctx.name));
+    fleet.name = "fleet".into();
+    let spec = pod_spec(vec![container], vec![fleet, empty_dir("tmp"), empty_dir("out")], "Never");
+    let mut meta = ctx.meta(names::pilot_job(ctx.name), "pilot");
+    kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
+    Some(Job {
+        metadata: meta,
+        spec: Some(JobSpec {
+            backoff_limit: Some(0),
+            template: PodTemplateSpec { metadata: Some(ctx.template_meta("pilot")), spec: Some(spec) },
+            ..Default::default()
+        }),
+        ..Default::default()
+    })
+}

@@ -1,0 +1,492 @@
+//! Children of small and large runs: names, labels, owners, lockdown, resources, Kueue,
+//! optional roles, and sizes against the API server's limits.
+
+use k8s_openapi::api::core::v1::{Container, PodSpec};
+use k8s_openapi::apimachinery::pkg::api::resource::Quantity;
+use sadesim_crds::SimulationRun;
+use sadesim_crds::fixtures::RunBuilder;
+use sadesim_crds::fleet::{Credential, SecretKeyRef};
+use sadesim_crds::plan::RunPlan;
+use sadesim_crds::run::{Archive, Rendering};
+use serde_json::Value;
+
+use super::*;
+use crate::planner::{Addressing, fleet_file, plan};
+
+const UID: &str = "6f1c0a52-3c1e-4d7e-9a59-1f0e7c1d2b3a";
+
+fn with_uid(run: SimulationRun) -> SimulationRun {
+    let mut run = run;
+    run.metadata.uid = Some(UID.into());
+    run
+}
+
+fn planned(run: &SimulationRun) -> RunPlan {
+    plan(run).expect("fixture plans")
+}
+
+fn s3() -> ClusterSettings {
+    ClusterSettings {
+        default_archive_url: Some("s3://sadesim-runs/team-a".into()),
+        object_store_secret: Some("sadesim-object-store".into()),
+        ..ClusterSettings::default()
+    }
+}
+
+/// A run flown by a pilot image with a Secret credential: every role present.
+fn piloted(drones: u32) -> SimulationRun {
+    with_uid(
+        RunBuilder::test()
+            .with_drones(drones)
+            .with_pilot(&["python3", "/app/pilot.py"])
+            .with(|r| {
+                let pilot = r.spec.pilot.as_mut().unwrap();
+                pilot.image = Some("registry.example/team-a/pilot:1.2".into());
+                r.spec.fleet[0].credential =
+                    Some(Credential::SecretKeyRef(SecretKeyRef { name: "alpha-token".into(), key: "token".into() }));
+            })
+            .build(),
+    )
+}
+
+fn kinds_and_names(children: &[Child]) -> Vec<(String, String)> {
+    children.iter().map(|c| (c.kind().to_string(), c.name().to_string())).collect()
+}
+
+fn pair(kind: &str, name: &str) -> (String, String) {
+    (kind.to_string(), name.to_string())
+}
+
+/// Every pod spec among the children, with the name of the object that holds it.
+fn pod_specs(children: &[Child]) -> Vec<(String, PodSpec)> {
+    children
+        .iter()
+        .filter_map(|c| {
+            let spec = match c {
+                Child::Pod(p) => p.spec.clone(),
+                Child::Job(j) => j.spec.as_ref().and_then(|s| s.template.spec.clone()),
+                Child::Deployment(d) => d.spec.as_ref().and_then(|s| s.template.spec.clone()),
+                _ => None,
+            };
+            spec.map(|s| (c.name().to_string(), s))
+        })
+        .collect()
+}
+
+fn container(children: &[Child], name: &str) -> Container {
+    pod_specs(children)
+        .into_iter()
+        .find(|(n, _)| n == name)
+        .map(|(_, s)| s.containers[0].clone())
+        .unwrap_or_else(|| panic!("no pod spec in {name}: {:?}", kinds_and_names(children)))
+}
+
+fn json(children: &[Child]) -> Value {
+    serde_json::to_value(children).unwrap()
+}
+
+/// Every object key named `key` anywhere in `v`.
+fn count_key(v: &Value, key: &str) -> usize {
+    match v {
+        Value::Object(m) => m.iter().map(|(k, v)| usize::from(k == key) + count_key(v, key)).sum(),
+        Value::Array(a) => a.iter().map(|v| count_key(v, key)).sum(),
+        _ => 0,
+    }
+}
+
+fn requests(c: &Container) -> (String, String) {
+    let r = c.resources.as_ref().unwrap().requests.as_ref().unwrap();
+    (r["cpu"].0.clone(), r["memory"].0.clone())
+}
+
+#[test]
+fn a_small_run_has_every_role_in_apply_order() {
+    let run = piloted(3);
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    assert_eq!(
+        kinds_and_names(&children),
+        vec![
+            pair("ConfigMap", "test-run-config"),
+            pair("ConfigMap", "test-run-fleet"),
+            pair("Job", "test-run-assets"),
+            pair("Service", "test-run-airspace"),
+            pair("Pod", "test-run-coordinator"),
+            pair("Service", "test-run-mavlink-0"),
+            pair("Pod", "test-run-router-0"),
+            pair("Service", "test-run-shards"),
+            pair("Job", "test-run-shard"),
+            pair("Job", "test-run-pilot"),
+        ]
+    );
+}
+
+#[test]
+fn every_child_is_owned_by_the_run_and_labelled_with_run_and_role() {
+    let run = piloted(3).tap_rendering();
+    let plan = planned(&run);
+    for child in children(&run, &plan, &s3(), Stage::ALL) {
+        let v = serde_json::to_value(&child).unwrap();
+        let meta = &v["metadata"];
+        assert_eq!(meta["namespace"], "default", "{}", child.name());
+        assert_eq!(meta["labels"][RUN_LABEL], "test-run", "{}", child.name());
+        let role = meta["labels"][ROLE_LABEL].as_str().unwrap();
+        assert!(
+            ["config", "assets", "shard", "coordinator", "router", "renderer", "pilot"].contains(&role),
+            "{}: role {role}",
+            child.name()
+        );
+        let owners = meta["ownerReferences"].as_array().unwrap();
+        assert_eq!(owners.len(), 1, "{}", child.name());
+        let o = &owners[0];
+        assert_eq!(
+            (o["apiVersion"].as_str(), o["kind"].as_str(), o["name"].as_str(), o["uid"].as_str()),
+            (Some("sadesim.io/v1alpha1"), Some("SimulationRun"), Some("test-run"), Some(UID)),
+        );
+        assert_eq!((o["controller"].as_bool(), o["blockOwnerDeletion"].as_bool()), (Some(true), Some(true)));
+        assert!(v["apiVersion"].is_string() && v["kind"] == child.kind(), "{v}");
+    }
+}
+
+trait TapRendering {
+    fn tap_rendering(self) -> Self;
+}
+
+impl TapRendering for SimulationRun {
+    fn tap_rendering(mut self) -> Self {
+        self.spec.rendering = Some(Rendering { enabled: true });
+        self
+    }
+}
+
+#[test]
+fn every_pod_is_locked_down() {
+    let run = piloted(3).tap_rendering();
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let specs = pod_specs(&children);
+    assert_eq!(specs.len(), 6, "assets, coordinator, router, shard, renderer, pilot");
+    for (name, spec) in specs {
+        let pod = spec.security_context.as_ref().unwrap();
+        assert_eq!(
+            (pod.run_as_non_root, pod.run_as_user, pod.run_as_group),
+            (Some(true), Some(65532), Some(65532)),
+            "{name}"
+        );
+        assert_eq!(pod.seccomp_profile.as_ref().unwrap().type_, "RuntimeDefault", "{name}");
+        assert_eq!(spec.automount_service_account_token, Some(false), "{name}");
+        assert!(spec.host_network.is_none() && spec.host_pid.is_none() && spec.host_ipc.is_none(), "{name}");
+        for c in spec.containers.iter().chain(spec.init_containers.iter().flatten()) {
+            let s = c.security_context.as_ref().unwrap();
+            assert_eq!(s.run_as_non_root, Some(true), "{name}");
+            assert_eq!(s.allow_privilege_escalation, Some(false), "{name}");
+            assert_eq!(s.read_only_root_filesystem, Some(true), "{name}");
+            assert_eq!(s.privileged, Some(false), "{name}");
+            assert_eq!(s.capabilities.as_ref().unwrap().drop.as_deref(), Some(&["ALL".to_string()][..]), "{name}");
+            assert!(s.capabilities.as_ref().unwrap().add.is_none(), "{name}");
+            // The root filesystem is read-only: /tmp must be a writable volume.
+            let tmp = c.volume_mounts.iter().flatten().find(|m| m.mount_path == "/tmp").expect("a /tmp mount");
+            assert_eq!(tmp.read_only, Some(false), "{name}");
+            let volume = spec.volumes.iter().flatten().find(|v| v.name == tmp.name).unwrap();
+            assert!(volume.empty_dir.is_some(), "{name}");
+        }
+    }
+}
+
+#[test]
+fn resources_come_from_the_plan() {
+    let run = piloted(250).with_drones_per_shard_of(100);
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let q = |r: sadesim_crds::plan::RoleResources| (format!("{}m", r.cpu_millis), format!("{}Mi", r.memory_mib));
+    // Shards of 100, 100 and 50 drones: the one template requests the biggest.
+    let biggest = plan.resources.shards.iter().max_by_key(|r| r.cpu_millis).copied().unwrap();
+    assert_ne!(plan.resources.shards[0], plan.resources.shards[2]);
+    assert_eq!(requests(&container(&children, "test-run-shard")), q(biggest));
+    assert_eq!(requests(&container(&children, "test-run-coordinator")), q(plan.resources.coordinator));
+    assert_eq!(requests(&container(&children, "test-run-router-0")), q(plan.resources.router));
+    assert_eq!(requests(&container(&children, "test-run-assets")), q(plan.resources.assets));
+    assert_eq!(requests(&container(&children, "test-run-pilot")), q(plan.resources.pilot.unwrap()));
+    let limits = container(&children, "test-run-coordinator").resources.unwrap().limits.unwrap();
+    assert_eq!(limits["memory"], Quantity(format!("{}Mi", plan.resources.coordinator.memory_mib * 2)));
+    assert!(!limits.contains_key("cpu"), "no CPU limit: throttling one shard slows the lockstep");
+}
+
+trait PerShard {
+    fn with_drones_per_shard_of(self, n: u32) -> Self;
+}
+
+impl PerShard for SimulationRun {
+    fn with_drones_per_shard_of(mut self, n: u32) -> Self {
+        self.spec.sharding = Some(sadesim_crds::run::Sharding { drones_per_shard: n, ..Default::default() });
+        self
+    }
+}
+
+#[test]
+fn the_shard_job_is_indexed_fails_on_any_shard_failure_and_matches_the_headless_service() {
+    let run = piloted(250).with_drones_per_shard_of(100);
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let Some(Child::Job(job)) = children.iter().find(|c| c.name() == "test-run-shard") else { panic!() };
+    let spec = job.spec.as_ref().unwrap();
+    assert_eq!(spec.completion_mode.as_deref(), Some("Indexed"));
+    assert_eq!((spec.completions, spec.parallelism, spec.backoff_limit), (Some(3), Some(3), Some(0)));
+    let rules = &spec.pod_failure_policy.as_ref().unwrap().rules;
+    assert!(rules.iter().all(|r| r.action == "FailJob"));
+    let pod = spec.template.spec.as_ref().unwrap();
+    assert_eq!(pod.restart_policy.as_deref(), Some("Never"), "podFailurePolicy needs Never");
+    assert_eq!(pod.subdomain.as_deref(), Some("test-run-shards"));
+    let args = pod.containers[0].args.clone().unwrap();
+    let coordinator = args.iter().position(|a| a == "--coordinator").map(|i| args[i + 1].clone()).unwrap();
+    assert_eq!(coordinator, "test-run-airspace.default.svc:7400");
+    // The headless Service selects exactly the shard pods.
+    let Some(Child::Service(svc)) = children.iter().find(|c| c.name() == "test-run-shards") else { panic!() };
+    let svc = svc.spec.as_ref().unwrap();
+    assert_eq!(svc.cluster_ip.as_deref(), Some("None"));
+    let labels = job.spec.as_ref().unwrap().template.metadata.as_ref().unwrap().labels.clone().unwrap();
+    assert!(svc.selector.as_ref().unwrap().iter().all(|(k, v)| labels.get(k) == Some(v)));
+}
+
+/// The names the router dials, the names the pilot reads in its fleet file and the names
+/// the cluster's DNS gives (Indexed Job hostname `<job>-<index>` + subdomain) agree.
+#[test]
+fn router_fleet_file_and_dns_agree_on_every_address() {
+    let run = piloted(600).with_drones_per_shard_of(100);
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let fleet = fleet_file(&plan, &Addressing::Cluster);
+    let Some(Child::Job(job)) = children.iter().find(|c| c.name() == "test-run-shard") else { panic!() };
+    let subdomain = job.spec.as_ref().unwrap().template.spec.as_ref().unwrap().subdomain.clone().unwrap();
+    let router = container(&children, "test-run-router-1");
+    let args = router.args.unwrap();
+    let template = args.iter().position(|a| a == "--drone-host").map(|i| args[i + 1].clone()).unwrap();
+    for d in &fleet.drones {
+        let shard = plan.drones[d.index as usize].shard;
+        let dns = format!("{}-{shard}.{subdomain}.default.svc", job.metadata.name.as_deref().unwrap());
+        let routed = template.replace("{run}", "test-run").replace("{shard}", &shard.to_string());
+        let port = plan.drones[d.index as usize].ports.endpoint;
+        assert_eq!(routed, dns);
+        assert_eq!(d.mavlink.tcp, format!("tcpout://{dns}:{port}"));
+    }
+    // Airspace API and GCS endpoints: the Services that exist, on the ports they expose.
+    assert_eq!(fleet.airspace_url, "http://test-run-airspace.default.svc:8480");
+    assert_eq!(fleet.gcs_urls.len(), 3);
+    for (s, url) in fleet.gcs_urls.iter().enumerate() {
+        let name = names::mavlink_service("test-run", s as u32);
+        let Some(Child::Service(svc)) = children.iter().find(|c| c.name() == name) else { panic!("no {name}") };
+        let udp = svc
+            .spec
+            .as_ref()
+            .unwrap()
+            .ports
+            .as_ref()
+            .unwrap()
+            .iter()
+            .find(|p| p.protocol.as_deref() == Some("UDP"))
+            .unwrap();
+        assert_eq!(url, &format!("udpout://{name}.default.svc:{}", udp.port));
+        assert_eq!(udp.port, 14550 + s as i32);
+    }
+}
+
+#[test]
+fn a_queued_run_hands_its_jobs_to_kueue_and_never_sets_suspend() {
+    let run = piloted(3).with_queue("team-a");
+    let plan = planned(&run);
+    let settings = ClusterSettings { kueue: true, ..s3() };
+    let children = children(&run, &plan, &settings, Stage::ALL);
+    let all = json(&children);
+    assert_eq!(count_key(&all, "suspend"), 0, "Kueue owns spec.suspend");
+    for c in &children {
+        let queue = c.labels().and_then(|l| l.get(KUEUE_QUEUE_LABEL)).map(String::as_str);
+        match c {
+            Child::Job(_) => assert_eq!(queue, Some("team-a"), "{}", c.name()),
+            _ => assert_eq!(queue, None, "{}", c.name()),
+        }
+    }
+    assert_eq!(kueue_queue(&plan, &settings), Some("team-a"));
+}
+
+#[test]
+fn without_a_queue_or_with_kueue_off_no_kueue_label_appears() {
+    for (queue, kueue) in [(None, true), (Some("team-a"), false)] {
+        let mut run = piloted(3);
+        run.spec.queue = queue.map(String::from);
+        let plan = planned(&run);
+        let children = children(&run, &plan, &ClusterSettings { kueue, ..s3() }, Stage::ALL);
+        let text = serde_json::to_string(&children).unwrap();
+        assert!(!text.contains("kueue.x-k8s.io"), "queue {queue:?}, kueue {kueue}");
+        assert_eq!(count_key(&json(&children), "suspend"), 0);
+    }
+}
+
+trait Queue {
+    fn with_queue(self, q: &str) -> Self;
+}
+
+impl Queue for SimulationRun {
+    fn with_queue(mut self, q: &str) -> Self {
+        self.spec.queue = Some(q.into());
+        self
+    }
+}
+
+#[test]
+fn the_renderer_exists_only_with_rendering_on() {
+    let off = piloted(3);
+    let on = piloted(3).tap_rendering();
+    let count = |run: &SimulationRun| {
+        let children = children(run, &planned(run), &s3(), Stage::ALL);
+        children.iter().filter(|c| c.name() == "test-run-renderer").map(|c| c.kind()).collect::<Vec<_>>()
+    };
+    assert_eq!(count(&off), Vec::<&str>::new());
+    assert_eq!(count(&on), vec!["Service", "Deployment"]);
+}
+
+#[test]
+fn optional_jobs_follow_the_stage() {
+    let run = piloted(3);
+    let plan = planned(&run);
+    let names_at = |stage| children(&run, &plan, &s3(), stage).iter().map(|c| c.name().to_string()).collect::<Vec<_>>();
+    let none = names_at(Stage { assets_job: false, pilot: false });
+    assert!(!none.iter().any(|n| n == "test-run-assets" || n == "test-run-pilot"), "{none:?}");
+    let assets = names_at(Stage { assets_job: true, pilot: false });
+    assert!(assets.contains(&"test-run-assets".to_string()) && !assets.contains(&"test-run-pilot".to_string()));
+    let pilot = names_at(Stage { assets_job: false, pilot: true });
+    assert!(!pilot.contains(&"test-run-assets".to_string()) && pilot.contains(&"test-run-pilot".to_string()));
+    // The roles that run the whole time exist at every stage.
+    for n in ["test-run-config", "test-run-fleet", "test-run-coordinator", "test-run-shard", "test-run-router-0"] {
+        assert!(none.contains(&n.to_string()), "{n}");
+    }
+}
+
+#[test]
+fn without_an_object_store_there_is_no_assets_job_and_no_upload() {
+    let run = piloted(3);
+    let plan = planned(&run);
+    let settings = ClusterSettings::default();
+    let children = children(&run, &plan, &settings, Stage::ALL);
+    assert!(!children.iter().any(|c| c.name() == "test-run-assets"));
+    let env = container(&children, "test-run-coordinator").env.unwrap();
+    assert!(!env.iter().any(|e| e.name == "SADESIM_ARCHIVE_URL"));
+    let p = problems(&plan, &settings);
+    assert!(p.iter().any(|p| p.field == "spec.archive.url" && !p.fatal), "{p:?}");
+    // A file:// archive would be a folder inside the pod: warned about, not uploaded to.
+    let mut local = run.clone();
+    local.spec.archive = Some(Archive { url: "file://runs".into() });
+    let plan = planned(&local);
+    assert_eq!(upload_url(&plan, &s3()), None);
+    assert!(problems(&plan, &s3()).iter().any(|p| p.message.contains("lost with it")));
+}
+
+#[test]
+fn the_coordinator_uploads_its_run_folder_with_values_from_the_environment() {
+    let run = piloted(3);
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let c = container(&children, "test-run-coordinator");
+    let env: Vec<(String, Option<String>)> = c.env.clone().unwrap().into_iter().map(|e| (e.name, e.value)).collect();
+    assert!(env.contains(&("SADESIM_ARCHIVE_URL".into(), Some("s3://sadesim-runs/team-a".into()))), "{env:?}");
+    assert!(env.contains(&("SADESIM_RUN_UID".into(), Some(UID.into()))));
+    assert_eq!(c.env_from.unwrap()[0].secret_ref.as_ref().unwrap().name, "sadesim-object-store");
+    let script = &c.args.unwrap()[0];
+    assert!(script.contains("sim-worker coordinator --plan /etc/sadesim/plan.json"), "{script}");
+    assert!(script.contains(r#"archive put --quiet --namespace "$SADESIM_NAMESPACE""#), "{script}");
+    assert!(!script.contains("s3://"), "URLs come from the environment, never spliced into the script");
+    assert_eq!(
+        archive_location(&plan, &s3()).as_deref(),
+        Some(format!("s3://sadesim-runs/team-a/default/test-run/{UID}/").as_str())
+    );
+    // The coordinator's output folder is writable.
+    assert!(c.volume_mounts.unwrap().iter().any(|m| m.mount_path == OUT_DIR && m.read_only == Some(false)));
+}
+
+#[test]
+fn the_pilot_gets_the_fleet_file_run_and_credentials_from_secrets() {
+    let run = piloted(3);
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let c = container(&children, "test-run-pilot");
+    assert_eq!(c.image.as_deref(), Some("registry.example/team-a/pilot:1.2"));
+    assert_eq!(c.command, Some(vec!["python3".to_string(), "/app/pilot.py".to_string()]));
+    let env = c.env.unwrap();
+    let value = |n: &str| env.iter().find(|e| e.name == n).and_then(|e| e.value.clone());
+    assert_eq!(value("SADESIM_FLEET").as_deref(), Some(FLEET_PATH));
+    assert_eq!(value("SADESIM_RUN").as_deref(), Some("test-run"));
+    let cred = env.iter().find(|e| e.name == "SADESIM_CREDENTIAL_ALPHA").unwrap();
+    let from = cred.value_from.as_ref().unwrap().secret_key_ref.as_ref().unwrap();
+    assert_eq!((from.name.as_str(), from.key.as_str(), cred.value.as_deref()), ("alpha-token", "token", None));
+    // The coordinator checks the same credential.
+    let coord = container(&children, "test-run-coordinator").env.unwrap();
+    assert!(coord.iter().any(|e| e.name == "SADESIM_CREDENTIAL_ALPHA" && e.value_from == cred.value_from));
+    // The fleet file is mounted from its ConfigMap, which holds the in-cluster addresses.
+    let Some(Child::ConfigMap(cm)) = children.iter().find(|c| c.name() == "test-run-fleet") else { panic!() };
+    let fleet: Value = serde_json::from_str(&cm.data.as_ref().unwrap()["fleet.json"]).unwrap();
+    assert_eq!(fleet["airspaceUrl"], "http://test-run-airspace.default.svc:8480");
+    let mounts = container(&children, "test-run-pilot").volume_mounts.unwrap();
+    let spec = pod_specs(&children).into_iter().find(|(n, _)| n == "test-run-pilot").unwrap().1;
+    let fleet_mount = mounts.iter().find(|m| m.mount_path == CONFIG_DIR).unwrap();
+    let volume = spec.volumes.unwrap().into_iter().find(|v| v.name == fleet_mount.name).unwrap();
+    assert_eq!(volume.config_map.unwrap().name, "test-run-fleet");
+}
+
+#[test]
+fn a_pilot_without_an_image_is_refused_on_a_cluster_and_gets_no_job() {
+    let run = with_uid(RunBuilder::test().with_pilot(&["./pilot.sh"]).build());
+    let plan = planned(&run);
+    let p = problems(&plan, &s3());
+    assert!(p.iter().any(|p| p.fatal && p.field == "spec.pilot.image"), "{p:?}");
+    assert!(!children(&run, &plan, &s3(), Stage::ALL).iter().any(|c| c.name() == "test-run-pilot"));
+    // A run with every problem solved has none.
+    assert_eq!(problems(&planned(&piloted(3)), &s3()), vec![]);
+}
+
+#[test]
+fn a_thousand_drones_make_ten_shard_pods_four_routers_and_configmaps_under_the_limit() {
+    let run = with_uid(RunBuilder::test().with_drones(1000).build());
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let Some(Child::Job(job)) = children.iter().find(|c| c.name() == "test-run-shard") else { panic!() };
+    let spec = job.spec.as_ref().unwrap();
+    assert_eq!((spec.completions, spec.parallelism), (Some(10), Some(10)), "1000 drones / 100 per shard");
+    let routers =
+        children.iter().filter(|c| matches!(c, Child::Pod(_)) && c.name().starts_with("test-run-router-")).count();
+    let services = children.iter().filter(|c| c.name().starts_with("test-run-mavlink-")).count();
+    assert_eq!((routers, services), (4, 4), "ceil(1000 / 250) segments");
+    for c in &children {
+        if let Child::ConfigMap(cm) = c {
+            let bytes: usize = cm.data.iter().flatten().map(|(k, v)| k.len() + v.len()).sum();
+            assert!(bytes < CONFIG_MAP_LIMIT_BYTES * 3 / 4, "{}: {bytes} bytes", c.name());
+        }
+        // Every object, plan included, well under etcd's 1.5 MiB request limit.
+        let size = serde_json::to_vec(c).unwrap().len();
+        assert!(size < 1024 * 1024, "{} is {size} bytes", c.name());
+    }
+    assert_eq!(problems(&plan, &s3()), vec![]);
+    // The plan in the ConfigMap is the plan.
+    let Some(Child::ConfigMap(cm)) = children.iter().find(|c| c.name() == "test-run-config") else { panic!() };
+    let stored: RunPlan = serde_json::from_str(&cm.data.as_ref().unwrap()["plan.json"]).unwrap();
+    assert_eq!(stored, plan);
+}
+
+#[test]
+fn a_fleet_too_big_for_a_configmap_is_refused_with_its_size() {
+    let run = with_uid(RunBuilder::test().with_drones(4000).build());
+    let plan = planned(&run);
+    let (plan_bytes, _) = config_map_sizes(&plan);
+    assert!(plan_bytes > CONFIG_MAP_LIMIT_BYTES);
+    let p = problems(&plan, &s3());
+    let size = p.iter().find(|p| p.fatal && p.message.contains("plan.json")).expect("a size problem");
+    assert!(size.message.contains("4000 drones") && size.message.contains(&plan_bytes.to_string()), "{size}");
+}
+
+#[test]
+fn children_are_deterministic() {
+    let run = piloted(40);
+    let plan = planned(&run);
+    assert_eq!(
+        serde_json::to_string(&children(&run, &plan, &s3(), Stage::ALL)).unwrap(),
+        serde_json::to_string(&children(&run, &plan, &s3(), Stage::ALL)).unwrap()
+    );
+}

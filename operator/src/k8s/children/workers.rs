@@ -1,0 +1,326 @@
+//! The worker-image roles: assets, coordinator, routers, shards, renderer.
+
+use std::collections::BTreeMap;
+
+use k8s_openapi::api::apps::v1::{Deployment, DeploymentSpec, DeploymentStrategy};
+use k8s_openapi::api::batch::v1::{
+    Job, JobSpec, PodFailurePolicy, PodFailurePolicyOnExitCodesRequirement, PodFailurePolicyOnPodConditionsPattern,
+    PodFailurePolicyRule,
+};
+use k8s_openapi::api::core::v1::{
+    ContainerPort, Pod, PodTemplateSpec, Probe, Service, ServicePort, ServiceSpec, TCPSocketAction,
+};
+use k8s_openapi::apimachinery::pkg::apis::meta::v1::LabelSelector;
+use k8s_openapi::apimachinery::pkg::util::intstr::IntOrString;
+use sadesim_crds::plan::{RoleResources, RouterSegment};
+
+use super::pod::{
+    Context, OUT_DIR, PLAN_PATH, SADESIM, SIM_WORKER, config_volume, empty_dir, mount, pod_spec, worker_container,
+};
+use super::{ASSET_KEY_ANNOTATION, SEGMENT_LABEL, asset_cache_location, kueue, names, upload_url};
+
+/// Seconds a stopping coordinator gets to finish the run, write its files and upload them.
+pub const COORDINATOR_GRACE_S: i64 = 600;
+
+/// Exit code of the coordinator pod when the run finished but its upload failed.
+pub const UPLOAD_FAILED_EXIT: i32 = 3;
+
+fn strings(items: &[&str]) -> Vec<String> {
+    items.iter().map(|s| s.to_string()).collect()
+}
+
+fn port(name: &str, port: u16, protocol: &str) -> ContainerPort {
+    ContainerPort {
+        name: Some(name.into()),
+        container_port: i32::from(port),
+        protocol: Some(protocol.into()),
+        ..Default::default()
+    }
+}
+
+fn service_port(name: &str, port: u16, protocol: &str) -> ServicePort {
+    ServicePort {
+        name: Some(name.into()),
+        port: i32::from(port),
+        target_port: Some(IntOrString::String(name.into())),
+        protocol: Some(protocol.into()),
+        ..Default::default()
+    }
+}
+
+fn tcp_probe(port: &str) -> Probe {
+    Probe {
+        tcp_socket: Some(TCPSocketAction { port: IntOrString::String(port.into()), host: None }),
+        period_seconds: Some(2),
+        ..Default::default()
+    }
+}
+
+fn template(ctx: &Context, role: &str, spec: k8s_openapi::api::core::v1::PodSpec) -> PodTemplateSpec {
+    PodTemplateSpec { metadata: Some(ctx.template_meta(role)), spec: Some(spec) }
+}
+
+/// `<run>-assets`: builds the world into the asset cache. `None` without an object-store
+/// archive (there is no cache to fill; every shard builds the world itself).
+///
+/// Runs `sadesim assets --plan P --archive URL`, which fills
+/// `<archive>/assets/<asset cache key>/world/` (see `crate::assets`) or exits at once on a
+/// verified cache hit.
+pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
+    asset_cache_location(ctx.plan, ctx.settings)?;
+    let archive = upload_url(ctx.plan, ctx.settings)?.to_string();
+    let args = vec!["assets".into(), "--plan".into(), PLAN_PATH.into(), "--archive".into(), archive];
+    let mut container = worker_container(ctx, "assets", strings(&[SADESIM]), args, ctx.plan.resources.assets);
+    container.env_from = ctx.object_store_env();
+    let spec = pod_spec(vec![container], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Never");
+    let mut meta = ctx.meta(names::assets_job(ctx.name), "assets");
+    meta.annotations = Some(BTreeMap::from([(ASSET_KEY_ANNOTATION.to_string(), ctx.plan.asset_cache_key.clone())]));
+    kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
+    Some(Job {
+        metadata: meta,
+        spec: Some(JobSpec {
+            // A second try covers a flaky object store; the world build is deterministic.
+            backoff_limit: Some(1),
+            template: template(ctx, "assets", spec),
+            ..Default::default()
+        }),
+        ..Default::default()
+    })
+}
+
+/// `<run>-airspace`: the coordinator's shard link and airspace API. Not-ready addresses are
+/// published so shards can connect while the coordinator is still starting.
+pub(super) fn airspace_service(ctx: &Context) -> Service {
+    let s = ctx.plan.services;
+    Service {
+        metadata: ctx.meta(names::airspace_service(ctx.name), "coordinator"),
+        spec: Some(ServiceSpec {
+            selector: Some(ctx.selector("coordinator")),
+            ports: Some(vec![
+                service_port("shard-link", s.coordinator, "TCP"),
+                service_port("airspace", s.airspace_http, "TCP"),
+            ]),
+            publish_not_ready_addresses: Some(true),
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}
+
+/// The coordinator pod's program: the coordinator, then (whatever its exit status) the
+/// upload of its run folder when an archive URL is set; exit status the coordinator's, or
+/// [`UPLOAD_FAILED_EXIT`] when only the upload failed. SIGTERM (pod deletion, abort) is
+/// passed on as SIGINT, which makes the coordinator end the run and write its files.
+/// Values come from the environment, never spliced into the script.
+fn coordinator_script(ctx: &Context) -> String {
+    let s = ctx.plan.services;
+    format!(
+        r#"{SIM_WORKER} coordinator --plan {PLAN_PATH} --listen 0.0.0.0:{link} --airspace-bind 0.0.0.0:{api} --out {OUT_DIR} &
+child=$!
+trap 'kill -INT "$child" 2>/dev/null' INT TERM
+while :; do wait "$child"; rc=$?; kill -0 "$child" 2>/dev/null || break; done
+if [ -n "${{SADESIM_ARCHIVE_URL:-}}" ]; then
+  {SADESIM} archive put --quiet --namespace "$SADESIM_NAMESPACE" --run "$SADESIM_RUN" --uid "$SADESIM_RUN_UID" {OUT_DIR} "$SADESIM_ARCHIVE_URL" || {{ [ "$rc" -ne 0 ] || rc={UPLOAD_FAILED_EXIT}; }}
+else
+  echo "sadesim: no object-store archive configured: the run folder is not uploaded" >&2
+fi
+exit "$rc"
+"#,
+        link = s.coordinator,
+        api = s.airspace_http,
+    )
+}
+
+/// `<run>-coordinator`: lockstep clock, recorder, airspace authority; uploads the run
+/// folder at the end (`sadesim archive put`, from the same image). Its stdout is the JSON
+/// progress stream the controller reads.
+pub(super) fn coordinator_pod(ctx: &Context) -> Pod {
+    let s = ctx.plan.services;
+    let command = strings(&["/busybox/sh", "-c"]);
+    let mut c =
+        worker_container(ctx, "coordinator", command, vec![coordinator_script(ctx)], ctx.plan.resources.coordinator);
+    let env = c.env.get_or_insert_with(Vec::new);
+    if let Some(url) = upload_url(ctx.plan, ctx.settings) {
+        env.push(super::pod::env("SADESIM_ARCHIVE_URL", url));
+    }
+    // The authority checks the bearer credentials the pilot presents.
+    env.extend(ctx.credential_env());
+    c.env_from = ctx.object_store_env();
+    c.ports = Some(vec![port("shard-link", s.coordinator, "TCP"), port("airspace", s.airspace_http, "TCP")]);
+    c.readiness_probe = Some(tcp_probe("airspace"));
+    c.volume_mounts.get_or_insert_with(Vec::new).push(mount("out", OUT_DIR, false));
+    let mut spec =
+        pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp"), empty_dir("out")], "Never");
+    spec.termination_grace_period_seconds = Some(COORDINATOR_GRACE_S);
+    Pod { metadata: ctx.meta(names::coordinator_pod(ctx.name), "coordinator"), spec: Some(spec), ..Default::default() }
+}
+
+fn segment_labels(ctx: &Context, segment: u32) -> BTreeMap<String, String> {
+    let mut l = ctx.selector("router");
+    l.insert(SEGMENT_LABEL.into(), segment.to_string());
+    l
+}
+
+/// `<run>-mavlink-<s>`: segment `s`'s GCS endpoint, UDP `14550+s` and TCP `5760+s` (the
+/// plan's ports, the same inside and outside the pod, so the fleet file's URLs and the
+/// status endpoints hold everywhere). The type comes from `--router-service-type`.
+pub(super) fn mavlink_service(ctx: &Context, segment: &RouterSegment) -> Service {
+    let mut meta = ctx.meta(names::mavlink_service(ctx.name, segment.index), "router");
+    meta.labels.get_or_insert_with(BTreeMap::new).insert(SEGMENT_LABEL.into(), segment.index.to_string());
+    Service {
+        metadata: meta,
+        spec: Some(ServiceSpec {
+            type_: Some(ctx.settings.router_service_type.clone()),
+            selector: Some(segment_labels(ctx, segment.index)),
+            ports: Some(vec![
+                service_port("mavlink-udp", segment.gcs_udp, "UDP"),
+                service_port("mavlink-tcp", segment.gcs_tcp, "TCP"),
+            ]),
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}
+
+/// `<run>-router-<s>`: serves segment `s`'s drones to ground stations. Stateless, so it is
+/// restarted if it crashes; the operator deletes it when the run ends.
+pub(super) fn router_pod(ctx: &Context, segment: &RouterSegment) -> Pod {
+    let args = vec![
+        "router".into(),
+        "--plan".into(),
+        PLAN_PATH.into(),
+        "--segment".into(),
+        segment.index.to_string(),
+        "--bind".into(),
+        "0.0.0.0".into(),
+        "--drone-host".into(),
+        names::drone_host_template(ctx.namespace),
+    ];
+    let mut c = worker_container(ctx, "router", strings(&[SIM_WORKER]), args, ctx.plan.resources.router);
+    c.ports = Some(vec![port("mavlink-udp", segment.gcs_udp, "UDP"), port("mavlink-tcp", segment.gcs_tcp, "TCP")]);
+    c.readiness_probe = Some(tcp_probe("mavlink-tcp"));
+    let spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Always");
+    let mut meta = ctx.meta(names::router_pod(ctx.name, segment.index), "router");
+    meta.labels.get_or_insert_with(BTreeMap::new).insert(SEGMENT_LABEL.into(), segment.index.to_string());
+    Pod { metadata: meta, spec: Some(spec), ..Default::default() }
+}
+
+/// `<run>-shards`: headless, so each shard pod gets the DNS name
+/// `<run>-shard-<i>.<run>-shards.<ns>.svc` (hostname from the Indexed Job, subdomain this
+/// Service). No ports: clients use the drones' endpoint ports from the fleet file directly.
+/// Not-ready addresses are published so names resolve as soon as pods have IPs.
+pub(super) fn shard_service(ctx: &Context) -> Service {
+    Service {
+        metadata: ctx.meta(names::shard_service(ctx.name), "shard"),
+        spec: Some(ServiceSpec {
+            cluster_ip: Some("None".into()),
+            selector: Some(ctx.selector("shard")),
+            publish_not_ready_addresses: Some(true),
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}
+
+/// The largest per-shard estimate: one pod template serves every shard.
+fn shard_resources(ctx: &Context) -> RoleResources {
+    let shards = &ctx.plan.resources.shards;
+    RoleResources {
+        cpu_millis: shards.iter().map(|r| r.cpu_millis).max().unwrap_or(250),
+        memory_mib: shards.iter().map(|r| r.memory_mib).max().unwrap_or(256),
+    }
+}
+
+/// `<run>-shard`: one pod per shard (`JOB_COMPLETION_INDEX` = shard index, which
+/// `sim-worker shard` reads). A shard cannot be replaced mid-run (the lockstep needs all of
+/// them), so any failed or disrupted shard fails the Job at once, and with it the run.
+pub(super) fn shard_job(ctx: &Context) -> Job {
+    let count = i32::try_from(ctx.plan.shards.len()).expect("at most 10000 shards");
+    let args = vec![
+        "shard".into(),
+        "--plan".into(),
+        PLAN_PATH.into(),
+        "--coordinator".into(),
+        format!("{}:{}", names::airspace_host(ctx.name, ctx.namespace), ctx.plan.services.coordinator),
+        "--mavlink-bind".into(),
+        "0.0.0.0".into(),
+        // The pilot's pod address is unknown here: pilots connect to the drones' endpoints.
+        "--mavlink-api-host".into(),
+        "none".into(),
+    ];
+    let c = worker_container(ctx, "shard", strings(&[SIM_WORKER]), args, shard_resources(ctx));
+    let mut spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Never");
+    spec.subdomain = Some(names::shard_service(ctx.name));
+    let mut meta = ctx.meta(names::shard_job(ctx.name), "shard");
+    kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
+    Job {
+        metadata: meta,
+        spec: Some(JobSpec {
+            completion_mode: Some("Indexed".into()),
+            completions: Some(count),
+            parallelism: Some(count),
+            backoff_limit: Some(0),
+            pod_failure_policy: Some(PodFailurePolicy {
+                rules: vec![
+                    PodFailurePolicyRule {
+                        action: "FailJob".into(),
+                        on_exit_codes: Some(PodFailurePolicyOnExitCodesRequirement {
+                            container_name: Some("shard".into()),
+                            operator: "NotIn".into(),
+                            values: vec![0],
+                        }),
+                        on_pod_conditions: None,
+                    },
+                    PodFailurePolicyRule {
+                        action: "FailJob".into(),
+                        on_exit_codes: None,
+                        on_pod_conditions: Some(vec![PodFailurePolicyOnPodConditionsPattern {
+                            type_: "DisruptionTarget".into(),
+                            status: "True".into(),
+                        }]),
+                    },
+                ],
+            }),
+            template: template(ctx, "shard", spec),
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}
+
+/// `<run>-renderer` Service.
+pub(super) fn renderer_service(ctx: &Context) -> Service {
+    Service {
+        metadata: ctx.meta(names::renderer(ctx.name), "renderer"),
+        spec: Some(ServiceSpec {
+            selector: Some(ctx.selector("renderer")),
+            ports: Some(vec![service_port("http", ctx.plan.services.renderer_http, "TCP")]),
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}
+
+/// `<run>-renderer`: `sim-worker renderer --plan P --listen 0.0.0.0:<renderer port>`, one
+/// replica, replaced (not rolled) on change.
+pub(super) fn renderer_deployment(ctx: &Context) -> Deployment {
+    let port_no = ctx.plan.services.renderer_http;
+    let args =
+        vec!["renderer".into(), "--plan".into(), PLAN_PATH.into(), "--listen".into(), format!("0.0.0.0:{port_no}")];
+    let resources = ctx.plan.resources.renderer.unwrap_or(RoleResources { cpu_millis: 1000, memory_mib: 1024 });
+    let mut c = worker_container(ctx, "renderer", strings(&[SIM_WORKER]), args, resources);
+    c.ports = Some(vec![port("http", port_no, "TCP")]);
+    c.readiness_probe = Some(tcp_probe("http"));
+    let spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Always");
+    Deployment {
+        metadata: ctx.meta(names::renderer(ctx.name), "renderer"),
+        spec: Some(DeploymentSpec {
+            replicas: Some(1),
+            selector: LabelSelector { match_labels: Some(ctx.selector("renderer")), match_expressions: None },
+            strategy: Some(DeploymentStrategy { type_: Some("Recreate".into()), rolling_update: None }),
+            template: template(ctx, "renderer", spec),
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+}

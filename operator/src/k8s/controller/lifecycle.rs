@@ -1,0 +1,687 @@
+//! The run's phase machine (pure): from the run, its plan, what was observed of its
+//! children and the queue's answer, decide what to apply, archive and delete, the new
+//! status and the Events to record. No I/O and no clock: `now` is an input.
+//!
+//! Phases (DESIGN §4): `Pending -> Queued -> GeneratingAssets -> Starting -> Running ->
+//! Archiving -> Succeeded | Failed | Aborted`. An invalid run goes straight to `Failed`
+//! with `Valid=False` and no children. Every other end (criteria judged, a role failed,
+//! `spec.abort`, deletion) passes through `Archiving`, which stops the pilot, then the
+//! shards, waits (bounded) for the coordinator to write and upload the run, archives every
+//! role's pod log, and only then removes the workloads.
+//!
+//! # Guarantees
+//! - A terminal phase is never left.
+//! - Pod logs are archived before the workload that owns them is deleted, and the
+//!   finalizer is removed only once archiving is done.
+//! - Applied children never carry `spec.suspend` (Kueue owns it).
+
+use std::time::Duration;
+
+use k8s_openapi::apimachinery::pkg::apis::meta::v1::{Condition, Time};
+use k8s_openapi::jiff::Timestamp;
+use sadesim_crds::SimulationRun;
+use sadesim_crds::plan::RunPlan;
+use sadesim_crds::status::{ArchiveStatus, Endpoints, Phase, ShardStatus, SimulationRunStatus, condition_types as ct};
+
+use super::observe::{Observed, WorkState};
+use super::queue::Admission;
+use crate::k8s::children::{self, Child, ClusterSettings, ROLE_LABEL, Stage, names};
+
+#[cfg(test)]
+mod tests;
+
+/// The finalizer that keeps a run until its evidence is archived.
+pub const FINALIZER: &str = "sadesim.io/archive";
+
+/// How long `Archiving` waits for the coordinator to write and upload the run after the
+/// shards stopped, seconds; then its log is archived and it is deleted anyway.
+pub const COORDINATOR_GRACE_S: i64 = 120;
+
+/// Requeue periods: polls while children move (they also wake the controller by watch).
+const REQUEUE_QUEUED: Duration = Duration::from_secs(15);
+const REQUEUE_ACTIVE: Duration = Duration::from_secs(5);
+const REQUEUE_RUNNING: Duration = Duration::from_secs(10);
+const REQUEUE_ARCHIVING: Duration = Duration::from_secs(2);
+
+/// The reasons the Running condition ends with; the final phase follows from it.
+pub mod outcome {
+    /// The coordinator finished the run: the verdict decides Succeeded or Failed.
+    pub const FINISHED: &str = "Finished";
+    /// A role failed (the paper's rule: any role failing fails the run).
+    pub const ROLE_FAILED: &str = "RoleFailed";
+    /// The spec no longer plans (the CEL rule normally refuses such an update).
+    pub const INVALID: &str = "InvalidSpec";
+    /// `spec.abort: true`.
+    pub const ABORTED: &str = "Aborted";
+    /// The run was deleted before it ended.
+    pub const DELETED: &str = "Deleted";
+}
+
+/// A simulated time seen at a wall-clock time: the base of the real-time factor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub sim_time_s: f64,
+    pub at: Timestamp,
+}
+
+/// Everything the machine decides from.
+#[derive(Debug)]
+pub struct Input<'a> {
+    pub run: &'a SimulationRun,
+    /// The plan, or why the run does not plan (field paths and what is expected).
+    pub plan: Result<&'a RunPlan, String>,
+    pub settings: &'a ClusterSettings,
+    pub observed: &'a Observed,
+    /// The queue's answer, computed for runs waiting without Kueue (`None` otherwise).
+    pub admission: Option<Admission>,
+    pub now: Timestamp,
+    /// The previous progress sample of this run (kept in memory by the controller).
+    pub last_sample: Option<Sample>,
+}
+
+/// Workloads deleted by label selector `sadesim.io/run=<run>[,sadesim.io/role=<role>]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Delete {
+    /// `Job`, `Pod`, `Deployment` or `Service`.
+    pub kind: &'static str,
+    pub role: Option<&'static str>,
+}
+
+/// A Kubernetes Event about the run.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Note {
+    pub warning: bool,
+    /// PascalCase reason (the new phase, `InvalidSpec`, `RoleFailed`, ...).
+    pub reason: String,
+    pub message: String,
+}
+
+/// What to do, in this order: add the finalizer, apply, archive logs, delete, write the
+/// status, record the events, remove the finalizer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Decision {
+    pub add_finalizer: bool,
+    /// Children to server-side apply, in order.
+    pub apply: Vec<Child>,
+    /// Pods whose logs go to `logs/<pod>.log` in the run's archive folder.
+    pub archive_logs: Vec<String>,
+    /// The run's archive folder as `(archive URL, namespace, run, uid)`, when it has one.
+    pub archive: Option<(String, String, String, String)>,
+    pub delete: Vec<Delete>,
+    /// The full status (written only when it differs from the current one).
+    pub status: SimulationRunStatus,
+    pub events: Vec<Note>,
+    pub remove_finalizer: bool,
+    pub requeue: Option<Duration>,
+    /// The progress sample to remember for the next real-time factor.
+    pub sample: Option<Sample>,
+    /// The run was admitted from the queue now (for the queue-wait metric).
+    pub admitted: bool,
+}
+
+impl Decision {
+    fn new(status: SimulationRunStatus) -> Self {
+        Self {
+            add_finalizer: false,
+            apply: Vec::new(),
+            archive_logs: Vec::new(),
+            archive: None,
+            delete: Vec::new(),
+            status,
+            events: Vec::new(),
+            remove_finalizer: false,
+            requeue: None,
+            sample: None,
+            admitted: false,
+        }
+    }
+
+    fn phase(&self) -> Phase {
+        self.status.phase.unwrap_or(Phase::Pending)
+    }
+
+    /// Moves to `phase` with an Event (Warning for Failed).
+    fn enter(&mut self, phase: Phase, message: impl Into<String>) {
+        if self.status.phase == Some(phase) {
+            return;
+        }
+        let message = message.into();
+        self.status.phase = Some(phase);
+        self.status.message = Some(message.clone());
+        self.events.push(Note { warning: phase == Phase::Failed, reason: format!("{phase:?}"), message });
+    }
+
+    fn condition(
+        &mut self,
+        type_: &str,
+        ok: bool,
+        reason: &str,
+        message: impl Into<String>,
+        at: Timestamp,
+        generation: Option<i64>,
+    ) {
+        set_condition(&mut self.status.conditions, type_, ok, reason, &message.into(), at, generation);
+    }
+
+    fn requeue_at_most(&mut self, d: Duration) {
+        self.requeue = Some(self.requeue.map_or(d, |r| r.min(d)));
+    }
+}
+
+/// Sets a condition, keeping `lastTransitionTime` while its status does not change.
+pub fn set_condition(
+    conditions: &mut Vec<Condition>,
+    type_: &str,
+    ok: bool,
+    reason: &str,
+    message: &str,
+    at: Timestamp,
+    generation: Option<i64>,
+) {
+    let status = if ok { "True" } else { "False" };
+    let message: String = message.chars().take(32_768).collect();
+    match conditions.iter_mut().find(|c| c.type_ == type_) {
+        Some(c) => {
+            if c.status != status {
+                c.last_transition_time = Time(at);
+            }
+            c.status = status.into();
+            c.reason = reason.into();
+            c.message = message;
+            c.observed_generation = generation;
+        }
+        None => conditions.push(Condition {
+            type_: type_.into(),
+            status: status.into(),
+            reason: reason.into(),
+            message,
+            last_transition_time: Time(at),
+            observed_generation: generation,
+        }),
+    }
+}
+
+/// The condition `type_`, when set.
+pub fn condition<'a>(status: &'a SimulationRunStatus, type_: &str) -> Option<&'a Condition> {
+    status.conditions.iter().find(|c| c.type_ == type_)
+}
+
+fn role_of(child: &Child) -> &str {
+    child.labels().and_then(|l| l.get(ROLE_LABEL)).map_or("", String::as_str)
+}
+
+/// The children of `plan` for `roles` (all when `None`), Jobs without `spec.suspend`.
+fn children_for(input: &Input, plan: &RunPlan, stage: Stage, keep: impl Fn(&str) -> bool) -> Vec<Child> {
+    children::children(input.run, plan, input.settings, stage)
+        .into_iter()
+        .filter(|c| keep(role_of(c)))
+        .map(|c| match c {
+            Child::Job(mut job) => {
+                // Kueue owns `suspend`: an applied value would fight its admission.
+                if let Some(spec) = job.spec.as_mut() {
+                    spec.suspend = None;
+                }
+                Child::Job(job)
+            }
+            other => other,
+        })
+        .collect()
+}
+
+fn kueue_mode(input: &Input) -> bool {
+    input.settings.kueue && input.run.spec.queue.is_some()
+}
+
+/// The run may have children: it was admitted (Scheduled set to True once) or handed to
+/// Kueue, or something was observed.
+fn children_may_exist(status: &SimulationRunStatus, observed: &Observed) -> bool {
+    !observed.is_empty()
+        || condition(status, ct::SCHEDULED).is_some_and(|c| c.status == "True" || c.reason == "KueuePending")
+}
+
+/// Decides one reconcile of the run.
+pub fn decide(input: &Input) -> Decision {
+    let run = input.run;
+    let prev = run.status.clone().unwrap_or_default();
+    let prev_phase = prev.phase.unwrap_or(Phase::Pending);
+    let mut d = Decision::new(prev.clone());
+    let generation = run.metadata.generation;
+    let now = input.now;
+    let has_finalizer = run.metadata.finalizers.iter().flatten().any(|f| f == FINALIZER);
+    d.archive = archive_folder(input);
+
+    if run.metadata.deletion_timestamp.is_some() {
+        if !has_finalizer {
+            return d;
+        }
+        if prev_phase.is_terminal() {
+            d.remove_finalizer = true;
+            return d;
+        }
+        if !children_may_exist(&prev, input.observed) {
+            d.condition(ct::RUNNING, false, outcome::DELETED, "the run was deleted before it started", now, generation);
+            d.enter(Phase::Aborted, "the run was deleted before it started");
+            d.status.completion_time = Some(Time(now));
+            d.remove_finalizer = true;
+            return d;
+        }
+        if prev_phase != Phase::Archiving {
+            end(&mut d, input, outcome::DELETED, "the run was deleted: stopping it and archiving its evidence");
+        }
+        archive_step(&mut d, input);
+        d.remove_finalizer = d.phase().is_terminal();
+        return d;
+    }
+    if prev_phase.is_terminal() {
+        return d;
+    }
+    d.status.observed_generation = generation;
+
+    // Valid locally is not enough: a cluster needs e.g. a pilot image (children::problems).
+    let problems = input.plan.as_ref().map(|p| children::problems(p, input.settings)).unwrap_or_default();
+    let fatal: Vec<String> = problems.iter().filter(|p| p.fatal).map(ToString::to_string).collect();
+    let warnings: Vec<String> = problems.iter().filter(|p| !p.fatal).map(ToString::to_string).collect();
+    let planned = match &input.plan {
+        Ok(plan) if fatal.is_empty() => Ok(*plan),
+        Ok(_) => Err(fatal.join("; ")),
+        Err(message) => Err(message.clone()),
+    };
+    let plan = match (&planned, prev_phase) {
+        (Ok(plan), _) => *plan,
+        (Err(message), Phase::Archiving) => {
+            let _ = message;
+            archive_step(&mut d, input);
+            return d;
+        }
+        (Err(message), _) if !children_may_exist(&prev, input.observed) => {
+            d.condition(ct::VALID, false, "InvalidSpec", message.clone(), now, generation);
+            d.events.push(Note { warning: true, reason: "InvalidSpec".into(), message: message.clone() });
+            d.enter(Phase::Failed, format!("invalid: {message}"));
+            d.status.completion_time = Some(Time(now));
+            d.remove_finalizer = has_finalizer;
+            return d;
+        }
+        (Err(message), _) => {
+            d.condition(ct::VALID, false, "InvalidSpec", message.clone(), now, generation);
+            end(&mut d, input, outcome::INVALID, format!("the spec no longer plans: {message}"));
+            archive_step(&mut d, input);
+            return d;
+        }
+    };
+    let mut valid = format!(
+        "{} drones in {} shards, {} router segments",
+        plan.drones.len(),
+        plan.shards.len(),
+        plan.segments.len()
+    );
+    for w in &warnings {
+        valid.push_str(&format!("; warning: {w}"));
+    }
+    d.condition(ct::VALID, true, "Planned", valid, now, generation);
+    if prev_phase == Phase::Pending {
+        for w in &warnings {
+            d.events.push(Note { warning: true, reason: "SpecWarning".into(), message: w.clone() });
+        }
+    }
+    d.status.drones = Some(plan.drones.len() as u32);
+    d.status.shard_count = Some(plan.shards.len() as u32);
+    d.add_finalizer = !has_finalizer;
+
+    if prev_phase == Phase::Archiving {
+        archive_step(&mut d, input);
+        return d;
+    }
+    if run.spec.abort {
+        end(&mut d, input, outcome::ABORTED, "spec.abort is true: stopping the pilot, then the shards, then archiving");
+        archive_step(&mut d, input);
+        return d;
+    }
+
+    if prev_phase == Phase::Pending {
+        d.enter(Phase::Queued, "valid; waiting for admission");
+    }
+    if d.phase() == Phase::Queued {
+        queued(&mut d, input, plan);
+    }
+    if d.phase() == Phase::GeneratingAssets {
+        generating_assets(&mut d, input, plan);
+    }
+    if matches!(d.phase(), Phase::Starting | Phase::Running) {
+        live(&mut d, input, plan);
+    }
+    if d.phase() == Phase::Archiving {
+        archive_step(&mut d, input);
+    }
+    d
+}
+
+/// The archive folder of the run: `(archive URL, namespace, run, uid)`.
+fn archive_folder(input: &Input) -> Option<(String, String, String, String)> {
+    let run = input.run;
+    let url =
+        run.spec.archive.as_ref().map(|a| a.url.clone()).or_else(|| input.settings.default_archive_url.clone())?;
+    Some((
+        url.trim_end_matches('/').to_string(),
+        run.metadata.namespace.clone().unwrap_or_else(|| "default".into()),
+        run.metadata.name.clone().unwrap_or_default(),
+        run.metadata.uid.clone().unwrap_or_else(|| "unknown-uid".into()),
+    ))
+}
+
+/// The config and assets children (the first stage).
+fn first_stage(input: &Input, plan: &RunPlan) -> Vec<Child> {
+    children_for(input, plan, Stage { assets_job: true, pilot: false }, |r| matches!(r, "config" | "assets"))
+}
+
+fn queued(d: &mut Decision, input: &Input, plan: &RunPlan) {
+    let (now, generation) = (input.now, input.run.metadata.generation);
+    if kueue_mode(input) {
+        // Kueue admits through the Jobs' queue-name label: create them and let Kueue hold
+        // them (suspended) until the LocalQueue admits the run.
+        d.apply = first_stage(input, plan);
+        let has_assets = d.apply.iter().any(|c| c.kind() == "Job" && role_of(c) == "assets");
+        let held = has_assets && (!input.observed.has_job("assets") || input.observed.suspended("assets"));
+        let queue = input.run.spec.queue.as_deref().unwrap_or_default();
+        if held {
+            d.condition(
+                ct::SCHEDULED,
+                false,
+                "KueuePending",
+                format!("waiting for Kueue LocalQueue {queue} to admit the run"),
+                now,
+                generation,
+            );
+            d.requeue_at_most(REQUEUE_QUEUED);
+            return;
+        }
+        d.condition(
+            ct::SCHEDULED,
+            true,
+            "AdmittedByKueue",
+            format!("admitted by Kueue LocalQueue {queue}"),
+            now,
+            generation,
+        );
+        d.enter(Phase::GeneratingAssets, format!("admitted by Kueue LocalQueue {queue}"));
+        return;
+    }
+    match &input.admission {
+        Some(Admission::Admitted) => {
+            d.condition(ct::SCHEDULED, true, "Admitted", "the whole gang fits the namespace's quota", now, generation);
+            d.enter(Phase::GeneratingAssets, "admitted: the whole gang fits");
+            d.admitted = true;
+        }
+        Some(Admission::Waiting { reason, message }) => {
+            d.condition(ct::SCHEDULED, false, reason, message.clone(), now, generation);
+            d.status.message = Some(format!("queued: {message}"));
+            d.requeue_at_most(REQUEUE_QUEUED);
+        }
+        None => d.requeue_at_most(REQUEUE_QUEUED),
+    }
+}
+
+fn generating_assets(d: &mut Decision, input: &Input, plan: &RunPlan) {
+    let (now, generation) = (input.now, input.run.metadata.generation);
+    let apply = first_stage(input, plan);
+    let has_assets_job = apply.iter().any(|c| c.kind() == "Job" && role_of(c) == "assets");
+    d.apply = apply;
+    if !has_assets_job {
+        d.condition(
+            ct::ASSETS_READY,
+            true,
+            "NoCache",
+            "no object-store archive to cache assets in: each shard builds the world",
+            now,
+            generation,
+        );
+        d.enter(Phase::Starting, "starting the coordinator, routers and shards");
+        return;
+    }
+    match input.observed.jobs_of("assets").map(|w| w.state.clone()).next() {
+        Some(WorkState::Succeeded) => {
+            d.condition(ct::ASSETS_READY, true, "Built", "the assets Job finished", now, generation);
+            d.enter(Phase::Starting, "assets ready; starting the coordinator, routers and shards");
+        }
+        Some(WorkState::Failed(reason)) => {
+            d.condition(ct::ASSETS_READY, false, "Failed", reason.clone(), now, generation);
+            end(
+                d,
+                input,
+                outcome::ROLE_FAILED,
+                format!("role assets failed: Job {}: {reason}", names::assets_job(&plan.run.name)),
+            );
+        }
+        Some(WorkState::Suspended) => {
+            d.condition(ct::ASSETS_READY, false, "Generating", "the assets Job waits for Kueue", now, generation);
+            d.requeue_at_most(REQUEUE_ACTIVE);
+        }
+        _ => {
+            d.condition(ct::ASSETS_READY, false, "Generating", "the assets Job builds the world", now, generation);
+            d.requeue_at_most(REQUEUE_ACTIVE);
+        }
+    }
+}
+
+/// Starting and Running: apply the workers (and the pilot once released), follow the
+/// coordinator, end the run on its summary or on any role's failure.
+fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
+    let (now, generation) = (input.now, input.run.metadata.generation);
+    let observed = input.observed;
+    let coordinator_failure = observed.coordinator.as_ref().and_then(|r| r.failed.clone());
+    if let Some((role, reason)) = coordinator_failure.or_else(|| observed.failure()) {
+        end(d, input, outcome::ROLE_FAILED, format!("role {role} failed: {reason}"));
+        return;
+    }
+    let report = observed.coordinator.clone().unwrap_or_default();
+    if d.phase() == Phase::Starting && (report.pilots_released || report.finished.is_some()) {
+        d.condition(ct::RUNNING, true, "PilotsReleased", "simulated time advances; pilot released", now, generation);
+        d.status.start_time = Some(Time(now));
+        d.enter(Phase::Running, "every shard is ready; the pilot is released");
+    }
+    let running = d.phase() == Phase::Running;
+    d.apply = children_for(input, plan, Stage { assets_job: false, pilot: running }, |r| r != "assets");
+    d.status.endpoints = Some(endpoints(plan));
+
+    // Kueue may hold the shards' Job even after the assets were admitted.
+    if kueue_mode(input) && observed.suspended("shard") {
+        let queue = input.run.spec.queue.as_deref().unwrap_or_default();
+        d.condition(
+            ct::SCHEDULED,
+            false,
+            "KueuePending",
+            format!("the shards wait for Kueue LocalQueue {queue}"),
+            now,
+            generation,
+        );
+    } else if kueue_mode(input) {
+        d.condition(ct::SCHEDULED, true, "AdmittedByKueue", "admitted by Kueue", now, generation);
+    }
+
+    // Progress.
+    let shard_pods: Vec<_> = observed.pods_of("shard").collect();
+    d.status.shards = plan
+        .shards
+        .iter()
+        .map(|s| ShardStatus {
+            index: s.index,
+            drones: s.drone_count,
+            ready: shard_pods.iter().any(|p| p.index == Some(s.index) && p.ready),
+            sim_time_s: report.sim_time_s.filter(|_| running),
+        })
+        .collect();
+    if let Some(sim) = report.sim_time_s.filter(|_| running) {
+        let base =
+            input.last_sample.or_else(|| d.status.start_time.as_ref().map(|t| Sample { sim_time_s: 0.0, at: t.0 }));
+        if let Some(base) = base {
+            let wall_s = (now.as_nanosecond() - base.at.as_nanosecond()) as f64 * 1e-9;
+            if wall_s > 0.0 && sim >= base.sim_time_s && sim != base.sim_time_s {
+                d.status.real_time_factor = Some(round3((sim - base.sim_time_s) / wall_s));
+            }
+        }
+        if input.last_sample.map(|s| s.sim_time_s) != Some(sim) {
+            d.sample = Some(Sample { sim_time_s: sim, at: now });
+        } else {
+            d.sample = input.last_sample;
+        }
+        d.status.sim_time_s = Some(sim);
+    }
+    if !running {
+        let ready = d.status.shards.iter().filter(|s| s.ready).count();
+        d.condition(
+            ct::RUNNING,
+            false,
+            "Starting",
+            format!("{ready} of {} shards ready; waiting for the coordinator to release the pilots", plan.shards.len()),
+            now,
+            generation,
+        );
+    }
+
+    if let Some(finished) = &report.finished {
+        d.status.sim_time_s = Some(finished.sim_time_s);
+        d.status.real_time_factor = Some(round3(finished.real_time_factor));
+        d.status.verdict = finished.verdict.clone();
+        end(d, input, outcome::FINISHED, format!("the coordinator finished the run ({})", finished.end_reason));
+        return;
+    }
+    match observed.coordinator_state() {
+        Some(WorkState::Succeeded) => {
+            end(d, input, outcome::ROLE_FAILED, "role coordinator failed: it exited without a summary".to_string());
+        }
+        _ => d.requeue_at_most(if running { REQUEUE_RUNNING } else { REQUEUE_ACTIVE }),
+    }
+}
+
+fn round3(x: f64) -> f64 {
+    (x * 1000.0).round() / 1000.0
+}
+
+/// Where to connect while the run is live: the in-cluster DNS names of the children's
+/// Services (NodePort/LoadBalancer routers are also reachable at addresses the operator
+/// does not know).
+fn endpoints(plan: &RunPlan) -> Endpoints {
+    let (run, ns) = (&plan.run.name, &plan.run.namespace);
+    Endpoints {
+        airspace: Some(format!("http://{}:{}", names::airspace_host(run, ns), plan.services.airspace_http)),
+        mavlink: plan
+            .segments
+            .iter()
+            .map(|s| format!("udp://{}.{ns}.svc:{}", names::mavlink_service(run, s.index), s.gcs_udp))
+            .collect(),
+        renderer: plan
+            .spec
+            .rendering()
+            .enabled
+            .then(|| format!("http://{}.{ns}.svc:{}", names::renderer(run), plan.services.renderer_http)),
+    }
+}
+
+/// Ends the run with `reason` (an [`outcome`]) and enters Archiving.
+fn end(d: &mut Decision, input: &Input, reason: &str, message: impl Into<String>) {
+    let message = message.into();
+    let (now, generation) = (input.now, input.run.metadata.generation);
+    // Nothing more is created once the run ends.
+    d.apply.clear();
+    d.condition(ct::RUNNING, false, reason, message.clone(), now, generation);
+    d.condition(
+        ct::ARCHIVED,
+        false,
+        "Archiving",
+        "stopping the pilot, then the shards, then archiving",
+        now,
+        generation,
+    );
+    if reason == outcome::ROLE_FAILED || reason == outcome::INVALID {
+        d.events.push(Note { warning: true, reason: reason.into(), message: message.clone() });
+    }
+    d.enter(Phase::Archiving, message);
+}
+
+/// One step of Archiving, driven by what still exists: pilot, then shards, then (after the
+/// coordinator ended or its grace passed) everything else.
+fn archive_step(d: &mut Decision, input: &Input) {
+    let (now, generation) = (input.now, input.run.metadata.generation);
+    let observed = input.observed;
+    let pods_of = |role: &str| observed.pods_of(role).map(|p| p.name.clone()).collect::<Vec<_>>();
+    d.status.endpoints = None;
+    if observed.has_job("pilot") {
+        d.archive_logs = pods_of("pilot");
+        d.delete = vec![Delete { kind: "Job", role: Some("pilot") }];
+        d.condition(ct::ARCHIVED, false, "Archiving", "stopping the pilot", now, generation);
+        d.requeue_at_most(REQUEUE_ARCHIVING);
+        return;
+    }
+    if observed.has_job("shard") {
+        d.archive_logs = pods_of("shard");
+        d.delete = vec![Delete { kind: "Job", role: Some("shard") }];
+        d.condition(ct::ARCHIVED, false, "Archiving", "stopping the shards", now, generation);
+        d.requeue_at_most(REQUEUE_ARCHIVING);
+        return;
+    }
+    let since = condition(&d.status, ct::ARCHIVED).map_or(now, |c| c.last_transition_time.0);
+    let waited_s = (now.as_nanosecond() - since.as_nanosecond()) / 1_000_000_000;
+    let coordinator_live = matches!(observed.coordinator_state(), Some(WorkState::Pending | WorkState::Running));
+    if coordinator_live && waited_s < i128::from(COORDINATOR_GRACE_S) {
+        d.condition(
+            ct::ARCHIVED,
+            false,
+            "Archiving",
+            "waiting for the coordinator to write and upload the run",
+            now,
+            generation,
+        );
+        d.requeue_at_most(Duration::from_secs(5));
+        return;
+    }
+    d.archive_logs =
+        observed.pods.iter().filter(|p| p.role != "pilot" && p.role != "shard").map(|p| p.name.clone()).collect();
+    if children_may_exist(&d.status, observed) {
+        d.delete =
+            ["Job", "Pod", "Deployment", "Service"].into_iter().map(|kind| Delete { kind, role: None }).collect();
+    }
+    match d.archive.clone() {
+        Some((url, ns, run, uid)) => {
+            let folder = format!("{url}/{ns}/{run}/{uid}/");
+            d.status.archive = Some(ArchiveStatus { url: folder.clone(), files: None, bytes: None });
+            d.condition(ct::ARCHIVED, true, "Archived", "pod logs and recordings are in the archive", now, generation);
+            d.events.push(Note { warning: false, reason: "Archived".into(), message: format!("evidence in {folder}") });
+        }
+        None => {
+            d.condition(
+                ct::ARCHIVED,
+                false,
+                "NoArchive",
+                "no archive URL (spec.archive.url or --default-archive-url): nothing was archived",
+                now,
+                generation,
+            );
+            d.events.push(Note {
+                warning: true,
+                reason: "NoArchive".into(),
+                message: "no archive URL: the run's evidence was not kept".into(),
+            });
+        }
+    }
+    let ended = condition(&d.status, ct::RUNNING).map(|c| (c.reason.clone(), c.message.clone()));
+    let (reason, message) = ended.unwrap_or_else(|| (outcome::ABORTED.into(), "the run ended".into()));
+    let phase = match reason.as_str() {
+        outcome::FINISHED => {
+            let passed = match &d.status.verdict {
+                Some(v) => v.passed,
+                None => input.run.spec.criteria.is_empty(),
+            };
+            if passed { Phase::Succeeded } else { Phase::Failed }
+        }
+        outcome::ABORTED | outcome::DELETED => Phase::Aborted,
+        _ => Phase::Failed,
+    };
+    let message = match (phase, &d.status.verdict) {
+        (Phase::Failed, Some(v)) if reason == outcome::FINISHED && !v.failures.is_empty() => {
+            format!("criteria failed: {}", v.failures.join("; "))
+        }
+        (Phase::Failed, None) if reason == outcome::FINISHED => "the criteria were not judged".to_string(),
+        _ => message,
+    };
+    d.status.completion_time = Some(Time(now));
+    d.enter(phase, message);
+}

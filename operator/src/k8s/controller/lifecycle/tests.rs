@@ -1,0 +1,448 @@
+//! The phase machine, transition by transition.
+
+use k8s_openapi::apimachinery::pkg::apis::meta::v1::Time;
+use k8s_openapi::jiff::{SignedDuration, Timestamp};
+use sadesim_crds::SimulationRun;
+use sadesim_crds::fixtures::RunBuilder;
+use sadesim_crds::status::{Phase, SimulationRunStatus, Verdict, condition_types as ct};
+
+use super::*;
+use crate::k8s::children::{ClusterSettings, KUEUE_QUEUE_LABEL};
+use crate::k8s::controller::observe::{Observed, WorkState, Workload};
+use crate::k8s::controller::progress::{CoordinatorReport, Finished};
+use crate::k8s::controller::queue::Admission;
+
+const ARCHIVE: &str = "s3://sadesim-runs/team";
+
+fn t0() -> Timestamp {
+    Timestamp::from_second(1_800_000_000).unwrap()
+}
+
+fn later(s: i64) -> Timestamp {
+    t0() + SignedDuration::from_secs(s)
+}
+
+fn settings() -> ClusterSettings {
+    ClusterSettings { default_archive_url: Some(ARCHIVE.into()), ..Default::default() }
+}
+
+/// A valid run as the API server returns it (uid, generation, creation time).
+fn new_run() -> SimulationRun {
+    RunBuilder::test()
+        .with(|r| {
+            r.metadata.uid = Some("uid-1".into());
+            r.metadata.generation = Some(1);
+            r.metadata.creation_timestamp = Some(Time(t0()));
+        })
+        .build()
+}
+
+fn pilot_run() -> SimulationRun {
+    let mut run = RunBuilder::test().with_pilot(&["python3", "pilot.py"]).build();
+    run.spec.pilot.as_mut().unwrap().image = Some("example.com/pilot:1".into());
+    run.metadata = new_run().metadata;
+    run
+}
+
+fn with_phase(mut run: SimulationRun, phase: Phase, finalized: bool) -> SimulationRun {
+    run.status = Some(SimulationRunStatus { phase: Some(phase), ..Default::default() });
+    if finalized {
+        run.metadata.finalizers = Some(vec![FINALIZER.into()]);
+    }
+    run
+}
+
+fn decide_with(run: &SimulationRun, observed: &Observed, admission: Option<Admission>, now: Timestamp) -> Decision {
+    decide_full(run, &settings(), observed, admission, now, None)
+}
+
+fn decide_full(
+    run: &SimulationRun,
+    settings: &ClusterSettings,
+    observed: &Observed,
+    admission: Option<Admission>,
+    now: Timestamp,
+    last_sample: Option<Sample>,
+) -> Decision {
+    let plan = crate::planner::plan(run).map_err(|e| e.to_string());
+    decide(&Input { run, plan: plan.as_ref().map_err(Clone::clone), settings, observed, admission, now, last_sample })
+}
+
+fn job(role: &str, state: WorkState) -> Workload {
+    Workload {
+        kind: "Job",
+        name: format!("test-run-{role}"),
+        role: role.into(),
+        state,
+        job_owned: false,
+        ready: false,
+        index: None,
+    }
+}
+
+fn pod(name: &str, role: &str, state: WorkState, job_owned: bool) -> Workload {
+    Workload { kind: "Pod", name: name.into(), role: role.into(), state, job_owned, ready: true, index: None }
+}
+
+/// The workers of a started run: shard Job with one pod, coordinator, one router.
+fn workers(coordinator: WorkState) -> Observed {
+    let mut shard = pod("test-run-shard-0", "shard", WorkState::Running, true);
+    shard.index = Some(0);
+    Observed {
+        jobs: vec![job("assets", WorkState::Succeeded), job("shard", WorkState::Running)],
+        pods: vec![
+            shard,
+            pod("test-run-coordinator", "coordinator", coordinator, false),
+            pod("test-run-router-0", "router", WorkState::Running, false),
+        ],
+        coordinator: None,
+    }
+}
+
+fn cond<'a>(d: &'a Decision, type_: &str) -> &'a k8s_openapi::apimachinery::pkg::apis::meta::v1::Condition {
+    condition(&d.status, type_).unwrap_or_else(|| panic!("no {type_} condition in {:?}", d.status.conditions))
+}
+
+fn roles(children: &[Child]) -> Vec<String> {
+    children.iter().map(|c| format!("{} {}", c.kind(), role_of(c))).collect()
+}
+
+fn reasons(d: &Decision) -> Vec<&str> {
+    d.events.iter().map(|e| e.reason.as_str()).collect()
+}
+
+#[test]
+fn a_new_valid_run_is_queued_with_a_finalizer_and_no_children_until_admitted() {
+    let run = new_run();
+    let waiting = Admission::Waiting { reason: "QuotaExceeded", message: "ResourceQuota team: no room".into() };
+    let d = decide_with(&run, &Observed::default(), Some(waiting), t0());
+    assert_eq!(d.status.phase, Some(Phase::Queued));
+    assert!(d.add_finalizer);
+    assert!(d.apply.is_empty() && d.delete.is_empty() && d.archive_logs.is_empty());
+    assert_eq!(cond(&d, ct::VALID).status, "True");
+    assert_eq!(cond(&d, ct::SCHEDULED).status, "False");
+    assert_eq!(cond(&d, ct::SCHEDULED).reason, "QuotaExceeded");
+    assert_eq!(d.status.observed_generation, Some(1));
+    assert_eq!(d.status.drones, Some(1));
+    assert_eq!(reasons(&d), ["Queued"]);
+    assert!(d.requeue.is_some());
+}
+
+#[test]
+fn an_admitted_run_creates_its_config_and_assets_job_first() {
+    let run = new_run();
+    let d = decide_with(&run, &Observed::default(), Some(Admission::Admitted), t0());
+    assert_eq!(d.status.phase, Some(Phase::GeneratingAssets));
+    assert!(d.admitted);
+    assert_eq!(cond(&d, ct::SCHEDULED).reason, "Admitted");
+    assert_eq!(cond(&d, ct::ASSETS_READY).status, "False");
+    assert_eq!(roles(&d.apply), ["ConfigMap config", "ConfigMap config", "Job assets"]);
+    assert_eq!(reasons(&d), ["Queued", "GeneratingAssets"]);
+}
+
+#[test]
+fn an_invalid_run_fails_with_valid_false_and_no_children() {
+    let mut run = new_run();
+    run.spec.fleet[0].count = 0;
+    let d = decide_with(&run, &Observed::default(), None, t0());
+    assert_eq!(d.status.phase, Some(Phase::Failed));
+    assert_eq!(cond(&d, ct::VALID).status, "False");
+    assert_eq!(cond(&d, ct::VALID).reason, "InvalidSpec");
+    assert!(cond(&d, ct::VALID).message.contains("fleet[0].count"), "{}", cond(&d, ct::VALID).message);
+    assert!(d.apply.is_empty() && !d.add_finalizer);
+    assert!(d.events.iter().any(|e| e.warning && e.reason == "InvalidSpec"));
+    assert!(d.status.completion_time.is_some());
+}
+
+#[test]
+fn a_pilot_without_an_image_cannot_run_on_a_cluster() {
+    let mut run = pilot_run();
+    run.spec.pilot.as_mut().unwrap().image = None;
+    let d = decide_with(&run, &Observed::default(), Some(Admission::Admitted), t0());
+    assert_eq!(d.status.phase, Some(Phase::Failed));
+    assert!(cond(&d, ct::VALID).message.contains("spec.pilot.image"));
+    assert!(d.apply.is_empty());
+}
+
+#[test]
+fn assets_built_start_the_workers_without_the_pilot() {
+    let run = with_phase(pilot_run(), Phase::GeneratingAssets, true);
+    let observed = Observed { jobs: vec![job("assets", WorkState::Succeeded)], ..Default::default() };
+    let d = decide_with(&run, &observed, None, t0());
+    assert_eq!(d.status.phase, Some(Phase::Starting));
+    assert_eq!(cond(&d, ct::ASSETS_READY).status, "True");
+    let applied = roles(&d.apply);
+    assert!(applied.contains(&"Pod coordinator".to_string()), "{applied:?}");
+    assert!(applied.contains(&"Job shard".to_string()), "{applied:?}");
+    assert!(!applied.iter().any(|r| r.ends_with("pilot") || r.ends_with("assets")), "{applied:?}");
+    assert_eq!(cond(&d, ct::RUNNING).reason, "Starting");
+}
+
+#[test]
+fn assets_still_building_keep_the_phase() {
+    let run = with_phase(new_run(), Phase::GeneratingAssets, true);
+    let observed = Observed { jobs: vec![job("assets", WorkState::Running)], ..Default::default() };
+    let d = decide_with(&run, &observed, None, t0());
+    assert_eq!(d.status.phase, Some(Phase::GeneratingAssets));
+    assert!(d.events.is_empty());
+}
+
+#[test]
+fn released_pilots_start_running_and_create_the_pilot_job() {
+    let run = with_phase(pilot_run(), Phase::Starting, true);
+    let mut observed = workers(WorkState::Running);
+    observed.coordinator =
+        Some(CoordinatorReport { sim_time_s: Some(0.01), pilots_released: true, ..Default::default() });
+    let d = decide_with(&run, &observed, None, t0());
+    assert_eq!(d.status.phase, Some(Phase::Running));
+    assert_eq!(cond(&d, ct::RUNNING).status, "True");
+    assert_eq!(d.status.start_time, Some(Time(t0())));
+    assert!(roles(&d.apply).contains(&"Job pilot".to_string()));
+    assert_eq!(d.status.shards.len(), 1);
+    assert!(d.status.shards[0].ready);
+    assert!(d.status.endpoints.as_ref().unwrap().airspace.as_ref().unwrap().contains("test-run-airspace.default.svc"));
+}
+
+#[test]
+fn running_reports_sim_time_and_real_time_factor() {
+    let mut run = with_phase(new_run(), Phase::Running, true);
+    run.status.as_mut().unwrap().start_time = Some(Time(t0()));
+    let mut observed = workers(WorkState::Running);
+    observed.coordinator =
+        Some(CoordinatorReport { sim_time_s: Some(30.0), pilots_released: true, ..Default::default() });
+    let last = Sample { sim_time_s: 10.0, at: later(10) };
+    let d = decide_full(&run, &settings(), &observed, None, later(20), Some(last));
+    assert_eq!(d.status.phase, Some(Phase::Running));
+    assert_eq!(d.status.sim_time_s, Some(30.0));
+    assert_eq!(d.status.real_time_factor, Some(2.0)); // 20 sim s in 10 wall s
+    assert_eq!(d.sample, Some(Sample { sim_time_s: 30.0, at: later(20) }));
+    assert!(d.events.is_empty());
+}
+
+fn finished(passed: bool) -> CoordinatorReport {
+    CoordinatorReport {
+        sim_time_s: Some(120.0),
+        pilots_released: true,
+        finished: Some(Finished {
+            sim_time_s: 120.0,
+            real_time_factor: 3.5,
+            end_reason: "duration".into(),
+            verdict: Some(Verdict {
+                passed,
+                failures: if passed { vec![] } else { vec!["spec.criteria[0] noCrashes: 1 crash".into()] },
+                unauthorized_entries: None,
+                crashes: Some(u32::from(!passed)),
+            }),
+        }),
+        failed: None,
+    }
+}
+
+/// Drives a run through Archiving as the cluster would: pilot, shards, coordinator, rest.
+fn archive_to_the_end(mut run: SimulationRun, mut observed: Observed, start: Timestamp) -> Vec<Decision> {
+    let mut steps = Vec::new();
+    for i in 0..6 {
+        let d = decide_with(&run, &observed, None, start + SignedDuration::from_secs(i));
+        run.status = Some(d.status.clone());
+        // What the deletes do.
+        for del in &d.delete {
+            match del.role {
+                Some(role) => {
+                    observed.jobs.retain(|j| j.role != role);
+                    observed.pods.retain(|p| p.role != role);
+                }
+                None => {
+                    observed.jobs.clear();
+                    observed.pods.clear();
+                }
+            }
+        }
+        // The coordinator finishes its upload and exits once the shards are gone.
+        if !observed.has_job("shard") {
+            for p in observed.pods.iter_mut().filter(|p| p.role == "coordinator") {
+                p.state = WorkState::Succeeded;
+            }
+        }
+        let done = d.status.phase.is_some_and(Phase::is_terminal);
+        steps.push(d);
+        if done {
+            break;
+        }
+    }
+    steps
+}
+
+#[test]
+fn a_finished_run_archives_pilot_then_shards_then_the_rest_and_succeeds() {
+    let mut run = with_phase(pilot_run(), Phase::Running, true);
+    run.status.as_mut().unwrap().start_time = Some(Time(t0()));
+    let mut observed = workers(WorkState::Running);
+    observed.jobs.push(job("pilot", WorkState::Running));
+    observed.pods.push(pod("test-run-pilot-abcde", "pilot", WorkState::Running, true));
+    observed.coordinator = Some(finished(true));
+    let steps = archive_to_the_end(run, observed, later(60));
+
+    let first = &steps[0];
+    assert_eq!(first.status.phase, Some(Phase::Archiving));
+    assert_eq!(cond(first, ct::RUNNING).reason, outcome::FINISHED);
+    assert_eq!(first.status.sim_time_s, Some(120.0));
+    assert_eq!(first.status.real_time_factor, Some(3.5));
+    assert_eq!(first.archive_logs, ["test-run-pilot-abcde"]);
+    assert_eq!(first.delete, [Delete { kind: "Job", role: Some("pilot") }]);
+    assert!(first.apply.is_empty());
+
+    let second = &steps[1];
+    assert_eq!(second.archive_logs, ["test-run-shard-0"]);
+    assert_eq!(second.delete, [Delete { kind: "Job", role: Some("shard") }]);
+
+    let last = steps.last().unwrap();
+    assert_eq!(last.status.phase, Some(Phase::Succeeded));
+    assert_eq!(cond(last, ct::ARCHIVED).status, "True");
+    assert_eq!(last.archive_logs, ["test-run-coordinator", "test-run-router-0"]);
+    assert_eq!(last.delete.len(), 4);
+    assert_eq!(last.status.archive.as_ref().unwrap().url, format!("{ARCHIVE}/default/test-run/uid-1/"));
+    assert!(last.status.completion_time.is_some());
+    assert!(reasons(last).contains(&"Succeeded"));
+    assert!(!last.remove_finalizer, "the finalizer stays until the run is deleted");
+}
+
+#[test]
+fn failed_criteria_fail_the_run_after_archiving() {
+    let run = with_phase(new_run(), Phase::Running, true);
+    let mut observed = workers(WorkState::Running);
+    observed.coordinator = Some(finished(false));
+    let last = archive_to_the_end(run, observed, later(60)).pop().unwrap();
+    assert_eq!(last.status.phase, Some(Phase::Failed));
+    assert!(last.status.message.as_ref().unwrap().contains("noCrashes"));
+    assert_eq!(last.status.verdict.as_ref().map(|v| v.passed), Some(false));
+}
+
+#[test]
+fn a_failed_role_fails_the_run_naming_the_role_and_reason() {
+    let run = with_phase(new_run(), Phase::Running, true);
+    let mut observed = workers(WorkState::Running);
+    observed.jobs[1].state =
+        WorkState::Failed("BackoffLimitExceeded: Job has reached the specified backoff limit".into());
+    let steps = archive_to_the_end(run, observed, later(60));
+    let first = &steps[0];
+    assert_eq!(first.status.phase, Some(Phase::Archiving));
+    assert_eq!(cond(first, ct::RUNNING).reason, outcome::ROLE_FAILED);
+    assert!(cond(first, ct::RUNNING).message.contains("role shard failed: Job test-run-shard: BackoffLimitExceeded"));
+    assert!(first.events.iter().any(|e| e.warning && e.reason == "RoleFailed"));
+    let last = steps.last().unwrap();
+    assert_eq!(last.status.phase, Some(Phase::Failed));
+    assert!(last.status.message.as_ref().unwrap().contains("role shard failed"));
+}
+
+#[test]
+fn abort_stops_the_pilot_then_the_shards_then_archives() {
+    let mut run = with_phase(pilot_run(), Phase::Running, true);
+    run.spec.abort = true;
+    let mut observed = workers(WorkState::Running);
+    observed.jobs.push(job("pilot", WorkState::Running));
+    observed.pods.push(pod("test-run-pilot-abcde", "pilot", WorkState::Running, true));
+    let steps = archive_to_the_end(run, observed, later(60));
+    assert_eq!(cond(&steps[0], ct::RUNNING).reason, outcome::ABORTED);
+    assert_eq!(steps[0].delete, [Delete { kind: "Job", role: Some("pilot") }]);
+    assert_eq!(steps[1].delete, [Delete { kind: "Job", role: Some("shard") }]);
+    let last = steps.last().unwrap();
+    assert_eq!(last.status.phase, Some(Phase::Aborted));
+    assert_eq!(cond(last, ct::ARCHIVED).status, "True");
+}
+
+#[test]
+fn archiving_waits_for_the_coordinator_but_not_forever() {
+    let mut run = with_phase(new_run(), Phase::Running, true);
+    run.spec.abort = true;
+    let observed = Observed {
+        pods: vec![pod("test-run-coordinator", "coordinator", WorkState::Running, false)],
+        ..Default::default()
+    };
+    let d = decide_with(&run, &observed, None, later(10));
+    assert_eq!(d.status.phase, Some(Phase::Archiving));
+    assert!(d.archive_logs.is_empty() && d.delete.is_empty());
+    run.status = Some(d.status);
+    let d = decide_with(&run, &observed, None, later(10 + COORDINATOR_GRACE_S));
+    assert_eq!(d.status.phase, Some(Phase::Aborted));
+    assert_eq!(d.archive_logs, ["test-run-coordinator"]);
+}
+
+#[test]
+fn deletion_archives_before_the_finalizer_goes() {
+    let mut run = with_phase(new_run(), Phase::Running, true);
+    run.metadata.deletion_timestamp = Some(Time(later(5)));
+    let observed = workers(WorkState::Running);
+    let steps = archive_to_the_end(run, observed, later(60));
+    assert_eq!(cond(&steps[0], ct::RUNNING).reason, outcome::DELETED);
+    assert!(steps[..steps.len() - 1].iter().all(|d| !d.remove_finalizer));
+    let last = steps.last().unwrap();
+    assert_eq!(last.status.phase, Some(Phase::Aborted));
+    assert!(last.remove_finalizer);
+    assert!(!last.archive_logs.is_empty());
+}
+
+#[test]
+fn deleting_a_finished_or_never_started_run_just_removes_the_finalizer() {
+    let mut done = with_phase(new_run(), Phase::Succeeded, true);
+    done.metadata.deletion_timestamp = Some(Time(later(5)));
+    let d = decide_with(&done, &Observed::default(), None, later(6));
+    assert!(d.remove_finalizer && d.apply.is_empty() && d.delete.is_empty());
+    assert_eq!(d.status, done.status.clone().unwrap());
+
+    let mut queued = with_phase(new_run(), Phase::Queued, true);
+    queued.metadata.deletion_timestamp = Some(Time(later(5)));
+    let d = decide_with(&queued, &Observed::default(), None, later(6));
+    assert!(d.remove_finalizer && d.delete.is_empty());
+    assert_eq!(d.status.phase, Some(Phase::Aborted));
+}
+
+#[test]
+fn a_terminal_phase_is_never_left() {
+    for phase in [Phase::Succeeded, Phase::Failed, Phase::Aborted] {
+        let mut run = with_phase(new_run(), phase, true);
+        run.spec.abort = true;
+        let d = decide_with(&run, &workers(WorkState::Running), Some(Admission::Admitted), t0());
+        assert_eq!(d.status.phase, Some(phase));
+        assert!(d.apply.is_empty() && d.delete.is_empty() && d.events.is_empty());
+    }
+}
+
+#[test]
+fn with_kueue_jobs_are_labelled_never_suspended_and_the_run_waits_for_admission() {
+    let settings = ClusterSettings { kueue: true, ..settings() };
+    let mut run = new_run();
+    run.spec.queue = Some("team-a".into());
+    let d = decide_full(&run, &settings, &Observed::default(), None, t0(), None);
+    assert_eq!(d.status.phase, Some(Phase::Queued));
+    assert_eq!(cond(&d, ct::SCHEDULED).reason, "KueuePending");
+    let jobs: Vec<_> = d
+        .apply
+        .iter()
+        .filter_map(|c| match c {
+            Child::Job(j) => Some(j),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(jobs.len(), 1);
+    for j in &jobs {
+        assert_eq!(j.metadata.labels.as_ref().unwrap().get(KUEUE_QUEUE_LABEL).map(String::as_str), Some("team-a"));
+        assert_eq!(j.spec.as_ref().unwrap().suspend, None);
+    }
+    // Kueue admitted the assets Job (it runs, unsuspended).
+    let run = with_phase(run, Phase::Queued, true);
+    let observed = Observed { jobs: vec![job("assets", WorkState::Running)], ..Default::default() };
+    let d = decide_full(&run, &settings, &observed, None, t0(), None);
+    assert_eq!(d.status.phase, Some(Phase::GeneratingAssets));
+    assert_eq!(cond(&d, ct::SCHEDULED).reason, "AdmittedByKueue");
+}
+
+#[test]
+fn set_condition_keeps_the_transition_time_while_the_status_holds() {
+    let mut conds = Vec::new();
+    set_condition(&mut conds, "Running", false, "Starting", "a", t0(), Some(1));
+    set_condition(&mut conds, "Running", false, "Starting", "b", later(5), Some(1));
+    assert_eq!(conds[0].last_transition_time, Time(t0()));
+    assert_eq!(conds[0].message, "b");
+    set_condition(&mut conds, "Running", true, "PilotsReleased", "c", later(9), Some(1));
+    assert_eq!(conds[0].last_transition_time, Time(later(9)));
+}

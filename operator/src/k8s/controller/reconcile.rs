@@ -1,0 +1,403 @@
+//! The thin I/O shell around [`lifecycle::decide`]: read (children, coordinator log,
+//! queue), decide (pure), then act in a fixed order — finalizer, server-side apply of the
+//! children, log archival, deletes, status on the status subresource, Events, finalizer
+//! removal. Each step is one kind of API call; the order is what the tests assert.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use k8s_openapi::NamespaceResourceScope;
+use k8s_openapi::api::apps::v1::Deployment;
+use k8s_openapi::api::batch::v1::Job;
+use k8s_openapi::api::core::v1::{ConfigMap, Pod, ResourceQuota, Service};
+use k8s_openapi::jiff::Timestamp;
+use kube::api::{Api, DeleteParams, ListParams, LogParams, Patch, PatchParams};
+use kube::runtime::controller::Action;
+use kube::runtime::events::{Event, EventType, Recorder};
+use kube::{Client, Resource, ResourceExt};
+use sadesim_crds::SimulationRun;
+use sadesim_crds::status::Phase;
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use serde_json::json;
+
+use super::lifecycle::{self, Decision, Delete, FINALIZER, Input, Sample};
+use super::metrics::Metrics;
+use super::observe::{Observed, WorkState};
+use super::progress::{self, TAIL_LINES};
+use super::queue::{self, Gang, QueueView, QueuedRun};
+use crate::k8s::children::{Child, ClusterSettings, ROLE_LABEL, RUN_LABEL, names};
+use crate::planner;
+
+/// Field manager of every server-side apply (children and status).
+pub const MANAGER: &str = "sadesim-operator";
+
+/// Folder of the run's archive the operator owns (pod logs).
+pub const LOGS_PREFIX: &str = "logs/";
+
+/// Why a reconcile failed (it is retried with backoff).
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A call to the API server failed.
+    #[error("failed to {what}: {source}")]
+    Kube {
+        what: String,
+        #[source]
+        source: kube::Error,
+    },
+    /// Pod logs could not be written to the run's archive.
+    #[error("failed to archive pod logs: {0}")]
+    Archive(String),
+    /// The run has no namespace (SimulationRuns are namespaced; the watch always sets it).
+    #[error("run {0} has no namespace")]
+    NoNamespace(String),
+}
+
+impl Error {
+    /// Short label for the failure metric.
+    pub fn metric_label(&self) -> &'static str {
+        match self {
+            Error::Kube { .. } => "kube",
+            Error::Archive(_) => "archive",
+            Error::NoNamespace(_) => "no_namespace",
+        }
+    }
+}
+
+fn kube_err(what: impl Into<String>) -> impl FnOnce(kube::Error) -> Error {
+    let what = what.into();
+    move |source| Error::Kube { what, source }
+}
+
+/// What every reconcile shares.
+pub struct Context {
+    pub client: Client,
+    pub settings: ClusterSettings,
+    /// Active runs per namespace without Kueue; 0 = unlimited.
+    pub max_concurrent_runs: u32,
+    pub metrics: Arc<Metrics>,
+    pub recorder: Recorder,
+    /// Last progress sample per run uid (base of the real-time factor).
+    pub samples: Mutex<HashMap<String, Sample>>,
+    /// The wall clock (fixed in tests).
+    pub clock: Box<dyn Fn() -> Timestamp + Send + Sync>,
+}
+
+impl std::fmt::Debug for Context {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Context").field("settings", &self.settings).finish_non_exhaustive()
+    }
+}
+
+impl Context {
+    pub fn new(client: Client, settings: ClusterSettings, max_concurrent_runs: u32, metrics: Arc<Metrics>) -> Self {
+        let recorder = Recorder::new(client.clone(), MANAGER.into());
+        Self {
+            client,
+            settings,
+            max_concurrent_runs,
+            metrics,
+            recorder,
+            samples: Mutex::default(),
+            clock: Box::new(Timestamp::now),
+        }
+    }
+}
+
+fn selector(run: &str, role: Option<&str>) -> String {
+    match role {
+        Some(role) => format!("{RUN_LABEL}={run},{ROLE_LABEL}={role}"),
+        None => format!("{RUN_LABEL}={run}"),
+    }
+}
+
+/// Reconciles one run (the controller's entry point).
+///
+/// # Errors
+/// See [`Error`]; the controller retries with backoff.
+pub async fn reconcile(run: Arc<SimulationRun>, ctx: Arc<Context>) -> Result<Action, Error> {
+    ctx.metrics.reconciles.inc();
+    let name = run.name_any();
+    let ns = run.namespace().ok_or_else(|| Error::NoNamespace(name.clone()))?;
+    let uid = run.uid().unwrap_or_default();
+    let now = (ctx.clock)();
+    let status = run.status.clone().unwrap_or_default();
+    let phase = status.phase.unwrap_or(Phase::Pending);
+    let deleting = run.metadata.deletion_timestamp.is_some();
+    let kueue = ctx.settings.kueue && run.spec.queue.is_some();
+
+    let plan = planner::plan(&run).map_err(|e| e.to_string());
+    let waiting = matches!(phase, Phase::Pending | Phase::Queued);
+    let observe =
+        if deleting { !phase.is_terminal() } else { !phase.is_terminal() && (!waiting || kueue || run.spec.abort) };
+    let observed = if observe { observe_children(&ctx.client, &ns, &name).await? } else { Observed::default() };
+    let admission = match &plan {
+        Ok(p) if !deleting && waiting && !kueue && !run.spec.abort => {
+            let view = queue_view(&ctx, &ns).await?;
+            Some(queue::admit(&name, run.metadata.creation_timestamp.as_ref().map(|t| t.0), Gang::of(p), &view))
+        }
+        _ => None,
+    };
+    let last_sample = ctx.samples.lock().unwrap_or_else(|e| e.into_inner()).get(&uid).copied();
+    let input = Input {
+        run: &run,
+        plan: plan.as_ref().map_err(Clone::clone),
+        settings: &ctx.settings,
+        observed: &observed,
+        admission,
+        now,
+        last_sample,
+    };
+    let decision = lifecycle::decide(&input);
+    execute(&run, &ns, &ctx, decision, now).await
+}
+
+/// Lists the run's Jobs and Pods and reads the coordinator's log tail.
+async fn observe_children(client: &Client, ns: &str, run: &str) -> Result<Observed, Error> {
+    let lp = ListParams::default().labels(&selector(run, None));
+    let jobs: Api<Job> = Api::namespaced(client.clone(), ns);
+    let pods: Api<Pod> = Api::namespaced(client.clone(), ns);
+    let job_list = jobs.list(&lp).await.map_err(kube_err(format!("list Jobs of {ns}/{run}")))?;
+    let pod_list = pods.list(&lp).await.map_err(kube_err(format!("list Pods of {ns}/{run}")))?;
+    let mut observed = Observed::from_objects(&job_list.items, &pod_list.items, None);
+    let coordinator = names::coordinator_pod(run);
+    let started = observed
+        .pods
+        .iter()
+        .any(|p| p.name == coordinator && !matches!(p.state, WorkState::Pending | WorkState::Suspended));
+    if started {
+        let lp = LogParams { tail_lines: Some(TAIL_LINES), ..Default::default() };
+        // A log that cannot be read yet (container restarting) is not an error of the run.
+        if let Ok(text) = pods.logs(&coordinator, &lp).await {
+            observed.coordinator = Some(progress::parse_tail(&text));
+        }
+    }
+    Ok(observed)
+}
+
+/// The namespace's runs and ResourceQuotas.
+async fn queue_view(ctx: &Context, ns: &str) -> Result<QueueView, Error> {
+    let runs: Api<SimulationRun> = Api::namespaced(ctx.client.clone(), ns);
+    let quotas: Api<ResourceQuota> = Api::namespaced(ctx.client.clone(), ns);
+    let run_list = runs.list(&ListParams::default()).await.map_err(kube_err(format!("list SimulationRuns in {ns}")))?;
+    let quota_list =
+        quotas.list(&ListParams::default()).await.map_err(kube_err(format!("list ResourceQuotas in {ns}")))?;
+    let runs = run_list
+        .items
+        .iter()
+        .map(|r| {
+            let phase = r.status.as_ref().and_then(|s| s.phase).unwrap_or(Phase::Pending);
+            QueuedRun {
+                name: r.name_any(),
+                created: r.metadata.creation_timestamp.as_ref().map(|t| t.0),
+                phase,
+                kueue: ctx.settings.kueue && r.spec.queue.is_some(),
+                gang: (phase == Phase::GeneratingAssets).then(|| planner::plan(r).ok().map(|p| Gang::of(&p))).flatten(),
+            }
+        })
+        .collect();
+    Ok(QueueView { runs, quotas: quota_list.items, max_concurrent_runs: ctx.max_concurrent_runs })
+}
+
+async fn apply_one<K>(client: &Client, ns: &str, obj: &K) -> Result<(), Error>
+where
+    K: Resource<Scope = NamespaceResourceScope, DynamicType = ()>
+        + Serialize
+        + DeserializeOwned
+        + Clone
+        + std::fmt::Debug,
+{
+    let api: Api<K> = Api::namespaced(client.clone(), ns);
+    let name = obj.meta().name.clone().unwrap_or_default();
+    let params = PatchParams::apply(MANAGER).force();
+    api.patch(&name, &params, &Patch::Apply(obj))
+        .await
+        .map_err(kube_err(format!("apply {} {ns}/{name}", K::kind(&()))))?;
+    Ok(())
+}
+
+/// Server-side applies one child.
+async fn apply_child(client: &Client, ns: &str, child: &Child) -> Result<(), Error> {
+    match child {
+        Child::ConfigMap(o) => apply_one::<ConfigMap>(client, ns, o).await,
+        Child::Job(o) => apply_one::<Job>(client, ns, o).await,
+        Child::Service(o) => apply_one::<Service>(client, ns, o).await,
+        Child::Pod(o) => apply_one::<Pod>(client, ns, o).await,
+        Child::Deployment(o) => apply_one::<Deployment>(client, ns, o).await,
+    }
+}
+
+async fn delete_collection<K>(client: &Client, ns: &str, labels: &str) -> Result<(), Error>
+where
+    K: Resource<Scope = NamespaceResourceScope, DynamicType = ()> + DeserializeOwned + Clone + std::fmt::Debug,
+{
+    let api: Api<K> = Api::namespaced(client.clone(), ns);
+    api.delete_collection(&DeleteParams::background(), &ListParams::default().labels(labels))
+        .await
+        .map_err(kube_err(format!("delete {}s {labels} in {ns}", K::kind(&()))))?;
+    Ok(())
+}
+
+/// Fetches the logs of `pods` and writes them to `logs/<pod>.log` in the run's archive.
+/// Returns `(files, bytes)` of the run folder's manifest afterwards.
+async fn archive_logs(
+    client: &Client,
+    ns: &str,
+    pods: &[String],
+    archive: &(String, String, String, String),
+) -> Result<(u32, u64), Error> {
+    let api: Api<Pod> = Api::namespaced(client.clone(), ns);
+    let mut files = Vec::new();
+    for pod in pods {
+        let text = match api.logs(pod, &LogParams::default()).await {
+            Ok(text) => text,
+            // The pod is gone or never started: say so in the archive rather than stop.
+            Err(e) => format!("(sadesim operator: the log of pod {pod} could not be read: {e})\n"),
+        };
+        files.push((format!("{LOGS_PREFIX}{pod}.log"), text.into_bytes()));
+    }
+    let (url, namespace, run, uid) = archive.clone();
+    let manifest = tokio::task::spawn_blocking(move || {
+        let archive = crate::archive::Archive::open(&url)?;
+        archive.add_files(&namespace, &run, &uid, LOGS_PREFIX, &files)
+    })
+    .await
+    .map_err(|e| Error::Archive(e.to_string()))?
+    .map_err(|e| Error::Archive(e.to_string()))?;
+    Ok((manifest.file_count as u32, manifest.total_bytes))
+}
+
+/// Carries out a decision, in the documented order.
+async fn execute(
+    run: &SimulationRun,
+    ns: &str,
+    ctx: &Context,
+    mut d: Decision,
+    now: Timestamp,
+) -> Result<Action, Error> {
+    let client = &ctx.client;
+    let name = run.name_any();
+    let runs: Api<SimulationRun> = Api::namespaced(client.clone(), ns);
+
+    // 1. The finalizer before any child exists: deletion then always archives first.
+    if d.add_finalizer {
+        let mut finalizers = run.finalizers().to_vec();
+        finalizers.push(FINALIZER.into());
+        let patch = json!({"metadata": {"finalizers": finalizers, "resourceVersion": run.resource_version()}});
+        runs.patch(&name, &PatchParams::default(), &Patch::Merge(&patch))
+            .await
+            .map_err(kube_err(format!("add the finalizer to {ns}/{name}")))?;
+    }
+    // 2. Children, one server-side apply each (idempotent; repairs drift).
+    for child in &d.apply {
+        apply_child(client, ns, child).await?;
+    }
+    // 3. Logs before the pods that hold them are deleted.
+    if !d.archive_logs.is_empty()
+        && let Some(archive) = &d.archive
+    {
+        let (files, bytes) = archive_logs(client, ns, &d.archive_logs, archive).await?;
+        if let Some(a) = d.status.archive.as_mut() {
+            a.files = Some(files);
+            a.bytes = Some(bytes);
+        }
+    }
+    // 4. Stop workloads: pilot, then shards, then the rest (by label selector).
+    for del in &d.delete {
+        let labels = selector(&name, del.role);
+        match *del {
+            Delete { kind: "Job", .. } => delete_collection::<Job>(client, ns, &labels).await?,
+            Delete { kind: "Pod", .. } => delete_collection::<Pod>(client, ns, &labels).await?,
+            Delete { kind: "Deployment", .. } => delete_collection::<Deployment>(client, ns, &labels).await?,
+            Delete { kind: "Service", .. } => delete_collection::<Service>(client, ns, &labels).await?,
+            Delete { kind, .. } => unreachable!("lifecycle deletes Jobs, Pods, Deployments and Services, not {kind}"),
+        }
+    }
+    // 5. Status, on the status subresource, only when it changed.
+    let previous = run.status.clone().unwrap_or_default();
+    if d.status != previous {
+        let patch = json!({
+            "apiVersion": "sadesim.io/v1alpha1",
+            "kind": "SimulationRun",
+            "status": d.status,
+        });
+        runs.patch_status(&name, &PatchParams::apply(MANAGER).force(), &Patch::Apply(&patch))
+            .await
+            .map_err(kube_err(format!("write the status of {ns}/{name}")))?;
+    }
+    // 6. Events.
+    let reference = run.object_ref(&());
+    for note in &d.events {
+        let event = Event {
+            type_: if note.warning { EventType::Warning } else { EventType::Normal },
+            reason: note.reason.clone(),
+            note: Some(note.message.chars().take(1000).collect()),
+            action: "Reconcile".into(),
+            secondary: None,
+        };
+        // An Event that cannot be written is not worth failing the reconcile.
+        if let Err(e) = ctx.recorder.publish(&event, &reference).await {
+            super::log::warn("failed to record an event", &[("run", &name), ("error", &e.to_string())]);
+        }
+    }
+    // 7. The finalizer goes last, once the evidence is archived.
+    if d.remove_finalizer {
+        let finalizers: Vec<String> = run.finalizers().iter().filter(|f| *f != FINALIZER).cloned().collect();
+        let patch = json!({"metadata": {"finalizers": finalizers, "resourceVersion": run.resource_version()}});
+        runs.patch(&name, &PatchParams::default(), &Patch::Merge(&patch))
+            .await
+            .map_err(kube_err(format!("remove the finalizer of {ns}/{name}")))?;
+    }
+
+    // Bookkeeping.
+    let uid = run.uid().unwrap_or_default();
+    {
+        let mut samples = ctx.samples.lock().unwrap_or_else(|e| e.into_inner());
+        match d.sample {
+            Some(s) => {
+                samples.insert(uid.clone(), s);
+            }
+            None if d.phase_is_terminal() => {
+                samples.remove(&uid);
+            }
+            None => {}
+        }
+    }
+    if d.admitted
+        && let Some(created) = &run.metadata.creation_timestamp
+    {
+        let waited = (now.as_nanosecond() - created.0.as_nanosecond()) as f64 * 1e-9;
+        ctx.metrics.queue_wait.observe(waited.max(0.0));
+    }
+    let gone = d.remove_finalizer;
+    ctx.metrics.set_phase(&uid, if gone { None } else { d.status.phase });
+    if previous.phase != d.status.phase {
+        let phase = d.status.phase.map(|p| format!("{p:?}")).unwrap_or_default();
+        let message = d.status.message.clone().unwrap_or_default();
+        super::log::info("phase", &[("run", &format!("{ns}/{name}")), ("phase", &phase), ("message", &message)]);
+    }
+    Ok(match d.requeue.take() {
+        Some(after) => Action::requeue(after),
+        None => Action::await_change(),
+    })
+}
+
+impl Decision {
+    fn phase_is_terminal(&self) -> bool {
+        self.status.phase.is_some_and(Phase::is_terminal)
+    }
+}
+
+/// What the controller does after a failed reconcile: count it, log it, retry.
+pub fn error_policy(run: Arc<SimulationRun>, error: &Error, ctx: Arc<Context>) -> Action {
+    ctx.metrics.failed(error.metric_label());
+    super::log::warn(
+        "reconcile failed",
+        &[
+            ("run", &format!("{}/{}", run.namespace().unwrap_or_default(), run.name_any())),
+            ("error", &error.to_string()),
+        ],
+    );
+    Action::requeue(Duration::from_secs(15))
+}

@@ -1,0 +1,611 @@
+//! Reconcile tests against kube's `tower_test` mock API server (controller-rs style): a
+//! fake API server answers every request from the test's objects and records it; each
+//! test then asserts the requests made — method, path, query (fieldManager, force,
+//! labelSelector, tailLines), content type and body — in order.
+
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use http::{Method, Request, Response};
+use k8s_openapi::api::batch::v1::{Job, JobCondition, JobStatus};
+use k8s_openapi::api::core::v1::{Pod, PodStatus, ResourceQuota, ResourceQuotaStatus};
+use k8s_openapi::apimachinery::pkg::api::resource::Quantity;
+use k8s_openapi::apimachinery::pkg::apis::meta::v1::{Condition, OwnerReference, Time};
+use k8s_openapi::jiff::{SignedDuration, Timestamp};
+use kube::Client;
+use kube::client::Body;
+use sadesim_crds::SimulationRun;
+use sadesim_crds::fixtures::RunBuilder;
+use sadesim_crds::status::{Phase, SimulationRunStatus, condition_types as ct};
+use serde_json::{Value, json};
+use tower_test::mock;
+
+use super::lifecycle::FINALIZER;
+use super::metrics::Metrics;
+use super::reconcile::{Context, MANAGER, reconcile};
+use crate::k8s::children::{ClusterSettings, KUEUE_QUEUE_LABEL, ROLE_LABEL, RUN_LABEL};
+
+const NS: &str = "team-a";
+const RUNS: &str = "/apis/sadesim.io/v1alpha1/namespaces/team-a/simulationruns";
+
+/// One request as the fake API server saw it.
+#[derive(Clone, Debug)]
+struct Seen {
+    method: Method,
+    path: String,
+    query: BTreeMap<String, String>,
+    content_type: String,
+    body: Value,
+}
+
+impl Seen {
+    fn is(&self, method: Method, path: &str) -> bool {
+        self.method == method && self.path == path
+    }
+}
+
+/// What the fake API server holds.
+#[derive(Clone, Default)]
+struct Cluster {
+    run: Option<SimulationRun>,
+    jobs: Vec<Job>,
+    pods: Vec<Pod>,
+    /// Log text per pod name.
+    logs: BTreeMap<String, String>,
+    runs: Vec<SimulationRun>,
+    quotas: Vec<ResourceQuota>,
+}
+
+fn list(kind: &str, items: Vec<Value>) -> Value {
+    json!({"apiVersion": "v1", "kind": kind, "metadata": {"resourceVersion": "1"}, "items": items})
+}
+
+fn to_values<T: serde::Serialize>(items: &[T]) -> Vec<Value> {
+    items.iter().map(|i| serde_json::to_value(i).unwrap()).collect()
+}
+
+/// The fake API server's answer to `seen`.
+fn answer(cluster: &Cluster, seen: &Seen) -> (u16, Vec<u8>) {
+    let json = |v: Value| (200, serde_json::to_vec(&v).unwrap());
+    let p = seen.path.as_str();
+    match seen.method {
+        Method::GET if p.ends_with("/log") => {
+            let pod = p.trim_end_matches("/log").rsplit('/').next().unwrap();
+            match cluster.logs.get(pod) {
+                Some(text) => (200, text.clone().into_bytes()),
+                None => (
+                    404,
+                    serde_json::to_vec(&json!({"kind": "Status", "apiVersion": "v1", "status": "Failure", "code": 404, "reason": "NotFound", "message": "no log"}))
+                        .unwrap(),
+                ),
+            }
+        }
+        Method::GET if p.ends_with("/jobs") => json(list("JobList", to_values(&cluster.jobs))),
+        Method::GET if p.ends_with("/pods") => json(list("PodList", to_values(&cluster.pods))),
+        Method::GET if p.ends_with("/resourcequotas") => json(list("ResourceQuotaList", to_values(&cluster.quotas))),
+        Method::GET if p == RUNS => json(list("SimulationRunList", to_values(&cluster.runs))),
+        Method::DELETE => json(json!({"kind": "Status", "apiVersion": "v1", "status": "Success", "metadata": {}})),
+        Method::PATCH if p.starts_with(RUNS) => {
+            let mut run = serde_json::to_value(cluster.run.as_ref().unwrap()).unwrap();
+            if let Some(status) = seen.body.get("status") {
+                run["status"] = status.clone();
+            }
+            json(run)
+        }
+        // Server-side applies and created Events: the object as sent.
+        Method::PATCH | Method::POST => json(seen.body.clone()),
+        _ => panic!("unexpected request {} {}", seen.method, seen.path),
+    }
+}
+
+/// Runs one reconcile of `cluster.run` against the fake server; returns the requests.
+async fn reconcile_once(cluster: Cluster, settings: ClusterSettings, now: Timestamp) -> (Vec<Seen>, Arc<Metrics>) {
+    let (service, mut handle) = mock::pair::<Request<Body>, Response<Body>>();
+    let seen = Arc::new(Mutex::new(Vec::new()));
+    let server = {
+        let seen = seen.clone();
+        let cluster = cluster.clone();
+        tokio::spawn(async move {
+            while let Some((request, send)) = handle.next_request().await {
+                let (parts, body) = request.into_parts();
+                let bytes = body.collect_bytes().await.unwrap();
+                let query = parts
+                    .uri
+                    .query()
+                    .unwrap_or_default()
+                    .split('&')
+                    .filter(|kv| !kv.is_empty())
+                    .map(|kv| {
+                        let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
+                        (k.to_string(), percent_decode(v))
+                    })
+                    .collect();
+                let content_type = parts
+                    .headers
+                    .get(http::header::CONTENT_TYPE)
+                    .map(|v| v.to_str().unwrap().to_string())
+                    .unwrap_or_default();
+                let s = Seen {
+                    method: parts.method.clone(),
+                    path: parts.uri.path().to_string(),
+                    query,
+                    content_type,
+                    body: serde_json::from_slice(&bytes).unwrap_or(Value::Null),
+                };
+                let (code, body) = answer(&cluster, &s);
+                seen.lock().unwrap().push(s);
+                send.send_response(Response::builder().status(code).body(Body::from(body)).unwrap());
+            }
+        })
+    };
+    let client = Client::new(service, NS);
+    let metrics = Arc::new(Metrics::default());
+    let mut ctx = Context::new(client, settings, 0, metrics.clone());
+    ctx.clock = Box::new(move || now);
+    let ctx = Arc::new(ctx);
+    let run = Arc::new(cluster.run.clone().unwrap());
+    tokio::time::timeout(Duration::from_secs(10), reconcile(run, ctx.clone()))
+        .await
+        .expect("reconcile finished")
+        .expect("reconcile succeeded");
+    drop(ctx);
+    // Every request was answered: the server ends when the client is gone.
+    tokio::time::timeout(Duration::from_secs(1), server).await.expect("mock server ended").unwrap();
+    let seen = seen.lock().unwrap().clone();
+    (seen, metrics)
+}
+
+fn percent_decode(s: &str) -> String {
+    let bytes = s.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' && i + 2 < bytes.len() {
+            let hex = std::str::from_utf8(&bytes[i + 1..i + 3]).unwrap();
+            out.push(u8::from_str_radix(hex, 16).unwrap());
+            i += 3;
+        } else {
+            out.push(if bytes[i] == b'+' { b' ' } else { bytes[i] });
+            i += 1;
+        }
+    }
+    String::from_utf8(out).unwrap()
+}
+
+fn t0() -> Timestamp {
+    Timestamp::from_second(1_800_000_000).unwrap()
+}
+
+fn s3_settings() -> ClusterSettings {
+    ClusterSettings { default_archive_url: Some("s3://sadesim-runs".into()), ..Default::default() }
+}
+
+fn run_in_ns(run: SimulationRun) -> SimulationRun {
+    let mut run = run;
+    run.metadata.namespace = Some(NS.into());
+    run.metadata.uid = Some("uid-1".into());
+    run.metadata.generation = Some(1);
+    run.metadata.resource_version = Some("42".into());
+    run.metadata.creation_timestamp = Some(Time(t0()));
+    run
+}
+
+fn new_run() -> SimulationRun {
+    run_in_ns(RunBuilder::test().build())
+}
+
+fn pilot_run() -> SimulationRun {
+    let mut run = RunBuilder::test().with_pilot(&["python3", "pilot.py"]).build();
+    run.spec.pilot.as_mut().unwrap().image = Some("example.com/pilot:1".into());
+    run_in_ns(run)
+}
+
+fn in_phase(mut run: SimulationRun, phase: Phase) -> SimulationRun {
+    run.metadata.finalizers = Some(vec![FINALIZER.into()]);
+    run.status = Some(SimulationRunStatus { phase: Some(phase), ..Default::default() });
+    run
+}
+
+fn labels(role: &str) -> Option<BTreeMap<String, String>> {
+    Some(BTreeMap::from([(RUN_LABEL.to_string(), "test-run".to_string()), (ROLE_LABEL.to_string(), role.to_string())]))
+}
+
+fn job(role: &str, condition: Option<&str>, active: i32) -> Job {
+    let mut j = Job::default();
+    j.metadata.name = Some(format!("test-run-{role}"));
+    j.metadata.labels = labels(role);
+    j.status = Some(JobStatus {
+        active: Some(active),
+        conditions: condition.map(|c| {
+            vec![JobCondition {
+                type_: c.into(),
+                status: "True".into(),
+                reason: Some(format!("{c}Reason")),
+                ..Default::default()
+            }]
+        }),
+        ..Default::default()
+    });
+    j
+}
+
+fn pod(name: &str, role: &str, phase: &str, job_owned: bool) -> Pod {
+    let mut p = Pod::default();
+    p.metadata.name = Some(name.into());
+    p.metadata.labels = labels(role);
+    if job_owned {
+        p.metadata.owner_references =
+            Some(vec![OwnerReference { kind: "Job".into(), name: format!("test-run-{role}"), ..Default::default() }]);
+    }
+    p.status = Some(PodStatus { phase: Some(phase.into()), ..Default::default() });
+    p
+}
+
+fn status_of(seen: &Seen) -> SimulationRunStatus {
+    serde_json::from_value(seen.body["status"].clone()).unwrap()
+}
+
+fn condition<'a>(status: &'a SimulationRunStatus, type_: &str) -> &'a Condition {
+    status.conditions.iter().find(|c| c.type_ == type_).unwrap_or_else(|| panic!("no {type_}"))
+}
+
+/// Asserts a server-side apply: PATCH, apply-patch content type, our field manager, forced.
+fn assert_apply(s: &Seen) {
+    assert_eq!(s.method, Method::PATCH, "{s:?}");
+    assert_eq!(s.content_type, "application/apply-patch+yaml", "{}", s.path);
+    assert_eq!(s.query.get("fieldManager").map(String::as_str), Some(MANAGER), "{}", s.path);
+    assert_eq!(s.query.get("force").map(String::as_str), Some("true"), "{}", s.path);
+}
+
+/// The status write: server-side apply on the status subresource. Returns the status.
+fn the_status_write(seen: &[Seen]) -> SimulationRunStatus {
+    let writes: Vec<&Seen> = seen.iter().filter(|s| s.path.ends_with("/status")).collect();
+    assert_eq!(writes.len(), 1, "one status write: {:?}", paths(seen));
+    let w = writes[0];
+    assert_eq!(w.path, format!("{RUNS}/test-run/status"));
+    assert_apply(w);
+    assert_eq!(w.body["apiVersion"], "sadesim.io/v1alpha1");
+    assert_eq!(w.body["kind"], "SimulationRun");
+    assert!(w.body.get("spec").is_none(), "the status write never touches the spec");
+    status_of(w)
+}
+
+fn event_reasons(seen: &[Seen]) -> Vec<String> {
+    seen.iter()
+        .filter(|s| s.is(Method::POST, &format!("/apis/events.k8s.io/v1/namespaces/{NS}/events")))
+        .map(|s| s.body["reason"].as_str().unwrap().to_string())
+        .collect()
+}
+
+fn paths(seen: &[Seen]) -> Vec<String> {
+    seen.iter().map(|s| format!("{} {}", s.method, s.path)).collect()
+}
+
+fn applies(seen: &[Seen]) -> Vec<&Seen> {
+    seen.iter()
+        .filter(|s| {
+            s.method == Method::PATCH
+                && s.content_type == "application/apply-patch+yaml"
+                && !s.path.ends_with("/status")
+        })
+        .collect()
+}
+
+fn finalizer_patches(seen: &[Seen]) -> Vec<&Seen> {
+    seen.iter().filter(|s| s.is(Method::PATCH, &format!("{RUNS}/test-run"))).collect()
+}
+
+#[tokio::test]
+async fn a_new_valid_run_gets_the_finalizer_children_by_server_side_apply_and_a_status() {
+    let cluster = Cluster { run: Some(new_run()), runs: vec![new_run()], ..Default::default() };
+    let (seen, metrics) = reconcile_once(cluster, s3_settings(), t0()).await;
+
+    // Read the queue first: the namespace's runs and quotas.
+    assert!(seen[0].is(Method::GET, RUNS), "{:?}", paths(&seen));
+    assert!(seen[1].is(Method::GET, &format!("/api/v1/namespaces/{NS}/resourcequotas")));
+    // Then the finalizer, as a merge patch guarded by the resourceVersion.
+    let f = &seen[2];
+    assert!(f.is(Method::PATCH, &format!("{RUNS}/test-run")));
+    assert_eq!(f.content_type, "application/merge-patch+json");
+    assert_eq!(f.body, json!({"metadata": {"finalizers": [FINALIZER], "resourceVersion": "42"}}));
+    // Then the first stage's children: the two ConfigMaps and the assets Job.
+    let a = applies(&seen);
+    let targets: Vec<&str> = a.iter().map(|s| s.path.as_str()).collect();
+    assert_eq!(
+        targets,
+        [
+            "/api/v1/namespaces/team-a/configmaps/test-run-config",
+            "/api/v1/namespaces/team-a/configmaps/test-run-fleet",
+            "/apis/batch/v1/namespaces/team-a/jobs/test-run-assets",
+        ]
+    );
+    for s in &a {
+        assert_apply(s);
+        assert_eq!(s.body["metadata"]["labels"][RUN_LABEL], "test-run");
+        assert_eq!(s.body["metadata"]["ownerReferences"][0]["kind"], "SimulationRun");
+    }
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::GeneratingAssets));
+    assert_eq!(condition(&status, ct::VALID).status, "True");
+    assert_eq!(condition(&status, ct::SCHEDULED).status, "True");
+    assert_eq!(status.observed_generation, Some(1));
+    assert_eq!(event_reasons(&seen), ["Queued", "GeneratingAssets"]);
+    assert!(metrics.encode().contains("sadesim_operator_queue_wait_seconds_count 1"));
+}
+
+#[tokio::test]
+async fn an_invalid_run_gets_valid_false_and_no_children() {
+    let mut run = new_run();
+    run.spec.fleet[0].count = 0;
+    let cluster = Cluster { run: Some(run), ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, s3_settings(), t0()).await;
+    assert!(applies(&seen).is_empty(), "{:?}", paths(&seen));
+    assert!(finalizer_patches(&seen).is_empty(), "no finalizer on a run without children");
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Failed));
+    let valid = condition(&status, ct::VALID);
+    assert_eq!((valid.status.as_str(), valid.reason.as_str()), ("False", "InvalidSpec"));
+    assert!(valid.message.contains("fleet[0].count"), "{}", valid.message);
+    assert_eq!(event_reasons(&seen), ["InvalidSpec", "Failed"]);
+    // Nothing but the status and the Events.
+    assert_eq!(seen.len(), 3, "{:?}", paths(&seen));
+}
+
+#[tokio::test]
+async fn a_run_waiting_in_queue_creates_nothing() {
+    let run = new_run();
+    let mut quota = ResourceQuota::default();
+    quota.metadata.name = Some("team-a".into());
+    let q = |v: &str| Quantity(v.into());
+    quota.status = Some(ResourceQuotaStatus {
+        hard: Some(BTreeMap::from([("requests.cpu".to_string(), q("1"))])),
+        used: Some(BTreeMap::from([("requests.cpu".to_string(), q("900m"))])),
+    });
+    let cluster = Cluster { run: Some(run.clone()), runs: vec![run], quotas: vec![quota], ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, s3_settings(), t0()).await;
+    assert!(applies(&seen).is_empty(), "{:?}", paths(&seen));
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Queued));
+    let scheduled = condition(&status, ct::SCHEDULED);
+    assert_eq!((scheduled.status.as_str(), scheduled.reason.as_str()), ("False", "QuotaExceeded"));
+    assert!(scheduled.message.contains("ResourceQuota team-a"), "{}", scheduled.message);
+    assert_eq!(finalizer_patches(&seen).len(), 1, "the finalizer is added while queued");
+    assert_eq!(event_reasons(&seen), ["Queued"]);
+}
+
+#[tokio::test]
+async fn assets_ready_moves_to_starting_and_applies_the_workers() {
+    let run = in_phase(new_run(), Phase::GeneratingAssets);
+    let cluster = Cluster { run: Some(run), jobs: vec![job("assets", Some("Complete"), 0)], ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, s3_settings(), t0()).await;
+    let lists: Vec<&Seen> = seen.iter().filter(|s| s.method == Method::GET).collect();
+    assert_eq!(lists[0].path, format!("/apis/batch/v1/namespaces/{NS}/jobs"));
+    assert_eq!(lists[0].query.get("labelSelector").map(String::as_str), Some("sadesim.io/run=test-run"));
+    assert_eq!(lists[1].path, format!("/api/v1/namespaces/{NS}/pods"));
+    let targets: Vec<String> = applies(&seen).iter().map(|s| s.path.rsplit('/').next().unwrap().to_string()).collect();
+    assert!(targets.contains(&"test-run-coordinator".to_string()), "{targets:?}");
+    assert!(targets.contains(&"test-run-shard".to_string()), "{targets:?}");
+    assert!(!targets.contains(&"test-run-assets".to_string()), "{targets:?}");
+    assert!(!targets.contains(&"test-run-pilot".to_string()), "{targets:?}");
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Starting));
+    assert_eq!(condition(&status, ct::ASSETS_READY).status, "True");
+    assert_eq!(event_reasons(&seen), ["Starting"]);
+}
+
+#[tokio::test]
+async fn released_pilots_are_read_from_the_coordinator_log_and_start_the_pilot_job() {
+    let run = in_phase(pilot_run(), Phase::Starting);
+    let cluster = Cluster {
+        run: Some(run),
+        jobs: vec![job("shard", None, 1)],
+        pods: vec![pod("test-run-coordinator", "coordinator", "Running", false)],
+        logs: BTreeMap::from([(
+            "test-run-coordinator".to_string(),
+            "{\"type\":\"pilotsReleased\",\"simTimeS\":0.01}\n".to_string(),
+        )]),
+        ..Default::default()
+    };
+    let (seen, _) = reconcile_once(cluster, s3_settings(), t0()).await;
+    let log = seen.iter().find(|s| s.path.ends_with("/log")).expect("log read");
+    assert_eq!(log.path, format!("/api/v1/namespaces/{NS}/pods/test-run-coordinator/log"));
+    assert_eq!(log.query.get("tailLines").map(String::as_str), Some("20"));
+    let pilot = applies(&seen).into_iter().find(|s| s.path.ends_with("/jobs/test-run-pilot")).expect("pilot applied");
+    assert_eq!(pilot.body["spec"]["template"]["spec"]["containers"][0]["image"], "example.com/pilot:1");
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Running));
+    assert_eq!(status.start_time, Some(Time(t0())));
+    assert_eq!(event_reasons(&seen), ["Running"]);
+}
+
+#[tokio::test]
+async fn a_finished_coordinator_ends_the_run_and_stops_the_shards_first() {
+    let mut run = in_phase(new_run(), Phase::Running);
+    run.status.as_mut().unwrap().start_time = Some(Time(t0()));
+    let summary = json!({"type": "finished", "summary": {
+        "run": "test-run", "endReason": "duration", "simTimeS": 120.0, "wallTimeS": 40.0, "realTimeFactor": 3.0,
+        "drones": 1, "shards": 1, "airborne": 0, "crashed": 0, "events": 12, "pilotsReleasedAtS": 0.01, "perDrone": [],
+        "verdict": {"passed": true, "criteria": []}}});
+    let cluster = Cluster {
+        run: Some(run),
+        jobs: vec![job("shard", Some("Complete"), 0)],
+        pods: vec![
+            pod("test-run-shard-0", "shard", "Succeeded", true),
+            pod("test-run-coordinator", "coordinator", "Succeeded", false),
+        ],
+        logs: BTreeMap::from([("test-run-coordinator".to_string(), format!("{summary}\n"))]),
+        ..Default::default()
+    };
+    // The archive is an object store the test does not reach: no logs are due in this step.
+    let tmp = tempdir("finished");
+    let settings =
+        ClusterSettings { default_archive_url: Some(format!("file://{}", tmp.display())), ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, settings, t0() + SignedDuration::from_secs(40)).await;
+    assert!(applies(&seen).is_empty(), "nothing is created once the run ended: {:?}", paths(&seen));
+    let delete = seen.iter().find(|s| s.method == Method::DELETE).expect("shards stopped");
+    assert_eq!(delete.path, format!("/apis/batch/v1/namespaces/{NS}/jobs"));
+    assert_eq!(
+        delete.query.get("labelSelector").map(String::as_str),
+        Some("sadesim.io/run=test-run,sadesim.io/role=shard")
+    );
+    assert_eq!(delete.body["propagationPolicy"], "Background");
+    // The shard pod's log went to the archive before the delete.
+    let log = std::fs::read_to_string(tmp.join("team-a/test-run/uid-1/logs/test-run-shard-0.log")).unwrap();
+    assert!(log.contains("could not be read"), "{log}");
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Archiving));
+    assert_eq!(status.sim_time_s, Some(120.0));
+    assert_eq!(status.real_time_factor, Some(3.0));
+    assert_eq!(status.verdict.as_ref().map(|v| v.passed), Some(true));
+    assert_eq!(condition(&status, ct::RUNNING).reason, "Finished");
+    assert_eq!(event_reasons(&seen), ["Archiving"]);
+}
+
+#[tokio::test]
+async fn abort_stops_the_pilot_first_archiving_its_log() {
+    let mut run = in_phase(pilot_run(), Phase::Running);
+    run.spec.abort = true;
+    run.metadata.generation = Some(2);
+    let tmp = tempdir("abort");
+    let cluster = Cluster {
+        run: Some(run),
+        jobs: vec![job("shard", None, 1), job("pilot", None, 1)],
+        pods: vec![
+            pod("test-run-shard-0", "shard", "Running", true),
+            pod("test-run-pilot-x1", "pilot", "Running", true),
+            pod("test-run-coordinator", "coordinator", "Running", false),
+        ],
+        logs: BTreeMap::from([
+            ("test-run-pilot-x1".to_string(), "pilot says hello\n".to_string()),
+            ("test-run-coordinator".to_string(), String::new()),
+        ]),
+        ..Default::default()
+    };
+    let settings =
+        ClusterSettings { default_archive_url: Some(format!("file://{}", tmp.display())), ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, settings, t0()).await;
+    let order: Vec<String> = seen
+        .iter()
+        .filter(|s| {
+            matches!(s.method, Method::DELETE)
+                || s.path.ends_with("/test-run-pilot-x1/log")
+                || s.path.ends_with("/status")
+        })
+        .map(|s| format!("{} {}", s.method, s.path.rsplit('/').take(2).collect::<Vec<_>>().join("<")))
+        .collect();
+    assert_eq!(
+        order,
+        ["GET log<test-run-pilot-x1", "DELETE jobs<team-a", "PATCH status<test-run"],
+        "{:?}",
+        paths(&seen)
+    );
+    let delete = seen.iter().find(|s| s.method == Method::DELETE).unwrap();
+    assert_eq!(
+        delete.query.get("labelSelector").map(String::as_str),
+        Some("sadesim.io/run=test-run,sadesim.io/role=pilot")
+    );
+    let folder = tmp.join("team-a/test-run/uid-1");
+    assert_eq!(std::fs::read_to_string(folder.join("logs/test-run-pilot-x1.log")).unwrap(), "pilot says hello\n");
+    let manifest: Value = serde_json::from_slice(&std::fs::read(folder.join("manifest.json")).unwrap()).unwrap();
+    assert_eq!(manifest["files"][0]["path"], "logs/test-run-pilot-x1.log");
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Archiving));
+    assert_eq!(condition(&status, ct::RUNNING).reason, "Aborted");
+    assert_eq!(status.observed_generation, Some(2));
+    assert!(applies(&seen).is_empty());
+}
+
+#[tokio::test]
+async fn deletion_archives_the_remaining_logs_then_removes_the_finalizer() {
+    let mut run = in_phase(new_run(), Phase::Archiving);
+    run.metadata.deletion_timestamp = Some(Time(t0()));
+    let tmp = tempdir("delete");
+    let cluster = Cluster {
+        run: Some(run),
+        pods: vec![
+            pod("test-run-coordinator", "coordinator", "Succeeded", false),
+            pod("test-run-router-0", "router", "Running", false),
+        ],
+        logs: BTreeMap::from([
+            ("test-run-coordinator".to_string(), "{\"type\":\"listening\"}\n".to_string()),
+            ("test-run-router-0".to_string(), "router up\n".to_string()),
+        ]),
+        ..Default::default()
+    };
+    let settings =
+        ClusterSettings { default_archive_url: Some(format!("file://{}", tmp.display())), ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, settings, t0()).await;
+    let deletes: Vec<String> = seen.iter().filter(|s| s.method == Method::DELETE).map(|s| s.path.clone()).collect();
+    assert_eq!(
+        deletes,
+        [
+            "/apis/batch/v1/namespaces/team-a/jobs",
+            "/api/v1/namespaces/team-a/pods",
+            "/apis/apps/v1/namespaces/team-a/deployments",
+            "/api/v1/namespaces/team-a/services",
+        ]
+    );
+    let folder = tmp.join("team-a/test-run/uid-1");
+    assert_eq!(std::fs::read_to_string(folder.join("logs/test-run-router-0.log")).unwrap(), "router up\n");
+    assert!(folder.join("logs/test-run-coordinator.log").exists());
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Aborted));
+    assert_eq!(condition(&status, ct::ARCHIVED).status, "True");
+    assert_eq!(status.archive.as_ref().unwrap().files, Some(2));
+    // The finalizer goes last, after the status.
+    let last = seen.last().unwrap();
+    assert!(last.is(Method::PATCH, &format!("{RUNS}/test-run")), "{:?}", paths(&seen));
+    assert_eq!(last.body, json!({"metadata": {"finalizers": [], "resourceVersion": "42"}}));
+    let archive = seen.iter().position(|s| s.path.ends_with("/log")).unwrap();
+    let first_delete = seen.iter().position(|s| s.method == Method::DELETE).unwrap();
+    assert!(archive < first_delete, "logs are read before anything is deleted");
+}
+
+#[tokio::test]
+async fn deleting_a_finished_run_only_removes_the_finalizer() {
+    let mut run = in_phase(new_run(), Phase::Succeeded);
+    run.metadata.deletion_timestamp = Some(Time(t0()));
+    let (seen, _) = reconcile_once(Cluster { run: Some(run), ..Default::default() }, s3_settings(), t0()).await;
+    assert_eq!(paths(&seen), [format!("PATCH {RUNS}/test-run")]);
+    assert_eq!(seen[0].body["metadata"]["finalizers"], json!([]));
+}
+
+#[tokio::test]
+async fn with_kueue_jobs_carry_the_queue_label_and_no_patch_sets_suspend() {
+    let mut run = new_run();
+    run.spec.queue = Some("team-a-queue".into());
+    let settings = ClusterSettings { kueue: true, ..s3_settings() };
+    let cluster = Cluster { run: Some(run.clone()), ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, settings.clone(), t0()).await;
+    // Kueue admits: the operator reads no quota and no queue.
+    assert!(!seen.iter().any(|s| s.path.ends_with("/resourcequotas") || s.path == RUNS), "{:?}", paths(&seen));
+    let jobs: Vec<&Seen> = applies(&seen).into_iter().filter(|s| s.path.contains("/jobs/")).collect();
+    assert!(!jobs.is_empty());
+    for s in applies(&seen) {
+        assert!(!s.body.to_string().contains("\"suspend\""), "{} sets suspend", s.path);
+    }
+    for j in jobs {
+        assert_eq!(j.body["metadata"]["labels"][KUEUE_QUEUE_LABEL], "team-a-queue");
+    }
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Queued));
+    assert_eq!(condition(&status, ct::SCHEDULED).reason, "KueuePending");
+
+    // Later: Kueue admitted everything; the workers' applies still never carry suspend.
+    let mut started = in_phase(run, Phase::Starting);
+    started.status.as_mut().unwrap().conditions = vec![];
+    let cluster = Cluster { run: Some(started), jobs: vec![job("shard", None, 1)], ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, settings, t0()).await;
+    let shard = applies(&seen).into_iter().find(|s| s.path.ends_with("/jobs/test-run-shard")).expect("shards applied");
+    assert_eq!(shard.body["metadata"]["labels"][KUEUE_QUEUE_LABEL], "team-a-queue");
+    assert!(shard.body["spec"].get("suspend").is_none());
+}
+
+/// A fresh folder under the system temp dir for a file:// archive.
+fn tempdir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("sadesim-controller-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}

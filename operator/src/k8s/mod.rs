@@ -1,0 +1,6 @@
+//! Kubernetes: what a SimulationRun becomes on a cluster (`children`, pure), the operator
+//! that reconciles runs into those children (`controller`), and `sadesim manifests`.
+
+pub mod children;
+pub mod controller;
+pub mod manifests;

@@ -1,0 +1,323 @@
+//! Reading a run folder for the report: `plan.json` (required), `trajectory.csv`,
+//! `events.jsonl`, `airspace.json`, `summary.json`, `world.json` and `pilot.json`
+//! (each optional: a missing one becomes a "not recorded" note in the report).
+//!
+//! # Errors
+//! A file that exists but cannot be read as its writer wrote it fails the whole report,
+//! with the file and the line (CSV, JSON lines) or the field path and line (JSON) named:
+//! a report silently built from half a file would be wrong evidence.
+
+use std::path::{Path, PathBuf};
+
+use sadesim_crds::plan::RunPlan;
+use serde::Deserialize;
+use serde::de::DeserializeOwned;
+use sim_worker::airspace::authority::{Lease, RequestRecord};
+use sim_worker::airspace::monitor::{ComplianceReport, Presence, ViolationRecord};
+use sim_worker::events::{Event, Place};
+use sim_worker::record::RunSummary;
+use sim_worker::world::WorldStats;
+
+use crate::runner::pilot::PilotRecord;
+
+/// Why a run folder could not be read. Every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum DataError {
+    /// A required file is missing or unreadable.
+    #[error("{path}: failed to read: {source}")]
+    Read { path: String, source: std::io::Error },
+    /// A JSON document does not have the expected shape (`field` is the path inside it).
+    #[error("{path}: field `{field}`: {message}")]
+    Json { path: String, field: String, message: String },
+    /// A line of a line-oriented file (CSV, JSON lines) is malformed (1-based line).
+    #[error("{path}: line {line}: {message}")]
+    Line { path: String, line: usize, message: String },
+}
+
+/// One trajectory sample of one drone (a row of `trajectory.csv`). Positions are metres in
+/// the run's local east-north-up frame (origin: `spec.origin`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub time_s: f64,
+    pub east_m: f64,
+    pub north_m: f64,
+    pub up_m: f64,
+    pub height_agl_m: f64,
+    pub on_ground: bool,
+    pub crashed: bool,
+}
+
+/// All samples of one drone, in time order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Track {
+    pub drone: u32,
+    pub name: String,
+    pub group: String,
+    pub samples: Vec<Sample>,
+}
+
+/// `airspace.json` as the runner writes it (`AirspaceRecord`: requests, leases and the
+/// compliance report's fields side by side).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AirspaceFile {
+    pub requests: Vec<RequestRecord>,
+    pub leases: Vec<Lease>,
+    pub compliance: ComplianceReport,
+}
+
+/// The file's fields spelled out rather than `#[serde(flatten)]`: flattening buffers the
+/// document, and errors would lose their field path and line.
+#[derive(Deserialize)]
+#[serde(rename_all = "camelCase")]
+struct AirspaceFields {
+    #[serde(default)]
+    requests: Vec<RequestRecord>,
+    #[serde(default)]
+    leases: Vec<Lease>,
+    #[serde(default)]
+    violations: Vec<ViolationRecord>,
+    #[serde(default)]
+    presences: Vec<Presence>,
+    #[serde(default)]
+    crashes: Vec<(u32, f64)>,
+    #[serde(default)]
+    crash_places: Vec<Place>,
+    #[serde(default)]
+    closest_approach: Option<(f64, f64, u32, u32)>,
+}
+
+impl<'de> Deserialize<'de> for AirspaceFile {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let f = AirspaceFields::deserialize(d)?;
+        Ok(Self {
+            requests: f.requests,
+            leases: f.leases,
+            compliance: ComplianceReport {
+                violations: f.violations,
+                presences: f.presences,
+                crashes: f.crashes,
+                crash_places: f.crash_places,
+                closest_approach: f.closest_approach,
+            },
+        })
+    }
+}
+
+/// Everything the report shows, read from one run folder.
+#[derive(Clone, Debug)]
+pub struct RunData {
+    pub dir: PathBuf,
+    pub plan: RunPlan,
+    /// One per drone of the plan that has at least one sample, by drone index.
+    pub tracks: Option<Vec<Track>>,
+    pub events: Option<Vec<Event>>,
+    pub airspace: Option<AirspaceFile>,
+    pub summary: Option<RunSummary>,
+    pub world: Option<WorldStats>,
+    /// `pilot.json`: what happened to the pilot process.
+    pub pilot: Option<PilotRecord>,
+    /// Files of the run folder the report would use but that are not there, e.g.
+    /// "airspace.json: not recorded".
+    pub notes: Vec<String>,
+}
+
+/// File names, as the recorder and the runner write them.
+pub const PLAN_FILE: &str = "plan.json";
+pub const TRAJECTORY_FILE: &str = "trajectory.csv";
+pub const EVENTS_FILE: &str = "events.jsonl";
+pub const AIRSPACE_FILE: &str = sim_worker::airspace::runtime::AIRSPACE_FILE;
+pub const SUMMARY_FILE: &str = "summary.json";
+pub const WORLD_FILE: &str = "world.json";
+pub const PILOT_FILE: &str = crate::runner::pilot::RECORD_FILE;
+
+impl RunData {
+    /// Reads the run folder `dir`.
+    ///
+    /// # Errors
+    /// `plan.json` missing or unreadable, or any present file malformed (see [`DataError`]).
+    pub fn read(dir: &Path) -> Result<Self, DataError> {
+        let plan: RunPlan = parse_json(&dir.join(PLAN_FILE), &read_required(&dir.join(PLAN_FILE))?)?;
+        let mut notes = Vec::new();
+        let mut optional = |name: &str, why: &str| -> Result<Option<(PathBuf, String)>, DataError> {
+            let path = dir.join(name);
+            match std::fs::read_to_string(&path) {
+                Ok(text) => Ok(Some((path, text))),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                    notes.push(format!("{name}: not recorded ({why})"));
+                    Ok(None)
+                }
+                Err(source) => Err(DataError::Read { path: path.display().to_string(), source }),
+            }
+        };
+        let tracks = optional(TRAJECTORY_FILE, "no map and no altitude timeline")?
+            .map(|(p, t)| parse_trajectory(&p, &t))
+            .transpose()?;
+        let events = optional(EVENTS_FILE, "no event times")?.map(|(p, t)| parse_events(&p, &t)).transpose()?;
+        let airspace = optional(AIRSPACE_FILE, "no zone requests, leases or violations")?
+            .map(|(p, t)| parse_json::<AirspaceFile>(&p, &t))
+            .transpose()?;
+        let summary = optional(SUMMARY_FILE, "the run did not finish: no totals and no criteria verdict")?
+            .map(|(p, t)| parse_json::<RunSummary>(&p, &t))
+            .transpose()?;
+        let world = optional(WORLD_FILE, "no world statistics and no buildings on the map")?
+            .map(|(p, t)| parse_json::<WorldStats>(&p, &t))
+            .transpose()?;
+        let pilot = if plan.spec.pilot.is_some() {
+            optional(PILOT_FILE, "no record of the pilot process")?
+                .map(|(p, t)| parse_json::<PilotRecord>(&p, &t))
+                .transpose()?
+        } else {
+            None
+        };
+        // Absolute, so that the page names the folder (`<run>/<UTC time>`) even when it
+        // was given as `.`.
+        let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+        Ok(Self { dir, plan, tracks, events, airspace, summary, world, pilot, notes })
+    }
+
+    /// The track of drone `index`, when recorded.
+    pub fn track(&self, index: u32) -> Option<&Track> {
+        self.tracks.as_deref().and_then(|t| t.iter().find(|t| t.drone == index))
+    }
+}
+
+fn read_required(path: &Path) -> Result<String, DataError> {
+    std::fs::read_to_string(path).map_err(|source| DataError::Read { path: path.display().to_string(), source })
+}
+
+/// Parses a JSON document, naming the field path and the line of the first mismatch.
+pub fn parse_json<T: DeserializeOwned>(path: &Path, text: &str) -> Result<T, DataError> {
+    let mut de = serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let field = e.path().to_string();
+        DataError::Json { path: path.display().to_string(), field, message: e.into_inner().to_string() }
+    })
+}
+
+/// Parses `events.jsonl`: one [`Event`] per non-empty line.
+pub fn parse_events(path: &Path, text: &str) -> Result<Vec<Event>, DataError> {
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            serde_json::from_str(l).map_err(|e| DataError::Line {
+                path: path.display().to_string(),
+                line: i + 1,
+                message: format!("not an event: {e}"),
+            })
+        })
+        .collect()
+}
+
+/// Columns of `trajectory.csv` the report needs, found by name in the header so that
+/// added columns do not break it.
+struct Columns {
+    time_s: usize,
+    drone: usize,
+    name: usize,
+    group: usize,
+    east_m: usize,
+    north_m: usize,
+    up_m: usize,
+    height_agl_m: usize,
+    on_ground: Option<usize>,
+    crashed: Option<usize>,
+}
+
+impl Columns {
+    fn from_header(path: &Path, header: &str) -> Result<Self, DataError> {
+        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let find = |name: &str| names.iter().position(|n| *n == name);
+        let need = |name: &str| {
+            find(name).ok_or_else(|| DataError::Line {
+                path: path.display().to_string(),
+                line: 1,
+                message: format!("header has no `{name}` column (expected the recorder's header: {header:?})"),
+            })
+        };
+        Ok(Self {
+            time_s: need("time_s")?,
+            drone: need("drone")?,
+            name: need("name")?,
+            group: need("group")?,
+            east_m: need("east_m")?,
+            north_m: need("north_m")?,
+            up_m: need("up_m")?,
+            height_agl_m: need("height_agl_m")?,
+            on_ground: find("on_ground"),
+            crashed: find("crashed"),
+        })
+    }
+}
+
+/// Parses `trajectory.csv` (header line, then one row per drone per sample) into one
+/// track per drone, sorted by drone index.
+pub fn parse_trajectory(path: &Path, text: &str) -> Result<Vec<Track>, DataError> {
+    let mut lines = text.lines().enumerate();
+    let Some((_, header)) = lines.next() else {
+        return Err(DataError::Line {
+            path: path.display().to_string(),
+            line: 1,
+            message: "empty file: no header".into(),
+        });
+    };
+    let cols = Columns::from_header(path, header)?;
+    let width = header.split(',').count();
+    let mut tracks: Vec<Track> = Vec::new();
+    for (i, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let bad = |message: String| DataError::Line { path: path.display().to_string(), line: i + 1, message };
+        let fields: Vec<&str> = line.split(',').collect();
+        if fields.len() != width {
+            return Err(bad(format!("{} fields, the header has {width}", fields.len())));
+        }
+        let number = |col: usize, name: &str| -> Result<f64, DataError> {
+            let raw = fields[col].trim();
+            raw.parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| bad(format!("column `{name}`: expected a finite number, got {raw:?}")))
+        };
+        let flag = |col: Option<usize>, name: &str| -> Result<bool, DataError> {
+            match col.map(|c| fields[c].trim()) {
+                None => Ok(false),
+                Some("true") => Ok(true),
+                Some("false") => Ok(false),
+                Some(raw) => Err(bad(format!("column `{name}`: expected true or false, got {raw:?}"))),
+            }
+        };
+        let raw_drone = fields[cols.drone].trim();
+        let drone: u32 = raw_drone
+            .parse()
+            .map_err(|_| bad(format!("column `drone`: expected a drone index (0, 1, ...), got {raw_drone:?}")))?;
+        let sample = Sample {
+            time_s: number(cols.time_s, "time_s")?,
+            east_m: number(cols.east_m, "east_m")?,
+            north_m: number(cols.north_m, "north_m")?,
+            up_m: number(cols.up_m, "up_m")?,
+            height_agl_m: number(cols.height_agl_m, "height_agl_m")?,
+            on_ground: flag(cols.on_ground, "on_ground")?,
+            crashed: flag(cols.crashed, "crashed")?,
+        };
+        let track = match tracks.iter().position(|t| t.drone == drone) {
+            Some(k) => &mut tracks[k],
+            None => {
+                tracks.push(Track {
+                    drone,
+                    name: fields[cols.name].trim().to_string(),
+                    group: fields[cols.group].trim().to_string(),
+                    samples: Vec::new(),
+                });
+                tracks.last_mut().expect("just pushed")
+            }
+        };
+        if track.samples.last().is_some_and(|s| s.time_s > sample.time_s) {
+            return Err(bad(format!("time_s {} is before drone {drone}'s previous sample", sample.time_s)));
+        }
+        track.samples.push(sample);
+    }
+    tracks.sort_by_key(|t| t.drone);
+    Ok(tracks)
+}

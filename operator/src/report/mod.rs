@@ -1,0 +1,105 @@
+//! The run report: `report.html` (self-contained: inline CSS and SVG, opens offline) and
+//! `report/{map,altitude}.{svg,png}`, rebuilt from the files of a run folder. It shows
+//! what the paper's case study shows (§4, Fig. 4A the flight paths of every drone by
+//! group with the SADE Zone, Fig. 4G the altitude timeline against the zone's 350 ft
+//! minimum) plus the evidence behind the verdict: each criterion, every zone request and
+//! its verdict, leases, violations with time, drone, place and duration, and the run's
+//! metadata.
+//!
+//! `sadesim run` writes it at the end of every local run (before `manifest.json`, so the
+//! manifest lists it); `sadesim report RUN_DIR` rebuilds it. The output is a function of
+//! the folder's files only (no clock, no absolute path), so a rebuild of an unchanged
+//! folder writes the same bytes and the manifest's checksums still hold.
+
+use std::path::{Path, PathBuf};
+
+use sim_worker::world::{World, WorldInputs};
+
+pub mod data;
+pub mod html;
+pub mod model;
+pub mod png;
+pub mod svg;
+
+#[cfg(test)]
+mod tests;
+
+pub use data::{DataError, RunData};
+
+/// The page, next to the run's other files.
+pub const HTML_FILE: &str = "report.html";
+/// The folder of the plots.
+pub const IMAGES_DIR: &str = "report";
+
+/// What [`write_report`] wrote.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ReportFiles {
+    pub html: PathBuf,
+    pub images: Vec<PathBuf>,
+}
+
+/// The report's contents, before they are written.
+#[derive(Clone, Debug)]
+pub struct Report {
+    pub html: String,
+    pub map_svg: String,
+    pub altitude_svg: String,
+}
+
+/// Building footprints for the map: the world regenerated from the plan, only when it is
+/// the world the run had (`world.json`'s statistics match; the generator is deterministic
+/// in its inputs). Otherwise none: a map without buildings is right, one with another
+/// city's would not be.
+fn buildings(data: &RunData) -> Vec<svg::Footprint> {
+    let Some(recorded) = &data.world else { return Vec::new() };
+    let world = World::generate(&WorldInputs::from_spec(&data.plan.spec, &[]));
+    if world.stats() != recorded {
+        return Vec::new();
+    }
+    world
+        .buildings()
+        .iter()
+        .map(|b| svg::Footprint {
+            east_min_m: b.center_east_m - b.half_east_m,
+            north_min_m: b.center_north_m - b.half_north_m,
+            east_max_m: b.center_east_m + b.half_east_m,
+            north_max_m: b.center_north_m + b.half_north_m,
+        })
+        .collect()
+}
+
+/// Builds the report of already-read run data (pure but for the world regeneration).
+pub fn build(data: &RunData) -> Report {
+    let styles = model::group_styles(&data.plan);
+    let zones = model::zone_shapes(&data.plan);
+    let map_svg = svg::map(data, &styles, &zones, &buildings(data));
+    let altitude_svg = svg::altitude(data, &styles, &zones);
+    let html = html::page(data, &styles, &zones, &map_svg, &altitude_svg);
+    Report { html, map_svg, altitude_svg }
+}
+
+/// Builds the report of the run folder `run_dir` into the same folder: `report.html`,
+/// `report/map.svg`, `report/altitude.svg`, `report/map.png`, `report/altitude.png`.
+///
+/// # Errors
+/// A message naming the file (and line or field) when a file of the folder is malformed
+/// or `plan.json` is missing, or the file that could not be written.
+pub fn write_report(run_dir: &Path) -> Result<ReportFiles, String> {
+    let data = RunData::read(run_dir).map_err(|e| e.to_string())?;
+    let report = build(&data);
+    let images_dir = run_dir.join(IMAGES_DIR);
+    std::fs::create_dir_all(&images_dir).map_err(|e| format!("{}: cannot create: {e}", images_dir.display()))?;
+    let write = |path: PathBuf, bytes: &[u8]| -> Result<PathBuf, String> {
+        std::fs::write(&path, bytes).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+        Ok(path)
+    };
+    let mut images = Vec::new();
+    for (name, svg) in [("map", &report.map_svg), ("altitude", &report.altitude_svg)] {
+        images.push(write(images_dir.join(format!("{name}.svg")), svg.as_bytes())?);
+        let png = png::render(svg).map_err(|e| format!("{}: {e}", images_dir.join(format!("{name}.png")).display()))?;
+        images.push(write(images_dir.join(format!("{name}.png")), &png)?);
+    }
+    // The page last: a folder with report.html has its plots too.
+    let html = write(run_dir.join(HTML_FILE), report.html.as_bytes())?;
+    Ok(ReportFiles { html, images })
+}

@@ -1,0 +1,335 @@
+//! `recording.mcap`: the whole run in one MCAP file with Foxglove's well-known schemas, so
+//! it opens in Foxglove with a 3D and a map panel.
+//!
+//! Messages are JSON (schema encoding `jsonschema`, see [`schemas`]); every time is
+//! simulated time since the run start: `log_time` is the sync window the recorder saw the
+//! value in, `publish_time` and the message's `timestamp` when it was true (the same for
+//! sampled streams; the fix time for GNSS, the event time for events).
+//!
+//! | topic | schema | frame | rate |
+//! |---|---|---|---|
+//! | `/drones/<name>/pose` | foxglove.PoseInFrame | `world` | ground truth (100 Hz) |
+//! | `/tf` (all drones in one message) | foxglove.FrameTransforms | `world` -> `drone/<name>` | ground truth |
+//! | `/drones/<name>/velocity` | sadesim.Velocity | `world` / body FLU | ground truth |
+//! | `/drones/<name>/estimate` | sadesim.Estimate | `world` | estimator (10 Hz), from the first fix |
+//! | `/drones/<name>/motors` | sadesim.MotorCommands | | actuators (10 Hz) |
+//! | `/drones/<name>/battery` | sadesim.Battery | | status (10 Hz) |
+//! | `/drones/<name>/status` | sadesim.Status | | status |
+//! | `/drones/<name>/wind` | sadesim.Wind | `world` | status |
+//! | `/drones/<name>/location` | foxglove.LocationFix (ground truth) | `drone/<name>` | status |
+//! | `/drones/<name>/gnss` | foxglove.LocationFix (receiver) | `drone/<name>` | each new 3D fix |
+//! | `/zones` | foxglove.SceneUpdate | `world` | once, at 0 |
+//! | `/events` | foxglove.Log | | each event |
+//!
+//! `world` is ENU (x east, y north, z up) in metres from the run origin. Sampled streams
+//! take one sample at the first sync window at or after each multiple of their period
+//! (as `trajectory.csv`), so a run of `d` seconds holds `d x rate` samples per stream.
+//!
+//! # Guarantees
+//! Chunks (about 1 MiB of messages, compressed with `spec.recording.compression` in one
+//! call, see [`writer`]) are built in memory and written whole, then the file is flushed:
+//! a process killed at any point leaves a file whose complete chunks a streaming MCAP
+//! reader reads (the summary section and footer are only written by
+//! [`McapRecorder::finish`]). The compressor runs on the recorder's thread (no worker
+//! threads), so a recording depends only on the run, not on the machine.
+
+mod json;
+mod messages;
+mod scene;
+pub mod schemas;
+#[cfg(test)]
+mod tests;
+pub mod writer;
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+use sadesim_crds::geo::{Enu, LocalFrame};
+use sadesim_crds::plan::RunPlan;
+use sadesim_crds::run::{Compression, RecordingRates};
+
+use self::writer::{ChunkCompression, McapWriter};
+use crate::events::{Event, EventKind};
+use crate::protocol::DroneSnapshot;
+
+/// File name inside the run folder.
+pub const MCAP_FILE: &str = "recording.mcap";
+
+/// Uncompressed bytes of messages after which the open chunk is written and flushed.
+pub const CHUNK_BYTES: usize = 1 << 20;
+
+/// Channels per drone (pose, velocity, estimate, motors, battery, status, wind, location,
+/// gnss); MCAP channel ids are 16-bit, which bounds the fleet one file can record.
+const CHANNELS_PER_DRONE: usize = 9;
+
+/// Most drones one `recording.mcap` holds (65 535 channel ids, 3 run-wide channels).
+pub const MAX_DRONES: usize = (u16::MAX as usize - 3) / CHANNELS_PER_DRONE;
+
+/// zstd level: 1 is the fastest standard level; recordings are compressed about 5x by it
+/// and level 3 (zstd's default) gains little on JSON at twice the CPU.
+const ZSTD_LEVEL: i32 = 1;
+
+/// Buffer of the file: a chunk goes through in one write (it is written whole anyway).
+type Sink = McapWriter<BufWriter<File>>;
+
+/// One channel and the sequence number of its next message.
+#[derive(Debug, Clone, Copy)]
+struct Channel {
+    id: u16,
+    sequence: u32,
+}
+
+/// The MCAP writer, which closes and flushes its chunk once it holds [`CHUNK_BYTES`].
+#[derive(Debug)]
+struct Output {
+    writer: Sink,
+}
+
+impl Output {
+    /// Writes one message whose JSON `data` appends to the chunk; closes the chunk
+    /// (written whole, then flushed to the file) once it holds [`CHUNK_BYTES`].
+    fn write(
+        &mut self,
+        channel: &mut Channel,
+        log_ns: u64,
+        publish_ns: u64,
+        data: impl FnOnce(&mut Vec<u8>),
+    ) -> std::io::Result<()> {
+        let size = self.writer.message(channel.id, channel.sequence, log_ns, publish_ns, data);
+        channel.sequence = channel.sequence.wrapping_add(1);
+        if size >= CHUNK_BYTES {
+            self.writer.flush()?;
+        }
+        Ok(())
+    }
+}
+
+/// A stream sampled at a fixed rate of simulated time.
+#[derive(Debug, Clone, Copy)]
+struct Sampler {
+    hz: f64,
+    next_s: f64,
+}
+
+impl Sampler {
+    fn new(hz: f64) -> Self {
+        Self { hz, next_s: 1.0 / hz }
+    }
+
+    /// Whether the window at `time_s` takes a sample: the first window at or after each
+    /// multiple of the period (as `trajectory.csv`), at most one per window.
+    fn due(&mut self, time_s: f64) -> bool {
+        if time_s + 1e-9 < self.next_s {
+            return false;
+        }
+        self.next_s = ((time_s * self.hz + 1e-9).floor() + 1.0) / self.hz;
+        true
+    }
+}
+
+/// The channels of one drone.
+#[derive(Debug)]
+struct DroneChannels {
+    /// `drone/<name>`: the child frame of its transform and the frame of its fixes.
+    frame: String,
+    name: String,
+    pose: Channel,
+    velocity: Channel,
+    estimate: Channel,
+    motors: Channel,
+    battery: Channel,
+    status: Channel,
+    wind: Channel,
+    location: Channel,
+    gnss: Channel,
+    /// `time_s` of the last GNSS output seen (a new fix when it changes).
+    last_gnss_s: Option<f64>,
+}
+
+/// Writes `recording.mcap` incrementally.
+#[derive(Debug)]
+pub struct McapRecorder {
+    out: Output,
+    frame: LocalFrame,
+    drones: Vec<DroneChannels>,
+    tf: Channel,
+    events: Channel,
+    ground_truth: Sampler,
+    estimator: Sampler,
+    actuators: Sampler,
+    status: Sampler,
+    /// The `/tf` message of the window, built beside the per-drone messages.
+    tf_buf: Vec<u8>,
+}
+
+/// Simulated seconds -> nanoseconds since the run start.
+fn ns(time_s: f64) -> u64 {
+    (time_s.max(0.0) * 1e9).round() as u64
+}
+
+impl McapRecorder {
+    /// Creates `dir/recording.mcap` and writes the header, schemas, channels and the static
+    /// scene (zones) of `plan`, at the rates of `plan.spec.recording()`.
+    ///
+    /// # Errors
+    /// I/O errors; an `Unsupported` error for fleets over [`MAX_DRONES`].
+    pub fn create(dir: &Path, plan: &RunPlan) -> std::io::Result<Self> {
+        let recording = plan.spec.recording();
+        Self::create_with(dir, plan, recording.compression, recording.rates)
+    }
+
+    /// [`Self::create`] with explicit compression and rates.
+    ///
+    /// # Errors
+    /// As [`Self::create`].
+    pub fn create_with(
+        dir: &Path,
+        plan: &RunPlan,
+        compression: Compression,
+        rates: RecordingRates,
+    ) -> std::io::Result<Self> {
+        if plan.drones.len() > MAX_DRONES {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::Unsupported,
+                format!(
+                    "recording.mcap holds at most {MAX_DRONES} drones ({CHANNELS_PER_DRONE} channels each), this run has {}; set spec.recording.mcap: false",
+                    plan.drones.len()
+                ),
+            ));
+        }
+        let file = BufWriter::new(File::create(dir.join(MCAP_FILE))?);
+        let compression = match compression {
+            Compression::Zstd => ChunkCompression::zstd(ZSTD_LEVEL)?,
+            Compression::Lz4 => ChunkCompression::Lz4,
+            Compression::None => ChunkCompression::None,
+        };
+        let mut writer = McapWriter::new(file, "", concat!("sadesim/", env!("CARGO_PKG_VERSION")), compression)?;
+        let mut schema = BTreeMap::new();
+        for (name, text) in schemas::ALL {
+            schema.insert(name, writer.add_schema(name, "jsonschema", text.as_bytes())?);
+        }
+        let channel = |writer: &mut Sink, topic: &str, schema_name: &str| -> std::io::Result<Channel> {
+            let id = writer.add_channel(schema[schema_name], topic, "json")?;
+            Ok(Channel { id, sequence: 0 })
+        };
+        let zones = channel(&mut writer, "/zones", schemas::SCENE_UPDATE_NAME)?;
+        let events = channel(&mut writer, "/events", schemas::LOG_NAME)?;
+        let tf = channel(&mut writer, "/tf", schemas::FRAME_TRANSFORMS_NAME)?;
+        let mut drones = Vec::with_capacity(plan.drones.len());
+        for d in &plan.drones {
+            let topic = |stream: &str| format!("/drones/{}/{stream}", d.name);
+            drones.push(DroneChannels {
+                frame: format!("drone/{}", d.name),
+                name: d.name.clone(),
+                pose: channel(&mut writer, &topic("pose"), schemas::POSE_IN_FRAME_NAME)?,
+                velocity: channel(&mut writer, &topic("velocity"), schemas::VELOCITY_NAME)?,
+                estimate: channel(&mut writer, &topic("estimate"), schemas::ESTIMATE_NAME)?,
+                motors: channel(&mut writer, &topic("motors"), schemas::MOTORS_NAME)?,
+                battery: channel(&mut writer, &topic("battery"), schemas::BATTERY_NAME)?,
+                status: channel(&mut writer, &topic("status"), schemas::STATUS_NAME)?,
+                wind: channel(&mut writer, &topic("wind"), schemas::WIND_NAME)?,
+                location: channel(&mut writer, &topic("location"), schemas::LOCATION_FIX_NAME)?,
+                gnss: channel(&mut writer, &topic("gnss"), schemas::LOCATION_FIX_NAME)?,
+                last_gnss_s: None,
+            });
+        }
+        let mut out = Output { writer };
+        let mut zones = zones;
+        let scene = scene::zones_update(plan);
+        out.write(&mut zones, 0, 0, |b| b.extend_from_slice(scene.as_bytes()))?;
+        // The first chunk (schemas, channels, zones) is on disk before the run starts.
+        out.writer.flush()?;
+        Ok(Self {
+            out,
+            frame: LocalFrame::new(plan.spec.origin.geo()),
+            drones,
+            tf,
+            events,
+            ground_truth: Sampler::new(rates.ground_truth_hz),
+            estimator: Sampler::new(rates.estimator_hz),
+            actuators: Sampler::new(rates.actuators_hz),
+            status: Sampler::new(rates.status_hz),
+            tf_buf: Vec::with_capacity(256 * plan.drones.len()),
+        })
+    }
+
+    /// Records one sync window (time `time_s` of simulated time).
+    ///
+    /// # Errors
+    /// I/O errors.
+    pub fn write_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> std::io::Result<()> {
+        let log_ns = ns(time_s);
+        let Self { out, frame, drones: channels, tf, events: event_channel, tf_buf, .. } = self;
+        for event in events {
+            let name = event.drone.and_then(|i| channels.get(i as usize)).map_or("run", |c| c.name.as_str());
+            out.write(event_channel, log_ns, ns(event.time_s).min(log_ns), |b| {
+                messages::log(b, ns(event.time_s), event, name);
+            })?;
+        }
+        // The final window repeats the last snapshot, with the run-ended event.
+        if events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. })) {
+            return Ok(());
+        }
+        let ground_truth = self.ground_truth.due(time_s);
+        let estimator = self.estimator.due(time_s);
+        let actuators = self.actuators.due(time_s);
+        let status = self.status.due(time_s);
+        tf_buf.clear();
+        messages::begin_transforms(tf_buf);
+        let mut first_transform = true;
+        for s in drones {
+            let Some(c) = channels.get_mut(s.index as usize) else { continue };
+            if ground_truth {
+                out.write(&mut c.pose, log_ns, log_ns, |b| messages::pose(b, log_ns, s))?;
+                messages::transform(tf_buf, first_transform, log_ns, &c.frame, s);
+                first_transform = false;
+                out.write(&mut c.velocity, log_ns, log_ns, |b| messages::velocity(b, log_ns, s))?;
+            }
+            if estimator && let Some(e) = &s.detail.estimate {
+                out.write(&mut c.estimate, log_ns, log_ns, |b| messages::estimate(b, log_ns, e, s))?;
+            }
+            if actuators {
+                out.write(&mut c.motors, log_ns, log_ns, |b| messages::motors(b, log_ns, s))?;
+            }
+            if status {
+                out.write(&mut c.battery, log_ns, log_ns, |b| messages::battery(b, log_ns, s))?;
+                out.write(&mut c.status, log_ns, log_ns, |b| messages::status(b, log_ns, s))?;
+                out.write(&mut c.wind, log_ns, log_ns, |b| messages::wind(b, log_ns, s))?;
+                let [e, n, u] = s.position_enu_m;
+                out.write(&mut c.location, log_ns, log_ns, |b| {
+                    messages::location(b, log_ns, &c.frame, frame.to_geodetic(Enu::new(e, n, u)), None)
+                })?;
+            }
+            if let Some(g) = &s.detail.gnss
+                && c.last_gnss_s != Some(g.time_s)
+            {
+                c.last_gnss_s = Some(g.time_s);
+                // Without a 3D fix the receiver's position means nothing.
+                if g.fix_type >= 3 {
+                    let fix_ns = ns(g.time_s).min(log_ns);
+                    let sigma = g.eph_m.zip(g.epv_m);
+                    out.write(&mut c.gnss, log_ns, fix_ns, |b| {
+                        messages::location(b, fix_ns, &c.frame, frame.to_geodetic(messages::gnss_enu(g)), sigma)
+                    })?;
+                }
+            }
+        }
+        if !first_transform {
+            messages::end_transforms(tf_buf);
+            out.write(tf, log_ns, log_ns, |b| b.extend_from_slice(tf_buf))?;
+        }
+        Ok(())
+    }
+
+    /// Writes the summary section and closes the file.
+    ///
+    /// # Errors
+    /// I/O errors.
+    pub fn finish(self) -> std::io::Result<()> {
+        let file = self.out.writer.finish()?;
+        file.into_inner().map_err(|e| e.into_error())?;
+        Ok(())
+    }
+}

@@ -1,0 +1,225 @@
+//! The JSON text of each recorded message, from one drone snapshot. Field names follow the
+//! schemas in [`super::schemas`]; `ns` is simulated time since the run start.
+
+use sadesim_crds::geo::{Enu, GeoPoint};
+
+use super::json::{self, COARSE, DEGREES, METRES};
+use crate::events::{Event, EventKind, FlightMode};
+use crate::protocol::{DroneSnapshot, EstimateDetail, GnssDetail};
+
+fn norm(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// `foxglove.PoseInFrame`: the ground-truth pose in `world`.
+pub fn pose(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"frame_id\":\"world\",\"pose\":{\"position\":");
+    json::vector3(out, s.position_enu_m, METRES);
+    out.extend_from_slice(b",\"orientation\":");
+    json::quaternion(out, s.attitude_wxyz);
+    out.extend_from_slice(b"}}");
+}
+
+/// Opens a `foxglove.FrameTransforms` message; [`transform`] appends to it, [`end_transforms`]
+/// closes it.
+pub fn begin_transforms(out: &mut Vec<u8>) {
+    out.extend_from_slice(b"{\"transforms\":[");
+}
+
+/// Closes the message [`begin_transforms`] opened.
+pub fn end_transforms(out: &mut Vec<u8>) {
+    out.extend_from_slice(b"]}");
+}
+
+/// One `foxglove.FrameTransform` `world` -> `child` (`drone/<name>`) of a `FrameTransforms`
+/// message: the body frame (FLU) at the ground-truth pose. `first`: no comma before it.
+pub fn transform(out: &mut Vec<u8>, first: bool, ns: u64, child: &str, s: &DroneSnapshot) {
+    if !first {
+        out.push(b',');
+    }
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"parent_frame_id\":\"world\",\"child_frame_id\":");
+    json::string(out, child);
+    out.extend_from_slice(b",\"translation\":");
+    json::vector3(out, s.position_enu_m, METRES);
+    out.extend_from_slice(b",\"rotation\":");
+    json::quaternion(out, s.attitude_wxyz);
+    out.push(b'}');
+}
+
+/// `sadesim.Velocity`: ground-truth linear velocity (ENU) and body rates (FLU).
+pub fn velocity(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"frame_id\":\"world\",\"velocity_enu_mps\":");
+    json::vector3(out, s.velocity_enu_mps, METRES);
+    out.extend_from_slice(b",\"rate_body_rps\":");
+    json::vector3(out, s.detail.rate_body_rps, METRES);
+    out.push(b'}');
+}
+
+/// `sadesim.Estimate`: the estimator's output and its error against ground truth.
+pub fn estimate(out: &mut Vec<u8>, ns: u64, e: &EstimateDetail, s: &DroneSnapshot) {
+    let error = [
+        e.position_enu_m[0] - s.position_enu_m[0],
+        e.position_enu_m[1] - s.position_enu_m[1],
+        e.position_enu_m[2] - s.position_enu_m[2],
+    ];
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"frame_id\":\"world\",\"position_enu_m\":");
+    json::vector3(out, e.position_enu_m, METRES);
+    out.extend_from_slice(b",\"velocity_enu_mps\":");
+    json::vector3(out, e.velocity_enu_mps, METRES);
+    out.extend_from_slice(b",\"orientation\":");
+    json::quaternion(out, e.attitude_wxyz);
+    out.extend_from_slice(b",\"position_error_enu_m\":");
+    json::vector3(out, error, METRES);
+    out.extend_from_slice(b",\"eph_m\":");
+    json::num(out, e.eph_m, METRES);
+    out.extend_from_slice(b",\"epv_m\":");
+    json::num(out, e.epv_m, METRES);
+    out.push(b'}');
+}
+
+/// `sadesim.MotorCommands`: the first `motor_count` commands.
+pub fn motors(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"armed\":");
+    json::boolean(out, s.armed);
+    out.extend_from_slice(b",\"commands\":[");
+    let count = usize::from(s.detail.motor_count).min(s.detail.motor_commands.len());
+    for (i, &c) in s.detail.motor_commands[..count].iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        json::num(out, c, COARSE);
+    }
+    out.extend_from_slice(b"]}");
+}
+
+/// `sadesim.Battery`.
+pub fn battery(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"voltage_v\":");
+    json::num(out, s.detail.battery_voltage_v, COARSE);
+    out.extend_from_slice(b",\"current_a\":");
+    json::num(out, s.detail.battery_current_a, COARSE);
+    out.extend_from_slice(b",\"consumed_mah\":");
+    json::num(out, s.detail.battery_consumed_mah, COARSE);
+    out.extend_from_slice(b",\"remaining\":");
+    json::num(out, s.battery_remaining, COARSE);
+    out.push(b'}');
+}
+
+/// The schema's name of a flight mode (serde's camelCase, without serde per message).
+pub fn mode_name(mode: FlightMode) -> &'static str {
+    match mode {
+        FlightMode::Idle => "idle",
+        FlightMode::Takeoff => "takeoff",
+        FlightMode::Hold => "hold",
+        FlightMode::Mission => "mission",
+        FlightMode::Offboard => "offboard",
+        FlightMode::ReturnToLaunch => "returnToLaunch",
+        FlightMode::Land => "land",
+    }
+}
+
+/// `sadesim.Status`: flight mode and state flags.
+pub fn status(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"mode\":\"");
+    out.extend_from_slice(mode_name(s.mode).as_bytes());
+    out.extend_from_slice(b"\",\"armed\":");
+    json::boolean(out, s.armed);
+    out.extend_from_slice(b",\"on_ground\":");
+    json::boolean(out, s.on_ground);
+    out.extend_from_slice(b",\"crashed\":");
+    json::boolean(out, s.crashed);
+    out.extend_from_slice(b",\"position_valid\":");
+    json::boolean(out, s.position_valid);
+    out.extend_from_slice(b",\"height_agl_m\":");
+    json::num(out, s.height_agl_m, METRES);
+    out.push(b'}');
+}
+
+/// `sadesim.Wind`: the air velocity at the drone.
+pub fn wind(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"frame_id\":\"world\",\"velocity_enu_mps\":");
+    json::vector3(out, s.detail.wind_enu_mps, METRES);
+    out.extend_from_slice(b",\"speed_mps\":");
+    json::num(out, norm(s.detail.wind_enu_mps), METRES);
+    out.push(b'}');
+}
+
+/// `foxglove.LocationFix` at `g` with a diagonal ENU covariance from 1-sigma horizontal and
+/// vertical accuracies (`None`: unknown, covariance type 0).
+pub fn location(out: &mut Vec<u8>, ns: u64, frame: &str, g: GeoPoint, sigma_m: Option<(f64, f64)>) {
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"frame_id\":");
+    json::string(out, frame);
+    out.extend_from_slice(b",\"latitude\":");
+    json::num(out, g.latitude_deg, DEGREES);
+    out.extend_from_slice(b",\"longitude\":");
+    json::num(out, g.longitude_deg, DEGREES);
+    out.extend_from_slice(b",\"altitude\":");
+    json::num(out, g.altitude_msl_m, METRES);
+    match sigma_m {
+        Some((h, v)) => {
+            let (hh, vv) = (h * h, v * v);
+            out.extend_from_slice(b",\"position_covariance\":[");
+            for (i, c) in [hh, 0.0, 0.0, 0.0, hh, 0.0, 0.0, 0.0, vv].into_iter().enumerate() {
+                if i > 0 {
+                    out.push(b',');
+                }
+                json::num(out, c, METRES);
+            }
+            out.extend_from_slice(b"],\"position_covariance_type\":2}");
+        }
+        None => out.extend_from_slice(b",\"position_covariance\":[0,0,0,0,0,0,0,0,0],\"position_covariance_type\":0}"),
+    }
+}
+
+/// The ENU position of a GNSS output.
+pub fn gnss_enu(g: &GnssDetail) -> Enu {
+    Enu::new(g.position_enu_m[0], g.position_enu_m[1], g.position_enu_m[2])
+}
+
+/// Foxglove log level of an event: WARNING for violations, unauthorized entries, crashes,
+/// failsafes and refused commands or entries; ERROR for a failed run; INFO otherwise.
+pub fn level(kind: &EventKind) -> u8 {
+    match kind {
+        EventKind::ViolationStarted { .. }
+        | EventKind::Crashed { .. }
+        | EventKind::Failsafe { .. }
+        | EventKind::CommandRejected { .. }
+        | EventKind::ZoneDenied { .. }
+        | EventKind::ZoneEntered { authorized: false, .. } => 3,
+        EventKind::RunEnded { reason } if reason == "failed" => 4,
+        _ => 2,
+    }
+}
+
+/// `foxglove.Log` of one event: `message` is the event as in `events.jsonl`, `name` the
+/// drone (or `run` for run-wide events).
+pub fn log(out: &mut Vec<u8>, ns: u64, event: &Event, name: &str) {
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+    out.extend_from_slice(b",\"level\":");
+    json::uint(out, u64::from(level(&event.kind)));
+    out.extend_from_slice(b",\"message\":");
+    let text = serde_json::to_string(event).unwrap_or_else(|e| format!("unserializable event: {e}"));
+    json::string(out, &text);
+    out.extend_from_slice(b",\"name\":");
+    json::string(out, name);
+    out.extend_from_slice(b",\"file\":\"\",\"line\":0}");
+}

@@ -1,0 +1,453 @@
+//! Writes synthetic runs and reads them back with the `mcap` crate's reader.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::PathBuf;
+
+use sadesim_crds::geo::{Enu, LocalFrame};
+use sadesim_crds::plan::RunPlan;
+use sadesim_crds::run::{Compression, RecordingRates};
+use serde_json::Value;
+
+use super::{CHUNK_BYTES, MCAP_FILE, McapRecorder};
+use crate::airspace::monitor::test_plan::{plan_of, rect_zone, run_with_groups};
+use crate::events::{Event, EventKind, FlightMode};
+use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail};
+
+/// Physics windows of 10 ms, as the default plan.
+const WINDOW_S: f64 = 0.01;
+
+struct TempDir(PathBuf);
+
+impl TempDir {
+    fn new(name: &str) -> Self {
+        let dir = std::env::temp_dir().join(format!("sadesim-mcap-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        Self(dir)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn plan(drones: u32) -> RunPlan {
+    plan_of(
+        run_with_groups(&[("a", drones)])
+            .with(|r| r.spec.zones.push(rect_zone("museum", (-50.0, 50.0), (-20.0, 20.0), 0.0, 120.0)))
+            .build(),
+    )
+}
+
+/// A drone flying a circle, with every detail a function of time so values can be checked.
+fn snapshot(index: u32, t: f64) -> DroneSnapshot {
+    let k = f64::from(index);
+    let (s, c) = (0.5 * t).sin_cos();
+    let half = 0.25 * t;
+    let estimate_from_s = 0.505;
+    DroneSnapshot {
+        index,
+        position_enu_m: [20.0 * c + 100.0 * k, 20.0 * s, 10.0 + t],
+        velocity_enu_mps: [-10.0 * s, 10.0 * c, 1.0],
+        attitude_wxyz: [half.cos(), 0.0, 0.0, half.sin()],
+        height_agl_m: 10.0 + t,
+        mode: if t < 1.0 { FlightMode::Takeoff } else { FlightMode::Mission },
+        armed: true,
+        on_ground: false,
+        crashed: false,
+        battery_remaining: 1.0 - 0.01 * t,
+        position_valid: t >= estimate_from_s,
+        detail: DroneDetail {
+            rate_body_rps: [0.0, 0.0, 0.5],
+            estimate: (t >= estimate_from_s).then(|| EstimateDetail {
+                position_enu_m: [20.0 * c + 100.0 * k + 0.3, 20.0 * s - 0.2, 10.0 + t + 0.1],
+                velocity_enu_mps: [-10.0 * s, 10.0 * c, 1.0],
+                attitude_wxyz: [half.cos(), 0.0, 0.0, half.sin()],
+                eph_m: 0.8,
+                epv_m: 1.2,
+            }),
+            // A 5 Hz receiver: the latest fix is at the last multiple of 0.2 s.
+            gnss: Some(GnssDetail {
+                time_s: (t / 0.2 + 1e-9).floor() * 0.2,
+                position_enu_m: [20.0 * c + 100.0 * k, 20.0 * s, 10.0 + t],
+                velocity_enu_mps: [0.0; 3],
+                fix_type: 3,
+                satellites: 12,
+                eph_m: Some(0.7),
+                epv_m: Some(1.1),
+                hdop: Some(0.9),
+                vdop: Some(1.3),
+            }),
+            motor_commands: [0.5 + 0.01 * t, 0.51, 0.52, 0.53, 0.0, 0.0, 0.0, 0.0],
+            motor_count: 4,
+            battery_voltage_v: 16.8 - 0.01 * t,
+            battery_current_a: 12.5,
+            battery_consumed_mah: 3.5 * t,
+            wind_enu_mps: [3.0, -1.0, 0.0],
+            local_origin_enu_m: [100.0 * k, 0.0, 0.0],
+        },
+    }
+}
+
+/// Runs `seconds` of windows through a recorder (plus the final run-ended window) and
+/// returns the file's bytes.
+fn record(dir: &TempDir, plan: &RunPlan, seconds: f64, compression: Compression, rates: RecordingRates) -> Vec<u8> {
+    let mut recorder = McapRecorder::create_with(&dir.0, plan, compression, rates).unwrap();
+    let windows = (seconds / WINDOW_S).round() as u32;
+    for w in 1..=windows {
+        let t = f64::from(w) * WINDOW_S;
+        let drones: Vec<_> = (0..plan.drones.len() as u32).map(|i| snapshot(i, t)).collect();
+        let mut events = Vec::new();
+        if w == 1 {
+            events.push(Event { time_s: 0.0, drone: None, kind: EventKind::RunStarted { drones: 2, shards: 1 } });
+        }
+        if w == 100 {
+            events.push(Event {
+                time_s: t - 0.005,
+                drone: Some(1),
+                kind: EventKind::Failsafe { reason: "gnssLost".into(), action: FlightMode::Land },
+            });
+        }
+        recorder.write_window(t, &drones, &events).unwrap();
+    }
+    let end = f64::from(windows) * WINDOW_S;
+    let drones: Vec<_> = (0..plan.drones.len() as u32).map(|i| snapshot(i, end)).collect();
+    let ended = [Event { time_s: end, drone: None, kind: EventKind::RunEnded { reason: "duration".into() } }];
+    recorder.write_window(end, &drones, &ended).unwrap();
+    recorder.finish().unwrap();
+    std::fs::read(dir.0.join(MCAP_FILE)).unwrap()
+}
+
+/// One message read back.
+struct Read {
+    topic: String,
+    schema: String,
+    log_time: u64,
+    publish_time: u64,
+    json: Value,
+}
+
+fn read_all(bytes: &[u8]) -> Vec<Read> {
+    mcap::MessageStream::new(bytes)
+        .unwrap()
+        .map(|m| {
+            let m = m.unwrap();
+            assert_eq!(m.channel.message_encoding, "json");
+            let schema = m.channel.schema.as_ref().unwrap();
+            assert_eq!(schema.encoding, "jsonschema");
+            Read {
+                topic: m.channel.topic.clone(),
+                schema: schema.name.clone(),
+                log_time: m.log_time,
+                publish_time: m.publish_time,
+                json: serde_json::from_slice(&m.data).unwrap(),
+            }
+        })
+        .collect()
+}
+
+fn counts(messages: &[Read]) -> BTreeMap<String, usize> {
+    let mut counts = BTreeMap::new();
+    for m in messages {
+        *counts.entry(m.topic.clone()).or_insert(0) += 1;
+    }
+    counts
+}
+
+fn ns_to_s(v: &Value) -> f64 {
+    v["sec"].as_f64().unwrap() + v["nsec"].as_f64().unwrap() * 1e-9
+}
+
+fn xyz(v: &Value) -> [f64; 3] {
+    [v["x"].as_f64().unwrap(), v["y"].as_f64().unwrap(), v["z"].as_f64().unwrap()]
+}
+
+fn close(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
+    a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
+}
+
+#[test]
+fn counts_per_stream_are_duration_times_rate() {
+    let dir = TempDir::new("counts");
+    let plan = plan(2);
+    let bytes = record(&dir, &plan, 3.0, Compression::Zstd, RecordingRates::default());
+    let counts = counts(&read_all(&bytes));
+    for name in ["a-0", "a-1"] {
+        let n = |stream: &str| counts.get(&format!("/drones/{name}/{stream}")).copied().unwrap_or(0);
+        assert_eq!(n("pose"), 300, "100 Hz x 3 s");
+        assert_eq!(n("velocity"), 300);
+        // The estimate starts at 0.505 s: samples at 0.6, 0.7, ..., 3.0.
+        assert_eq!(n("estimate"), 25);
+        assert_eq!(n("motors"), 30, "10 Hz x 3 s");
+        for stream in ["battery", "status", "wind", "location"] {
+            assert_eq!(n(stream), 30, "{stream}: 10 Hz x 3 s");
+        }
+        // A new fix every 0.2 s from 0 (seen at 0.01) to 3.0: 16 fixes.
+        assert_eq!(n("gnss"), 16);
+    }
+    assert_eq!(counts["/tf"], 300, "one message for all drones at 100 Hz");
+    assert_eq!(counts["/zones"], 1);
+    assert_eq!(counts["/events"], 3, "run started, failsafe, run ended");
+}
+
+#[test]
+fn rates_follow_the_spec() {
+    let dir = TempDir::new("rates");
+    let plan = plan(1);
+    let rates = RecordingRates { ground_truth_hz: 25.0, estimator_hz: 7.0, actuators_hz: 1000.0, status_hz: 0.5 };
+    let counts = counts(&read_all(&record(&dir, &plan, 4.0, Compression::Lz4, rates)));
+    assert_eq!(counts["/drones/a-0/pose"], 100, "25 Hz x 4 s");
+    // 7 Hz from 0.505 s: samples at k/7 for k = 4..=28.
+    assert_eq!(counts["/drones/a-0/estimate"], 25);
+    assert_eq!(counts["/drones/a-0/motors"], 400, "at most one sample per 10 ms window");
+    assert_eq!(counts["/drones/a-0/status"], 2, "0.5 Hz x 4 s");
+}
+
+#[test]
+fn schemas_are_foxglove_well_known_ones_where_they_exist() {
+    let dir = TempDir::new("schemas");
+    let plan = plan(1);
+    let messages = read_all(&record(&dir, &plan, 0.5, Compression::None, RecordingRates::default()));
+    let by_topic: BTreeMap<&str, &str> = messages.iter().map(|m| (m.topic.as_str(), m.schema.as_str())).collect();
+    assert_eq!(by_topic["/drones/a-0/pose"], "foxglove.PoseInFrame");
+    assert_eq!(by_topic["/tf"], "foxglove.FrameTransforms");
+    assert_eq!(by_topic["/drones/a-0/gnss"], "foxglove.LocationFix");
+    assert_eq!(by_topic["/drones/a-0/location"], "foxglove.LocationFix");
+    assert_eq!(by_topic["/zones"], "foxglove.SceneUpdate");
+    assert_eq!(by_topic["/events"], "foxglove.Log");
+    assert_eq!(by_topic["/drones/a-0/motors"], "sadesim.MotorCommands");
+    let summary = mcap::Summary::read(&record(&dir, &plan, 0.5, Compression::None, RecordingRates::default()))
+        .unwrap()
+        .expect("a finished file has a summary");
+    let names: BTreeSet<String> = summary.schemas.values().map(|s| s.name.clone()).collect();
+    assert_eq!(names.len(), super::schemas::ALL.len());
+    for schema in summary.schemas.values() {
+        let parsed: Value = serde_json::from_slice(&schema.data).expect("schema data is JSON");
+        assert_eq!(parsed["title"], schema.name.as_str(), "title of {}", schema.name);
+        assert_eq!(parsed["type"], "object");
+    }
+}
+
+#[test]
+fn the_summary_indexes_every_chunk_for_seeking_readers() {
+    for compression in [Compression::Zstd, Compression::Lz4, Compression::None] {
+        let dir = TempDir::new(&format!("summary-{compression:?}"));
+        let plan = plan(20);
+        let bytes = record(&dir, &plan, 4.0, compression, RecordingRates::default());
+        let streamed = read_all(&bytes);
+        let summary = mcap::Summary::read(&bytes).unwrap().expect("a finished file has a summary");
+        let stats = summary.stats.as_ref().expect("statistics");
+        assert_eq!(stats.message_count, streamed.len() as u64);
+        assert_eq!(stats.channel_count as usize, summary.channels.len());
+        assert_eq!(stats.chunk_count as usize, summary.chunk_indexes.len());
+        assert!(summary.chunk_indexes.len() >= 3, "several 1 MiB chunks: {}", summary.chunk_indexes.len());
+        assert_eq!(stats.message_start_time, 0);
+        assert_eq!(stats.message_end_time, 4_000_000_000);
+        let per_channel: u64 = stats.channel_message_counts.values().sum();
+        assert_eq!(per_channel, stats.message_count);
+        // Reading chunk by chunk through the indexes (as a seeking reader) finds every
+        // message, inside each chunk's time range.
+        let mut seeked = 0;
+        for index in &summary.chunk_indexes {
+            assert!(index.message_start_time <= index.message_end_time);
+            for m in summary.stream_chunk(&bytes, index).unwrap() {
+                let m = m.unwrap();
+                assert!((index.message_start_time..=index.message_end_time).contains(&m.log_time));
+                seeked += 1;
+            }
+        }
+        assert_eq!(seeked, streamed.len(), "{compression:?}");
+    }
+}
+
+#[test]
+fn log_times_are_monotonic_per_channel_and_timestamps_match() {
+    let dir = TempDir::new("monotonic");
+    let plan = plan(2);
+    let messages = read_all(&record(&dir, &plan, 2.0, Compression::Zstd, RecordingRates::default()));
+    let mut last: BTreeMap<&str, u64> = BTreeMap::new();
+    for m in &messages {
+        if let Some(&previous) = last.get(m.topic.as_str()) {
+            assert!(m.log_time >= previous, "{}: {} after {previous}", m.topic, m.log_time);
+        }
+        last.insert(&m.topic, m.log_time);
+        assert!(m.publish_time <= m.log_time, "{}", m.topic);
+        let stamped: Vec<&Value> = match m.topic.as_str() {
+            "/zones" => Vec::new(),
+            "/tf" => m.json["transforms"].as_array().unwrap().iter().map(|t| &t["timestamp"]).collect(),
+            _ => vec![&m.json["timestamp"]],
+        };
+        for stamp in stamped {
+            let t = stamp["sec"].as_u64().unwrap() * 1_000_000_000 + stamp["nsec"].as_u64().unwrap();
+            assert_eq!(t, m.publish_time, "{}", m.topic);
+        }
+    }
+    assert_eq!(last.len(), 3 + 2 * 9, "every channel has messages");
+}
+
+#[test]
+fn values_equal_the_snapshots() {
+    let dir = TempDir::new("values");
+    let plan = plan(2);
+    let frame = LocalFrame::new(plan.spec.origin.geo());
+    let messages = read_all(&record(&dir, &plan, 1.5, Compression::Zstd, RecordingRates::default()));
+    let mut checked = BTreeMap::new();
+    for m in &messages {
+        let t = m.log_time as f64 * 1e-9;
+        let drone = m.topic.strip_prefix("/drones/a-").and_then(|r| r.split('/').next()).and_then(|i| i.parse().ok());
+        let stream = m.topic.rsplit('/').next().unwrap();
+        let j = &m.json;
+        match (drone, stream) {
+            (Some(i), "pose") => {
+                let s = snapshot(i, t);
+                assert_eq!(j["frame_id"], "world");
+                assert!(close(xyz(&j["pose"]["position"]), s.position_enu_m, 0.5e-4), "{t} {j}");
+                let q = &j["pose"]["orientation"];
+                assert!((q["w"].as_f64().unwrap() - s.attitude_wxyz[0]).abs() <= 0.5e-6);
+                assert!((q["z"].as_f64().unwrap() - s.attitude_wxyz[3]).abs() <= 0.5e-6);
+            }
+            (Some(i), "velocity") => {
+                assert!(close(xyz(&j["velocity_enu_mps"]), snapshot(i, t).velocity_enu_mps, 0.5e-4));
+            }
+            (Some(i), "estimate") => {
+                let s = snapshot(i, t);
+                let e = s.detail.estimate.as_ref().unwrap();
+                assert!(close(xyz(&j["position_enu_m"]), e.position_enu_m, 0.5e-4));
+                assert!(close(xyz(&j["position_error_enu_m"]), [0.3, -0.2, 0.1], 1e-4));
+                assert_eq!(j["eph_m"], 0.8);
+            }
+            (Some(i), "motors") => {
+                let s = snapshot(i, t);
+                let commands: Vec<f64> =
+                    j["commands"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+                assert_eq!(commands.len(), 4);
+                assert!((commands[0] - s.detail.motor_commands[0]).abs() <= 0.5e-4);
+            }
+            (Some(i), "status") => {
+                let s = snapshot(i, t);
+                assert_eq!(j["mode"], if s.mode == FlightMode::Takeoff { "takeoff" } else { "mission" });
+                assert_eq!(j["armed"], true);
+            }
+            (Some(i), "location") => {
+                let [e, n, u] = snapshot(i, t).position_enu_m;
+                let g = frame.to_geodetic(Enu::new(e, n, u));
+                assert!((j["latitude"].as_f64().unwrap() - g.latitude_deg).abs() <= 0.5e-9);
+                assert!((j["longitude"].as_f64().unwrap() - g.longitude_deg).abs() <= 0.5e-9);
+                assert!((j["altitude"].as_f64().unwrap() - g.altitude_msl_m).abs() <= 0.5e-4);
+                assert_eq!(j["frame_id"], format!("drone/a-{i}"));
+            }
+            (Some(_), "gnss") => {
+                assert_eq!(j["position_covariance_type"], 2);
+                assert!((j["position_covariance"][0].as_f64().unwrap() - 0.49).abs() < 1e-9);
+                assert!((j["position_covariance"][8].as_f64().unwrap() - 1.21).abs() < 1e-9);
+                let fix_s = ns_to_s(&j["timestamp"]);
+                assert!(((fix_s / 0.2).round() * 0.2 - fix_s).abs() < 1e-6, "fix times are multiples of 0.2 s");
+            }
+            (None, "tf") => {
+                let transforms = j["transforms"].as_array().unwrap();
+                assert_eq!(transforms.len(), 2, "one transform per drone");
+                for (k, j) in transforms.iter().enumerate() {
+                    let child = j["child_frame_id"].as_str().unwrap();
+                    let i: u32 = child.strip_prefix("drone/a-").unwrap().parse().unwrap();
+                    assert_eq!(i as usize, k);
+                    assert_eq!(j["parent_frame_id"], "world");
+                    assert!(close(xyz(&j["translation"]), snapshot(i, t).position_enu_m, 0.5e-4));
+                }
+            }
+            (None, "events") => {
+                let event: Event = serde_json::from_str(j["message"].as_str().unwrap()).unwrap();
+                let failsafe = matches!(event.kind, EventKind::Failsafe { .. });
+                assert_eq!(j["level"], if failsafe { 3 } else { 2 });
+                assert_eq!(j["name"], if failsafe { "a-1" } else { "run" });
+            }
+            (None, "zones") => {
+                let entity = &j["entities"][0];
+                assert_eq!(entity["id"], "zone/museum");
+                assert_eq!(entity["frame_id"], "world");
+                let walls = entity["triangles"][0]["points"].as_array().unwrap();
+                assert_eq!(walls.len(), 4 * 6, "two triangles per wall of a rectangle");
+                let ups: BTreeSet<i64> = walls.iter().map(|p| p["z"].as_f64().unwrap().round() as i64).collect();
+                assert_eq!(ups, BTreeSet::from([0, 120]));
+                let easts: Vec<f64> = walls.iter().map(|p| p["x"].as_f64().unwrap()).collect();
+                assert!(easts.iter().all(|e| (e.abs() - 50.0).abs() < 0.01), "{easts:?}");
+            }
+            _ => {}
+        }
+        *checked.entry(stream.to_string()).or_insert(0) += 1;
+    }
+    for stream in ["pose", "velocity", "estimate", "motors", "status", "location", "gnss", "tf", "events", "zones"] {
+        assert!(checked.get(stream).copied().unwrap_or(0) > 0, "no {stream} message checked");
+    }
+}
+
+#[test]
+fn an_unfinished_file_reads_up_to_its_last_chunk() {
+    let dir = TempDir::new("killed");
+    let plan = plan(20);
+    let mut recorder = McapRecorder::create_with(&dir.0, &plan, Compression::Zstd, RecordingRates::default()).unwrap();
+    let path = dir.0.join(MCAP_FILE);
+    // Write until the file has grown three times (the first chunk with schemas, channels
+    // and zones, then two chunks of messages), then copy it as a killed process would
+    // leave it: no summary, no footer.
+    let mut t = 0.0;
+    let mut copy = std::fs::read(&path).unwrap();
+    let mut growths = 1;
+    while growths < 3 && t < 60.0 {
+        t += WINDOW_S;
+        let drones: Vec<_> = (0..20).map(|i| snapshot(i, t)).collect();
+        recorder.write_window(t, &drones, &[]).unwrap();
+        let now = std::fs::read(&path).unwrap();
+        if now.len() > copy.len() {
+            growths += 1;
+        }
+        copy = now;
+    }
+    assert_eq!(growths, 3, "chunks reach the file while the recorder is open");
+    // The synthetic flights are smooth: zstd compresses a whole chunk of them 20-40x.
+    assert!(copy.len() > 2 * CHUNK_BYTES / 50, "two compressed chunks: {} bytes", copy.len());
+    let mut read = 0;
+    let mut last_pose = BTreeMap::new();
+    for m in mcap::MessageStream::new(&copy).unwrap() {
+        let Ok(m) = m else { break };
+        if m.channel.topic.ends_with("/pose") {
+            let j: Value = serde_json::from_slice(&m.data).unwrap();
+            let i: u32 = m.channel.topic.trim_start_matches("/drones/a-").trim_end_matches("/pose").parse().unwrap();
+            let time = m.log_time as f64 * 1e-9;
+            assert!(close(xyz(&j["pose"]["position"]), snapshot(i, time).position_enu_m, 0.5e-4));
+            let previous = last_pose.insert(i, m.log_time);
+            assert!(previous.is_none_or(|p| p < m.log_time));
+        }
+        read += 1;
+    }
+    assert!(read > 2000, "read {read} messages");
+    assert_eq!(last_pose.len(), 20);
+    drop(recorder);
+}
+
+/// Cost of recording 100 drones for 20 s at default rates (run with `--release --ignored
+/// --nocapture`); compare with the simulation's CPU time from `sadesim bench`.
+#[test]
+#[ignore = "a measurement, not a check"]
+fn recording_cost() {
+    let plan = plan(100);
+    for compression in [Compression::Zstd, Compression::Lz4, Compression::None] {
+        // SADESIM_MCAP_COST=Zstd (or Lz4, None) measures one only, e.g. under perf.
+        if std::env::var("SADESIM_MCAP_COST").is_ok_and(|only| only != format!("{compression:?}")) {
+            continue;
+        }
+        let dir = TempDir::new(&format!("cost-{compression:?}"));
+        let windows: Vec<Vec<DroneSnapshot>> =
+            (1..=200).map(|w| (0..100).map(|i| snapshot(i, f64::from(w) * WINDOW_S)).collect()).collect();
+        let started = std::time::Instant::now();
+        let mut recorder = McapRecorder::create_with(&dir.0, &plan, compression, RecordingRates::default()).unwrap();
+        for w in 1..=2000u32 {
+            let t = f64::from(w) * WINDOW_S;
+            recorder.write_window(t, &windows[(w % 200) as usize], &[]).unwrap();
+        }
+        recorder.finish().unwrap();
+        let size = std::fs::metadata(dir.0.join(MCAP_FILE)).unwrap().len();
+        println!("{compression:?}: {:.3} s, {:.1} MB", started.elapsed().as_secs_f64(), size as f64 / 1e6);
+    }
+}

@@ -1,0 +1,200 @@
+#!/usr/bin/env bash
+# End-to-end test on a local cluster: create a k3d or kind cluster, build and import the
+# images, start MinIO as the archive, install the chart, apply the quickstart run, wait for
+# Succeeded, and verify the archived run against its manifest.
+#
+#   tests/e2e/run.sh k3d     # or: tests/e2e/run.sh kind
+#
+# Needs: docker (a running engine), kubectl, k3d or kind, and helm (.tools/bin/helm from
+# tests/install-tools.sh, or on PATH). KEEP_CLUSTER=1 keeps the cluster afterwards.
+# Not part of tests/run.sh: it needs a Docker engine, which CI's test machine lacks.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+
+TOOL=${1:-}
+case "$TOOL" in
+  k3d | kind) ;;
+  *) echo "usage: $0 k3d|kind" >&2; exit 2 ;;
+esac
+
+CLUSTER=${CLUSTER:-sadesim-e2e}
+TAG=${TAG:-e2e}
+OPERATOR_IMAGE=ghcr.io/sadesim/sadesim:$TAG
+WORKER_IMAGE=ghcr.io/sadesim/sim-worker:$TAG
+MINIO_IMAGE=${MINIO_IMAGE:-quay.io/minio/minio:latest}
+MC_IMAGE=${MC_IMAGE:-quay.io/minio/mc:latest}
+SYSTEM_NS=sadesim-system
+RUN_NS=default
+RUN=quickstart
+BUCKET=sadesim-runs
+# Throwaway credentials of the throwaway MinIO.
+MINIO_USER=sadesim
+MINIO_PASSWORD=sadesim-e2e-secret
+TIMEOUT=${TIMEOUT:-900}
+
+HELM=.tools/bin/helm
+[ -x "$HELM" ] || HELM=$(command -v helm || true)
+for tool in docker kubectl "$TOOL"; do
+  command -v "$tool" >/dev/null || { echo "e2e: $tool not found on PATH" >&2; exit 2; }
+done
+[ -n "$HELM" ] || { echo "e2e: helm not found (run tests/install-tools.sh)" >&2; exit 2; }
+docker info >/dev/null 2>&1 || { echo "e2e: no Docker engine answers (docker info failed)" >&2; exit 2; }
+
+step() { echo; echo "==> $*"; }
+
+cleanup() {
+  status=$?
+  if [ "$status" -ne 0 ]; then
+    echo "e2e: FAILED; state of the cluster:" >&2
+    kubectl get simrun,jobs,pods,svc -n "$RUN_NS" -o wide >&2 || true
+    kubectl describe simrun "$RUN" -n "$RUN_NS" >&2 || true
+    kubectl logs -n "$SYSTEM_NS" deployment/sadesim --tail=100 >&2 || true
+    kubectl logs -n "$RUN_NS" "$RUN-coordinator" --tail=50 >&2 || true
+  fi
+  if [ "${KEEP_CLUSTER:-0}" != 1 ]; then
+    step "deleting cluster $CLUSTER (KEEP_CLUSTER=1 keeps it)"
+    case "$TOOL" in
+      k3d) k3d cluster delete "$CLUSTER" || true ;;
+      kind) kind delete cluster --name "$CLUSTER" || true ;;
+    esac
+  fi
+  exit "$status"
+}
+trap cleanup EXIT
+
+step "creating $TOOL cluster $CLUSTER"
+case "$TOOL" in
+  k3d) k3d cluster create "$CLUSTER" --agents 1 --wait --timeout 180s ;;
+  kind) kind create cluster --name "$CLUSTER" --wait 180s ;;
+esac
+kubectl cluster-info
+
+step "building images"
+docker build -f images/operator.Dockerfile -t "$OPERATOR_IMAGE" .
+docker build -f images/sim-worker.Dockerfile -t "$WORKER_IMAGE" .
+
+step "importing images into the cluster"
+case "$TOOL" in
+  k3d) k3d image import -c "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" ;;
+  kind) kind load docker-image --name "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" ;;
+esac
+
+step "starting MinIO (the archive) with bucket $BUCKET"
+kubectl create namespace minio --dry-run=client -o yaml | kubectl apply -f -
+kubectl apply -n minio -f - <<YAML
+apiVersion: apps/v1
+kind: Deployment
+metadata: {name: minio}
+spec:
+  selector: {matchLabels: {app: minio}}
+  template:
+    metadata: {labels: {app: minio}}
+    spec:
+      containers:
+        - name: minio
+          image: $MINIO_IMAGE
+          args: [server, /data]
+          env:
+            - {name: MINIO_ROOT_USER, value: $MINIO_USER}
+            - {name: MINIO_ROOT_PASSWORD, value: $MINIO_PASSWORD}
+          ports: [{containerPort: 9000}]
+          readinessProbe: {httpGet: {path: /minio/health/ready, port: 9000}}
+          volumeMounts: [{name: data, mountPath: /data}]
+      volumes: [{name: data, emptyDir: {}}]
+---
+apiVersion: v1
+kind: Service
+metadata: {name: minio}
+spec:
+  selector: {app: minio}
+  ports: [{port: 9000, targetPort: 9000}]
+YAML
+kubectl rollout status -n minio deployment/minio --timeout=180s
+kubectl delete job -n minio make-bucket --ignore-not-found
+kubectl apply -n minio -f - <<YAML
+apiVersion: batch/v1
+kind: Job
+metadata: {name: make-bucket}
+spec:
+  backoffLimit: 3
+  template:
+    spec:
+      restartPolicy: Never
+      containers:
+        - name: mc
+          image: $MC_IMAGE
+          command: [sh, -c, "mc alias set e2e http://minio:9000 $MINIO_USER $MINIO_PASSWORD && mc mb --ignore-existing e2e/$BUCKET"]
+YAML
+kubectl wait -n minio --for=condition=complete job/make-bucket --timeout=180s
+
+step "installing the chart"
+ENDPOINT=http://minio.minio.svc:9000
+"$HELM" upgrade --install sadesim charts/sadesim -n "$SYSTEM_NS" --create-namespace --wait --timeout 180s \
+  --set image.tag="$TAG" \
+  --set workerImage.tag="$TAG" \
+  --set defaultArchiveUrl="s3://$BUCKET" \
+  --set objectStore.create=true \
+  --set objectStore.secretName=sadesim-object-store \
+  --set "objectStore.namespaces={$RUN_NS}" \
+  --set objectStore.env.AWS_ACCESS_KEY_ID="$MINIO_USER" \
+  --set objectStore.env.AWS_SECRET_ACCESS_KEY="$MINIO_PASSWORD" \
+  --set objectStore.env.AWS_REGION=us-east-1 \
+  --set objectStore.env.AWS_ENDPOINT_URL="$ENDPOINT" \
+  --set-string objectStore.env.AWS_ALLOW_HTTP=true
+kubectl get crd simulationruns.sadesim.io
+
+step "applying examples/quickstart.yaml"
+kubectl delete simrun "$RUN" -n "$RUN_NS" --ignore-not-found --wait
+kubectl apply -n "$RUN_NS" -f examples/quickstart.yaml
+
+step "waiting up to ${TIMEOUT}s for Succeeded"
+deadline=$((SECONDS + TIMEOUT))
+phase=
+while :; do
+  phase=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.phase}' 2>/dev/null || true)
+  sim=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.simTimeS}' 2>/dev/null || true)
+  echo "  phase=${phase:-<none>} simTimeS=${sim:-<none>}"
+  case "$phase" in
+    Succeeded) break ;;
+    Failed | Aborted)
+      echo "e2e: run ended $phase: $(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.message}')" >&2
+      exit 1 ;;
+  esac
+  [ "$SECONDS" -lt "$deadline" ] || { echo "e2e: timed out in phase ${phase:-<none>}" >&2; exit 1; }
+  sleep 5
+done
+
+step "checking the archive"
+url=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.archive.url}')
+uid=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.metadata.uid}')
+case "$url" in
+  "s3://$BUCKET/$RUN_NS/$RUN/$uid"*) echo "  status.archive.url=$url" ;;
+  *) echo "e2e: status.archive.url is '$url', expected s3://$BUCKET/$RUN_NS/$RUN/$uid/" >&2; exit 1 ;;
+esac
+# `sadesim archive verify` re-reads every file against manifest.json; it runs in the
+# cluster (with the run's object-store Secret) so MinIO need not be reachable from here.
+kubectl delete pod -n "$RUN_NS" archive-verify --ignore-not-found --wait
+kubectl apply -n "$RUN_NS" -f - <<YAML
+apiVersion: v1
+kind: Pod
+metadata: {name: archive-verify}
+spec:
+  restartPolicy: Never
+  securityContext: {runAsNonRoot: true, runAsUser: 65532, seccompProfile: {type: RuntimeDefault}}
+  containers:
+    - name: verify
+      image: $OPERATOR_IMAGE
+      args: [archive, verify, --quiet, "$url"]
+      envFrom: [{secretRef: {name: sadesim-object-store}}]
+      securityContext: {allowPrivilegeEscalation: false, readOnlyRootFilesystem: true, capabilities: {drop: [ALL]}}
+YAML
+kubectl wait -n "$RUN_NS" pod/archive-verify --for=jsonpath='{.status.phase}'=Succeeded --timeout=180s || {
+  kubectl logs -n "$RUN_NS" archive-verify >&2 || true
+  echo "e2e: archive verify failed" >&2
+  exit 1
+}
+kubectl logs -n "$RUN_NS" archive-verify
+verdict=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.verdict.passed}')
+[ "$verdict" = true ] || { echo "e2e: verdict.passed is '$verdict'" >&2; exit 1; }
+
+step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified"

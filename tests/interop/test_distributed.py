@@ -1,0 +1,517 @@
+"""Distributed shards for real: `sim-worker coordinator` and one `sim-worker shard` per
+shard, each in its own network namespace, talking TCP over a bridge as pods on different
+hosts would.
+
+    switch namespace:  br0 --+-- veth --> coordinator namespace  10.77.0.1
+                             +-- veth --> shard 0 namespace      10.77.0.2
+                             +-- veth --> shard 1 namespace      10.77.0.3
+                             +-- veth --> shard 2 namespace      10.77.0.4
+
+Checked here:
+- a run across namespaces records the same trajectory.csv and events.jsonl, byte for byte,
+  as `sadesim run` in one process;
+- `kill -9` of a shard fails the run promptly: the coordinator exits non-zero with a
+  `failed` line naming the shard and its address, still writes its files (events end with
+  `runEnded`, summary.json's endReason names the shard, recordings closed), the other
+  shards exit, and the run folder with every process's log archives and verifies;
+- a shard that stops answering (SIGSTOP: a host gone without a FIN) fails the run after
+  `--shard-timeout`;
+- a shard given a wrong coordinator address fails within `--connect-timeout`, naming it.
+
+Needs root (or CAP_NET_ADMIN/CAP_SYS_ADMIN) for `ip netns`; skipped with the reason where
+the machine refuses namespaces. Namespaces are named `sdsim-<pid>-...`; ones left by an
+earlier crashed session (whose pid is gone) are removed first. Every wait is bounded: a
+hang fails the test instead of blocking CI.
+"""
+import json
+import os
+import pathlib
+import queue
+import re
+import shutil
+import signal
+import subprocess
+import threading
+import time
+import warnings
+
+import pytest
+import yaml
+
+from simrun import wait_until
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+PREFIX = "sdsim"
+SHARDS = 3
+DRONES_PER_SHARD = 2
+COORDINATOR_IP = "10.77.0.1"
+COORDINATOR_PORT = 7400
+AIRSPACE_PORT = 8480
+
+
+def shard_ip(index: int) -> str:
+    return f"10.77.0.{index + 2}"
+
+
+# -- network namespaces -------------------------------------------------------------------
+
+
+def ip(*args: str, check: bool = True) -> subprocess.CompletedProcess:
+    return subprocess.run(["ip", *args], capture_output=True, text=True, timeout=30, check=check)
+
+
+def pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def delete_namespace(name: str):
+    """Kills what still runs in `name` (processes a test session started there) and deletes it."""
+    pids = ip("netns", "pids", name, check=False).stdout.split()
+    for pid in pids:
+        try:
+            os.kill(int(pid), signal.SIGKILL)
+        except (ProcessLookupError, ValueError):
+            pass
+    ip("netns", "del", name, check=False)
+
+
+def remove_stale_namespaces():
+    """Namespaces of earlier sessions of this test whose pytest process is gone."""
+    listing = ip("netns", "list", check=False).stdout
+    for line in listing.splitlines():
+        m = re.match(rf"^({PREFIX}-(\d+)-\S+)", line)
+        if m and int(m.group(2)) != os.getpid() and not pid_alive(int(m.group(2))):
+            delete_namespace(m.group(1))
+
+
+class Network:
+    """The switch, coordinator and shard namespaces, wired to one bridge on 10.77.0.0/24."""
+
+    def __init__(self, shards: int):
+        tag = f"{PREFIX}-{os.getpid()}"
+        self.switch = f"{tag}-sw"
+        self.coordinator = f"{tag}-co"
+        self.shards = [f"{tag}-s{i}" for i in range(shards)]
+        self.created: list[str] = []
+
+    def names(self) -> list[str]:
+        return [self.switch, self.coordinator, *self.shards]
+
+    def create(self):
+        # The switch namespace holds the bridge, so nothing is added to the host's network.
+        ip("-n", self.switch, "link", "add", "br0", "type", "bridge")
+        ip("-n", self.switch, "link", "set", "br0", "up")
+        hosts = [(self.coordinator, COORDINATOR_IP)] + [(ns, shard_ip(i)) for i, ns in enumerate(self.shards)]
+        for n, (ns, address) in enumerate(hosts):
+            port = f"p{n}"
+            ip("-n", self.switch, "link", "add", port, "type", "veth", "peer", "name", "eth0", "netns", ns)
+            ip("-n", self.switch, "link", "set", port, "master", "br0", "up")
+            ip("-n", ns, "addr", "add", f"{address}/24", "dev", "eth0")
+            ip("-n", ns, "link", "set", "eth0", "up")
+            ip("-n", ns, "link", "set", "lo", "up")
+
+    def destroy(self):
+        for name in reversed(self.created):
+            delete_namespace(name)
+        self.created.clear()
+
+
+@pytest.fixture(scope="module")
+def network():
+    remove_stale_namespaces()
+    net = Network(SHARDS)
+    try:
+        for name in net.names():
+            try:
+                ip("netns", "add", name)
+            except (subprocess.CalledProcessError, FileNotFoundError, PermissionError) as e:
+                reason = getattr(e, "stderr", None) or str(e)
+                reason = f"network namespaces unavailable: `ip netns add {name}` failed: {reason.strip()}"
+                # Also as a warning: `pytest -q` lists warnings, not skip reasons.
+                warnings.warn(reason, stacklevel=1)
+                pytest.skip(reason)
+            net.created.append(name)
+        net.create()
+        yield net
+    finally:
+        net.destroy()
+
+
+# -- processes ----------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def sim_worker() -> str:
+    exe = REPO / "target" / "debug" / "sim-worker"
+    if not exe.exists():
+        subprocess.run(["cargo", "build", "-p", "sim-worker"], cwd=REPO, check=True)
+    return str(exe)
+
+
+def scenario(name: str, duration: str, clock: dict) -> dict:
+    """Six scripted drones, two per shard, over Millennium Park: take off, fly 45 m north, land."""
+    park = {"latitudeDeg": 41.8818, "longitudeDeg": -87.6226}
+    return {
+        "apiVersion": "sadesim.io/v1alpha1",
+        "kind": "SimulationRun",
+        "metadata": {"name": name},
+        "spec": {
+            "origin": {"latitudeDeg": 41.8796, "longitudeDeg": -87.6237, "altitudeMslM": 181},
+            "duration": duration,
+            "clock": clock,
+            "seed": 7,
+            "sharding": {"dronesPerShard": DRONES_PER_SHARD},
+            "world": {"openAreas": [{"name": "park", "center": park, "radiusM": 250}]},
+            "fleet": [
+                {
+                    "name": "swarm",
+                    "count": SHARDS * DRONES_PER_SHARD,
+                    "airframe": "x500",
+                    "operator": "interop-tests",
+                    "homes": {"randomInArea": {"name": "park", "center": park, "radiusM": 80}},
+                    "altitude": {"maxAglM": 60},
+                    "mission": {
+                        "speedMps": 6,
+                        "items": [
+                            {"takeoff": {"altitudeAglM": 10}},
+                            {"waypoint": {"latitudeDeg": 41.8822, "longitudeDeg": -87.6226, "altitudeAglM": 12}},
+                            {"land": {}},
+                        ],
+                    },
+                }
+            ],
+        },
+    }
+
+
+class Cluster:
+    """A coordinator and its shards started in their namespaces for one plan. Every
+    process's output is kept in `out/logs/`; `stop()` kills whatever is still running."""
+
+    def __init__(self, sim_worker: str, net: Network, plan: pathlib.Path, out: pathlib.Path):
+        self.sim_worker = sim_worker
+        self.net = net
+        self.plan = plan
+        self.out = out
+        self.logs = out / "logs"
+        self.logs.mkdir(parents=True, exist_ok=True)
+        self.coordinator: subprocess.Popen | None = None
+        self.shards: list[subprocess.Popen] = []
+        self.reports: "queue.Queue[dict]" = queue.Queue()
+        self.report_lines: list[dict] = []
+        self._files = []
+        self._reader: threading.Thread | None = None
+
+    def _log(self, name: str):
+        f = open(self.logs / name, "wb")
+        self._files.append(f)
+        return f
+
+    def start_coordinator(self, *extra: str):
+        self.coordinator = subprocess.Popen(
+            ["ip", "netns", "exec", self.net.coordinator, self.sim_worker, "coordinator",
+             "--plan", str(self.plan), "--listen", f"{COORDINATOR_IP}:{COORDINATOR_PORT}",
+             "--out", str(self.out), "--airspace-bind", f"{COORDINATOR_IP}:{AIRSPACE_PORT}", *extra],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=self._log("coordinator.log"),
+            start_new_session=True,
+        )
+        stdout_copy = self._log("coordinator.stdout.jsonl")
+
+        def read():
+            for line in self.coordinator.stdout:
+                stdout_copy.write(line)
+                stdout_copy.flush()
+                try:
+                    self.reports.put(json.loads(line))
+                except ValueError:
+                    self.reports.put({"type": "unparsed", "line": line.decode(errors="replace")})
+            self.reports.put({"type": "eof"})
+
+        self._reader = threading.Thread(target=read, daemon=True)
+        self._reader.start()
+        listening = self.next_report(60, lambda r: r["type"] in ("listening", "failed", "eof"))
+        assert listening["type"] == "listening", f"coordinator did not listen: {listening}\n{self.tail()}"
+        assert listening["address"] == f"{COORDINATOR_IP}:{COORDINATOR_PORT}", listening
+
+    def start_shards(self, *extra: str):
+        for i, ns in enumerate(self.net.shards):
+            log = self._log(f"shard-{i}.log")
+            self.shards.append(
+                subprocess.Popen(
+                    ["ip", "netns", "exec", ns, self.sim_worker, "shard", "--plan", str(self.plan),
+                     "--shard", str(i), "--coordinator", f"{COORDINATOR_IP}:{COORDINATOR_PORT}",
+                     "--no-mavlink", *extra],
+                    stdin=subprocess.DEVNULL,
+                    stdout=log,
+                    stderr=subprocess.STDOUT,
+                    start_new_session=True,
+                )
+            )
+
+    def next_report(self, timeout_s: float, want) -> dict:
+        """The next coordinator stdout line for which `want(line)` holds (bounded wait)."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise AssertionError(f"timed out after {timeout_s:.0f} s waiting for a coordinator line\n{self.tail()}")
+            try:
+                r = self.reports.get(timeout=left)
+            except queue.Empty:
+                continue
+            self.report_lines.append(r)
+            if want(r) or r["type"] == "eof":
+                return r
+
+    def wait_all(self, timeout_s: float) -> dict[str, int]:
+        """Exit codes of every process; fails naming the ones still running after `timeout_s`."""
+        procs = {"coordinator": self.coordinator, **{f"shard {i}": p for i, p in enumerate(self.shards)}}
+        deadline = time.monotonic() + timeout_s
+        for p in procs.values():
+            try:
+                p.wait(timeout=max(0.1, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                pass
+        running = [name for name, p in procs.items() if p.poll() is None]
+        assert not running, f"still running {timeout_s:.0f} s later: {running}\n{self.tail()}"
+        if self._reader is not None:
+            self._reader.join(timeout=10)
+        return {name: p.returncode for name, p in procs.items()}
+
+    def tail(self, chars: int = 2000) -> str:
+        parts = []
+        for f in sorted(self.logs.glob("*")):
+            text = f.read_text(errors="replace") if f.exists() else ""
+            parts.append(f"--- {f.name} ---\n{text[-chars:]}")
+        return "\n".join(parts)
+
+    def stop(self):
+        for p in [self.coordinator, *self.shards]:
+            if p is not None and p.poll() is None:
+                p.kill()
+                try:
+                    p.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    pass
+        for f in self._files:
+            f.close()
+
+
+@pytest.fixture
+def cluster(sim_worker, network):
+    made = []
+
+    def make(plan: pathlib.Path, out: pathlib.Path) -> Cluster:
+        c = Cluster(sim_worker, network, plan, out)
+        made.append(c)
+        return c
+
+    yield make
+    for c in made:
+        c.stop()
+
+
+def write_plan(sadesim: str, doc: dict, folder: pathlib.Path) -> tuple[pathlib.Path, pathlib.Path]:
+    """The scenario file and its RunPlan (`sadesim plan --json`) in `folder`."""
+    folder.mkdir(parents=True, exist_ok=True)
+    scenario_file = folder / f"{doc['metadata']['name']}.yaml"
+    scenario_file.write_text(yaml.safe_dump(doc, sort_keys=False))
+    planned = subprocess.run([sadesim, "plan", str(scenario_file), "--json"], capture_output=True, text=True, timeout=120)
+    assert planned.returncode == 0, planned.stderr
+    plan = folder / "plan.json"
+    plan.write_text(planned.stdout)
+    assert [s["index"] for s in json.loads(planned.stdout)["shards"]] == list(range(SHARDS))
+    return scenario_file, plan
+
+
+def events(path: pathlib.Path) -> list[dict]:
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
+def assert_same_bytes(a: pathlib.Path, b: pathlib.Path):
+    x, y = a.read_bytes(), b.read_bytes()
+    if x != y:
+        xl, yl = x.decode().splitlines(), y.decode().splitlines()
+        n = next((i for i, (p, q) in enumerate(zip(xl, yl)) if p != q), min(len(xl), len(yl)))
+        raise AssertionError(
+            f"{a.name} differs at line {n + 1} ({len(xl)} vs {len(yl)} lines):\n"
+            f"  in-process: {xl[n] if n < len(xl) else '<end>'}\n  distributed: {yl[n] if n < len(yl) else '<end>'}"
+        )
+
+
+def assert_recordings_closed(out: pathlib.Path, plan: dict):
+    """MCAP and ULog files, when the plan records them, are complete files (MCAP: footer
+    and closing magic, readable summary; ULog: header)."""
+    from mcap.reader import make_reader
+
+    recording = plan["spec"].get("recording") or {}
+    if recording.get("mcap", True):
+        mcap = out / "recording.mcap"
+        data = mcap.read_bytes()
+        assert data.endswith(b"\x89MCAP0\r\n"), f"{mcap} was not closed (no trailing magic)"
+        with open(mcap, "rb") as f:
+            assert make_reader(f).get_summary() is not None, f"{mcap} has no summary section"
+    if recording.get("ulog", True):
+        ulogs = sorted((out / "ulog").glob("*.ulg"))
+        assert len(ulogs) == len(plan["drones"]), ulogs
+        for u in ulogs:
+            assert u.read_bytes()[:7] == b"ULog\x01\x12\x35", f"{u} has no ULog header"
+
+
+# -- tests --------------------------------------------------------------------------------
+
+
+def test_a_run_across_namespaces_matches_the_in_process_run(sadesim, cluster, tmp_path):
+    doc = scenario("distributed", "40s", {"mode": "asFastAsPossible"})
+    scenario_file, plan = write_plan(sadesim, doc, tmp_path)
+
+    local_root = tmp_path / "local"
+    local = subprocess.run(
+        [sadesim, "run", str(scenario_file), "--no-mavlink", "--out", str(local_root), "-q"],
+        capture_output=True, text=True, timeout=300,
+    )
+    assert local.returncode == 0, local.stdout + local.stderr
+    (local_dir,) = (local_root / "distributed").glob("*/")
+    # Same plan, so any difference below comes from the transport.
+    assert json.loads((local_dir / "plan.json").read_text()) == json.loads(plan.read_text())
+
+    out = tmp_path / "distributed"
+    c = cluster(plan, out)
+    c.start_coordinator()
+    c.start_shards()
+    finished = c.next_report(300, lambda r: r["type"] in ("finished", "failed"))
+    assert finished["type"] == "finished", f"{finished}\n{c.tail()}"
+    codes = c.wait_all(60)
+    assert codes == {"coordinator": 0, **{f"shard {i}": 0 for i in range(SHARDS)}}, f"{codes}\n{c.tail()}"
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["endReason"] == "duration" and summary["simTimeS"] == 40.0, summary
+    assert summary["shards"] == SHARDS and summary["drones"] == SHARDS * DRONES_PER_SHARD
+    assert all(d["tookOff"] and d["landed"] and not d["crashed"] for d in summary["perDrone"]), summary["perDrone"]
+    assert finished["summary"] == summary
+    # Byte-identical: the shard protocol carries every float exactly, whatever the carrier.
+    assert_same_bytes(local_dir / "trajectory.csv", out / "trajectory.csv")
+    assert_same_bytes(local_dir / "events.jsonl", out / "events.jsonl")
+    local_summary = json.loads((local_dir / "summary.json").read_text())
+    # Wall-clock fields differ legitimately; everything simulated is the same.
+    for wall in ("wallTimeS", "realTimeFactor"):
+        local_summary.pop(wall), summary.pop(wall)
+    assert summary == local_summary
+    # The shards really were remote: each connected from its own namespace's address.
+    log = (out / "logs" / "coordinator.log").read_text()
+    for i in range(SHARDS):
+        assert f"shard {i} connected from {shard_ip(i)}:" in log, log
+
+
+def test_killing_a_shard_fails_the_run_with_the_reason_and_keeps_the_evidence(sadesim, cluster, tmp_path):
+    # Paced (4x real time) and long, so the run is surely still going when the shard dies.
+    doc = scenario("shard-killed", "10m", {"mode": "scaled", "factor": 4})
+    _, plan = write_plan(sadesim, doc, tmp_path)
+    out = tmp_path / "run" / "shard-killed" / "attempt"
+    c = cluster(plan, out)
+    c.start_coordinator()
+    c.start_shards()
+    progress = c.next_report(120, lambda r: r["type"] in ("failed", "finished") or (r["type"] == "progress" and r["simTimeS"] >= 5))
+    assert progress["type"] == "progress", f"{progress}\n{c.tail()}"
+
+    victim = c.shards[1]
+    # `ip netns exec` execs the command: the process is the shard itself.
+    assert pathlib.Path(f"/proc/{victim.pid}/comm").read_text().strip() == "sim-worker"
+    os.kill(victim.pid, signal.SIGKILL)
+
+    failed = c.next_report(60, lambda r: r["type"] in ("failed", "finished"))
+    codes = c.wait_all(60)  # every process is gone, the survivors included
+    assert failed["type"] == "failed", f"{failed}\n{c.tail()}"
+    assert failed["role"] == "shard" and failed["shard"] == 1, failed
+    assert failed["address"].startswith(f"{shard_ip(1)}:"), failed
+    assert failed["reason"].startswith(f"shard 1 ({shard_ip(1)}:"), failed
+    assert "connection closed" in failed["reason"], failed
+    assert codes["coordinator"] != 0, codes
+    assert codes["shard 1"] == -signal.SIGKILL, codes
+    # The survivors were told to stop: a clean exit.
+    assert codes["shard 0"] == 0 and codes["shard 2"] == 0, f"{codes}\n{c.tail()}"
+    stderr = (out / "logs" / "coordinator.log").read_text()
+    assert f"shard 1 ({shard_ip(1)}:" in stderr and "connection closed" in stderr, stderr
+    assert str(out) in stderr, stderr  # where the files are
+
+    # The evidence up to the failure.
+    summary = json.loads((out / "summary.json").read_text())
+    assert failed["summary"] == summary
+    assert summary["endReason"].startswith(f"shardFailed: shard 1 ({shard_ip(1)}:"), summary["endReason"]
+    assert 5.0 <= summary["simTimeS"] < 600.0, summary
+    recorded = events(out / "events.jsonl")
+    assert recorded[0]["event"] == "runStarted"
+    assert recorded[-1] == {"timeS": summary["simTimeS"], "event": "runEnded", "reason": summary["endReason"]}
+    rows = (out / "trajectory.csv").read_text()
+    assert rows.endswith("\n")
+    last = rows.splitlines()[-1].split(",")
+    assert float(last[0]) >= 5.0 and int(last[1]) == SHARDS * DRONES_PER_SHARD - 1, last
+    assert (out / "trajectory.geojson").exists() and (out / "airspace.json").exists()
+    assert_recordings_closed(out, json.loads(plan.read_text()))
+    shutil.copy(plan, out / "plan.json")
+
+    # Archive the run folder with every process's log, then verify and read it back.
+    archive = f"file://{tmp_path / 'archive'}"
+    put = subprocess.run(
+        [sadesim, "archive", "put", str(out), archive, "--namespace", "default", "--run", "shard-killed",
+         "--uid", "test", "-q"],
+        capture_output=True, text=True, timeout=300,
+    )
+    assert put.returncode == 0, put.stdout + put.stderr
+    location = f"{archive}/default/shard-killed/test"
+    verify = subprocess.run([sadesim, "archive", "verify", location, "-q"], capture_output=True, text=True, timeout=300)
+    assert verify.returncode == 0, verify.stdout + verify.stderr
+    fetched = tmp_path / "fetched"
+    get = subprocess.run([sadesim, "archive", "get", location, str(fetched), "-q"], capture_output=True, text=True, timeout=300)
+    assert get.returncode == 0, get.stdout + get.stderr
+    manifest = (fetched / "manifest.json").read_text()
+    for name in ["logs/coordinator.log", "logs/coordinator.stdout.jsonl", *(f"logs/shard-{i}.log" for i in range(SHARDS))]:
+        assert name in manifest, f"{name} not archived"
+    assert "connection closed" in (fetched / "logs" / "coordinator.log").read_text()
+    assert f"shard 1: {DRONES_PER_SHARD} drones" in (fetched / "logs" / "shard-1.log").read_text()
+    archived = json.loads((fetched / "summary.json").read_text())
+    assert archived["endReason"] == summary["endReason"]
+
+
+def test_a_shard_that_stops_answering_fails_the_run_after_the_shard_timeout(sadesim, cluster, tmp_path):
+    doc = scenario("shard-silent", "10m", {"mode": "scaled", "factor": 4})
+    _, plan = write_plan(sadesim, doc, tmp_path)
+    out = tmp_path / "out"
+    c = cluster(plan, out)
+    c.start_coordinator("--shard-timeout", "3")
+    c.start_shards()
+    progress = c.next_report(120, lambda r: r["type"] in ("failed", "finished") or (r["type"] == "progress" and r["simTimeS"] >= 2))
+    assert progress["type"] == "progress", f"{progress}\n{c.tail()}"
+    # A frozen shard keeps its connection open, as a host that lost power would: no FIN.
+    os.kill(c.shards[2].pid, signal.SIGSTOP)
+    try:
+        failed = c.next_report(60, lambda r: r["type"] in ("failed", "finished"))
+    finally:
+        os.kill(c.shards[2].pid, signal.SIGKILL)
+    assert failed["type"] == "failed" and failed["shard"] == 2, f"{failed}\n{c.tail()}"
+    assert failed["reason"].startswith(f"shard 2 ({shard_ip(2)}:") and "no answer for 3 s" in failed["reason"], failed
+    codes = c.wait_all(60)
+    assert codes["coordinator"] != 0 and codes["shard 0"] == 0 and codes["shard 1"] == 0, codes
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["endReason"].startswith("shardFailed: shard 2"), summary
+
+
+def test_a_shard_with_a_wrong_coordinator_address_fails_within_its_connect_timeout(sadesim, sim_worker, network, tmp_path):
+    _, plan = write_plan(sadesim, scenario("lost-shard", "40s", {"mode": "asFastAsPossible"}), tmp_path)
+    # Nobody has 10.77.0.99 on the bridge: every attempt fails (no ARP answer).
+    shard = subprocess.run(
+        ["ip", "netns", "exec", network.shards[0], sim_worker, "shard", "--plan", str(plan), "--shard", "0",
+         "--coordinator", "10.77.0.99:7400", "--no-mavlink", "--connect-timeout", "3"],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert shard.returncode == 2, shard.stderr
+    assert "cannot reach the coordinator at 10.77.0.99:7400 within 3 s" in shard.stderr, shard.stderr
+    assert "--coordinator" in shard.stderr, shard.stderr

@@ -1,0 +1,139 @@
+"""What the operator creates (`sadesim manifests`) and what the Helm chart installs, against
+Kubernetes' own schemas: kubernetes-validate --strict for Kubernetes 1.33 (the API version the
+operator is built against, k8s-openapi feature v1_33)."""
+import pathlib
+import subprocess
+
+import pytest
+import yaml
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+KUBERNETES_VERSION = "1.33.0"
+EXAMPLES = sorted(p.name for p in (REPO / "examples").glob("*.yaml"))
+HELM = REPO / ".tools" / "bin" / "helm"
+
+
+def kubernetes_validate(venv_bin, text):
+    return subprocess.run(
+        [str(venv_bin / "kubernetes-validate"), "--strict", "-k", KUBERNETES_VERSION, "-"],
+        input=text,
+        capture_output=True,
+        text=True,
+    )
+
+
+def manifests(sadesim, *args):
+    result = subprocess.run([sadesim, "manifests", *args], capture_output=True, text=True, cwd=REPO)
+    assert result.returncode == 0, result.stdout + result.stderr
+    return result.stdout
+
+
+def kinds(text):
+    return [f"{d['kind']}/{d['metadata']['name']}" for d in yaml.safe_load_all(text) if d]
+
+
+def helm_template(*args):
+    if not HELM.exists():
+        pytest.skip("helm missing: run tests/install-tools.sh")
+    result = subprocess.run(
+        [str(HELM), "template", "sadesim", str(REPO / "charts" / "sadesim"), "--include-crds", *args],
+        capture_output=True,
+        text=True,
+    )
+    assert result.returncode == 0, result.stderr
+    return result.stdout
+
+
+@pytest.mark.parametrize("example", EXAMPLES)
+def test_manifests_of_every_example_pass_kubernetes_validate_strict(sadesim, venv_bin, example):
+    text = manifests(sadesim, f"examples/{example}")
+    assert len(kinds(text)) >= 8, kinds(text)
+    result = kubernetes_validate(venv_bin, text)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout.count("passed") == len(kinds(text)), result.stdout
+
+
+def test_manifests_of_all_examples_at_once_form_one_valid_stream(sadesim, venv_bin):
+    """The issue's command: `sadesim manifests examples/*.yaml | kubernetes-validate --strict -`."""
+    one_by_one = [kinds(manifests(sadesim, f"examples/{e}")) for e in EXAMPLES]
+    text = manifests(sadesim, *[f"examples/{e}" for e in EXAMPLES])
+    assert kinds(text) == [k for ks in one_by_one for k in ks]
+    result = kubernetes_validate(venv_bin, text)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout.count("passed") == len(kinds(text)), result.stdout
+
+
+def test_manifests_name_the_children_the_operator_creates(sadesim):
+    text = manifests(sadesim, "examples/chicago-museum.yaml", "--namespace", "team-a")
+    names = kinds(text)
+    # 32 drones, 16 per shard: one Indexed Job of 2 pods; one router segment.
+    assert "Job/chicago-museum-shard" in names
+    assert "Pod/chicago-museum-router-0" in names and "Pod/chicago-museum-router-1" not in names
+    job = next(d for d in yaml.safe_load_all(text) if d and d["kind"] == "Job")
+    assert job["spec"]["completions"] == 2 and job["spec"]["completionMode"] == "Indexed"
+    assert all(d["metadata"]["namespace"] == "team-a" for d in yaml.safe_load_all(text) if d)
+    # The example's pilot has no image: the output says the operator would refuse it.
+    assert "spec.pilot.image: required on Kubernetes" in text
+
+
+def test_kubernetes_validate_rejects_a_broken_manifest(sadesim, venv_bin):
+    # Guards the checks above: the tool fails on an unknown field and on a wrong type.
+    docs = [d for d in yaml.safe_load_all(manifests(sadesim, "examples/quickstart.yaml")) if d]
+    job = next(d for d in docs if d["kind"] == "Job")
+    job["spec"]["template"]["spec"]["containers"][0]["colour"] = "red"
+    assert kubernetes_validate(venv_bin, yaml.safe_dump(job)).returncode != 0
+    pod = next(d for d in docs if d["kind"] == "Pod")
+    pod["spec"]["containers"][0]["ports"][0]["containerPort"] = "seven"
+    assert kubernetes_validate(venv_bin, yaml.safe_dump(pod)).returncode != 0
+
+
+@pytest.mark.parametrize(
+    "values",
+    [
+        [],
+        [
+            "--set", "kueue.enabled=true",
+            "--set", "defaultArchiveUrl=s3://sadesim-runs",
+            "--set", "objectStore.create=true",
+            "--set", "objectStore.secretName=sadesim-object-store",
+            "--set", "objectStore.namespaces={team-a,team-b}",
+            "--set", "objectStore.env.AWS_REGION=us-east-1",
+            "--set", "routerServiceType=LoadBalancer",
+        ],
+    ],
+    ids=["defaults", "kueue-and-object-store"],
+)
+def test_helm_template_passes_kubernetes_validate_strict(venv_bin, values):
+    text = helm_template(*values)
+    result = kubernetes_validate(venv_bin, text)
+    assert result.returncode == 0, result.stdout + result.stderr
+    docs = [d for d in yaml.safe_load_all(text) if d]
+    assert {d["kind"] for d in docs} >= {
+        "CustomResourceDefinition", "ServiceAccount", "ClusterRole", "ClusterRoleBinding", "Role", "RoleBinding",
+        "Deployment", "Service",
+    }
+
+
+def test_the_chart_configures_the_operator_with_the_contract_env_only():
+    docs = [d for d in yaml.safe_load_all(helm_template("--set", "kueue.enabled=true")) if d]
+    deployment = next(d for d in docs if d["kind"] == "Deployment")
+    container = deployment["spec"]["template"]["spec"]["containers"][0]
+    env = {e["name"]: e.get("value") for e in container["env"]}
+    assert set(env) == {
+        "SADESIM_WORKER_IMAGE", "SADESIM_DEFAULT_ARCHIVE_URL", "SADESIM_OBJECT_STORE_SECRET",
+        "SADESIM_ROUTER_SERVICE_TYPE", "SADESIM_KUEUE", "SADESIM_MAX_CONCURRENT_RUNS", "SADESIM_METRICS_ADDR",
+        "SADESIM_LEADER_ELECTION", "POD_NAMESPACE", "POD_NAME",
+    }
+    assert env["SADESIM_KUEUE"] == "true" and env["SADESIM_METRICS_ADDR"] == "0.0.0.0:8080"
+    assert container["args"] == ["operator"]
+    assert container["livenessProbe"]["httpGet"]["path"] == "/healthz"
+    sc = container["securityContext"]
+    assert sc["readOnlyRootFilesystem"] and not sc["allowPrivilegeEscalation"] and sc["capabilities"]["drop"] == ["ALL"]
+    # Least privilege: no Secrets, no wildcards; Kueue Workloads only with Kueue on.
+    role = next(d for d in docs if d["kind"] == "ClusterRole")
+    for rule in role["rules"]:
+        assert "*" not in rule["verbs"] and "*" not in rule["resources"], rule
+        assert "secrets" not in rule["resources"], rule
+    assert any("workloads" in r["resources"] for r in role["rules"])
+    plain = next(d for d in yaml.safe_load_all(helm_template()) if d and d["kind"] == "ClusterRole")
+    assert not any("workloads" in r["resources"] for r in plain["rules"])
