@@ -490,3 +490,44 @@ fn children_are_deterministic() {
         serde_json::to_string(&children(&run, &plan, &s3(), Stage::ALL)).unwrap()
     );
 }
+
+/// Runs the coordinator pod's script under `sh` with stub binaries that log their calls:
+/// the report is built and the folder uploaded whatever the coordinator's exit status, in
+/// that order, and the pod's exit status is the coordinator's.
+#[test]
+fn the_coordinator_script_reports_then_uploads_whatever_the_run_s_end() {
+    let run = piloted(3);
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let script = container(&children, "test-run-coordinator").args.unwrap()[0].clone();
+    for coordinator_status in [0, 1] {
+        let dir = std::env::temp_dir().join(format!("sadesim-script-{}-{coordinator_status}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let calls = dir.join("calls.log");
+        let stub = |name: &str, status: i32| {
+            let path = dir.join(name);
+            std::fs::write(&path, format!("#!/bin/sh\necho \"{name} $1\" >> {}\nexit {status}\n", calls.display()))
+                .unwrap();
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
+            path.display().to_string()
+        };
+        let script = script
+            .replace(super::pod::SIM_WORKER, &stub("sim-worker", coordinator_status))
+            .replace(super::pod::SADESIM, &stub("sadesim", 0));
+        let status = std::process::Command::new("sh")
+            .arg("-c")
+            .arg(&script)
+            .env("SADESIM_ARCHIVE_URL", "s3://bucket/prefix")
+            .env("SADESIM_NAMESPACE", "default")
+            .env("SADESIM_RUN", "test-run")
+            .env("SADESIM_RUN_UID", UID)
+            .status()
+            .expect("sh runs");
+        assert_eq!(status.code(), Some(coordinator_status), "the pod's status is the coordinator's");
+        let log = std::fs::read_to_string(&calls).unwrap();
+        assert_eq!(log.lines().collect::<Vec<_>>(), ["sim-worker coordinator", "sadesim report", "sadesim archive"]);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

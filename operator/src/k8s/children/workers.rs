@@ -108,7 +108,7 @@ pub(super) fn airspace_service(ctx: &Context) -> Service {
 }
 
 /// The coordinator pod's program: the coordinator, then (whatever its exit status) the
-/// upload of its run folder when an archive URL is set; exit status the coordinator's, or
+/// report (`sadesim report`, as a local run writes it) and the upload of its run folder when an archive URL is set; exit status the coordinator's, or
 /// [`UPLOAD_FAILED_EXIT`] when only the upload failed. SIGTERM (pod deletion, abort) is
 /// passed on as SIGINT, which makes the coordinator end the run and write its files.
 /// Values come from the environment, never spliced into the script.
@@ -119,6 +119,7 @@ fn coordinator_script(ctx: &Context) -> String {
 child=$!
 trap 'kill -INT "$child" 2>/dev/null' INT TERM
 while :; do wait "$child"; rc=$?; kill -0 "$child" 2>/dev/null || break; done
+{SADESIM} report {OUT_DIR} || echo "sadesim: the report could not be built (the run's other files are kept)" >&2
 if [ -n "${{SADESIM_ARCHIVE_URL:-}}" ]; then
   {SADESIM} archive put --quiet --namespace "$SADESIM_NAMESPACE" --run "$SADESIM_RUN" --uid "$SADESIM_RUN_UID" {OUT_DIR} "$SADESIM_ARCHIVE_URL" || {{ [ "$rc" -ne 0 ] || rc={UPLOAD_FAILED_EXIT}; }}
 else
