@@ -733,6 +733,10 @@ fn run_file(
                 writeln!(out, "  pilot: {}; log: {}", p.describe(), log.display())?;
             }
             writeln!(out, "  output: {}", report.out_dir.display())?;
+            match &report.report_error {
+                None => writeln!(out, "  report: {}", report.out_dir.join("report.html").display())?,
+                Some(e) => writeln!(out, "  report: not written: {e}")?,
+            }
             if let Some(url) = &report.archive {
                 writeln!(out, "  archived: {url}/")?;
             }

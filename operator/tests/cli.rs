@@ -254,6 +254,10 @@ fn run_starts_the_pilot_from_the_scenario_folder_and_reports_its_exit() {
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));
     assert!(text(&out).contains("run quickstart ended (duration) at 180.0 s"), "{}", text(&out));
     assert!(!text(&out).contains("pilot:"), "{}", text(&out));
+    // The report is written and its path printed.
+    let line = text(&out).lines().find(|l| l.starts_with("  report: ")).map(str::to_owned);
+    let html = line.as_deref().and_then(|l| l.strip_prefix("  report: ")).unwrap_or_default();
+    assert!(html.ends_with("report.html") && std::path::Path::new(html).exists(), "{}", text(&out));
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
