@@ -345,6 +345,19 @@ fn check_relative_path(path: &str) -> Result<(), String> {
     Ok(())
 }
 
+/// `namespace`, `run` and `uid` each one path segment of the run's folder
+/// `<namespace>/<run>/<uid>/`, or the error naming the field.
+fn check_run_names(namespace: &str, run: &str, uid: &str) -> Result<(), ArchiveError> {
+    for (field, value) in [("namespace", namespace), ("run", run), ("uid", uid)] {
+        check_segment(value).map_err(|reason| ArchiveError::BadName {
+            field,
+            value: value.into(),
+            expected: format!("expected one path segment: {reason}"),
+        })?;
+    }
+    Ok(())
+}
+
 fn check_segment(segment: &str) -> Result<(), String> {
     if segment.is_empty() {
         return Err("empty path segment ('//' or a trailing '/')".into());
@@ -540,13 +553,7 @@ impl Archive {
         run: &str,
         uid: &str,
     ) -> Result<Uploaded, ArchiveError> {
-        for (field, value) in [("namespace", namespace), ("run", run), ("uid", uid)] {
-            check_segment(value).map_err(|reason| ArchiveError::BadName {
-                field,
-                value: value.into(),
-                expected: format!("expected one path segment: {reason}"),
-            })?;
-        }
+        check_run_names(namespace, run, uid)?;
         let files = scan_local(local_dir)?;
         let rel = format!("{namespace}/{run}/{uid}");
         let folder = child_path(&self.prefix, &rel);
@@ -592,13 +599,7 @@ impl Archive {
         owned_prefix: &str,
         files: &[(String, Vec<u8>)],
     ) -> Result<Manifest, ArchiveError> {
-        for (field, value) in [("namespace", namespace), ("run", run), ("uid", uid)] {
-            check_segment(value).map_err(|reason| ArchiveError::BadName {
-                field,
-                value: value.into(),
-                expected: format!("expected one path segment: {reason}"),
-            })?;
-        }
+        check_run_names(namespace, run, uid)?;
         let rel = format!("{namespace}/{run}/{uid}");
         let folder = child_path(&self.prefix, &rel);
         let url = self.url_of(&rel);

@@ -53,6 +53,7 @@ use sadesim_crds::run::{Compression, RecordingRates};
 use self::writer::{ChunkCompression, McapWriter};
 use crate::events::{Event, EventKind};
 use crate::protocol::DroneSnapshot;
+use crate::record::Sampler;
 
 /// File name inside the run folder.
 pub const MCAP_FILE: &str = "recording.mcap";
@@ -103,29 +104,6 @@ impl Output {
             self.writer.flush()?;
         }
         Ok(())
-    }
-}
-
-/// A stream sampled at a fixed rate of simulated time.
-#[derive(Debug, Clone, Copy)]
-struct Sampler {
-    hz: f64,
-    next_s: f64,
-}
-
-impl Sampler {
-    fn new(hz: f64) -> Self {
-        Self { hz, next_s: 1.0 / hz }
-    }
-
-    /// Whether the window at `time_s` takes a sample: the first window at or after each
-    /// multiple of the period (as `trajectory.csv`), at most one per window.
-    fn due(&mut self, time_s: f64) -> bool {
-        if time_s + 1e-9 < self.next_s {
-            return false;
-        }
-        self.next_s = ((time_s * self.hz + 1e-9).floor() + 1.0) / self.hz;
-        true
     }
 }
 

@@ -6,13 +6,17 @@
 mod events;
 pub mod mcap_file;
 mod recorder;
+mod sampler;
 mod summary;
+#[cfg(test)]
+mod test_dir;
 mod trajectory;
 pub mod ulog_file;
 
 pub use events::EventLog;
 pub use mcap_file::{MCAP_FILE, McapRecorder};
 pub use recorder::{Recorder, RecorderOptions};
+pub use sampler::Sampler;
 pub use summary::{DroneSummary, RunSummary};
 pub use trajectory::{TRAJECTORY_CSV_HEADER, TrajectoryCsv, TrajectoryGeoJson};
 pub use ulog_file::{ULOG_DIR, UlogRecorder};

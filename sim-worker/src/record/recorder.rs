@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 
-use super::{DroneSummary, EventLog, McapRecorder, RunSummary, TrajectoryCsv, TrajectoryGeoJson, UlogRecorder};
+use super::{
+    DroneSummary, EventLog, McapRecorder, RunSummary, Sampler, TrajectoryCsv, TrajectoryGeoJson, UlogRecorder,
+};
 use crate::airspace::criteria::RunVerdict;
 use crate::coordinator::{RunObserver, RunOutcome};
 use crate::events::{Event, EventKind};
@@ -33,12 +35,13 @@ pub struct Recorder {
     dir: PathBuf,
     plan: RunPlan,
     frame: LocalFrame,
-    options: RecorderOptions,
     events: EventLog,
     csv: TrajectoryCsv,
     tracks: TrajectoryGeoJson,
-    next_row_s: f64,
-    next_track_s: f64,
+    /// When `trajectory.csv` takes a row.
+    rows: Sampler,
+    /// When `trajectory.geojson` takes a point (the first window included).
+    track_points: Sampler,
     summary: RunSummary,
     last_positions: Vec<Option<[f64; 2]>>,
     last: Vec<DroneSnapshot>,
@@ -81,13 +84,12 @@ impl Recorder {
             events: EventLog::create(&dir.join("events.jsonl"))?,
             csv: TrajectoryCsv::create(&dir.join("trajectory.csv"))?,
             tracks: TrajectoryGeoJson::new(plan.drones.len()),
-            next_row_s: 1.0 / options.trajectory_hz,
-            next_track_s: 0.0,
+            rows: Sampler::new(options.trajectory_hz),
+            track_points: Sampler::including_start(options.track_hz),
             summary,
             last_positions: vec![None; plan.drones.len()],
             last: Vec::new(),
             plan: plan.clone(),
-            options,
         })
     }
 
@@ -138,17 +140,13 @@ impl RunObserver for Recorder {
         if let Some(ulog) = &mut self.ulog {
             ulog.write_window(time_s, drones, events).map_err(io)?;
         }
-        // A row at the first window boundary at or after each multiple of the period, so
-        // rows line up across runs whatever the sync window.
-        let next_multiple = |t: f64, hz: f64| ((t * hz + 1e-9).floor() + 1.0) / hz;
         let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
-        if time_s + 1e-9 >= self.next_row_s && !final_window {
+        if !final_window && self.rows.due(time_s) {
             self.csv.write(time_s, drones, &self.plan, &self.frame).map_err(io)?;
-            self.next_row_s = next_multiple(time_s, self.options.trajectory_hz);
         }
-        if time_s + 1e-9 >= self.next_track_s || final_window {
+        // The track's last point is where the drone ended, whatever the rate.
+        if self.track_points.due(time_s) || final_window {
             self.tracks.add(drones, &self.frame);
-            self.next_track_s = next_multiple(time_s, self.options.track_hz);
         }
         if !final_window {
             self.summary.observe(drones, events, &mut self.last_positions);

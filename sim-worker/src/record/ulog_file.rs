@@ -42,6 +42,7 @@ use self::writer::{ParamValue, UlogWriter};
 use crate::autopilot::mission::DEFAULT_CRUISE_MPS;
 use crate::events::{Event, EventKind};
 use crate::protocol::DroneSnapshot;
+use crate::record::Sampler;
 use crate::vehicle::BatterySpec;
 
 pub use self::convert::{nav_state, q_ned_frd};
@@ -91,29 +92,6 @@ fn sys_autostart(airframe: &str) -> i32 {
     }
 }
 
-/// One sampled stream's schedule (shared by every drone: they are sampled at the same windows).
-#[derive(Clone, Copy, Debug)]
-struct Cadence {
-    hz: f64,
-    next_s: f64,
-}
-
-impl Cadence {
-    fn new(hz: f64) -> Self {
-        Self { hz, next_s: 1.0 / hz }
-    }
-
-    /// True at the first window at or after each multiple of the period (the rule of
-    /// `trajectory.csv`), so samples line up across runs whatever the sync window.
-    fn due(&mut self, time_s: f64) -> bool {
-        if time_s + 1e-9 < self.next_s {
-            return false;
-        }
-        self.next_s = ((time_s * self.hz + 1e-9).floor() + 1.0) / self.hz;
-        true
-    }
-}
-
 /// One drone's file and what it remembers between windows.
 #[derive(Debug)]
 struct DroneLog {
@@ -136,11 +114,11 @@ pub struct UlogRecorder {
     frame: LocalFrame,
     drones: Vec<DroneLog>,
     names: Vec<String>,
-    estimator: Cadence,
-    actuators: Cadence,
-    status: Cadence,
+    estimator: Sampler,
+    actuators: Sampler,
+    status: Sampler,
     /// Flush every file at the first window at or after each simulated second.
-    flush: Cadence,
+    flush: Sampler,
     scratch: Vec<u8>,
 }
 
@@ -186,10 +164,10 @@ impl UlogRecorder {
             frame: LocalFrame::new(plan.spec.origin.geo()),
             drones,
             names: plan.drones.iter().map(|d| d.name.clone()).collect(),
-            estimator: Cadence::new(rates.estimator_hz),
-            actuators: Cadence::new(rates.actuators_hz),
-            status: Cadence::new(rates.status_hz),
-            flush: Cadence::new(1.0),
+            estimator: Sampler::new(rates.estimator_hz),
+            actuators: Sampler::new(rates.actuators_hz),
+            status: Sampler::new(rates.status_hz),
+            flush: Sampler::new(1.0),
             scratch: Vec::with_capacity(512),
         })
     }

@@ -1,7 +1,6 @@
 //! Writes synthetic runs and reads them back with the `mcap` crate's reader.
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::PathBuf;
 
 use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::RunPlan;
@@ -16,22 +15,7 @@ use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail};
 /// Physics windows of 10 ms, as the default plan.
 const WINDOW_S: f64 = 0.01;
 
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("sadesim-mcap-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use crate::record::test_dir::TempDir;
 
 fn plan(drones: u32) -> RunPlan {
     plan_of(

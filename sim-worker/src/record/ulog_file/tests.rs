@@ -1,5 +1,4 @@
 use std::collections::HashMap;
-use std::path::PathBuf;
 
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::geo::{Enu, LocalFrame};
@@ -311,22 +310,7 @@ fn attitude_converts_to_frd_to_ned() {
 // ---------------------------------------------------------------------------------------
 // The recorder over synthetic snapshots.
 
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(name: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("sadesim-ulog-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Self(dir)
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use crate::record::test_dir::TempDir;
 
 const ORIGIN_0: [f64; 3] = [10.0, -20.0, 0.3];
 
