@@ -24,6 +24,22 @@ pub enum FlightMode {
     Land,
 }
 
+impl FlightMode {
+    /// The mode's name in events.jsonl, trajectory.csv and the recordings (serde's name,
+    /// without serializing).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            FlightMode::Idle => "idle",
+            FlightMode::Takeoff => "takeoff",
+            FlightMode::Hold => "hold",
+            FlightMode::Mission => "mission",
+            FlightMode::Offboard => "offboard",
+            FlightMode::ReturnToLaunch => "returnToLaunch",
+            FlightMode::Land => "land",
+        }
+    }
+}
+
 /// What happened.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(tag = "event", rename_all = "camelCase", rename_all_fields = "camelCase")]
@@ -173,4 +189,17 @@ pub struct Event {
     pub drone: Option<u32>,
     #[serde(flatten)]
     pub kind: EventKind,
+}
+
+#[cfg(test)]
+mod flight_mode_tests {
+    use super::FlightMode;
+
+    #[test]
+    fn mode_names_are_serde_s_names() {
+        use FlightMode::*;
+        for mode in [Idle, Takeoff, Hold, Mission, Offboard, ReturnToLaunch, Land] {
+            assert_eq!(serde_json::to_value(mode).unwrap(), mode.as_str(), "{mode:?}");
+        }
+    }
 }

@@ -22,10 +22,6 @@ pub struct TrajectoryCsv {
     out: BufWriter<File>,
 }
 
-fn mode_name(s: &DroneSnapshot) -> String {
-    serde_json::to_value(s.mode).ok().and_then(|v| v.as_str().map(String::from)).unwrap_or_default()
-}
-
 impl TrajectoryCsv {
     /// # Errors
     /// When the file cannot be created.
@@ -66,7 +62,7 @@ impl TrajectoryCsv {
                 roll.to_degrees(),
                 pitch.to_degrees(),
                 yaw.to_degrees(),
-                mode_name(s),
+                s.mode.as_str(),
                 s.armed,
                 s.on_ground,
                 s.crashed,

@@ -4,7 +4,7 @@
 use sadesim_crds::geo::{Enu, GeoPoint};
 
 use super::json::{self, COARSE, DEGREES, METRES};
-use crate::events::{Event, EventKind, FlightMode};
+use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, EstimateDetail, GnssDetail};
 
 fn norm(v: [f64; 3]) -> f64 {
@@ -117,25 +117,12 @@ pub fn battery(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
     out.push(b'}');
 }
 
-/// The schema's name of a flight mode (serde's camelCase, without serde per message).
-pub fn mode_name(mode: FlightMode) -> &'static str {
-    match mode {
-        FlightMode::Idle => "idle",
-        FlightMode::Takeoff => "takeoff",
-        FlightMode::Hold => "hold",
-        FlightMode::Mission => "mission",
-        FlightMode::Offboard => "offboard",
-        FlightMode::ReturnToLaunch => "returnToLaunch",
-        FlightMode::Land => "land",
-    }
-}
-
 /// `sadesim.Status`: flight mode and state flags.
 pub fn status(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
     out.extend_from_slice(b"{\"timestamp\":");
     json::time(out, ns);
     out.extend_from_slice(b",\"mode\":\"");
-    out.extend_from_slice(mode_name(s.mode).as_bytes());
+    out.extend_from_slice(s.mode.as_str().as_bytes());
     out.extend_from_slice(b"\",\"armed\":");
     json::boolean(out, s.armed);
     out.extend_from_slice(b",\"on_ground\":");
