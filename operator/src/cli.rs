@@ -394,6 +394,17 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                     result.sim_time_s / result.wall_time_s,
                     std::thread::available_parallelism().map_or(1, usize::from)
                 )?;
+                let cost = result.report.summary.recording_cpu_s;
+                if result.recordings != Recordings::NONE {
+                    writeln!(
+                        out,
+                        "  recorder's thread: {:.3} s CPU on recording.mcap, {:.3} s on the ULogs ({:.0} + {:.0} µs per drone-second)",
+                        cost.mcap,
+                        cost.ulog,
+                        cost.mcap / drone_seconds(&result) * 1e6,
+                        cost.ulog / drone_seconds(&result) * 1e6,
+                    )?;
+                }
                 results.push(result);
             }
             let _ = std::fs::remove_dir_all(&root);
@@ -422,6 +433,19 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                     cost(&wall).map(|c| format!("{c:+.1} % wall time")).unwrap_or_default(),
                     cost(&cpu).map(|c| format!(", {c:+.1} % CPU time")).unwrap_or_default()
                 )?;
+                // Within each run: the recorder's CPU time on the recordings against the
+                // rest of the process's CPU time (the simulation), immune to the drift
+                // between runs that the medians above suffer from.
+                let inside = |r: &BenchResult| {
+                    let c = r.report.summary.recording_cpu_s;
+                    r.cpu_time_s.map(|total| (c.mcap + c.ulog) / (total - c.mcap - c.ulog) * 100.0)
+                };
+                if !mavlink && let Some(c) = median(true, &inside) {
+                    writeln!(
+                        out,
+                        "{label} measured on the recorder's thread (median of {repeat}): {c:.1} % of the simulation's CPU time"
+                    )?;
+                }
             }
             Ok(Outcome::Success)
         }
@@ -583,6 +607,11 @@ pub fn read_scenario(path: &Path) -> Result<String, CliError> {
 }
 
 /// CPU cores this process may use.
+/// Drones x simulated seconds of a benchmark run.
+fn drone_seconds(result: &crate::bench::BenchResult) -> f64 {
+    (f64::from(result.drones) * result.sim_time_s).max(1e-9)
+}
+
 fn cores_available() -> usize {
     std::thread::available_parallelism().map_or(1, usize::from)
 }

@@ -3,6 +3,10 @@ messages per stream = simulated duration x rate, monotonic times, poses equal to
 ground truth in trajectory.csv, and a run killed with SIGKILL leaves a file that a
 streaming reader reads up to its last complete chunk.
 
+The ground-truth streams (pose, /tf, velocity) are protobuf: they are decoded with
+`mcap-protobuf-support` from the descriptors in the file, and those descriptors are
+compared with Foxglove's own (`foxglove-schemas-protobuf`). The other channels are JSON.
+
 Runs use `--no-mavlink` and scripted missions, so they bind no port and can run beside
 other tests.
 """
@@ -17,10 +21,15 @@ import time
 
 import pytest
 import yaml
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.PoseInFrame_pb2 import PoseInFrame
+from google.protobuf import descriptor_pb2, timestamp_pb2
+from mcap.decoder import DecoderFactory
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
-from mcap.records import Channel, Chunk, Footer, Message
+from mcap.records import Channel, Chunk, Footer, Message, Schema
 from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 
 ORIGIN = {"latitudeDeg": 41.8796, "longitudeDeg": -87.6237, "altitudeMslM": 181}
 PARK = {"latitudeDeg": 41.8818, "longitudeDeg": -87.6226}
@@ -34,6 +43,46 @@ FOXGLOVE = {
     "foxglove.Log",
 }
 PER_DRONE = ["pose", "velocity", "estimate", "motors", "battery", "status", "wind", "location", "gnss"]
+# Schemas encoded as protobuf; every other one is a JSON Schema with JSON messages.
+PROTOBUF = {"foxglove.PoseInFrame", "foxglove.FrameTransforms", "sadesim.Velocity"}
+
+
+class JsonDecoderFactory(DecoderFactory):
+    """`json` messages of `jsonschema` channels, as dicts."""
+
+    def decoder_for(self, message_encoding, schema):
+        if message_encoding == "json" and schema is not None and schema.encoding == "jsonschema":
+            return json.loads
+        return None
+
+
+def to_dict(message) -> dict:
+    """A protobuf message as the dict its JSON form would be, with every field (zeros
+    included) and `google.protobuf.Timestamp` as Foxglove's JSON time `{sec, nsec}`."""
+    if message.DESCRIPTOR.full_name == "google.protobuf.Timestamp":
+        return {"sec": message.seconds, "nsec": message.nanos}
+    out = {}
+    for field in message.DESCRIPTOR.fields:
+        value = getattr(message, field.name)
+        if field.type == field.TYPE_MESSAGE:
+            value = [to_dict(v) for v in value] if field.is_repeated else to_dict(value)
+        out[field.name] = value
+    return out
+
+
+def decoded(schema: Schema, channel: Channel, message: Message, factories: dict):
+    """The message as a dict, with the decoder its encodings call for."""
+    key = (channel.message_encoding, schema.id)
+    if key not in factories:
+        for factory in (JsonDecoderFactory(), ProtobufDecoderFactory()):
+            decoder = factory.decoder_for(channel.message_encoding, schema)
+            if decoder is not None:
+                factories[key] = decoder
+                break
+        else:
+            raise AssertionError(f"{channel.topic}: no decoder for {channel.message_encoding}/{schema.encoding}")
+    value = factories[key](message.data)
+    return value if isinstance(value, dict) else to_dict(value)
 
 
 def scenario(name: str, duration: str, clock: dict, drones: int = 2, recording: dict | None = None) -> dict:
@@ -101,14 +150,19 @@ def read_finished(path: pathlib.Path):
         assert summary is not None, "a finished recording has a summary section"
         schemas = {s.name for s in summary.schemas.values()}
         for s in summary.schemas.values():
-            assert s.encoding == "jsonschema", s.name
-            assert json.loads(s.data)["title"] == s.name
+            if s.name in PROTOBUF:
+                assert s.encoding == "protobuf", s.name
+            else:
+                assert s.encoding == "jsonschema", s.name
+                assert json.loads(s.data)["title"] == s.name
+        factories = {}
         messages = [
-            (channel.topic, schema.name, m.log_time, m.publish_time, json.loads(m.data))
+            (channel.topic, schema.name, m.log_time, m.publish_time, decoded(schema, channel, m, factories))
             for schema, channel, m in reader.iter_messages(log_time_order=False)
         ]
         for channel in summary.channels.values():
-            assert channel.message_encoding == "json", channel.topic
+            schema = summary.schemas[channel.schema_id]
+            assert channel.message_encoding == ("protobuf" if schema.name in PROTOBUF else "json"), channel.topic
     return schemas, messages
 
 
@@ -142,6 +196,67 @@ def test_schemas_are_foxglove_well_known_ones(finished_run):
     assert by_topic["/drones/pair-0/location"] == "foxglove.LocationFix"
     assert by_topic["/zones"] == "foxglove.SceneUpdate"
     assert by_topic["/events"] == "foxglove.Log"
+
+
+def file_descriptors(schema_data: bytes) -> dict:
+    return {f.name: f for f in descriptor_pb2.FileDescriptorSet.FromString(schema_data).file}
+
+
+def official(message_class) -> dict:
+    """Foxglove's descriptors of a message's file and everything it imports, by file name."""
+    files, todo = {}, [message_class.DESCRIPTOR.file]
+    while todo:
+        file = todo.pop()
+        proto = descriptor_pb2.FileDescriptorProto()
+        file.CopyToProto(proto)
+        files[file.name] = proto
+        todo.extend(file.dependencies)
+    return files
+
+
+def test_protobuf_schemas_are_foxglove_own_descriptors(finished_run):
+    folder, _, _ = finished_run
+    with open(folder / "recording.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    by_name = {s.name: s for s in summary.schemas.values()}
+    for name, message_class in [("foxglove.PoseInFrame", PoseInFrame), ("foxglove.FrameTransforms", FrameTransforms)]:
+        ours, theirs = file_descriptors(by_name[name].data), official(message_class)
+        assert set(ours) == set(theirs), name
+        for file_name, proto in theirs.items():
+            if file_name == "google/protobuf/timestamp.proto":
+                # Same message; protobuf's copy also carries language options and the
+                # optional json_name protoc fills in.
+                for field in proto.message_type[0].field:
+                    field.ClearField("json_name")
+                assert ours[file_name].message_type == proto.message_type
+                assert ours[file_name].package == proto.package
+            else:
+                assert ours[file_name] == proto, file_name
+        # Imports come before the files that import them (as a pool adds them).
+        order = [f.name for f in descriptor_pb2.FileDescriptorSet.FromString(by_name[name].data).file]
+        for i, file_name in enumerate(order):
+            assert all(order.index(d) < i for d in ours[file_name].dependency), order
+    velocity = file_descriptors(by_name["sadesim.Velocity"].data)["sadesim/Velocity.proto"]
+    assert [(f.name, f.number, f.type_name) for f in velocity.message_type[0].field] == [
+        ("timestamp", 1, ".google.protobuf.Timestamp"),
+        ("frame_id", 2, ""),
+        ("velocity_enu_mps", 3, ".foxglove.Vector3"),
+        ("rate_body_rps", 4, ".foxglove.Vector3"),
+    ]
+    assert timestamp_pb2.Timestamp.DESCRIPTOR.full_name == "google.protobuf.Timestamp"
+
+
+def test_poses_decode_with_foxglove_generated_classes(finished_run):
+    folder, _, messages = finished_run
+    by_key = {(topic, log_time): msg for topic, _, log_time, _, msg in messages}
+    checked = 0
+    with open(folder / "recording.mcap", "rb") as f:
+        for schema, channel, m in make_reader(f).iter_messages(topics=["/drones/pair-0/pose", "/tf"]):
+            cls = PoseInFrame if schema.name == "foxglove.PoseInFrame" else FrameTransforms
+            parsed = cls.FromString(m.data)
+            assert to_dict(parsed) == by_key[(channel.topic, m.log_time)]
+            checked += 1
+    assert checked > 1000
 
 
 def test_counts_per_stream_are_duration_times_rate(finished_run):
@@ -237,7 +352,7 @@ def test_rates_and_compression_come_from_the_spec(sadesim, tmp_path):
 
 def read_truncated(path: pathlib.Path):
     """Messages of every complete chunk of an unfinished file, with the non-seeking
-    reader; returns (chunks, messages as (topic, log_time, JSON), footer seen)."""
+    reader; returns (chunks, messages as (topic, log_time, data), footer seen)."""
     channels, chunks, messages, footer = {}, 0, [], False
     with open(path, "rb") as f:
         records = StreamReader(f, emit_chunks=True).records
@@ -257,7 +372,7 @@ def read_truncated(path: pathlib.Path):
                 if isinstance(r, Channel):
                     channels[r.id] = r.topic
                 elif isinstance(r, Message):
-                    messages.append((channels[r.channel_id], r.log_time, json.loads(r.data)))
+                    messages.append((channels[r.channel_id], r.log_time, r.data))
     return chunks, messages, footer
 
 
@@ -275,7 +390,7 @@ def test_a_killed_run_leaves_a_readable_recording(sadesim, tmp_path):
     )
     try:
         # Wait until at least three chunks are on disk: the first (schemas, channels,
-        # zones) and two of messages (~1 MiB of JSON each, compressed to a few hundred kB).
+        # zones) and two of messages (~1 MiB each, compressed to a few hundred kB).
         deadline = time.monotonic() + 120
         mcap_path = None
         while time.monotonic() < deadline and proc.poll() is None:
@@ -304,7 +419,7 @@ def test_a_killed_run_leaves_a_readable_recording(sadesim, tmp_path):
         last[topic] = log_time
         if topic.endswith("/pose"):
             poses[topic] += 1
-            assert stamp_ns(msg) == log_time
+            assert stamp_ns(to_dict(PoseInFrame.FromString(msg))) == log_time
     assert len(poses) == 4
     for topic, n in poses.items():
         # No gap: one pose per 10 ms from 10 ms to the last one read.

@@ -1,16 +1,18 @@
 //! `recording.mcap`: the whole run in one MCAP file with Foxglove's well-known schemas, so
 //! it opens in Foxglove with a 3D and a map panel.
 //!
-//! Messages are JSON (schema encoding `jsonschema`, see [`schemas`]); every time is
+//! The ground-truth streams (pose, `/tf`, velocity: 100 Hz by default, most of the file)
+//! are protobuf with Foxglove's `.proto` schemas (see [`protobuf`]); the others are JSON
+//! (schema encoding `jsonschema`, see [`schemas`]). Every time is
 //! simulated time since the run start: `log_time` is the sync window the recorder saw the
 //! value in, `publish_time` and the message's `timestamp` when it was true (the same for
 //! sampled streams; the fix time for GNSS, the event time for events).
 //!
 //! | topic | schema | frame | rate |
 //! |---|---|---|---|
-//! | `/drones/<name>/pose` | foxglove.PoseInFrame | `world` | ground truth (100 Hz) |
-//! | `/tf` (all drones in one message) | foxglove.FrameTransforms | `world` -> `drone/<name>` | ground truth |
-//! | `/drones/<name>/velocity` | sadesim.Velocity | `world` / body FLU | ground truth |
+//! | `/drones/<name>/pose` | foxglove.PoseInFrame (protobuf) | `world` | ground truth (100 Hz) |
+//! | `/tf` (all drones in one message) | foxglove.FrameTransforms (protobuf) | `world` -> `drone/<name>` | ground truth |
+//! | `/drones/<name>/velocity` | sadesim.Velocity (protobuf) | `world` / body FLU | ground truth |
 //! | `/drones/<name>/estimate` | sadesim.Estimate | `world` | estimator (10 Hz), from the first fix |
 //! | `/drones/<name>/motors` | sadesim.MotorCommands | | actuators (10 Hz) |
 //! | `/drones/<name>/battery` | sadesim.Battery | | status (10 Hz) |
@@ -35,6 +37,7 @@
 
 mod json;
 mod messages;
+pub mod protobuf;
 mod scene;
 pub mod schemas;
 #[cfg(test)]
@@ -138,7 +141,8 @@ pub struct McapRecorder {
     estimator: Sampler,
     actuators: Sampler,
     status: Sampler,
-    /// The `/tf` message of the window, built beside the per-drone messages.
+    /// The `/tf` message of the window, built beside the per-drone messages (empty when the
+    /// window takes no ground-truth sample).
     tf_buf: Vec<u8>,
 }
 
@@ -184,12 +188,18 @@ impl McapRecorder {
             Compression::None => ChunkCompression::None,
         };
         let mut writer = McapWriter::new(file, "", concat!("sadesim/", env!("CARGO_PKG_VERSION")), compression)?;
+        // Schema name -> (schema id, message encoding of its channels).
         let mut schema = BTreeMap::new();
         for (name, text) in schemas::ALL {
-            schema.insert(name, writer.add_schema(name, "jsonschema", text.as_bytes())?);
+            schema.insert(name, (writer.add_schema(name, "jsonschema", text.as_bytes())?, "json"));
+        }
+        for name in schemas::PROTOBUF {
+            let descriptors = protobuf::descriptor_set(name).expect("every protobuf schema is in protobuf::FILES");
+            schema.insert(name, (writer.add_schema(name, "protobuf", &descriptors)?, "protobuf"));
         }
         let channel = |writer: &mut Sink, topic: &str, schema_name: &str| -> std::io::Result<Channel> {
-            let id = writer.add_channel(schema[schema_name], topic, "json")?;
+            let (schema_id, encoding) = schema[schema_name];
+            let id = writer.add_channel(schema_id, topic, encoding)?;
             Ok(Channel { id, sequence: 0 })
         };
         let zones = channel(&mut writer, "/zones", schemas::SCENE_UPDATE_NAME)?;
@@ -255,14 +265,11 @@ impl McapRecorder {
         let actuators = self.actuators.due(time_s);
         let status = self.status.due(time_s);
         tf_buf.clear();
-        messages::begin_transforms(tf_buf);
-        let mut first_transform = true;
         for s in drones {
             let Some(c) = channels.get_mut(s.index as usize) else { continue };
             if ground_truth {
                 out.write(&mut c.pose, log_ns, log_ns, |b| messages::pose(b, log_ns, s))?;
-                messages::transform(tf_buf, first_transform, log_ns, &c.frame, s);
-                first_transform = false;
+                messages::transform(tf_buf, log_ns, &c.frame, s);
                 out.write(&mut c.velocity, log_ns, log_ns, |b| messages::velocity(b, log_ns, s))?;
             }
             if estimator && let Some(e) = &s.detail.estimate {
@@ -294,8 +301,7 @@ impl McapRecorder {
                 }
             }
         }
-        if !first_transform {
-            messages::end_transforms(tf_buf);
+        if !tf_buf.is_empty() {
             out.write(tf, log_ns, log_ns, |b| b.extend_from_slice(tf_buf))?;
         }
         Ok(())

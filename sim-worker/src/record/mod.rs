@@ -3,6 +3,7 @@
 //! (one line per drone, for any map tool), a summary, `recording.mcap` (Foxglove schemas)
 //! and one PX4 ULog per drone (`spec.recording` turns the last two off).
 
+mod cost;
 mod events;
 pub mod mcap_file;
 mod recorder;
@@ -13,6 +14,7 @@ mod test_dir;
 mod trajectory;
 pub mod ulog_file;
 
+pub use cost::RecordingCost;
 pub use events::EventLog;
 pub use mcap_file::{MCAP_FILE, McapRecorder};
 pub use recorder::{Recorder, RecorderOptions};

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 
+use super::cost::{measured, thread_cpu_s};
 use super::{
     DroneSummary, EventLog, McapRecorder, RunSummary, Sampler, TrajectoryCsv, TrajectoryGeoJson, UlogRecorder,
 };
@@ -112,11 +113,12 @@ impl Recorder {
     /// # Errors
     /// I/O errors.
     pub fn finish(mut self, outcome: &RunOutcome) -> std::io::Result<RunSummary> {
+        let cost = &mut self.summary.recording_cpu_s;
         if let Some(mcap) = self.mcap.take() {
-            mcap.finish()?;
+            measured(&mut cost.mcap, || mcap.finish())?;
         }
         if let Some(ulog) = self.ulog.take() {
-            ulog.finish()?;
+            measured(&mut cost.ulog, || ulog.finish())?;
         }
         self.tracks.write(&self.dir.join("trajectory.geojson"), &self.plan)?;
         self.summary.end_reason = outcome.reason.clone();
@@ -133,13 +135,17 @@ impl Recorder {
 impl RunObserver for Recorder {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
         let io = |e: std::io::Error| format!("failed to record: {e}");
+        let mut cost = self.summary.recording_cpu_s;
+        let start = thread_cpu_s();
         self.events.write(events).map_err(io)?;
+        cost.other += thread_cpu_s() - start;
         if let Some(mcap) = &mut self.mcap {
-            mcap.write_window(time_s, drones, events).map_err(io)?;
+            measured(&mut cost.mcap, || mcap.write_window(time_s, drones, events)).map_err(io)?;
         }
         if let Some(ulog) = &mut self.ulog {
-            ulog.write_window(time_s, drones, events).map_err(io)?;
+            measured(&mut cost.ulog, || ulog.write_window(time_s, drones, events)).map_err(io)?;
         }
+        let start = thread_cpu_s();
         let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
         if !final_window && self.rows.due(time_s) {
             self.csv.write(time_s, drones, &self.plan, &self.frame).map_err(io)?;
@@ -154,6 +160,70 @@ impl RunObserver for Recorder {
             self.summary.events += events.len() as u64;
         }
         self.last = drones.to_vec();
+        cost.other += thread_cpu_s() - start;
+        self.summary.recording_cpu_s = cost;
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use sadesim_crds::run::Recording;
+
+    use super::*;
+    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
+    use crate::events::FlightMode;
+    use crate::protocol::DroneDetail;
+    use crate::record::test_dir::TempDir;
+
+    /// Three simulated seconds of 4 drones climbing, recorded with `recording`; the summary.
+    fn record(dir: &TempDir, recording: Recording) -> RunSummary {
+        let plan = plan_of(run_with_groups(&[("a", 4)]).with(|r| r.spec.recording = Some(recording)).build());
+        let mut recorder = Recorder::create(&dir.0, &plan, RecorderOptions::default()).unwrap();
+        for w in 1..=300u32 {
+            let t = f64::from(w) * 0.01;
+            let drones: Vec<DroneSnapshot> = (0..4)
+                .map(|index| DroneSnapshot {
+                    index,
+                    position_enu_m: [f64::from(index) * 10.0, 0.0, t],
+                    velocity_enu_mps: [0.0, 0.0, 1.0],
+                    attitude_wxyz: [1.0, 0.0, 0.0, 0.0],
+                    height_agl_m: t,
+                    mode: FlightMode::Takeoff,
+                    armed: true,
+                    on_ground: false,
+                    crashed: false,
+                    battery_remaining: 1.0,
+                    position_valid: true,
+                    detail: DroneDetail { motor_count: 4, ..DroneDetail::default() },
+                })
+                .collect();
+            recorder.on_window(t, &drones, &[]).unwrap();
+        }
+        let outcome = RunOutcome {
+            reason: "duration".into(),
+            sim_time_s: 3.0,
+            wall_time: Duration::from_secs(1),
+            released_at_s: None,
+        };
+        recorder.finish(&outcome).unwrap()
+    }
+
+    #[test]
+    fn the_summary_says_what_each_recording_cost() {
+        let dir = TempDir::new("recorder-cost-on");
+        let summary = record(&dir, Recording::default());
+        let cost = summary.recording_cpu_s;
+        assert!(cost.mcap > 0.0 && cost.ulog > 0.0 && cost.other > 0.0, "{cost:?}");
+        let written: RunSummary = serde_json::from_slice(&std::fs::read(dir.0.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(written.recording_cpu_s, cost);
+
+        let dir = TempDir::new("recorder-cost-off");
+        let summary = record(&dir, Recording { mcap: false, ulog: false, ..Recording::default() });
+        let cost = summary.recording_cpu_s;
+        assert_eq!((cost.mcap, cost.ulog), (0.0, 0.0), "nothing recorded, nothing spent");
+        assert!(cost.other > 0.0);
     }
 }

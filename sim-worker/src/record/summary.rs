@@ -1,5 +1,6 @@
 //! `summary.json`: per drone and per run totals, built from the windows as they pass.
 
+use super::RecordingCost;
 use serde::{Deserialize, Serialize};
 
 use crate::airspace::criteria::RunVerdict;
@@ -44,6 +45,9 @@ pub struct RunSummary {
     /// The scenario's criteria judged at the end (absent when the run did not get that far).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub verdict: Option<RunVerdict>,
+    /// CPU seconds the recorder spent writing each kind of file (measured on its thread).
+    #[serde(default)]
+    pub recording_cpu_s: RecordingCost,
 }
 
 impl RunSummary {

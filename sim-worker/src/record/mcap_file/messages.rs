@@ -1,9 +1,12 @@
-//! The JSON text of each recorded message, from one drone snapshot. Field names follow the
-//! schemas in [`super::schemas`]; `ns` is simulated time since the run start.
+//! The bytes of each recorded message, from one drone snapshot: protobuf for the
+//! ground-truth streams (pose, `/tf`, velocity), JSON text for the others. Field names follow
+//! [`super::protobuf::FILES`] and [`super::schemas`]; `ns` is simulated time since the run
+//! start.
 
 use sadesim_crds::geo::{Enu, GeoPoint};
 
 use super::json::{self, COARSE, DEGREES, METRES};
+use super::protobuf;
 use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, EstimateDetail, GnssDetail};
 
@@ -11,54 +14,35 @@ fn norm(v: [f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
-/// `foxglove.PoseInFrame`: the ground-truth pose in `world`.
+/// `foxglove.PoseInFrame` (protobuf): the ground-truth pose in `world`.
 pub fn pose(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"frame_id\":\"world\",\"pose\":{\"position\":");
-    json::vector3(out, s.position_enu_m, METRES);
-    out.extend_from_slice(b",\"orientation\":");
-    json::quaternion(out, s.attitude_wxyz);
-    out.extend_from_slice(b"}}");
+    protobuf::timestamp(out, 1, ns);
+    protobuf::bytes(out, 2, b"world");
+    protobuf::message(out, 3, |b| {
+        protobuf::vector3(b, 1, s.position_enu_m, protobuf::METRES_BITS);
+        protobuf::quaternion(b, 2, s.attitude_wxyz);
+    });
 }
 
-/// Opens a `foxglove.FrameTransforms` message; [`transform`] appends to it, [`end_transforms`]
-/// closes it.
-pub fn begin_transforms(out: &mut Vec<u8>) {
-    out.extend_from_slice(b"{\"transforms\":[");
+/// Appends one `foxglove.FrameTransform` `world` -> `child` (`drone/<name>`) to a
+/// `foxglove.FrameTransforms` message (protobuf: the message is its repeated field 1, one
+/// entry after another): the body frame (FLU) at the ground-truth pose.
+pub fn transform(out: &mut Vec<u8>, ns: u64, child: &str, s: &DroneSnapshot) {
+    protobuf::message(out, 1, |b| {
+        protobuf::timestamp(b, 1, ns);
+        protobuf::bytes(b, 2, b"world");
+        protobuf::bytes(b, 3, child.as_bytes());
+        protobuf::vector3(b, 4, s.position_enu_m, protobuf::METRES_BITS);
+        protobuf::quaternion(b, 5, s.attitude_wxyz);
+    });
 }
 
-/// Closes the message [`begin_transforms`] opened.
-pub fn end_transforms(out: &mut Vec<u8>) {
-    out.extend_from_slice(b"]}");
-}
-
-/// One `foxglove.FrameTransform` `world` -> `child` (`drone/<name>`) of a `FrameTransforms`
-/// message: the body frame (FLU) at the ground-truth pose. `first`: no comma before it.
-pub fn transform(out: &mut Vec<u8>, first: bool, ns: u64, child: &str, s: &DroneSnapshot) {
-    if !first {
-        out.push(b',');
-    }
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"parent_frame_id\":\"world\",\"child_frame_id\":");
-    json::string(out, child);
-    out.extend_from_slice(b",\"translation\":");
-    json::vector3(out, s.position_enu_m, METRES);
-    out.extend_from_slice(b",\"rotation\":");
-    json::quaternion(out, s.attitude_wxyz);
-    out.push(b'}');
-}
-
-/// `sadesim.Velocity`: ground-truth linear velocity (ENU) and body rates (FLU).
+/// `sadesim.Velocity` (protobuf): ground-truth linear velocity (ENU) and body rates (FLU).
 pub fn velocity(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"frame_id\":\"world\",\"velocity_enu_mps\":");
-    json::vector3(out, s.velocity_enu_mps, METRES);
-    out.extend_from_slice(b",\"rate_body_rps\":");
-    json::vector3(out, s.detail.rate_body_rps, METRES);
-    out.push(b'}');
+    protobuf::timestamp(out, 1, ns);
+    protobuf::bytes(out, 2, b"world");
+    protobuf::vector3(out, 3, s.velocity_enu_mps, protobuf::METRES_BITS);
+    protobuf::vector3(out, 4, s.detail.rate_body_rps, protobuf::METRES_BITS);
 }
 
 /// `sadesim.Estimate`: the estimator's output and its error against ground truth.

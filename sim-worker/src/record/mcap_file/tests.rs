@@ -118,15 +118,21 @@ fn read_all(bytes: &[u8]) -> Vec<Read> {
         .unwrap()
         .map(|m| {
             let m = m.unwrap();
-            assert_eq!(m.channel.message_encoding, "json");
             let schema = m.channel.schema.as_ref().unwrap();
-            assert_eq!(schema.encoding, "jsonschema");
+            // Protobuf messages are decoded into the JSON the other channels hold.
+            let json = match (m.channel.message_encoding.as_str(), schema.encoding.as_str()) {
+                ("json", "jsonschema") => serde_json::from_slice(&m.data).unwrap(),
+                ("protobuf", "protobuf") => super::protobuf::decode::to_json(&schema.name, &m.data),
+                (message, schema) => {
+                    panic!("{}: message encoding {message}, schema encoding {schema}", m.channel.topic)
+                }
+            };
             Read {
                 topic: m.channel.topic.clone(),
                 schema: schema.name.clone(),
                 log_time: m.log_time,
                 publish_time: m.publish_time,
-                json: serde_json::from_slice(&m.data).unwrap(),
+                json,
             }
         })
         .collect()
@@ -206,12 +212,26 @@ fn schemas_are_foxglove_well_known_ones_where_they_exist() {
         .unwrap()
         .expect("a finished file has a summary");
     let names: BTreeSet<String> = summary.schemas.values().map(|s| s.name.clone()).collect();
-    assert_eq!(names.len(), super::schemas::ALL.len());
+    assert_eq!(names.len(), super::schemas::ALL.len() + super::schemas::PROTOBUF.len());
     for schema in summary.schemas.values() {
+        if super::schemas::PROTOBUF.contains(&schema.name.as_str()) {
+            assert_eq!(schema.encoding, "protobuf", "{}", schema.name);
+            assert_eq!(*schema.data, super::protobuf::descriptor_set(&schema.name).unwrap(), "{}", schema.name);
+            continue;
+        }
+        assert_eq!(schema.encoding, "jsonschema", "{}", schema.name);
         let parsed: Value = serde_json::from_slice(&schema.data).expect("schema data is JSON");
         assert_eq!(parsed["title"], schema.name.as_str(), "title of {}", schema.name);
         assert_eq!(parsed["type"], "object");
     }
+    let encodings: BTreeMap<&str, &str> =
+        summary.channels.values().map(|c| (c.topic.as_str(), c.message_encoding.as_str())).collect();
+    for (topic, encoding) in
+        [("/drones/a-0/pose", "protobuf"), ("/tf", "protobuf"), ("/drones/a-0/velocity", "protobuf")]
+    {
+        assert_eq!(encodings[topic], encoding, "{topic}");
+    }
+    assert_eq!(encodings["/drones/a-0/gnss"], "json");
 }
 
 #[test]
@@ -396,7 +416,7 @@ fn an_unfinished_file_reads_up_to_its_last_chunk() {
     for m in mcap::MessageStream::new(&copy).unwrap() {
         let Ok(m) = m else { break };
         if m.channel.topic.ends_with("/pose") {
-            let j: Value = serde_json::from_slice(&m.data).unwrap();
+            let j = super::protobuf::decode::to_json("foxglove.PoseInFrame", &m.data);
             let i: u32 = m.channel.topic.trim_start_matches("/drones/a-").trim_end_matches("/pose").parse().unwrap();
             let time = m.log_time as f64 * 1e-9;
             assert!(close(xyz(&j["pose"]["position"]), snapshot(i, time).position_enu_m, 0.5e-3));

@@ -1,0 +1,64 @@
+//! What recording costs: the CPU time the recorder's thread spends on each kind of file,
+//! measured inside the run (`summary.json` `recordingCpuS`, `sadesim bench --recording`).
+//!
+//! Measured with the thread's CPU clock (`CLOCK_THREAD_CPUTIME_ID`: user + system time of
+//! this thread only), so other threads (shards, routers) and time spent waiting do not
+//! count. Each reading is one system call, two per file kind per sync window.
+
+use serde::{Deserialize, Serialize};
+
+/// CPU seconds the recorder spent on each kind of file over a run.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct RecordingCost {
+    /// `recording.mcap`.
+    pub mcap: f64,
+    /// `ulog/*.ulg`.
+    pub ulog: f64,
+    /// `events.jsonl`, `trajectory.csv`, `trajectory.geojson` and the summary's totals.
+    pub other: f64,
+}
+
+impl RecordingCost {
+    /// Everything the recorder spent.
+    pub fn total(&self) -> f64 {
+        self.mcap + self.ulog + self.other
+    }
+}
+
+/// CPU time of the calling thread so far, s.
+pub fn thread_cpu_s() -> f64 {
+    let t = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
+    t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+}
+
+/// Runs `f` and adds the CPU time it took on this thread to `*account`, s.
+pub fn measured<T>(account: &mut f64, f: impl FnOnce() -> T) -> T {
+    let start = thread_cpu_s();
+    let value = f();
+    *account += thread_cpu_s() - start;
+    value
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn measured_counts_work_on_this_thread_and_not_sleep() {
+        let mut busy = 0.0;
+        // A fixed amount of work (tens of ms), whatever else the machine is doing.
+        let sum = measured(&mut busy, || {
+            let mut x = 0u64;
+            for _ in 0..20_000_000 {
+                x = std::hint::black_box(x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1));
+            }
+            x
+        });
+        std::hint::black_box(sum);
+        let mut asleep = 0.0;
+        measured(&mut asleep, || std::thread::sleep(std::time::Duration::from_millis(50)));
+        assert!(busy > 0.002, "20 M multiply-adds measured {busy} s");
+        assert!(asleep < busy / 10.0, "sleeping 50 ms measured {asleep} s, 20 ms of work {busy} s");
+    }
+}
