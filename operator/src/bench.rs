@@ -158,6 +158,29 @@ pub fn run(
     })
 }
 
+/// The middle value (the upper one of the two middle values for an even count); `None`
+/// for no values.
+pub fn median(mut values: Vec<f64>) -> Option<f64> {
+    values.sort_by(f64::total_cmp);
+    values.get(values.len() / 2).copied()
+}
+
+/// What the "on" variant costs, % of the "off" one: the median over `(off, on)` pairs of
+/// `(on - off) / off`. Each pair ran back to back, so the machine's speed drift between
+/// minutes (tens of percent here) mostly cancels within a pair.
+pub fn paired_cost_percent(pairs: &[(f64, f64)]) -> Option<f64> {
+    median(pairs.iter().filter(|(off, _)| *off > 0.0).map(|(off, on)| (on - off) / off * 100.0).collect())
+}
+
+/// The CPU time the recorder's thread spent on `recording.mcap` and the ULogs, % of the
+/// rest of the process's CPU time in that run (the simulation and everything else); `None`
+/// without a process CPU time.
+pub fn recorder_share_percent(result: &BenchResult) -> Option<f64> {
+    let c = result.report.summary.recording_cpu_s;
+    let recording = c.mcap + c.ulog;
+    result.cpu_time_s.map(|total| recording / (total - recording).max(1e-9) * 100.0)
+}
+
 /// User + system CPU time of this process so far, s (Linux `/proc/self/stat`, fields 14
 /// and 15 in clock ticks of 1/100 s, the kernel's USER_HZ on every mainstream platform).
 fn process_cpu_time_s() -> Option<f64> {
@@ -205,4 +228,20 @@ pub fn run_airspace(
     let report = load::run(service.addr, rate_per_s, seconds, connections);
     service.stop();
     Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paired_costs_take_the_median_ratio_of_back_to_back_runs() {
+        // The machine slows down between pairs: 2.0 -> 3.0 s baseline. Each pair costs
+        // 10 %, except an outlier; the ratio of the medians would say +32 %.
+        let pairs = [(2.0, 2.2), (3.0, 3.3), (2.5, 2.75), (2.0, 3.5), (3.0, 3.3)];
+        let cost = paired_cost_percent(&pairs).unwrap();
+        assert!((cost - 10.0).abs() < 1e-9, "{cost}");
+        assert_eq!(paired_cost_percent(&[]), None);
+        assert_eq!(median(vec![3.0, 1.0, 2.0]), Some(2.0));
+    }
 }

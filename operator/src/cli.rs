@@ -370,9 +370,14 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 (true, _) => {
                     (0..repeat.max(1)).flat_map(|_| [(false, Recordings::ALL), (true, Recordings::ALL)]).collect()
                 }
-                (false, Some(set)) => {
-                    (0..repeat.max(1)).flat_map(|_| [(false, Recordings::NONE), (false, set.recordings())]).collect()
-                }
+                // Every other pair runs "on" first, so what one position in a pair gains
+                // (caches warmed, the previous run's files being written back) cancels out.
+                (false, Some(set)) => (0..repeat.max(1))
+                    .flat_map(|i| {
+                        let (off, on) = ((false, Recordings::NONE), (false, set.recordings()));
+                        if i % 2 == 0 { [off, on] } else { [on, off] }
+                    })
+                    .collect(),
                 (false, None) => vec![(false, Recordings::ALL)],
             };
             let mut results = Vec::new();
@@ -416,31 +421,35 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             };
             let is_on = |r: &BenchResult| if mavlink { r.mavlink } else { r.recordings != Recordings::NONE };
             if let Some(label) = label {
-                let median = |on: bool, f: &dyn Fn(&BenchResult) -> Option<f64>| {
-                    let mut v: Vec<f64> = results.iter().filter(|r| is_on(r) == on).filter_map(f).collect();
-                    v.sort_by(f64::total_cmp);
-                    v.get(v.len() / 2).copied()
+                // Each pair (one run off, one on) ran back to back.
+                let pairs = |f: &dyn Fn(&BenchResult) -> Option<f64>| -> Vec<(f64, f64)> {
+                    results
+                        .chunks_exact(2)
+                        .filter_map(|p| {
+                            let (off, on) = if is_on(&p[1]) { (&p[0], &p[1]) } else { (&p[1], &p[0]) };
+                            (!is_on(off) && is_on(on)).then_some(())?;
+                            f(off).zip(f(on))
+                        })
+                        .collect()
                 };
-                let wall = |r: &BenchResult| Some(r.wall_time_s);
-                let cpu = |r: &BenchResult| r.cpu_time_s;
-                let ratio = |a: f64, b: f64| (b - a) / a * 100.0;
-                let cost = |f: &dyn Fn(&BenchResult) -> Option<f64>| {
-                    median(false, f).zip(median(true, f)).map(|(a, b)| ratio(a, b))
-                };
+                let wall = pairs(&|r: &BenchResult| Some(r.wall_time_s));
+                let cpu = pairs(&|r: &BenchResult| r.cpu_time_s);
                 writeln!(
                     out,
-                    "{label} (medians of {repeat}): {}{}",
-                    cost(&wall).map(|c| format!("{c:+.1} % wall time")).unwrap_or_default(),
-                    cost(&cpu).map(|c| format!(", {c:+.1} % CPU time")).unwrap_or_default()
+                    "{label} (median of {repeat} back-to-back pairs): {}{}",
+                    crate::bench::paired_cost_percent(&wall)
+                        .map(|c| format!("{c:+.1} % wall time"))
+                        .unwrap_or_default(),
+                    crate::bench::paired_cost_percent(&cpu)
+                        .map(|c| format!(", {c:+.1} % CPU time"))
+                        .unwrap_or_default()
                 )?;
                 // Within each run: the recorder's CPU time on the recordings against the
                 // rest of the process's CPU time (the simulation), immune to the drift
-                // between runs that the medians above suffer from.
-                let inside = |r: &BenchResult| {
-                    let c = r.report.summary.recording_cpu_s;
-                    r.cpu_time_s.map(|total| (c.mcap + c.ulog) / (total - c.mcap - c.ulog) * 100.0)
-                };
-                if !mavlink && let Some(c) = median(true, &inside) {
+                // between runs that the pairs above suffer from.
+                let shares: Vec<f64> =
+                    results.iter().filter(|r| is_on(r)).filter_map(crate::bench::recorder_share_percent).collect();
+                if !mavlink && let Some(c) = crate::bench::median(shares) {
                     writeln!(
                         out,
                         "{label} measured on the recorder's thread (median of {repeat}): {c:.1} % of the simulation's CPU time"
