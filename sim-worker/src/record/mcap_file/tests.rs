@@ -409,7 +409,7 @@ fn an_unfinished_file_reads_up_to_its_last_chunk() {
         copy = now;
     }
     assert_eq!(growths, 3, "chunks reach the file while the recorder is open");
-    // The synthetic flights are smooth: zstd compresses a whole chunk of them 20-40x.
+    // The synthetic flights are smooth: zstd compresses a whole chunk of them about 20x.
     assert!(copy.len() > 2 * CHUNK_BYTES / 50, "two compressed chunks: {} bytes", copy.len());
     let mut read = 0;
     let mut last_pose = BTreeMap::new();
