@@ -504,6 +504,11 @@ fn metadata(out: &mut String, data: &RunData) {
         Some(s) => {
             row("end", format!("{} at {}", s.end_reason, time_cell(s.sim_time_s)));
             row("wall time", format!("{:.1} s (real-time factor {:.2})", s.wall_time_s, s.real_time_factor));
+            let c = s.recording_cpu_s;
+            row(
+                "recording CPU",
+                format!("{:.2} s recording.mcap, {:.2} s ULogs, {:.2} s other files", c.mcap, c.ulog, c.other),
+            );
             row("pilots released", s.pilots_released_at_s.map_or("never".to_string(), time_cell));
             row("events", s.events.to_string());
             row("at the end", format!("{} airborne, {} crashed", s.airborne, s.crashed));

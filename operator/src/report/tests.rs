@@ -137,6 +137,11 @@ fn the_runner_writes_a_self_contained_report_with_every_drone_zone_and_verdict()
         let track = &track[..track.find("</path>").unwrap()];
         assert!(track.contains(&format!(r#"stroke="{colour}""#)), "drone {drone} not in {colour}");
     }
+    // What the recordings cost this run, from summary.json.
+    let summary: sim_worker::record::RunSummary = serde_json::from_str(&read(dir, "summary.json")).unwrap();
+    let c = summary.recording_cpu_s;
+    assert!(c.mcap > 0.0, "{c:?}");
+    assert!(html.contains(&format!("{:.2} s recording.mcap, {:.2} s ULogs", c.mcap, c.ulog)), "recording CPU row");
     // The zone polygon on both panels, named.
     assert_eq!(html.matches(r#"class="zone" data-zone="wall""#).count(), 2);
     assert!(html.contains("wall (0-328 ft AGL)"), "zone label");

@@ -17,6 +17,7 @@ use sim_worker::events::{Event, EventKind};
 use sim_worker::mavlink::router::RouterHandle;
 use sim_worker::protocol::{DroneSnapshot, FleetCounts};
 use sim_worker::record::{Recorder, RecorderOptions, RunSummary};
+use sim_worker::roles::coordinator::close_failed_run;
 use sim_worker::roles::router::RouterOptions;
 use sim_worker::shard::MavlinkOptions;
 use sim_worker::transport;
@@ -394,7 +395,18 @@ fn run_threads(
     for t in threads {
         let _ = t.join();
     }
-    let outcome = outcome?;
+    let outcome = match outcome {
+        Ok(outcome) => outcome,
+        // A shard thread died: close the files up to the last complete window, as the
+        // coordinator role does, then fail.
+        Err(CoordinatorError::RunFailed(failure)) => {
+            if let Err(e) = close_failed_run(airspace, recorder, &failure.outcome, out_dir) {
+                eprintln!("writing the run's files into {} after the failure failed too: {e}", out_dir.display());
+            }
+            return Err(CoordinatorError::RunFailed(failure).into());
+        }
+        Err(e) => return Err(e.into()),
+    };
     write_json(out_dir, AIRSPACE_FILE, &airspace.record())?;
     recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
     let summary = recorder.finish(&outcome).map_err(output_err)?;

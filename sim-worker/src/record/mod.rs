@@ -10,7 +10,7 @@ mod recorder;
 mod sampler;
 mod summary;
 #[cfg(test)]
-mod test_dir;
+pub(crate) mod test_dir;
 mod trajectory;
 pub mod ulog_file;
 

@@ -229,20 +229,33 @@ fn serve(
     Ok(summary)
 }
 
+/// Closes the files of a run a shard failure ended, up to its last complete window:
+/// `airspace.json`, the recordings (`recording.mcap` with its summary, the ULogs flushed)
+/// and `summary.json` with `outcome.reason` as `endReason` (no verdict: the criteria were
+/// not judged on a whole run). Both runners call it: this role and the in-process one.
+///
+/// # Errors
+/// The first file that could not be written (the others are still tried).
+pub fn close_failed_run(
+    airspace: &Airspace,
+    recorder: Recorder,
+    outcome: &coordinator::RunOutcome,
+    out_dir: &Path,
+) -> std::io::Result<RunSummary> {
+    let written = serde_json::to_vec_pretty(&airspace.record())
+        .map_err(std::io::Error::other)
+        .and_then(|json| std::fs::write(out_dir.join(AIRSPACE_FILE), json));
+    let summary = recorder.finish(outcome)?;
+    written.map(|()| summary)
+}
+
 /// A shard failed: writes what the run has (airspace record, recordings closed, summary
 /// with the failure as `endReason`; no verdict, the criteria were not judged on a whole
 /// run), reports it on stdout and stderr, and returns the error to exit with.
 fn finish_failed(airspace: &Airspace, recorder: Recorder, failure: Box<RunFailure>, out_dir: &Path) -> RoleError {
-    let mut written = serde_json::to_vec_pretty(&airspace.record())
-        .map_err(std::io::Error::other)
-        .and_then(|json| std::fs::write(out_dir.join(AIRSPACE_FILE), json));
-    let summary = recorder.finish(&failure.outcome);
-    let summary = match summary {
-        Ok(s) => Some(s),
-        Err(e) => {
-            written = written.and(Err(e));
-            None
-        }
+    let (summary, written) = match close_failed_run(airspace, recorder, &failure.outcome, out_dir) {
+        Ok(summary) => (Some(summary), Ok(())),
+        Err(e) => (None, Err(e)),
     };
     report(&Report::Failed {
         role: FailedRole::Shard,
@@ -321,6 +334,63 @@ impl ShardLink for Greeted {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
+    use crate::events::FlightMode;
+    use crate::protocol::DroneDetail;
+    use crate::record::MCAP_FILE;
+    use crate::record::test_dir::TempDir;
+
+    #[test]
+    fn a_failed_run_still_closes_its_files() {
+        let dir = TempDir::new("close-failed-run");
+        let plan = plan_of(run_with_groups(&[("a", 2)]).build());
+        let airspace = Airspace::new(&plan, &|_| None);
+        let mut recorder = Recorder::create(&dir.0, &plan, RecorderOptions::default()).unwrap();
+        for w in 1..=50u32 {
+            let t = f64::from(w) * 0.01;
+            let drones: Vec<DroneSnapshot> = (0..2)
+                .map(|index| DroneSnapshot {
+                    index,
+                    position_enu_m: [f64::from(index), 0.0, t],
+                    velocity_enu_mps: [0.0, 0.0, 1.0],
+                    attitude_wxyz: [1.0, 0.0, 0.0, 0.0],
+                    height_agl_m: t,
+                    mode: FlightMode::Takeoff,
+                    armed: true,
+                    on_ground: false,
+                    crashed: false,
+                    battery_remaining: 1.0,
+                    position_valid: true,
+                    detail: DroneDetail { motor_count: 4, ..DroneDetail::default() },
+                })
+                .collect();
+            recorder.on_window(t, &drones, &[]).unwrap();
+        }
+        let outcome = coordinator::RunOutcome {
+            reason: "shardFailed: shard 1 failed: connection closed".into(),
+            sim_time_s: 0.5,
+            wall_time: Duration::from_millis(100),
+            released_at_s: None,
+        };
+        let summary = close_failed_run(&airspace, recorder, &outcome, &dir.0).unwrap();
+        assert_eq!(summary.end_reason, outcome.reason);
+        assert!(summary.verdict.is_none(), "criteria are not judged on part of a run");
+        let written: RunSummary = serde_json::from_slice(&std::fs::read(dir.0.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(written.end_reason, outcome.reason);
+        assert!(dir.0.join(AIRSPACE_FILE).is_file());
+        // The MCAP was finished: summary section and closing magic, every pose in it.
+        let mcap = std::fs::read(dir.0.join(MCAP_FILE)).unwrap();
+        assert!(mcap.ends_with(b"\x89MCAP0\r\n"), "no closing magic");
+        let summary = mcap::Summary::read(&mcap).unwrap().expect("a summary section");
+        let stats = summary.stats.expect("statistics");
+        let poses: u64 = summary
+            .channels
+            .values()
+            .filter(|c| c.topic.ends_with("/pose"))
+            .map(|c| stats.channel_message_counts[&c.id])
+            .sum();
+        assert_eq!(poses, 2 * 50, "100 Hz x 0.5 s x 2 drones");
+    }
 
     #[test]
     fn progress_lines_keep_their_flat_shape() {
