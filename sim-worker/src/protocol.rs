@@ -108,6 +108,28 @@ pub struct FleetCounts {
     pub crashed: u32,
 }
 
+#[cfg(test)]
+impl DroneSnapshot {
+    /// For tests: drone `index` climbing at 1 m/s from the ground at `east_m` east of the
+    /// origin, `t` seconds after the start, in a takeoff with a quad's four motors.
+    pub(crate) fn climbing(index: u32, east_m: f64, t: f64) -> Self {
+        DroneSnapshot {
+            index,
+            position_enu_m: [east_m, 0.0, t],
+            velocity_enu_mps: [0.0, 0.0, 1.0],
+            attitude_wxyz: [1.0, 0.0, 0.0, 0.0],
+            height_agl_m: t,
+            mode: crate::events::FlightMode::Takeoff,
+            armed: true,
+            on_ground: false,
+            crashed: false,
+            battery_remaining: 1.0,
+            position_valid: true,
+            detail: DroneDetail { motor_count: 4, ..DroneDetail::default() },
+        }
+    }
+}
+
 impl FleetCounts {
     pub fn of(drones: &[DroneSnapshot]) -> Self {
         let crashed = drones.iter().filter(|d| d.crashed).count() as u32;

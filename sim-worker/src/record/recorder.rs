@@ -174,8 +174,6 @@ mod tests {
 
     use super::*;
     use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
-    use crate::events::FlightMode;
-    use crate::protocol::DroneDetail;
     use crate::record::test_dir::TempDir;
 
     /// Three simulated seconds of 4 drones climbing, recorded with `recording`; the summary.
@@ -184,22 +182,8 @@ mod tests {
         let mut recorder = Recorder::create(&dir.0, &plan, RecorderOptions::default()).unwrap();
         for w in 1..=300u32 {
             let t = f64::from(w) * 0.01;
-            let drones: Vec<DroneSnapshot> = (0..4)
-                .map(|index| DroneSnapshot {
-                    index,
-                    position_enu_m: [f64::from(index) * 10.0, 0.0, t],
-                    velocity_enu_mps: [0.0, 0.0, 1.0],
-                    attitude_wxyz: [1.0, 0.0, 0.0, 0.0],
-                    height_agl_m: t,
-                    mode: FlightMode::Takeoff,
-                    armed: true,
-                    on_ground: false,
-                    crashed: false,
-                    battery_remaining: 1.0,
-                    position_valid: true,
-                    detail: DroneDetail { motor_count: 4, ..DroneDetail::default() },
-                })
-                .collect();
+            let drones: Vec<DroneSnapshot> =
+                (0..4).map(|index| DroneSnapshot::climbing(index, f64::from(index) * 10.0, t)).collect();
             recorder.on_window(t, &drones, &[]).unwrap();
         }
         let outcome = RunOutcome {
