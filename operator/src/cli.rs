@@ -615,12 +615,12 @@ pub fn read_scenario(path: &Path) -> Result<String, CliError> {
     })
 }
 
-/// CPU cores this process may use.
 /// Drones x simulated seconds of a benchmark run.
 fn drone_seconds(result: &crate::bench::BenchResult) -> f64 {
     (f64::from(result.drones) * result.sim_time_s).max(1e-9)
 }
 
+/// CPU cores this process may use.
 fn cores_available() -> usize {
     std::thread::available_parallelism().map_or(1, usize::from)
 }
