@@ -67,6 +67,11 @@ enum Role {
         /// process dies fails the run at once.
         #[arg(long, value_name = "SECONDS", default_value_t = roles::coordinator::SHARD_TIMEOUT.as_secs_f64(), value_parser = seconds)]
         shard_timeout: f64,
+        /// Seconds to wait for every shard to connect before giving up (exit 2, naming the
+        /// missing shards); 0 waits forever (the default: pods may wait for a node or an
+        /// image pull, and the operator watches them).
+        #[arg(long, value_name = "SECONDS", default_value_t = 0.0, value_parser = seconds)]
+        connect_timeout: f64,
     },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
@@ -120,7 +125,7 @@ fn main() -> ExitCode {
                     .and_then(|plan| roles::shard::run(&plan, shard, &coordinator, mavlink.as_ref(), timeout))
             })
         }
-        Role::Coordinator { plan, listen, out, airspace_bind, shard_timeout } => {
+        Role::Coordinator { plan, listen, out, airspace_bind, shard_timeout, connect_timeout } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
@@ -128,8 +133,10 @@ fn main() -> ExitCode {
                 std::fs::create_dir_all(&out)?;
                 let airspace = airspace_bind
                     .unwrap_or_else(|| std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.airspace_http)));
-                let timeout = (shard_timeout > 0.0).then(|| Duration::from_secs_f64(shard_timeout));
-                roles::coordinator::run(&plan, listen.as_str(), airspace, &out, &stop, timeout).map(|_| ())
+                let positive = |s: f64| (s > 0.0).then(|| Duration::from_secs_f64(s));
+                let timeouts =
+                    roles::coordinator::Timeouts { connect: positive(connect_timeout), shard: positive(shard_timeout) };
+                roles::coordinator::run(&plan, listen.as_str(), airspace, &out, &stop, timeouts).map(|_| ())
             })
         }
         Role::Router { plan, segment, bind, drone_host } => {

@@ -12,9 +12,9 @@
 use std::io::{BufRead, IsTerminal, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::path::Path;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use sadesim_crds::plan::RunPlan;
 use serde::{Deserialize, Serialize};
@@ -138,8 +138,20 @@ fn read_control() -> Arc<Mutex<Option<String>>> {
     slot
 }
 
-/// Accepts the plan's shards on `listen`, runs the run, records into `out_dir`. A shard
-/// that sends nothing for `shard_timeout` (`None`: wait forever) during the run fails it.
+/// How long the coordinator waits for what.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Timeouts {
+    /// Longest wait for every shard to connect (`None`: wait forever; pods may wait for an
+    /// image pull or a node).
+    pub connect: Option<Duration>,
+    /// Longest wait for a shard's answer to a window during the run (`None`: forever).
+    pub shard: Option<Duration>,
+}
+
+/// Accepts the plan's shards on `listen`, runs the run, records into `out_dir`. Shards
+/// that have not connected after `timeouts.connect`, or `stop` while waiting for them,
+/// end the role before the run starts; a shard that sends nothing for `timeouts.shard`
+/// during the run fails it.
 ///
 /// # Errors
 /// Network, protocol, shard and recording failures; each is also reported as a
@@ -150,9 +162,9 @@ pub fn run(
     airspace_bind: SocketAddr,
     out_dir: &Path,
     stop: &AtomicBool,
-    shard_timeout: Option<Duration>,
+    timeouts: Timeouts,
 ) -> Result<RunSummary, RoleError> {
-    let result = serve(plan, listen, airspace_bind, out_dir, stop, shard_timeout);
+    let result = serve(plan, listen, airspace_bind, out_dir, stop, timeouts);
     match &result {
         // Reported with the shard's details and the summary by `finish_failed`.
         Err(RoleError::Coordinator(CoordinatorError::RunFailed(_))) | Ok(_) => {}
@@ -173,7 +185,7 @@ fn serve(
     airspace_bind: SocketAddr,
     out_dir: &Path,
     stop: &AtomicBool,
-    shard_timeout: Option<Duration>,
+    timeouts: Timeouts,
 ) -> Result<RunSummary, RoleError> {
     // The airspace API is up before any shard connects, so it answers as soon as pilots
     // are released. Credentials from Secrets arrive as SADESIM_CREDENTIAL_<GROUP>.
@@ -184,9 +196,10 @@ fn serve(
     let listener = TcpListener::bind(listen)?;
     report(&Report::Listening { address: listener.local_addr()?.to_string(), airspace: airspace_addr.to_string() });
     let mut links: Vec<Option<Box<dyn ShardLink>>> = (0..plan.shards.len()).map(|_| None).collect();
+    let deadline = timeouts.connect.map(|t| Instant::now() + t);
     for _ in 0..plan.shards.len() {
-        let (stream, peer) = listener.accept()?;
-        let mut link = Greeted::new(stream, peer, shard_timeout)?;
+        let (stream, peer) = accept(&listener, stop, deadline, &links, timeouts.connect)?;
+        let mut link = Greeted::new(stream, peer, timeouts.shard)?;
         // The Hello tells which shard connected; `Greeted` replays it to the loop.
         let hello = link.link.recv().map_err(|e| RoleError::Protocol(format!("shard greeting from {peer}: {e}")))?;
         let FromShard::Hello { shard, version, drones } = hello.clone() else {
@@ -227,6 +240,46 @@ fn serve(
     let summary = recorder.finish(&outcome).map_err(record_err)?;
     report(&Report::Finished { summary: summary.clone() });
     Ok(summary)
+}
+
+/// The next shard connection on `listener`. Polls every 50 ms so that `stop` (Ctrl-C) and
+/// `deadline` are seen while no shard comes; `connected` names the missing shards.
+fn accept<T>(
+    listener: &TcpListener,
+    stop: &AtomicBool,
+    deadline: Option<Instant>,
+    connected: &[Option<T>],
+    connect_timeout: Option<Duration>,
+) -> Result<(TcpStream, SocketAddr), RoleError> {
+    let missing = || {
+        let missing: Vec<String> =
+            connected.iter().enumerate().filter(|(_, c)| c.is_none()).map(|(i, _)| i.to_string()).collect();
+        format!("shard{} {} of {}", if missing.len() == 1 { "" } else { "s" }, missing.join(", "), connected.len())
+    };
+    listener.set_nonblocking(true)?;
+    loop {
+        match listener.accept() {
+            Ok((stream, peer)) => {
+                // The shard link does blocking reads with its own timeouts.
+                stream.set_nonblocking(false)?;
+                return Ok((stream, peer));
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e.into()),
+        }
+        if stop.load(Ordering::Relaxed) {
+            return Err(RoleError::NotConnected(format!("interrupted while waiting for {} to connect", missing())));
+        }
+        if deadline.is_some_and(|d| Instant::now() >= d) {
+            let waited = connect_timeout.unwrap_or_default().as_secs_f64();
+            return Err(RoleError::NotConnected(format!(
+                "{} did not connect within {waited} s (--connect-timeout); check that the shard pods or processes started and can reach this address",
+                missing()
+            )));
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
 }
 
 /// Closes the files of a run a shard failure ended, up to its last complete window:
@@ -334,9 +387,48 @@ impl ShardLink for Greeted {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sadesim_crds::plan::PlannedShard;
+
     use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
     use crate::record::MCAP_FILE;
     use crate::record::test_dir::TempDir;
+
+    /// The coordinator of a 4-drone plan in 2 shards on free ports of 127.0.0.1.
+    fn wait_for_shards(name: &str, stop: &AtomicBool, connect: Option<Duration>) -> (RoleError, Duration) {
+        let dir = TempDir::new(name);
+        let mut plan = plan_of(run_with_groups(&[("a", 4)]).build());
+        plan.shards = (0..2).map(|index| PlannedShard { index, first_drone: 2 * index, drone_count: 2 }).collect();
+        let started = Instant::now();
+        let timeouts = Timeouts { connect, shard: None };
+        let any = SocketAddr::from(([127, 0, 0, 1], 0));
+        let error = run(&plan, "127.0.0.1:0", any, &dir.0, stop, timeouts).expect_err("no shard connects");
+        (error, started.elapsed())
+    }
+
+    #[test]
+    fn shards_that_do_not_connect_in_time_are_named() {
+        let (error, waited) =
+            wait_for_shards("connect-timeout", &AtomicBool::new(false), Some(Duration::from_millis(300)));
+        assert!(matches!(error, RoleError::NotConnected(_)), "{error:?}");
+        let message = error.to_string();
+        assert!(message.starts_with("shards 0, 1 of 2 did not connect within 0.3 s (--connect-timeout)"), "{message}");
+        assert!(waited >= Duration::from_millis(300), "gave up after {waited:?}");
+    }
+
+    #[test]
+    fn ctrl_c_while_waiting_for_shards_ends_the_role() {
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        let press = std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(200));
+            flag.store(true, Ordering::Relaxed);
+        });
+        // No connect timeout: only the stop flag ends the wait.
+        let (error, waited) = wait_for_shards("connect-interrupted", &stop, None);
+        press.join().unwrap();
+        assert_eq!(error.to_string(), "interrupted while waiting for shards 0, 1 of 2 to connect");
+        assert!(waited >= Duration::from_millis(200), "{waited:?}");
+    }
 
     #[test]
     fn a_failed_run_still_closes_its_files() {

@@ -28,6 +28,9 @@ pub enum RoleError {
     Record { path: String, source: std::io::Error },
     #[error("{0}")]
     Protocol(String),
+    /// The coordinator stopped waiting for its shards (`--connect-timeout`, or Ctrl-C).
+    #[error("{0}")]
+    NotConnected(String),
     #[error(transparent)]
     Router(#[from] crate::mavlink::router::RouterError),
     /// The plan and flags do not describe a router (unknown segment, bad `--drone-host`).
