@@ -125,6 +125,41 @@ fn trajectories_do_not_depend_on_sharding_or_on_processes() {
 }
 
 #[test]
+fn a_shard_process_that_dies_before_connecting_fails_the_run_naming_it() {
+    let root = out_root("shard-dies");
+    std::fs::create_dir_all(&root).unwrap();
+    // A sim-worker whose shard role fails at start (as a shard whose plan or world cannot
+    // be read would); the coordinator is the real one, left waiting for it.
+    let real = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/debug/sim-worker");
+    let wrapper = root.join("sim-worker");
+    std::fs::write(
+        &wrapper,
+        format!(
+            "#!/bin/sh\nif [ \"$1\" = shard ]; then echo 'cannot build the world' >&2; exit 3; fi\nexec '{}' \"$@\"\n",
+            real.display()
+        ),
+    )
+    .unwrap();
+    let mut permissions = std::fs::metadata(&wrapper).unwrap().permissions();
+    std::os::unix::fs::PermissionsExt::set_mode(&mut permissions, 0o755);
+    std::fs::set_permissions(&wrapper, permissions).unwrap();
+    let options = RunOptions {
+        out_root: Some(root.join("runs")),
+        processes: true,
+        worker: Some(wrapper),
+        mavlink: false,
+        ..RunOptions::default()
+    };
+    let error = run_local(&scenario(2, 1), &options, Arc::new(AtomicBool::new(false))).expect_err("no shard runs");
+    let message = error.to_string();
+    // Both shards fail; whichever the runner saw first is named, with its log.
+    let named = ["0", "1"].into_iter().find(|i| message.contains(&format!("shard {i} exited (exit status: 3)")));
+    let named = named.unwrap_or_else(|| panic!("no shard named: {message}"));
+    assert!(message.contains("before the run started") && message.contains(&format!("shard-{named}.log")), "{message}");
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
 fn flying_into_a_building_is_a_crash_event_and_the_run_goes_on() {
     let root = out_root("crash");
     let mut r = scenario(2, 100);

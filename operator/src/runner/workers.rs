@@ -37,6 +37,16 @@ fn worker_binary(configured: Option<&Path>) -> Result<PathBuf, RunError> {
     }
 }
 
+/// The first of `shards` (in plan order) that has exited with a failure, as a message
+/// naming it and its log.
+fn early_shard_exit(shards: &mut [std::process::Child], out_dir: &Path) -> Option<String> {
+    shards.iter_mut().enumerate().find_map(|(index, shard)| {
+        let status = shard.try_wait().ok().flatten().filter(|s| !s.success())?;
+        let log = out_dir.join(format!("shard-{index}.log"));
+        Some(format!("shard {index} exited ({status}) before the run started; see {}", log.display()))
+    })
+}
+
 fn log_file(dir: &Path, name: &str) -> Result<std::fs::File, RunError> {
     let path = dir.join(name);
     std::fs::File::create(&path).map_err(|source| RunError::Output { path: path.display().to_string(), source })
@@ -139,13 +149,25 @@ pub(super) fn run(
     let mut interrupted = false;
     let mut pilot_error: Option<PilotError> = None;
     let mut stop_sent = false;
+    // Until the first progress line the coordinator is waiting for its shards: a shard that
+    // dies then (bad plan, world build failed) would leave it waiting for ever.
+    let mut started_run = false;
+    let mut shard_died: Option<String> = None;
     loop {
+        if !started_run && shard_died.is_none() {
+            shard_died = early_shard_exit(&mut shards[..plan.shards.len()], out_dir);
+            if shard_died.is_some() && !interrupted {
+                interrupted = true;
+                interrupt(&coordinator);
+            }
+        }
         if stop.load(Ordering::Relaxed) && !interrupted {
             interrupted = true;
             interrupt(&coordinator);
         }
         match rx.recv_timeout(Duration::from_millis(100)) {
             Ok(Report::Progress { sim_time_s, counts }) => {
+                started_run = true;
                 if let Some(p) = pilot.as_deref_mut() {
                     p.advance(sim_time_s);
                 }
@@ -197,6 +219,9 @@ pub(super) fn run(
     }
     if let Some(e) = pilot_error {
         return Err(e.into());
+    }
+    if let (None, Some(died)) = (&summary, shard_died) {
+        return Err(RunError::Worker(died));
     }
     summary.ok_or_else(|| {
         let why = failure
