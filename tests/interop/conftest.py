@@ -13,13 +13,24 @@ def repo() -> pathlib.Path:
     return REPO
 
 
+def debug_binary(name: str, package: str) -> str:
+    """Path of the debug binary `name` of cargo package `package`, built if missing."""
+    exe = REPO / "target" / "debug" / name
+    if not exe.exists():
+        subprocess.run(["cargo", "build", "-p", package], cwd=REPO, check=True)
+    return str(exe)
+
+
 @pytest.fixture(scope="session")
 def sadesim() -> str:
     """Path of the debug `sadesim` binary, built if missing."""
-    exe = REPO / "target" / "debug" / "sadesim"
-    if not exe.exists():
-        subprocess.run(["cargo", "build", "-p", "sadesim"], cwd=REPO, check=True)
-    return str(exe)
+    return debug_binary("sadesim", "sadesim")
+
+
+@pytest.fixture(scope="session")
+def sim_worker() -> str:
+    """Path of the debug `sim-worker` binary, built if missing."""
+    return debug_binary("sim-worker", "sim-worker")
 
 
 @pytest.fixture(scope="session")

@@ -40,7 +40,6 @@ import yaml
 
 from simrun import wait_until
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
 PREFIX = "sdsim"
 SHARDS = 3
 DRONES_PER_SHARD = 2
@@ -144,14 +143,6 @@ def network():
 
 
 # -- processes ----------------------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def sim_worker() -> str:
-    exe = REPO / "target" / "debug" / "sim-worker"
-    if not exe.exists():
-        subprocess.run(["cargo", "build", "-p", "sim-worker"], cwd=REPO, check=True)
-    return str(exe)
 
 
 def scenario(name: str, duration: str, clock: dict) -> dict:
