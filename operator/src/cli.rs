@@ -73,8 +73,9 @@ pub enum Command {
         /// in the other runs, `mcap` or `ulog` one of them.
         #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "all", conflicts_with_all = ["mavlink", "airspace"])]
         recording: Option<crate::bench::RecordingSet>,
-        /// With --mavlink or --recording: alternate the two variants this many times and
-        /// compare medians (this machine's speed drifts by tens of percent between minutes).
+        /// With --mavlink or --recording: run this many back-to-back pairs of the two
+        /// variants (every other pair "on" first) and report the median ratio of the pairs
+        /// (this machine's speed drifts by tens of percent between minutes).
         #[arg(long, default_value_t = 3)]
         repeat: u32,
         /// Load the airspace authority's HTTP API (Chicago example's zone and fleet, on
@@ -366,19 +367,20 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             let seconds = seconds.unwrap_or(60);
             let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
             // (MAVLink on, recordings written) per run; the "off" variant of each pair first.
-            let variants: Vec<(bool, Recordings)> = match (mavlink, recording) {
-                (true, _) => {
-                    (0..repeat.max(1)).flat_map(|_| [(false, Recordings::ALL), (true, Recordings::ALL)]).collect()
-                }
+            // The (off, on) variants a comparison alternates: MAVLink off/on, or recordings
+            // off/on; `None` for a single run.
+            let compared: Option<[(bool, Recordings); 2]> = match (mavlink, recording) {
+                (true, _) => Some([(false, Recordings::ALL), (true, Recordings::ALL)]),
+                (false, Some(set)) => Some([(false, Recordings::NONE), (false, set.recordings())]),
+                (false, None) => None,
+            };
+            let variants: Vec<(bool, Recordings)> = match compared {
                 // Every other pair runs "on" first, so what one position in a pair gains
                 // (caches warmed, the previous run's files being written back) cancels out.
-                (false, Some(set)) => (0..repeat.max(1))
-                    .flat_map(|i| {
-                        let (off, on) = ((false, Recordings::NONE), (false, set.recordings()));
-                        if i % 2 == 0 { [off, on] } else { [on, off] }
-                    })
-                    .collect(),
-                (false, None) => vec![(false, Recordings::ALL)],
+                Some([off, on]) => {
+                    (0..repeat.max(1)).flat_map(|i| if i % 2 == 0 { [off, on] } else { [on, off] }).collect()
+                }
+                None => vec![(false, Recordings::ALL)],
             };
             let mut results = Vec::new();
             for &(with_mavlink, recordings) in &variants {
