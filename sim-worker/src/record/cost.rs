@@ -3,7 +3,7 @@
 //!
 //! Measured with the thread's CPU clock (`CLOCK_THREAD_CPUTIME_ID`: user + system time of
 //! this thread only), so other threads (shards, routers) and time spent waiting do not
-//! count. Each reading is one system call, two per file kind per sync window.
+//! count. Each reading is one system call: one per kind of file per sync window, plus one.
 
 use serde::{Deserialize, Serialize};
 
@@ -27,17 +27,30 @@ impl RecordingCost {
 }
 
 /// CPU time of the calling thread so far, s.
-pub fn thread_cpu_s() -> f64 {
+fn thread_cpu_s() -> f64 {
     let t = rustix::time::clock_gettime(rustix::time::ClockId::ThreadCPUTime);
     t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
 }
 
-/// Runs `f` and adds the CPU time it took on this thread to `*account`, s.
-pub fn measured<T>(account: &mut f64, f: impl FnOnce() -> T) -> T {
-    let start = thread_cpu_s();
-    let value = f();
-    *account += thread_cpu_s() - start;
-    value
+/// A stopwatch of this thread's CPU time split into consecutive laps: each
+/// [`Lap::add_to`] charges the time since the previous one (or the start) to an account,
+/// so consecutive pieces of work cost one clock reading each.
+#[derive(Debug)]
+pub struct Lap {
+    last_s: f64,
+}
+
+impl Lap {
+    pub fn start() -> Self {
+        Self { last_s: thread_cpu_s() }
+    }
+
+    /// Adds the CPU time since the previous lap to `*account`, s.
+    pub fn add_to(&mut self, account: &mut f64) {
+        let now = thread_cpu_s();
+        *account += now - self.last_s;
+        self.last_s = now;
+    }
 }
 
 #[cfg(test)]
@@ -45,19 +58,18 @@ mod tests {
     use super::*;
 
     #[test]
-    fn measured_counts_work_on_this_thread_and_not_sleep() {
-        let mut busy = 0.0;
+    fn laps_count_work_on_this_thread_and_not_sleep() {
+        let (mut busy, mut asleep) = (0.0, 0.0);
+        let mut lap = Lap::start();
         // A fixed amount of work (tens of ms), whatever else the machine is doing.
-        let sum = measured(&mut busy, || {
-            let mut x = 0u64;
-            for _ in 0..20_000_000 {
-                x = std::hint::black_box(x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1));
-            }
-            x
-        });
-        std::hint::black_box(sum);
-        let mut asleep = 0.0;
-        measured(&mut asleep, || std::thread::sleep(std::time::Duration::from_millis(50)));
+        let mut x = 0u64;
+        for _ in 0..20_000_000 {
+            x = std::hint::black_box(x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1));
+        }
+        std::hint::black_box(x);
+        lap.add_to(&mut busy);
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        lap.add_to(&mut asleep);
         assert!(busy > 0.002, "20 M multiply-adds measured {busy} s");
         assert!(asleep < busy / 10.0, "sleeping 50 ms measured {asleep} s, 20 ms of work {busy} s");
     }

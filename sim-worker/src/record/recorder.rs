@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 
-use super::cost::{measured, thread_cpu_s};
+use super::cost::Lap;
 use super::{
     DroneSummary, EventLog, McapRecorder, RunSummary, Sampler, TrajectoryCsv, TrajectoryGeoJson, UlogRecorder,
 };
@@ -114,11 +114,14 @@ impl Recorder {
     /// I/O errors.
     pub fn finish(mut self, outcome: &RunOutcome) -> std::io::Result<RunSummary> {
         let cost = &mut self.summary.recording_cpu_s;
+        let mut lap = Lap::start();
         if let Some(mcap) = self.mcap.take() {
-            measured(&mut cost.mcap, || mcap.finish())?;
+            mcap.finish()?;
+            lap.add_to(&mut cost.mcap);
         }
         if let Some(ulog) = self.ulog.take() {
-            measured(&mut cost.ulog, || ulog.finish())?;
+            ulog.finish()?;
+            lap.add_to(&mut cost.ulog);
         }
         self.tracks.write(&self.dir.join("trajectory.geojson"), &self.plan)?;
         self.summary.end_reason = outcome.reason.clone();
@@ -136,16 +139,17 @@ impl RunObserver for Recorder {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
         let io = |e: std::io::Error| format!("failed to record: {e}");
         let mut cost = self.summary.recording_cpu_s;
-        let start = thread_cpu_s();
+        let mut lap = Lap::start();
         self.events.write(events).map_err(io)?;
-        cost.other += thread_cpu_s() - start;
+        lap.add_to(&mut cost.other);
         if let Some(mcap) = &mut self.mcap {
-            measured(&mut cost.mcap, || mcap.write_window(time_s, drones, events)).map_err(io)?;
+            mcap.write_window(time_s, drones, events).map_err(io)?;
+            lap.add_to(&mut cost.mcap);
         }
         if let Some(ulog) = &mut self.ulog {
-            measured(&mut cost.ulog, || ulog.write_window(time_s, drones, events)).map_err(io)?;
+            ulog.write_window(time_s, drones, events).map_err(io)?;
+            lap.add_to(&mut cost.ulog);
         }
-        let start = thread_cpu_s();
         let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
         if !final_window && self.rows.due(time_s) {
             self.csv.write(time_s, drones, &self.plan, &self.frame).map_err(io)?;
@@ -160,7 +164,7 @@ impl RunObserver for Recorder {
             self.summary.events += events.len() as u64;
         }
         self.last = drones.to_vec();
-        cost.other += thread_cpu_s() - start;
+        lap.add_to(&mut cost.other);
         self.summary.recording_cpu_s = cost;
         Ok(())
     }
