@@ -329,7 +329,8 @@ pub mod decode {
 
     use super::{FILES, Kind};
 
-    fn varint(data: &[u8], at: &mut usize) -> u64 {
+    /// Reads the varint at `data[*at..]` and moves `at` past it.
+    pub fn varint(data: &[u8], at: &mut usize) -> u64 {
         let mut v = 0u64;
         for shift in (0..64).step_by(7) {
             let byte = data[*at];
@@ -468,23 +469,10 @@ mod tests {
         // Walk the FileDescriptorSet's files and read each one's name (field 1, first).
         let mut names = Vec::new();
         let mut at = 0;
-        let read = |at: &mut usize| {
-            let mut v = 0u64;
-            let mut shift = 0;
-            loop {
-                let b = set[*at];
-                *at += 1;
-                v |= u64::from(b & 0x7f) << shift;
-                shift += 7;
-                if b < 0x80 {
-                    return v as usize;
-                }
-            }
-        };
         while at < set.len() {
             assert_eq!(set[at], 0x0A, "FileDescriptorSet.file");
             at += 1;
-            let len = read(&mut at);
+            let len = decode::varint(&set, &mut at) as usize;
             let file = &set[at..at + len];
             assert_eq!(file[0], 0x0A, "FileDescriptorProto.name first");
             let name_len = file[1] as usize;
