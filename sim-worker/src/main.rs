@@ -72,6 +72,12 @@ enum Role {
         /// image pull, and the operator watches them).
         #[arg(long, value_name = "SECONDS", default_value_t = 0.0, value_parser = seconds)]
         connect_timeout: f64,
+        /// A file of `key="value"` annotation lines (a downward-API volume of the Pod's
+        /// annotations): the annotation `sadesim.io/stop="<reason>"` ends the run after the
+        /// current window with that reason. Stdin lines `{"type":"stop","reason":...}` do
+        /// the same when stdin is not a terminal.
+        #[arg(long, value_name = "FILE")]
+        control_file: Option<PathBuf>,
     },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
@@ -125,18 +131,24 @@ fn main() -> ExitCode {
                     .and_then(|plan| roles::shard::run(&plan, shard, &coordinator, mavlink.as_ref(), timeout))
             })
         }
-        Role::Coordinator { plan, listen, out, airspace_bind, shard_timeout, connect_timeout } => {
+        Role::Coordinator { plan, listen, out, airspace_bind, shard_timeout, connect_timeout, control_file } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-            roles::read_plan(&plan).and_then(|plan| {
+            let requests = roles::control::StopRequest::new();
+            requests.read_stdin();
+            let watched = match &control_file {
+                Some(file) => requests.watch_annotations(file).map_err(roles::RoleError::ControlFile),
+                None => Ok(()),
+            };
+            watched.and_then(|()| roles::read_plan(&plan)).and_then(|plan| {
                 std::fs::create_dir_all(&out)?;
                 let airspace = airspace_bind
                     .unwrap_or_else(|| std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.airspace_http)));
                 let positive = |s: f64| (s > 0.0).then(|| Duration::from_secs_f64(s));
                 let timeouts =
                     roles::coordinator::Timeouts { connect: positive(connect_timeout), shard: positive(shard_timeout) };
-                roles::coordinator::run(&plan, listen.as_str(), airspace, &out, &stop, timeouts).map(|_| ())
+                roles::coordinator::run(&plan, listen.as_str(), airspace, &out, &stop, timeouts, requests).map(|_| ())
             })
         }
         Role::Router { plan, segment, bind, drone_host } => {

@@ -16,7 +16,9 @@ Checked here:
   shards exit, and the run folder with every process's log archives and verifies;
 - a shard that stops answering (SIGSTOP: a host gone without a FIN) fails the run after
   `--shard-timeout`;
-- a shard given a wrong coordinator address fails within `--connect-timeout`, naming it.
+- a shard given a wrong coordinator address fails within `--connect-timeout`, naming it;
+- the `sadesim.io/stop` annotation (a downward-API file, `--control-file`) ends a running
+  run with its reason, as the operator does when the pilot Job ends.
 
 Needs root (or CAP_NET_ADMIN/CAP_SYS_ADMIN) for `ip netns`; skipped with the reason where
 the machine refuses namespaces. Namespaces are named `sdsim-<pid>-...`; ones left by an
@@ -493,6 +495,60 @@ def test_a_shard_that_stops_answering_fails_the_run_after_the_shard_timeout(sade
     assert codes["coordinator"] != 0 and codes["shard 0"] == 0 and codes["shard 1"] == 0, codes
     summary = json.loads((out / "summary.json").read_text())
     assert summary["endReason"].startswith("shardFailed: shard 2"), summary
+
+
+def write_annotations(path: pathlib.Path, annotations: dict[str, str]):
+    """As the kubelet writes a downward-API file of a Pod's annotations: sorted `key="value"`
+    lines, replaced atomically (a rename, as its `..data` symlink swap)."""
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text("\n".join(f"{k}={json.dumps(v)}" for k, v in sorted(annotations.items())))
+    tmp.replace(path)
+
+
+def test_the_stop_annotation_ends_the_run_with_its_reason(sadesim, cluster, tmp_path):
+    """The Kubernetes path of `onExit: endRun`: the operator annotates the coordinator Pod
+    `sadesim.io/stop=pilotExited` and the Pod's downward-API file changes under the running
+    coordinator, which ends the run after the current window with that reason."""
+    doc = scenario("stopped", "10m", {"mode": "scaled", "factor": 4})
+    _, plan = write_plan(sadesim, doc, tmp_path)
+    control = tmp_path / "annotations"
+    write_annotations(control, {"kubernetes.io/config.source": "api"})
+    out = tmp_path / "out"
+    c = cluster(plan, out)
+    c.start_coordinator("--control-file", str(control))
+    c.start_shards()
+    progress = c.next_report(120, lambda r: r["type"] in ("failed", "finished") or (r["type"] == "progress" and r["simTimeS"] >= 3))
+    assert progress["type"] == "progress", f"{progress}\n{c.tail()}"
+    # A malformed value is refused in the log and the run goes on.
+    write_annotations(control, {"kubernetes.io/config.source": "api", "sadesim.io/stop": "pilot exited"})
+    more = c.next_report(60, lambda r: r["type"] in ("failed", "finished") or (r["type"] == "progress" and r["simTimeS"] >= progress["simTimeS"] + 2))
+    assert more["type"] == "progress", f"{more}\n{c.tail()}"
+    write_annotations(control, {"kubernetes.io/config.source": "api", "sadesim.io/stop": "pilotExited"})
+    finished = c.next_report(60, lambda r: r["type"] in ("failed", "finished"))
+    assert finished["type"] == "finished", f"{finished}\n{c.tail()}"
+    codes = c.wait_all(60)
+    assert codes == {"coordinator": 0, **{f"shard {i}": 0 for i in range(SHARDS)}}, f"{codes}\n{c.tail()}"
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["endReason"] == "pilotExited", summary
+    # Well before the 10 minutes of `duration`: at 4x, the poll (0.25 s) and a window.
+    assert more["simTimeS"] < summary["simTimeS"] < more["simTimeS"] + 30, (more, summary)
+    assert events(out / "events.jsonl")[-1] == {"timeS": summary["simTimeS"], "event": "runEnded", "reason": "pilotExited"}
+    log = (out / "logs" / "coordinator.log").read_text()
+    assert 'annotation sadesim.io/stop="pilot exited": expected 1 to 64 ASCII letters' in log, log
+    assert_recordings_closed(out, json.loads(plan.read_text()))
+
+
+def test_a_missing_control_file_stops_the_coordinator_before_it_listens(sim_worker, tmp_path):
+    plan = tmp_path / "plan.json"
+    plan.write_text("{}")
+    done = subprocess.run(
+        [sim_worker, "coordinator", "--plan", str(plan), "--out", str(tmp_path / "out"), "--listen", "127.0.0.1:0",
+         "--control-file", str(tmp_path / "nope")],
+        stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=30,
+    )
+    assert done.returncode == 2, done
+    assert f"error: --control-file {tmp_path / 'nope'}: No such file or directory" in done.stderr, done.stderr
+    assert done.stdout == "", "nothing listened"
 
 
 def test_a_shard_with_a_wrong_coordinator_address_fails_within_its_connect_timeout(sadesim, sim_worker, network, tmp_path):

@@ -6,7 +6,7 @@
 //! | config | ConfigMap | `<run>-fleet` | `fleet.json`, read by the pilot |
 //! | assets | Job | `<run>-assets` | builds the world into the asset cache (cache miss only) |
 //! | coordinator | Service | `<run>-airspace` | shard link (TCP 7400) and airspace API (HTTP 8480) |
-//! | coordinator | Pod | `<run>-coordinator` | lockstep clock, recorder, airspace authority, archive upload |
+//! | coordinator | Pod | `<run>-coordinator` | lockstep clock, recorder, airspace authority, archive upload; annotation `sadesim.io/stop` ends the run |
 //! | router | Service, Pod | `<run>-mavlink-<s>`, `<run>-router-<s>` | one MAVLink GCS endpoint per segment |
 //! | shard | Service (headless) | `<run>-shards` | DNS `<run>-shard-<i>.<run>-shards.<ns>.svc` per shard pod |
 //! | shard | Job (Indexed) | `<run>-shard` | one pod per shard, `JOB_COMPLETION_INDEX` = shard |
@@ -40,7 +40,8 @@ use serde::Serialize;
 
 pub use config::{CONFIG_MAP_LIMIT_BYTES, config_map_sizes};
 pub use kueue::{KUEUE_QUEUE_LABEL, kueue_queue};
-pub use pod::{CONFIG_DIR, FLEET_PATH, OUT_DIR, PLAN_PATH, RUN_AS_ID};
+pub use pod::{CONFIG_DIR, CONTROL_FILE, FLEET_PATH, OUT_DIR, PLAN_PATH, RUN_AS_ID};
+pub use sim_worker::roles::control::STOP_ANNOTATION;
 
 /// Label with the run's name on every child.
 pub const RUN_LABEL: &str = "sadesim.io/run";
@@ -91,11 +92,15 @@ pub struct Stage {
     pub assets_job: bool,
     /// Every shard reported ready: create the pilot Job.
     pub pilot: bool,
+    /// Ask the coordinator to end the run with this reason (e.g. `pilotExited`): the
+    /// coordinator Pod carries the annotation [`STOP_ANNOTATION`], which it reads through a
+    /// downward-API file.
+    pub stop: Option<&'static str>,
 }
 
 impl Stage {
     /// Everything (what `sadesim manifests` prints).
-    pub const ALL: Stage = Stage { assets_job: true, pilot: true };
+    pub const ALL: Stage = Stage { assets_job: true, pilot: true, stop: None };
 }
 
 /// One child object, typed. Serializes as the object itself (with apiVersion and kind).
@@ -314,7 +319,7 @@ pub fn children(run: &SimulationRun, plan: &RunPlan, settings: &ClusterSettings,
         out.push(Child::Job(job));
     }
     out.push(Child::Service(workers::airspace_service(&ctx)));
-    out.push(Child::Pod(workers::coordinator_pod(&ctx)));
+    out.push(Child::Pod(workers::coordinator_pod(&ctx, stage.stop)));
     for segment in &plan.segments {
         out.push(Child::Service(workers::mavlink_service(&ctx, segment)));
         out.push(Child::Pod(workers::router_pod(&ctx, segment)));

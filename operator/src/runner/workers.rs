@@ -12,7 +12,8 @@ use std::time::{Duration, Instant};
 use indicatif::ProgressBar;
 use sadesim_crds::plan::RunPlan;
 use sim_worker::record::RunSummary;
-use sim_worker::roles::coordinator::{Control, Report};
+use sim_worker::roles::control::Control;
+use sim_worker::roles::coordinator::Report;
 
 use super::RunError;
 use super::pilot::{self, PilotError, Supervisor};

@@ -1,7 +1,7 @@
 //! `sim-worker coordinator`: accepts one TCP connection per shard, runs the lockstep loop
-//! with the recorder, and reports progress as JSON lines on stdout. When stdin is not a
-//! terminal it reads [`Control`] lines from it (`sadesim run --processes` ends the run
-//! this way when the pilot exits).
+//! with the recorder, and reports progress as JSON lines on stdout. A [`StopRequest`] ends
+//! the run early: a stdin line from `sadesim run --processes` when the pilot exits, or the
+//! Pod annotation the operator sets on Kubernetes (`super::control`).
 //!
 //! A shard that dies mid-run (its process exits, its host or network goes away, it
 //! stops answering for `shard_timeout`) fails the run: the surviving shards are told to
@@ -9,17 +9,17 @@
 //! ends with `runEnded`, `summary.json` has `endReason: "shardFailed: ..."`), a
 //! [`Report::Failed`] line goes to stdout and the process exits non-zero.
 
-use std::io::{BufRead, IsTerminal, Write};
+use std::io::Write;
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs};
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use sadesim_crds::plan::RunPlan;
 use serde::{Deserialize, Serialize};
 
 use super::RoleError;
+use super::control::StopRequest;
 use crate::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use crate::coordinator::{self, CoordinatorError, LinkError, RunFailure, RunObserver, ShardLink};
 use crate::events::{Event, EventKind};
@@ -77,14 +77,6 @@ pub enum FailedRole {
 /// window takes milliseconds, so this only needs to cover a stalled machine.
 pub const SHARD_TIMEOUT: Duration = Duration::from_secs(120);
 
-/// One line of the coordinator's stdin.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
-pub enum Control {
-    /// End the run after the current window with this reason (e.g. `pilotExited`).
-    Stop { reason: String },
-}
-
 /// Writes a report line to stdout (ignored when nobody reads it).
 pub fn report(r: &Report) {
     let mut out = std::io::stdout().lock();
@@ -97,8 +89,8 @@ pub fn report(r: &Report) {
 struct Reporting<'a> {
     recorder: &'a mut Recorder,
     next_report_s: f64,
-    /// The reason of a [`Control::Stop`] read from stdin.
-    stop_request: Arc<Mutex<Option<String>>>,
+    /// Where a request to end the run early arrives.
+    stop_request: StopRequest,
 }
 
 impl RunObserver for Reporting<'_> {
@@ -115,27 +107,8 @@ impl RunObserver for Reporting<'_> {
     }
 
     fn stop_reason(&mut self) -> Option<String> {
-        self.stop_request.lock().ok()?.take()
+        self.stop_request.take()
     }
-}
-
-/// Reads [`Control`] lines from stdin on a thread, unless stdin is a terminal (a
-/// coordinator started by hand in the background must not read it).
-fn read_control() -> Arc<Mutex<Option<String>>> {
-    let slot = Arc::new(Mutex::new(None));
-    if !std::io::stdin().is_terminal() {
-        let requests = slot.clone();
-        std::thread::spawn(move || {
-            for line in std::io::stdin().lock().lines().map_while(Result::ok) {
-                if let Ok(Control::Stop { reason }) = serde_json::from_str(&line)
-                    && let Ok(mut r) = requests.lock()
-                {
-                    *r = Some(reason);
-                }
-            }
-        });
-    }
-    slot
 }
 
 /// How long the coordinator waits for what.
@@ -151,7 +124,8 @@ pub struct Timeouts {
 /// Accepts the plan's shards on `listen`, runs the run, records into `out_dir`. Shards
 /// that have not connected after `timeouts.connect`, or `stop` while waiting for them,
 /// end the role before the run starts; a shard that sends nothing for `timeouts.shard`
-/// during the run fails it.
+/// during the run fails it. A request in `requests` ends the run after the current window
+/// with its reason.
 ///
 /// # Errors
 /// Network, protocol, shard and recording failures; each is also reported as a
@@ -163,8 +137,9 @@ pub fn run(
     out_dir: &Path,
     stop: &AtomicBool,
     timeouts: Timeouts,
+    requests: StopRequest,
 ) -> Result<RunSummary, RoleError> {
-    let result = serve(plan, listen, airspace_bind, out_dir, stop, timeouts);
+    let result = serve(plan, listen, airspace_bind, out_dir, stop, timeouts, requests);
     match &result {
         // Reported with the shard's details and the summary by `finish_failed`.
         Err(RoleError::Coordinator(CoordinatorError::RunFailed(_))) | Ok(_) => {}
@@ -186,6 +161,7 @@ fn serve(
     out_dir: &Path,
     stop: &AtomicBool,
     timeouts: Timeouts,
+    requests: StopRequest,
 ) -> Result<RunSummary, RoleError> {
     // The airspace API is up before any shard connects, so it answers as soon as pilots
     // are released. Credentials from Secrets arrive as SADESIM_CREDENTIAL_<GROUP>.
@@ -224,7 +200,7 @@ fn serve(
     let mut links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
     let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
     let mut recorder = Recorder::create(out_dir, plan, RecorderOptions::default()).map_err(record_err)?;
-    let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: read_control() };
+    let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: requests };
     let result = coordinator::run(plan, &mut links, &mut WithAirspace::new(&mut airspace, &mut observer), stop);
     drop(links); // close every shard connection now: the survivors exit without waiting for us
     let outcome = match result {
@@ -388,6 +364,7 @@ impl ShardLink for Greeted {
 mod tests {
     use super::*;
     use sadesim_crds::plan::PlannedShard;
+    use std::sync::Arc;
 
     use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
     use crate::record::MCAP_FILE;
@@ -401,7 +378,8 @@ mod tests {
         let started = Instant::now();
         let timeouts = Timeouts { connect, shard: None };
         let any = SocketAddr::from(([127, 0, 0, 1], 0));
-        let error = run(&plan, "127.0.0.1:0", any, &dir.0, stop, timeouts).expect_err("no shard connects");
+        let error =
+            run(&plan, "127.0.0.1:0", any, &dir.0, stop, timeouts, StopRequest::new()).expect_err("no shard connects");
         (error, started.elapsed())
     }
 
@@ -483,8 +461,9 @@ mod tests {
     fn pilot_lines_have_their_documented_shape() {
         let released = serde_json::to_string(&Report::PilotsReleased { sim_time_s: 0.01 }).unwrap();
         assert_eq!(released, r#"{"type":"pilotsReleased","simTimeS":0.01}"#);
-        let stop: Control = serde_json::from_str(r#"{"type":"stop","reason":"pilotExited"}"#).unwrap();
-        assert_eq!(stop, Control::Stop { reason: "pilotExited".into() });
+        let stop: super::super::control::Control =
+            serde_json::from_str(r#"{"type":"stop","reason":"pilotExited"}"#).unwrap();
+        assert_eq!(stop, super::super::control::Control::Stop { reason: "pilotExited".into() });
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! Runtime roles as process entry points (`sim-worker <role>`): the same code the local
 //! runner uses in-process, behind TCP.
 
+pub mod control;
 pub mod coordinator;
 pub mod router;
 pub mod shard;
@@ -36,6 +37,9 @@ pub enum RoleError {
     /// The plan and flags do not describe a router (unknown segment, bad `--drone-host`).
     #[error("{0}")]
     RouterSetup(String),
+    /// `--control-file` cannot be read (the message names the flag and the file).
+    #[error("{0}")]
+    ControlFile(std::io::Error),
 }
 
 /// Reads a RunPlan written by the planner (`plan.json`).

@@ -27,6 +27,11 @@ pub const PLAN_PATH: &str = "/etc/sadesim/plan.json";
 pub const FLEET_PATH: &str = "/etc/sadesim/fleet.json";
 /// Writable output folder (emptyDir): the coordinator's run folder, the pilot's `SADESIM_OUT`.
 pub const OUT_DIR: &str = "/var/run/sadesim/out";
+/// The coordinator's downward-API file of its Pod's annotations (`--control-file`): the
+/// operator ends a run by annotating the Pod (`sadesim.io/stop`).
+pub const CONTROL_FILE: &str = "/var/run/sadesim/control/annotations";
+/// The mount point of the volume holding [`CONTROL_FILE`].
+pub const CONTROL_DIR: &str = "/var/run/sadesim/control";
 /// Writable scratch (emptyDir): the root filesystem is read-only.
 pub const TMP_DIR: &str = "/tmp";
 

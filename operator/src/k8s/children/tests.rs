@@ -349,11 +349,11 @@ fn optional_jobs_follow_the_stage() {
     let run = piloted(3);
     let plan = planned(&run);
     let names_at = |stage| children(&run, &plan, &s3(), stage).iter().map(|c| c.name().to_string()).collect::<Vec<_>>();
-    let none = names_at(Stage { assets_job: false, pilot: false });
+    let none = names_at(Stage { assets_job: false, pilot: false, stop: None });
     assert!(!none.iter().any(|n| n == "test-run-assets" || n == "test-run-pilot"), "{none:?}");
-    let assets = names_at(Stage { assets_job: true, pilot: false });
+    let assets = names_at(Stage { assets_job: true, pilot: false, stop: None });
     assert!(assets.contains(&"test-run-assets".to_string()) && !assets.contains(&"test-run-pilot".to_string()));
-    let pilot = names_at(Stage { assets_job: false, pilot: true });
+    let pilot = names_at(Stage { assets_job: false, pilot: true, stop: None });
     assert!(!pilot.contains(&"test-run-assets".to_string()) && pilot.contains(&"test-run-pilot".to_string()));
     // The roles that run the whole time exist at every stage.
     for n in ["test-run-config", "test-run-fleet", "test-run-coordinator", "test-run-shard", "test-run-router-0"] {
@@ -400,6 +400,43 @@ fn the_coordinator_uploads_its_run_folder_with_values_from_the_environment() {
     );
     // The coordinator's output folder is writable.
     assert!(c.volume_mounts.unwrap().iter().any(|m| m.mount_path == OUT_DIR && m.read_only == Some(false)));
+}
+
+/// The coordinator Pod reads its own annotations from a file; a stop changes only the
+/// annotation, nothing a running Pod cannot change.
+#[test]
+fn a_stop_is_an_annotation_the_coordinator_reads_through_a_downward_api_file() {
+    let run = piloted(3);
+    let plan = planned(&run);
+    let pod_of = |stop| {
+        let stage = Stage { assets_job: false, pilot: true, stop };
+        let children = children(&run, &plan, &s3(), stage);
+        children
+            .into_iter()
+            .find_map(|c| match c {
+                Child::Pod(p) if p.metadata.name.as_deref() == Some("test-run-coordinator") => Some(p),
+                _ => None,
+            })
+            .expect("a coordinator pod")
+    };
+    let running = pod_of(None);
+    let stopping = pod_of(Some("pilotExited"));
+    assert_eq!(running.metadata.annotations, None);
+    assert_eq!(stopping.metadata.annotations, Some([(STOP_ANNOTATION.to_string(), "pilotExited".to_string())].into()));
+    assert_eq!(running.spec, stopping.spec, "the spec of a running Pod cannot change");
+    assert_eq!(running.metadata.labels, stopping.metadata.labels);
+
+    // The file the script names is the one the volume projects.
+    let spec = running.spec.unwrap();
+    let c = &spec.containers[0];
+    assert!(c.args.as_ref().unwrap()[0].contains(&format!("--control-file {CONTROL_FILE} ")));
+    let m = c.volume_mounts.as_ref().unwrap().iter().find(|m| m.name == "control").expect("control mount");
+    assert_eq!(m.read_only, Some(true));
+    let volume = spec.volumes.as_ref().unwrap().iter().find(|v| v.name == "control").expect("control volume");
+    let items = volume.downward_api.as_ref().unwrap().items.as_ref().unwrap();
+    assert_eq!(items.len(), 1);
+    assert_eq!(format!("{}/{}", m.mount_path, items[0].path), CONTROL_FILE);
+    assert_eq!(items[0].field_ref.as_ref().unwrap().field_path, "metadata.annotations");
 }
 
 #[test]

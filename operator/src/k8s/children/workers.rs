@@ -8,16 +8,18 @@ use k8s_openapi::api::batch::v1::{
     PodFailurePolicyRule,
 };
 use k8s_openapi::api::core::v1::{
-    ContainerPort, Pod, PodTemplateSpec, Probe, Service, ServicePort, ServiceSpec, TCPSocketAction,
+    ContainerPort, DownwardAPIVolumeFile, DownwardAPIVolumeSource, ObjectFieldSelector, Pod, PodTemplateSpec, Probe,
+    Service, ServicePort, ServiceSpec, TCPSocketAction, Volume,
 };
 use k8s_openapi::apimachinery::pkg::apis::meta::v1::LabelSelector;
 use k8s_openapi::apimachinery::pkg::util::intstr::IntOrString;
 use sadesim_crds::plan::{RoleResources, RouterSegment};
 
 use super::pod::{
-    Context, OUT_DIR, PLAN_PATH, SADESIM, SIM_WORKER, config_volume, empty_dir, mount, pod_spec, worker_container,
+    CONTROL_DIR, CONTROL_FILE, Context, OUT_DIR, PLAN_PATH, SADESIM, SIM_WORKER, config_volume, empty_dir, mount,
+    pod_spec, worker_container,
 };
-use super::{ASSET_KEY_ANNOTATION, SEGMENT_LABEL, asset_cache_location, kueue, names, upload_url};
+use super::{ASSET_KEY_ANNOTATION, SEGMENT_LABEL, STOP_ANNOTATION, asset_cache_location, kueue, names, upload_url};
 
 /// Seconds a stopping coordinator gets to finish the run, write its files and upload them.
 pub const COORDINATOR_GRACE_S: i64 = 600;
@@ -115,7 +117,7 @@ pub(super) fn airspace_service(ctx: &Context) -> Service {
 fn coordinator_script(ctx: &Context) -> String {
     let s = ctx.plan.services;
     format!(
-        r#"{SIM_WORKER} coordinator --plan {PLAN_PATH} --listen 0.0.0.0:{link} --airspace-bind 0.0.0.0:{api} --out {OUT_DIR} &
+        r#"{SIM_WORKER} coordinator --plan {PLAN_PATH} --listen 0.0.0.0:{link} --airspace-bind 0.0.0.0:{api} --out {OUT_DIR} --control-file {CONTROL_FILE} &
 child=$!
 trap 'kill -INT "$child" 2>/dev/null' INT TERM
 while :; do wait "$child"; rc=$?; kill -0 "$child" 2>/dev/null || break; done
@@ -135,7 +137,12 @@ exit "$rc"
 /// `<run>-coordinator`: lockstep clock, recorder, airspace authority; uploads the run
 /// folder at the end (`sadesim archive put`, from the same image). Its stdout is the JSON
 /// progress stream the controller reads.
-pub(super) fn coordinator_pod(ctx: &Context) -> Pod {
+///
+/// With `stop`, the Pod carries the annotation `sadesim.io/stop: <stop>`: the coordinator
+/// reads its annotations from a downward-API file ([`CONTROL_FILE`]) and ends the run after
+/// the current window with that reason. An annotation is the one thing of a running Pod the
+/// operator may change, so the same server-side apply that created the Pod asks it to stop.
+pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
     let s = ctx.plan.services;
     let command = strings(&["/busybox/sh", "-c"]);
     let mut c =
@@ -149,11 +156,36 @@ pub(super) fn coordinator_pod(ctx: &Context) -> Pod {
     c.env_from = ctx.object_store_env();
     c.ports = Some(vec![port("shard-link", s.coordinator, "TCP"), port("airspace", s.airspace_http, "TCP")]);
     c.readiness_probe = Some(tcp_probe("airspace"));
-    c.volume_mounts.get_or_insert_with(Vec::new).push(mount("out", OUT_DIR, false));
-    let mut spec =
-        pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp"), empty_dir("out")], "Never");
+    let mounts = c.volume_mounts.get_or_insert_with(Vec::new);
+    mounts.push(mount("out", OUT_DIR, false));
+    mounts.push(mount("control", CONTROL_DIR, true));
+    let volumes =
+        vec![config_volume(names::config(ctx.name)), empty_dir("tmp"), empty_dir("out"), annotations_volume("control")];
+    let mut spec = pod_spec(vec![c], volumes, "Never");
     spec.termination_grace_period_seconds = Some(COORDINATOR_GRACE_S);
-    Pod { metadata: ctx.meta(names::coordinator_pod(ctx.name), "coordinator"), spec: Some(spec), ..Default::default() }
+    let mut metadata = ctx.meta(names::coordinator_pod(ctx.name), "coordinator");
+    if let Some(reason) = stop {
+        metadata.annotations = Some(BTreeMap::from([(STOP_ANNOTATION.to_string(), reason.to_string())]));
+    }
+    Pod { metadata, spec: Some(spec), ..Default::default() }
+}
+
+/// A downward-API volume with one file, `annotations` (mounted at [`CONTROL_DIR`], so it is
+/// [`CONTROL_FILE`]): the Pod's annotations as `key="value"` lines, refreshed by the
+/// kubelet when they change.
+fn annotations_volume(name: &str) -> Volume {
+    Volume {
+        name: name.into(),
+        downward_api: Some(DownwardAPIVolumeSource {
+            items: Some(vec![DownwardAPIVolumeFile {
+                path: "annotations".into(),
+                field_ref: Some(ObjectFieldSelector { field_path: "metadata.annotations".into(), api_version: None }),
+                ..Default::default()
+            }]),
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
 }
 
 fn segment_labels(ctx: &Context, segment: u32) -> BTreeMap<String, String> {

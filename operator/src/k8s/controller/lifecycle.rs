@@ -21,6 +21,7 @@ use k8s_openapi::apimachinery::pkg::apis::meta::v1::{Condition, Time};
 use k8s_openapi::jiff::Timestamp;
 use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
+use sadesim_crds::run::PilotExit;
 use sadesim_crds::status::{ArchiveStatus, Endpoints, Phase, ShardStatus, SimulationRunStatus, condition_types as ct};
 
 use super::observe::{Observed, WorkState};
@@ -36,6 +37,23 @@ pub const FINALIZER: &str = "sadesim.io/archive";
 /// How long `Archiving` waits for the coordinator to write and upload the run after the
 /// shards stopped, seconds; then its log is archived and it is deleted anyway.
 pub const COORDINATOR_GRACE_S: i64 = 120;
+
+/// How long Archiving waits, after the pilot is gone, for a running coordinator to end the
+/// run on request (the stop annotation) before the shards are deleted under it, seconds.
+pub const STOP_GRACE_S: i64 = 60;
+
+/// The `endReason` the coordinator is asked to end the run with (the stop annotation's
+/// value), by how the run ended.
+pub mod stop_reason {
+    /// `spec.abort: true`.
+    pub const ABORTED: &str = "aborted";
+    /// The SimulationRun was deleted.
+    pub const DELETED: &str = "deleted";
+    /// Another role (a router, the pilot's image) failed.
+    pub const ROLE_FAILED: &str = "roleFailed";
+    /// The spec no longer plans.
+    pub const INVALID: &str = "invalidSpec";
+}
 
 /// Requeue periods: polls while children move (they also wake the controller by watch).
 const REQUEUE_QUEUED: Duration = Duration::from_secs(15);
@@ -55,6 +73,9 @@ pub mod outcome {
     pub const ABORTED: &str = "Aborted";
     /// The run was deleted before it ended.
     pub const DELETED: &str = "Deleted";
+    /// Not an end: the pilot Job ended while the run is Running (the Running condition
+    /// stays True with this reason until the coordinator's summary arrives).
+    pub const PILOT_EXITED: &str = "PilotExited";
 }
 
 /// A simulated time seen at a wall-clock time: the base of the real-time factor.
@@ -370,7 +391,9 @@ fn archive_folder(input: &Input) -> Option<(String, String, String, String)> {
 
 /// The config and assets children (the first stage).
 fn first_stage(input: &Input, plan: &RunPlan) -> Vec<Child> {
-    children_for(input, plan, Stage { assets_job: true, pilot: false }, |r| matches!(r, "config" | "assets"))
+    children_for(input, plan, Stage { assets_job: true, pilot: false, stop: None }, |r| {
+        matches!(r, "config" | "assets")
+    })
 }
 
 fn queued(d: &mut Decision, input: &Input, plan: &RunPlan) {
@@ -479,7 +502,8 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
         d.enter(Phase::Running, "every shard is ready; the pilot is released");
     }
     let running = d.phase() == Phase::Running;
-    d.apply = children_for(input, plan, Stage { assets_job: false, pilot: running }, |r| r != "assets");
+    let stop = if running { pilot_exited(d, input, plan) } else { None };
+    d.apply = children_for(input, plan, Stage { assets_job: false, pilot: running, stop }, |r| r != "assets");
     d.status.endpoints = Some(endpoints(plan));
 
     // Kueue may hold the shards' Job even after the assets were admitted.
@@ -552,6 +576,32 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
     }
 }
 
+/// The pilot Job has ended (complete or failed) while the run is Running. With `onExit:
+/// endRun` the coordinator is asked to end the run (`Some(PILOT_EXITED)`, the stop
+/// annotation on its Pod), as `sadesim run` ends it when the pilot process exits; the
+/// coordinator's summary then ends the run. With `onExit: continue` the run goes on to
+/// `duration`. Either way the Running condition says so and one Event records it (a
+/// Warning when the Job failed).
+fn pilot_exited(d: &mut Decision, input: &Input, plan: &RunPlan) -> Option<&'static str> {
+    let end = input.observed.pilot_end()?;
+    let (now, generation) = (input.now, input.run.metadata.generation);
+    let ends_run = plan.spec.pilot.as_ref().is_some_and(|p| p.on_exit.unwrap_or_default() == PilotExit::EndRun);
+    let how = match &end {
+        Ok(how) | Err(how) => how,
+    };
+    let message = if ends_run {
+        format!("the pilot exited ({how}); onExit: endRun, so the coordinator ends the run after the current window")
+    } else {
+        format!("the pilot exited ({how}); onExit: continue, so the run goes on until spec.duration")
+    };
+    let first = condition(&d.status, ct::RUNNING).is_none_or(|c| c.reason != outcome::PILOT_EXITED);
+    if first {
+        d.events.push(Note { warning: end.is_err(), reason: outcome::PILOT_EXITED.into(), message: message.clone() });
+    }
+    d.condition(ct::RUNNING, true, outcome::PILOT_EXITED, message, now, generation);
+    ends_run.then_some(crate::runner::pilot::PILOT_EXITED)
+}
+
 fn round3(x: f64) -> f64 {
     (x * 1000.0).round() / 1000.0
 }
@@ -597,8 +647,44 @@ fn end(d: &mut Decision, input: &Input, reason: &str, message: impl Into<String>
     d.enter(Phase::Archiving, message);
 }
 
-/// One step of Archiving, driven by what still exists: pilot, then shards, then (after the
-/// coordinator ended or its grace passed) everything else.
+/// Seconds since Archiving began (the Archived condition's transition).
+fn since_s(d: &Decision, now: Timestamp) -> i128 {
+    let since = condition(&d.status, ct::ARCHIVED).map_or(now, |c| c.last_transition_time.0);
+    (now.as_nanosecond() - since.as_nanosecond()) / 1_000_000_000
+}
+
+/// The coordinator Pod with the stop annotation, while a run that ended without the
+/// coordinator (abort, deletion, another role's failure) should first be ended by it: its
+/// summary then says why (`endReason: aborted`) instead of blaming the shards deleted
+/// under it. `None` once the coordinator has finished or failed, is not live, never
+/// released the pilots (it is still waiting for shards and does not read requests yet),
+/// or did not answer within [`STOP_GRACE_S`] of Archiving's start.
+fn coordinator_to_stop(input: &Input, status: &SimulationRunStatus, waited_s: i128) -> Option<Child> {
+    let observed = input.observed;
+    let report = observed.coordinator.clone().unwrap_or_default();
+    let live = matches!(observed.coordinator_state(), Some(WorkState::Running));
+    if !live || !report.pilots_released || report.finished.is_some() || report.failed.is_some() {
+        return None;
+    }
+    if waited_s >= i128::from(STOP_GRACE_S) {
+        return None;
+    }
+    let ended = condition(status, ct::RUNNING).map(|c| c.reason.clone());
+    let reason = match ended.as_deref().unwrap_or(outcome::ABORTED) {
+        outcome::ABORTED => stop_reason::ABORTED,
+        outcome::DELETED => stop_reason::DELETED,
+        outcome::ROLE_FAILED => stop_reason::ROLE_FAILED,
+        outcome::INVALID => stop_reason::INVALID,
+        _ => return None,
+    };
+    let plan = input.plan.as_ref().ok()?;
+    let stage = Stage { assets_job: false, pilot: false, stop: Some(reason) };
+    children_for(input, plan, stage, |r| r == "coordinator").into_iter().find(|c| c.kind() == "Pod")
+}
+
+/// One step of Archiving, driven by what still exists: pilot, then (after asking the
+/// coordinator to end the run) shards, then (after the coordinator ended or its grace
+/// passed) everything else.
 fn archive_step(d: &mut Decision, input: &Input) {
     let (now, generation) = (input.now, input.run.metadata.generation);
     let observed = input.observed;
@@ -612,14 +698,26 @@ fn archive_step(d: &mut Decision, input: &Input) {
         return;
     }
     if observed.has_job("shard") {
+        if let Some(coordinator) = coordinator_to_stop(input, &d.status, since_s(d, now)) {
+            d.apply = vec![coordinator];
+            d.condition(
+                ct::ARCHIVED,
+                false,
+                "Archiving",
+                "asking the coordinator to end the run before the shards stop",
+                now,
+                generation,
+            );
+            d.requeue_at_most(REQUEUE_ARCHIVING);
+            return;
+        }
         d.archive_logs = pods_of("shard");
         d.delete = vec![Delete { kind: "Job", role: Some("shard") }];
         d.condition(ct::ARCHIVED, false, "Archiving", "stopping the shards", now, generation);
         d.requeue_at_most(REQUEUE_ARCHIVING);
         return;
     }
-    let since = condition(&d.status, ct::ARCHIVED).map_or(now, |c| c.last_transition_time.0);
-    let waited_s = (now.as_nanosecond() - since.as_nanosecond()) / 1_000_000_000;
+    let waited_s = since_s(d, now);
     let coordinator_live = matches!(observed.coordinator_state(), Some(WorkState::Pending | WorkState::Running));
     if coordinator_live && waited_s < i128::from(COORDINATOR_GRACE_S) {
         d.condition(

@@ -86,13 +86,28 @@ impl Observed {
 
     /// The first failure of any role: `(role, reason)`. Jobs speak for their pods (a Job
     /// retries failed pods up to its backoff limit); bare pods speak for themselves.
+    ///
+    /// Not the pilot Job's end: the pilot is the program under test, and its exit, with
+    /// whatever status, is a finding judged by the criteria, as in `sadesim run`
+    /// ([`Observed::pilot_end`]). A pilot whose image cannot be pulled never ran: that is
+    /// a failure (its pod's fatal waiting reason).
     pub fn failure(&self) -> Option<(String, String)> {
-        let jobs = self.jobs.iter();
+        let jobs = self.jobs.iter().filter(|j| j.role != "pilot");
         let bare_pods = self.pods.iter().filter(|p| !p.job_owned);
         let fatal_job_pods =
             self.pods.iter().filter(|p| p.job_owned && matches!(&p.state, WorkState::Failed(r) if is_fatal_waiting(r)));
         jobs.chain(bare_pods).chain(fatal_job_pods).find_map(|w| match &w.state {
             WorkState::Failed(reason) => Some((w.role.clone(), format!("{} {}: {reason}", w.kind, w.name))),
+            _ => None,
+        })
+    }
+
+    /// How the pilot Job ended, once it has: `Ok(name)` complete, `Err(description)`
+    /// failed (its pod exited non-zero, was OOM-killed or evicted).
+    pub fn pilot_end(&self) -> Option<Result<String, String>> {
+        self.jobs_of("pilot").find_map(|w| match &w.state {
+            WorkState::Succeeded => Some(Ok(format!("Job {} complete", w.name))),
+            WorkState::Failed(reason) => Some(Err(format!("Job {} failed: {reason}", w.name))),
             _ => None,
         })
     }

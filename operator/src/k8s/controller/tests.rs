@@ -419,6 +419,40 @@ async fn released_pilots_are_read_from_the_coordinator_log_and_start_the_pilot_j
     assert_eq!(event_reasons(&seen), ["Running"]);
 }
 
+/// The pilot Job completed: the coordinator Pod is applied again, now with the stop
+/// annotation, and nothing is deleted yet (the coordinator's summary ends the run).
+#[tokio::test]
+async fn a_completed_pilot_job_annotates_the_coordinator_pod_to_end_the_run() {
+    let mut run = in_phase(pilot_run(), Phase::Running);
+    run.status.as_mut().unwrap().start_time = Some(Time(t0()));
+    let cluster = Cluster {
+        run: Some(run),
+        jobs: vec![job("shard", None, 1), job("pilot", Some("Complete"), 0)],
+        pods: vec![
+            pod("test-run-shard-0", "shard", "Running", true),
+            pod("test-run-pilot-x1", "pilot", "Succeeded", true),
+            pod("test-run-coordinator", "coordinator", "Running", false),
+        ],
+        logs: BTreeMap::from([(
+            "test-run-coordinator".to_string(),
+            "{\"type\":\"progress\",\"simTimeS\":412.0,\"airborne\":0,\"onGround\":1,\"crashed\":0}\n".to_string(),
+        )]),
+        ..Default::default()
+    };
+    let (seen, _) = reconcile_once(cluster, s3_settings(), t0() + SignedDuration::from_secs(200)).await;
+    let coordinator = applies(&seen)
+        .into_iter()
+        .find(|s| s.path == format!("/api/v1/namespaces/{NS}/pods/test-run-coordinator"))
+        .expect("coordinator pod applied");
+    assert_apply(coordinator);
+    assert_eq!(coordinator.body["metadata"]["annotations"]["sadesim.io/stop"], "pilotExited");
+    assert!(seen.iter().all(|s| s.method != Method::DELETE), "{:?}", paths(&seen));
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Running));
+    assert_eq!(condition(&status, ct::RUNNING).reason, "PilotExited");
+    assert_eq!(event_reasons(&seen), ["PilotExited"]);
+}
+
 #[tokio::test]
 async fn a_finished_coordinator_ends_the_run_and_stops_the_shards_first() {
     let mut run = in_phase(new_run(), Phase::Running);

@@ -203,6 +203,96 @@ fn released_pilots_start_running_and_create_the_pilot_job() {
     assert!(d.status.endpoints.as_ref().unwrap().airspace.as_ref().unwrap().contains("test-run-airspace.default.svc"));
 }
 
+/// The coordinator Pod among the applied children, with its annotations.
+fn coordinator_stop(d: &Decision) -> Option<String> {
+    d.apply.iter().find_map(|c| match c {
+        Child::Pod(p) if role_of(c) == "coordinator" => {
+            Some(p.metadata.annotations.as_ref()?.get(crate::k8s::children::STOP_ANNOTATION)?.clone())
+        }
+        _ => None,
+    })
+}
+
+/// A Running pilot run whose pilot Job is in `state`, its pod `pod_state`.
+fn pilot_observed(state: WorkState, pod_state: WorkState) -> Observed {
+    let mut observed = workers(WorkState::Running);
+    observed.jobs.push(job("pilot", state));
+    observed.pods.push(pod("test-run-pilot-abcde", "pilot", pod_state, true));
+    observed.coordinator =
+        Some(CoordinatorReport { sim_time_s: Some(300.0), pilots_released: true, ..Default::default() });
+    observed
+}
+
+#[test]
+fn a_pilot_job_that_completes_asks_the_coordinator_to_end_the_run() {
+    let mut run = with_phase(pilot_run(), Phase::Running, true);
+    run.status.as_mut().unwrap().start_time = Some(Time(t0()));
+    // While the pilot runs, the coordinator Pod carries no stop.
+    let flying = decide_with(&run, &pilot_observed(WorkState::Running, WorkState::Running), None, later(100));
+    assert_eq!(coordinator_stop(&flying), None);
+
+    let observed = pilot_observed(WorkState::Succeeded, WorkState::Succeeded);
+    let d = decide_with(&run, &observed, None, later(300));
+    assert_eq!(d.status.phase, Some(Phase::Running), "the coordinator's summary ends the run, not the Job");
+    assert_eq!(coordinator_stop(&d).as_deref(), Some("pilotExited"));
+    let running = cond(&d, ct::RUNNING);
+    assert_eq!((running.status.as_str(), running.reason.as_str()), ("True", outcome::PILOT_EXITED));
+    assert!(running.message.contains("Job test-run-pilot complete"), "{}", running.message);
+    assert!(running.message.contains("onExit: endRun"), "{}", running.message);
+    assert_eq!(reasons(&d), ["PilotExited"]);
+    assert!(!d.events[0].warning);
+    assert!(d.delete.is_empty(), "the pilot's log is archived in Archiving, as for every end");
+
+    // The next reconcile applies the same Pod and records no second Event.
+    run.status = Some(d.status.clone());
+    let again = decide_with(&run, &observed, None, later(302));
+    assert_eq!(coordinator_stop(&again).as_deref(), Some("pilotExited"));
+    assert!(again.events.is_empty(), "{:?}", again.events);
+
+    // The coordinator ended the run: the usual end, through Archiving.
+    let mut observed = observed;
+    let mut done = finished(true);
+    done.finished.as_mut().unwrap().end_reason = "pilotExited".into();
+    observed.coordinator = Some(done);
+    let last = archive_to_the_end(run, observed, later(304)).pop().unwrap();
+    assert_eq!(last.status.phase, Some(Phase::Succeeded));
+}
+
+#[test]
+fn a_failed_pilot_job_ends_the_run_as_a_finding_not_a_role_failure() {
+    let run = with_phase(pilot_run(), Phase::Running, true);
+    let failed = WorkState::Failed("BackoffLimitExceeded: Job has reached the specified backoff limit".into());
+    let observed = pilot_observed(failed, WorkState::Failed("container pilot Error (exit code 3)".into()));
+    let d = decide_with(&run, &observed, None, later(300));
+    assert_eq!(d.status.phase, Some(Phase::Running));
+    assert_eq!(coordinator_stop(&d).as_deref(), Some("pilotExited"));
+    assert_eq!(reasons(&d), ["PilotExited"]);
+    assert!(d.events[0].warning, "a failed pilot is worth a Warning");
+    assert!(d.events[0].message.contains("Job test-run-pilot failed: BackoffLimitExceeded"), "{:?}", d.events);
+}
+
+#[test]
+fn with_on_exit_continue_the_run_goes_on_after_the_pilot_job() {
+    let mut run = with_phase(pilot_run(), Phase::Running, true);
+    run.spec.pilot.as_mut().unwrap().on_exit = Some(sadesim_crds::run::PilotExit::Continue);
+    let d = decide_with(&run, &pilot_observed(WorkState::Succeeded, WorkState::Succeeded), None, later(300));
+    assert_eq!(d.status.phase, Some(Phase::Running));
+    assert_eq!(coordinator_stop(&d), None);
+    assert_eq!(cond(&d, ct::RUNNING).reason, outcome::PILOT_EXITED);
+    assert!(cond(&d, ct::RUNNING).message.contains("goes on until spec.duration"));
+    assert_eq!(reasons(&d), ["PilotExited"]);
+}
+
+#[test]
+fn a_pilot_image_that_cannot_be_pulled_fails_the_run() {
+    let run = with_phase(pilot_run(), Phase::Running, true);
+    let observed = pilot_observed(WorkState::Running, WorkState::Failed("ImagePullBackOff: no such image".into()));
+    let d = decide_with(&run, &observed, None, later(30));
+    assert_eq!(d.status.phase, Some(Phase::Archiving));
+    assert_eq!(cond(&d, ct::RUNNING).reason, outcome::ROLE_FAILED);
+    assert!(cond(&d, ct::RUNNING).message.contains("role pilot failed: Pod test-run-pilot-abcde: ImagePullBackOff"));
+}
+
 #[test]
 fn running_reports_sim_time_and_real_time_factor() {
     let mut run = with_phase(new_run(), Phase::Running, true);
@@ -256,6 +346,14 @@ fn archive_to_the_end(mut run: SimulationRun, mut observed: Observed, start: Tim
                     observed.pods.clear();
                 }
             }
+        }
+        // A running coordinator asked to stop ends the run with that reason.
+        if let Some(reason) = coordinator_stop(&d)
+            && let Some(report) = observed.coordinator.as_mut()
+            && report.finished.is_none()
+        {
+            let sim_time_s = report.sim_time_s.unwrap_or_default();
+            report.finished = Some(Finished { sim_time_s, real_time_factor: 1.0, end_reason: reason, verdict: None });
         }
         // The coordinator finishes its upload and exits once the shards are gone.
         if !observed.has_job("shard") {
@@ -348,6 +446,55 @@ fn abort_stops_the_pilot_then_the_shards_then_archives() {
     let last = steps.last().unwrap();
     assert_eq!(last.status.phase, Some(Phase::Aborted));
     assert_eq!(cond(last, ct::ARCHIVED).status, "True");
+}
+
+/// Aborting a running run: the pilot goes first, then the coordinator is asked to end the
+/// run, so its summary says `aborted`, and only then are the shards deleted.
+#[test]
+fn abort_asks_the_running_coordinator_to_end_the_run_before_the_shards_go() {
+    let mut run = with_phase(pilot_run(), Phase::Running, true);
+    run.spec.abort = true;
+    let observed = pilot_observed(WorkState::Running, WorkState::Running);
+    let steps = archive_to_the_end(run, observed, later(60));
+    assert_eq!(steps[0].delete, [Delete { kind: "Job", role: Some("pilot") }]);
+    assert_eq!(coordinator_stop(&steps[0]), None, "the pilot stops first");
+    assert_eq!(coordinator_stop(&steps[1]).as_deref(), Some(stop_reason::ABORTED));
+    assert_eq!(roles(&steps[1].apply), ["Pod coordinator"], "only the coordinator Pod is applied");
+    assert!(steps[1].delete.is_empty(), "the shards stay until the coordinator has ended the run");
+    assert!(cond(&steps[1], ct::ARCHIVED).message.contains("asking the coordinator"));
+    // The coordinator answered (the helper's `finished` line): now the shards go.
+    assert!(steps[2].apply.is_empty());
+    assert_eq!(steps[2].delete, [Delete { kind: "Job", role: Some("shard") }]);
+    assert_eq!(steps.last().unwrap().status.phase, Some(Phase::Aborted));
+}
+
+#[test]
+fn a_coordinator_that_does_not_end_the_run_on_request_is_not_waited_for_long() {
+    let mut run = with_phase(new_run(), Phase::Running, true);
+    run.metadata.deletion_timestamp = Some(Time(later(5)));
+    let mut observed = workers(WorkState::Running);
+    observed.coordinator =
+        Some(CoordinatorReport { sim_time_s: Some(80.0), pilots_released: true, ..Default::default() });
+    let d = decide_with(&run, &observed, None, later(10));
+    assert_eq!(coordinator_stop(&d).as_deref(), Some(stop_reason::DELETED));
+    run.status = Some(d.status);
+    // An old worker image without --control-file never answers.
+    let d = decide_with(&run, &observed, None, later(10 + STOP_GRACE_S - 1));
+    assert!(coordinator_stop(&d).is_some() && d.delete.is_empty());
+    let d = decide_with(&run, &observed, None, later(10 + STOP_GRACE_S));
+    assert_eq!(coordinator_stop(&d), None);
+    assert_eq!(d.delete, [Delete { kind: "Job", role: Some("shard") }]);
+}
+
+#[test]
+fn a_coordinator_still_waiting_for_shards_is_not_asked_to_stop() {
+    let mut run = with_phase(new_run(), Phase::Starting, true);
+    run.spec.abort = true;
+    let mut observed = workers(WorkState::Running);
+    observed.coordinator = Some(CoordinatorReport::default());
+    let d = decide_with(&run, &observed, None, later(10));
+    assert_eq!(coordinator_stop(&d), None, "it reads requests only once the run started");
+    assert_eq!(d.delete, [Delete { kind: "Job", role: Some("shard") }]);
 }
 
 #[test]
