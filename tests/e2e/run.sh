@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # End-to-end test on a local cluster: create a k3d or kind cluster, build and import the
 # images, start MinIO as the archive, install the chart, apply the quickstart run, wait for
-# Succeeded, and verify the archived run against its manifest.
+# Succeeded, and verify the archived run against its manifest; then a run whose pilot Job
+# exits after 30 s must end there (tests/e2e/pilot-exit.yaml).
 #
 #   tests/e2e/run.sh k3d     # or: tests/e2e/run.sh kind
 #
@@ -47,7 +48,7 @@ cleanup() {
   if [ "$status" -ne 0 ]; then
     echo "e2e: FAILED; state of the cluster:" >&2
     kubectl get simrun,jobs,pods,svc -n "$RUN_NS" -o wide >&2 || true
-    kubectl describe simrun "$RUN" -n "$RUN_NS" >&2 || true
+    kubectl describe simrun -n "$RUN_NS" >&2 || true
     kubectl logs -n "$SYSTEM_NS" deployment/sadesim --tail=100 >&2 || true
     kubectl logs -n "$RUN_NS" "$RUN-coordinator" --tail=50 >&2 || true
   fi
@@ -143,26 +144,30 @@ ENDPOINT=http://minio.minio.svc:9000
   --set-string objectStore.env.AWS_ALLOW_HTTP=true
 kubectl get crd simulationruns.sadesim.io
 
+# Waits for run $1 to reach Succeeded (fails early on Failed/Aborted, with its message).
+wait_succeeded() {
+  local run=$1 deadline=$((SECONDS + TIMEOUT)) phase sim
+  while :; do
+    phase=$(kubectl get simrun "$run" -n "$RUN_NS" -o jsonpath='{.status.phase}' 2>/dev/null || true)
+    sim=$(kubectl get simrun "$run" -n "$RUN_NS" -o jsonpath='{.status.simTimeS}' 2>/dev/null || true)
+    echo "  $run: phase=${phase:-<none>} simTimeS=${sim:-<none>}"
+    case "$phase" in
+      Succeeded) return 0 ;;
+      Failed | Aborted)
+        echo "e2e: $run ended $phase: $(kubectl get simrun "$run" -n "$RUN_NS" -o jsonpath='{.status.message}')" >&2
+        exit 1 ;;
+    esac
+    [ "$SECONDS" -lt "$deadline" ] || { echo "e2e: $run timed out in phase ${phase:-<none>}" >&2; exit 1; }
+    sleep 5
+  done
+}
+
 step "applying examples/quickstart.yaml"
 kubectl delete simrun "$RUN" -n "$RUN_NS" --ignore-not-found --wait
 kubectl apply -n "$RUN_NS" -f examples/quickstart.yaml
 
 step "waiting up to ${TIMEOUT}s for Succeeded"
-deadline=$((SECONDS + TIMEOUT))
-phase=
-while :; do
-  phase=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.phase}' 2>/dev/null || true)
-  sim=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.simTimeS}' 2>/dev/null || true)
-  echo "  phase=${phase:-<none>} simTimeS=${sim:-<none>}"
-  case "$phase" in
-    Succeeded) break ;;
-    Failed | Aborted)
-      echo "e2e: run ended $phase: $(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.message}')" >&2
-      exit 1 ;;
-  esac
-  [ "$SECONDS" -lt "$deadline" ] || { echo "e2e: timed out in phase ${phase:-<none>}" >&2; exit 1; }
-  sleep 5
-done
+wait_succeeded "$RUN"
 
 step "checking the archive"
 url=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.archive.url}')
@@ -197,4 +202,20 @@ kubectl logs -n "$RUN_NS" archive-verify
 verdict=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.verdict.passed}')
 [ "$verdict" = true ] || { echo "e2e: verdict.passed is '$verdict'" >&2; exit 1; }
 
-step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified"
+# A pilot Job that exits ends its run (onExit: endRun): the operator annotates the
+# coordinator Pod sadesim.io/stop=pilotExited and the coordinator ends the run, in real
+# time, about 30 s in instead of at its 10-minute duration.
+PILOT_RUN=pilot-exit
+step "applying tests/e2e/pilot-exit.yaml (a pilot that exits after 30 s)"
+kubectl delete simrun "$PILOT_RUN" -n "$RUN_NS" --ignore-not-found --wait
+kubectl apply -n "$RUN_NS" -f tests/e2e/pilot-exit.yaml
+wait_succeeded "$PILOT_RUN"
+ended=$(kubectl get simrun "$PILOT_RUN" -n "$RUN_NS" -o jsonpath='{.status.conditions[?(@.type=="Running")].message}')
+sim=$(kubectl get simrun "$PILOT_RUN" -n "$RUN_NS" -o jsonpath='{.status.simTimeS}')
+case "$ended" in
+  *"(pilotExited)"*) echo "  $PILOT_RUN: $ended at simTimeS=$sim" ;;
+  *) echo "e2e: $PILOT_RUN did not end by its pilot: Running condition '$ended'" >&2; exit 1 ;;
+esac
+awk -v s="$sim" 'BEGIN { exit !(s < 300) }' || { echo "e2e: $PILOT_RUN ran to simTimeS=$sim, not ~30 s" >&2; exit 1; }
+
+step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified; $PILOT_RUN ended by its pilot at ${sim} s"
