@@ -5,9 +5,11 @@
 //! Phases (DESIGN §4): `Pending -> Queued -> GeneratingAssets -> Starting -> Running ->
 //! Archiving -> Succeeded | Failed | Aborted`. An invalid run goes straight to `Failed`
 //! with `Valid=False` and no children. Every other end (criteria judged, a role failed,
-//! `spec.abort`, deletion) passes through `Archiving`, which stops the pilot, then the
-//! shards, waits (bounded) for the coordinator to write and upload the run, archives every
-//! role's pod log, and only then removes the workloads.
+//! `spec.abort`, deletion) passes through `Archiving`, which stops the pilot, asks a
+//! coordinator still running the run to end it (bounded), stops the shards, waits (bounded)
+//! for the coordinator to write and upload the run, archives every role's pod log, and only
+//! then removes the workloads. The pilot Job's end is not an end by itself: with `onExit:
+//! endRun` it asks the coordinator to end the run, whose summary then ends it.
 //!
 //! # Guarantees
 //! - A terminal phase is never left.
