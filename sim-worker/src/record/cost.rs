@@ -1,5 +1,7 @@
-//! What recording costs: the CPU time the recorder's thread spends on each kind of file,
-//! measured inside the run (`summary.json` `recordingCpuS`, `sadesim bench --recording`).
+//! What recording costs: the CPU time the recorder's threads spend on each kind of file,
+//! measured inside the run (`summary.json` `recordingCpuS`, `sadesim bench --recording`):
+//! the caller's thread for `events.jsonl` and the trajectories, the `recorder` thread
+//! ([`super::StreamWriter`]) for MCAP and ULog.
 //!
 //! Measured with the thread's CPU clock (`CLOCK_THREAD_CPUTIME_ID`: user + system time of
 //! this thread only), so other threads (shards, routers) and time spent waiting do not
@@ -7,7 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
-/// CPU seconds the recorder spent on each kind of file over a run.
+/// CPU seconds the recorder's threads spent on each kind of file over a run.
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
 #[serde(rename_all = "camelCase")]
 pub struct RecordingCost {

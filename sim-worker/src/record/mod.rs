@@ -8,6 +8,7 @@ mod events;
 pub mod mcap_file;
 mod recorder;
 mod sampler;
+mod streams;
 mod summary;
 #[cfg(test)]
 pub(crate) mod test_dir;
@@ -19,6 +20,7 @@ pub use events::EventLog;
 pub use mcap_file::{MCAP_FILE, McapRecorder};
 pub use recorder::{Recorder, RecorderOptions};
 pub use sampler::Sampler;
+pub use streams::{BATCH_WINDOWS, QUEUE_BATCHES, StreamWriter};
 pub use summary::{DroneSummary, RunSummary};
 pub use trajectory::{TRAJECTORY_CSV_HEADER, TrajectoryCsv, TrajectoryGeoJson};
 pub use ulog_file::{ULOG_DIR, UlogRecorder};

@@ -7,7 +7,8 @@ use sadesim_crds::plan::RunPlan;
 
 use super::cost::Lap;
 use super::{
-    DroneSummary, EventLog, McapRecorder, RunSummary, Sampler, TrajectoryCsv, TrajectoryGeoJson, UlogRecorder,
+    DroneSummary, EventLog, McapRecorder, RunSummary, Sampler, StreamWriter, TrajectoryCsv, TrajectoryGeoJson,
+    UlogRecorder,
 };
 use crate::airspace::criteria::RunVerdict;
 use crate::coordinator::{RunObserver, RunOutcome};
@@ -30,7 +31,8 @@ impl Default for RecorderOptions {
 }
 
 /// Writes `events.jsonl`, `trajectory.csv` as the run goes, and `trajectory.geojson` and
-/// `summary.json` at [`Recorder::finish`].
+/// `summary.json` at [`Recorder::finish`]; `recording.mcap` and the ULogs as the run goes
+/// too, on a thread of their own ([`StreamWriter`]).
 #[derive(Debug)]
 pub struct Recorder {
     dir: PathBuf,
@@ -46,10 +48,9 @@ pub struct Recorder {
     summary: RunSummary,
     last_positions: Vec<Option<[f64; 2]>>,
     last: Vec<DroneSnapshot>,
-    /// `recording.mcap`, unless `spec.recording.mcap` is false.
-    mcap: Option<McapRecorder>,
-    /// `ulog/*.ulg`, unless `spec.recording.ulog` is false.
-    ulog: Option<UlogRecorder>,
+    /// `recording.mcap` (unless `spec.recording.mcap` is false) and `ulog/*.ulg` (unless
+    /// `spec.recording.ulog` is false); `None` when both are off.
+    streams: Option<StreamWriter>,
 }
 
 impl Recorder {
@@ -77,9 +78,9 @@ impl Recorder {
         let recording = plan.spec.recording();
         let mcap = if recording.mcap { Some(McapRecorder::create(dir, plan)?) } else { None };
         let ulog = if recording.ulog { Some(UlogRecorder::create(dir, plan)?) } else { None };
+        let streams = if mcap.is_some() || ulog.is_some() { Some(StreamWriter::start(mcap, ulog)?) } else { None };
         Ok(Self {
-            mcap,
-            ulog,
+            streams,
             dir: dir.to_path_buf(),
             frame: LocalFrame::new(plan.spec.origin.geo()),
             events: EventLog::create(&dir.join("events.jsonl"))?,
@@ -113,15 +114,12 @@ impl Recorder {
     /// # Errors
     /// I/O errors.
     pub fn finish(mut self, outcome: &RunOutcome) -> std::io::Result<RunSummary> {
-        let cost = &mut self.summary.recording_cpu_s;
-        let mut lap = Lap::start();
-        if let Some(mcap) = self.mcap.take() {
-            mcap.finish()?;
-            lap.add_to(&mut cost.mcap);
-        }
-        if let Some(ulog) = self.ulog.take() {
-            ulog.finish()?;
-            lap.add_to(&mut cost.ulog);
+        if let Some(streams) = self.streams.take() {
+            let spent = streams.finish()?;
+            let cost = &mut self.summary.recording_cpu_s;
+            cost.mcap += spent.mcap;
+            cost.ulog += spent.ulog;
+            cost.other += spent.other;
         }
         self.tracks.write(&self.dir.join("trajectory.geojson"), &self.plan)?;
         self.summary.end_reason = outcome.reason.clone();
@@ -141,14 +139,8 @@ impl RunObserver for Recorder {
         let mut cost = self.summary.recording_cpu_s;
         let mut lap = Lap::start();
         self.events.write(events).map_err(io)?;
-        lap.add_to(&mut cost.other);
-        if let Some(mcap) = &mut self.mcap {
-            mcap.write_window(time_s, drones, events).map_err(io)?;
-            lap.add_to(&mut cost.mcap);
-        }
-        if let Some(ulog) = &mut self.ulog {
-            ulog.write_window(time_s, drones, events).map_err(io)?;
-            lap.add_to(&mut cost.ulog);
+        if let Some(streams) = &mut self.streams {
+            streams.write(time_s, drones.to_vec(), events.to_vec()).map_err(io)?;
         }
         let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
         if !final_window && self.rows.due(time_s) {
@@ -163,7 +155,8 @@ impl RunObserver for Recorder {
         } else {
             self.summary.events += events.len() as u64;
         }
-        self.last = drones.to_vec();
+        self.last.clear();
+        self.last.extend_from_slice(drones);
         lap.add_to(&mut cost.other);
         self.summary.recording_cpu_s = cost;
         Ok(())

@@ -1,0 +1,236 @@
+//! The high-rate recordings, `recording.mcap` and `ulog/*.ulg`, written on their own thread.
+//!
+//! Why a thread: the coordinator runs the lockstep loop, and every shard waits while it
+//! handles a window. Encoding and compressing a window's poses (about 180 µs per drone and
+//! simulated second, `docs/performance.md`) is most of that handling; for a 1000-drone run
+//! it would stall every shard for 180 ms per simulated second. Handed to this thread, it
+//! overlaps with the shards' next window instead. It costs as much CPU as before; it only
+//! leaves the critical path.
+//!
+//! The cheap files (`events.jsonl`, `trajectory.csv`) stay on the caller's thread, written
+//! before the loop goes on: a pilot started at the release window finds `pilotsReleased`
+//! in `events.jsonl`.
+//!
+//! Guarantees:
+//! - Windows are written in the order they are sent; the files are byte for byte what a
+//!   synchronous writer produces.
+//! - At most [`QUEUE_WINDOWS`] windows wait: a writer slower than the simulation slows the
+//!   caller (backpressure), never grows memory.
+//! - A write error stops the thread; the caller's next [`StreamWriter::write`] (or
+//!   [`StreamWriter::finish`]) returns it.
+//! - [`StreamWriter::finish`] waits until both files are complete. Dropped without it (the
+//!   caller unwinds), the thread still finishes the files it holds.
+
+use std::io;
+use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
+use std::thread::JoinHandle;
+
+use super::cost::{Lap, RecordingCost};
+use super::{McapRecorder, UlogRecorder};
+use crate::events::Event;
+use crate::protocol::DroneSnapshot;
+
+/// Windows handed over at once (10 ms of simulated time each by default): one wake-up of
+/// the thread per batch, not per window. Per window, the hand-over (a futex wake and a
+/// context switch on a busy machine) cost as much CPU as encoding ten drones.
+pub const BATCH_WINDOWS: usize = 10;
+
+/// Batches that may wait for the writer thread.
+pub const QUEUE_BATCHES: usize = 2;
+
+/// One sync window, as the recorder saw it.
+#[derive(Debug)]
+struct Window {
+    time_s: f64,
+    drones: Vec<DroneSnapshot>,
+    events: Vec<Event>,
+}
+
+/// The MCAP and ULog writers, on a thread of their own.
+#[derive(Debug)]
+pub struct StreamWriter {
+    /// `None` once the thread is known to have ended.
+    sender: Option<SyncSender<Vec<Window>>>,
+    /// Windows not handed over yet (fewer than [`BATCH_WINDOWS`]).
+    pending: Vec<Window>,
+    thread: Option<JoinHandle<io::Result<RecordingCost>>>,
+}
+
+impl StreamWriter {
+    /// Starts the thread that owns `mcap` and `ulog` (either may be off).
+    ///
+    /// # Errors
+    /// The thread cannot be spawned.
+    pub fn start(mcap: Option<McapRecorder>, ulog: Option<UlogRecorder>) -> io::Result<Self> {
+        let (sender, receiver) = sync_channel(QUEUE_BATCHES);
+        let thread =
+            std::thread::Builder::new().name("recorder".into()).spawn(move || write_all(receiver, mcap, ulog))?;
+        Ok(Self { sender: Some(sender), pending: Vec::with_capacity(BATCH_WINDOWS), thread: Some(thread) })
+    }
+
+    /// Queues a window; every [`BATCH_WINDOWS`] windows, hands them to the thread, blocking
+    /// while [`QUEUE_BATCHES`] batches wait.
+    ///
+    /// # Errors
+    /// The writer thread failed (on an earlier window): its error.
+    pub fn write(&mut self, time_s: f64, drones: Vec<DroneSnapshot>, events: Vec<Event>) -> io::Result<()> {
+        if self.sender.is_none() {
+            return Err(io::Error::other("the recordings were already closed after an error"));
+        }
+        self.pending.push(Window { time_s, drones, events });
+        if self.pending.len() < BATCH_WINDOWS { Ok(()) } else { self.hand_over() }
+    }
+
+    /// Sends the pending windows.
+    fn hand_over(&mut self) -> io::Result<()> {
+        let Some(sender) = &self.sender else {
+            return Err(io::Error::other("the recordings were already closed after an error"));
+        };
+        let batch = std::mem::replace(&mut self.pending, Vec::with_capacity(BATCH_WINDOWS));
+        if sender.send(batch).is_ok() {
+            return Ok(());
+        }
+        // The receiver is gone: the thread ended, which it does only on an error.
+        self.sender = None;
+        match self.join() {
+            Err(e) => Err(e),
+            Ok(_) => Err(io::Error::other("the recording thread ended early")),
+        }
+    }
+
+    /// Hands over the last windows, waits for them and the files' ends; the CPU time the
+    /// thread spent on each file (`other`: freeing windows and its own bookkeeping).
+    ///
+    /// # Errors
+    /// Any write or finish error of the thread.
+    pub fn finish(mut self) -> io::Result<RecordingCost> {
+        if !self.pending.is_empty() {
+            self.hand_over()?;
+        }
+        self.sender = None; // closing the channel tells the thread to finish the files
+        self.join()
+    }
+
+    fn join(&mut self) -> io::Result<RecordingCost> {
+        let thread = self.thread.take().ok_or_else(|| io::Error::other("the recording thread was already joined"))?;
+        thread.join().map_err(|_| io::Error::other("the recording thread panicked"))?
+    }
+}
+
+/// The thread: writes windows until the channel closes, then finishes the files. Returns
+/// at the first error (dropping the receiver, which the sender notices).
+fn write_all(
+    batches: Receiver<Vec<Window>>,
+    mut mcap: Option<McapRecorder>,
+    mut ulog: Option<UlogRecorder>,
+) -> io::Result<RecordingCost> {
+    let mut cost = RecordingCost::default();
+    let mut lap = Lap::start();
+    for w in batches.into_iter().flatten() {
+        if let Some(m) = &mut mcap {
+            m.write_window(w.time_s, &w.drones, &w.events)?;
+            lap.add_to(&mut cost.mcap);
+        }
+        if let Some(u) = &mut ulog {
+            u.write_window(w.time_s, &w.drones, &w.events)?;
+            lap.add_to(&mut cost.ulog);
+        }
+        // Freeing the window is the thread's too.
+        drop(w);
+        lap.add_to(&mut cost.other);
+    }
+    lap.add_to(&mut cost.other);
+    if let Some(m) = mcap {
+        m.finish()?;
+        lap.add_to(&mut cost.mcap);
+    }
+    if let Some(u) = ulog {
+        u.finish()?;
+        lap.add_to(&mut cost.ulog);
+    }
+    Ok(cost)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
+    use crate::record::test_dir::TempDir;
+    use crate::record::{MCAP_FILE, ULOG_DIR};
+
+    fn windows() -> impl Iterator<Item = (f64, Vec<DroneSnapshot>)> {
+        (1..=200u32).map(|w| {
+            let t = f64::from(w) * 0.01;
+            (t, (0..3).map(|index| DroneSnapshot::climbing(index, f64::from(index) * 10.0, t)).collect())
+        })
+    }
+
+    fn bytes(dir: &TempDir) -> Vec<(String, Vec<u8>)> {
+        let mut files = vec![(MCAP_FILE.to_string(), std::fs::read(dir.0.join(MCAP_FILE)).unwrap())];
+        let mut ulogs: Vec<_> = std::fs::read_dir(dir.0.join(ULOG_DIR)).unwrap().map(|e| e.unwrap().path()).collect();
+        ulogs.sort();
+        files.extend(ulogs.into_iter().map(|p| (p.display().to_string(), std::fs::read(p).unwrap())));
+        files.iter_mut().for_each(|(name, _)| *name = name.rsplit('/').next().unwrap().to_string());
+        files
+    }
+
+    #[test]
+    fn the_thread_writes_the_same_bytes_as_the_writers_themselves() {
+        let plan = plan_of(run_with_groups(&[("a", 3)]).build());
+        let direct = TempDir::new("streams-direct");
+        let (mut mcap, mut ulog) =
+            (McapRecorder::create(&direct.0, &plan).unwrap(), UlogRecorder::create(&direct.0, &plan).unwrap());
+        for (t, drones) in windows() {
+            mcap.write_window(t, &drones, &[]).unwrap();
+            ulog.write_window(t, &drones, &[]).unwrap();
+        }
+        mcap.finish().unwrap();
+        ulog.finish().unwrap();
+
+        let threaded = TempDir::new("streams-threaded");
+        let mcap = McapRecorder::create(&threaded.0, &plan).unwrap();
+        let ulog = UlogRecorder::create(&threaded.0, &plan).unwrap();
+        let mut writer = StreamWriter::start(Some(mcap), Some(ulog)).unwrap();
+        for (t, drones) in windows() {
+            writer.write(t, drones, Vec::new()).unwrap();
+        }
+        let cost = writer.finish().unwrap();
+        assert!(cost.mcap > 0.0 && cost.ulog > 0.0, "{cost:?}");
+
+        let (a, b) = (bytes(&direct), bytes(&threaded));
+        assert_eq!(a.len(), 4, "the MCAP and 3 ULogs");
+        assert_eq!(a.iter().map(|f| &f.0).collect::<Vec<_>>(), b.iter().map(|f| &f.0).collect::<Vec<_>>());
+        for ((name, x), (_, y)) in a.iter().zip(&b) {
+            assert!(x == y, "{name} differs");
+        }
+    }
+
+    /// A disk that fills up mid-run: the error reaches the caller at a later `write`, and
+    /// `finish` does not pretend the files are complete. The first drone's ULog is
+    /// `/dev/full`: its buffered writer fails at its first flush (the logs flush once per
+    /// simulated second).
+    #[test]
+    fn a_write_error_on_the_thread_reaches_the_caller() {
+        let plan = plan_of(run_with_groups(&[("a", 3)]).build());
+        let dir = TempDir::new("streams-full");
+        std::fs::create_dir_all(dir.0.join(ULOG_DIR)).unwrap();
+        let first = format!("{}.ulg", plan.drones[0].name);
+        std::os::unix::fs::symlink("/dev/full", dir.0.join(ULOG_DIR).join(first)).unwrap();
+        let ulog = UlogRecorder::create(&dir.0, &plan).unwrap();
+        let mut writer = StreamWriter::start(None, Some(ulog)).unwrap();
+        let mut error = None;
+        for w in 1..=100_000u32 {
+            let t = f64::from(w) * 0.01;
+            let drones = (0..3).map(|index| DroneSnapshot::climbing(index, 0.0, t)).collect();
+            if let Err(e) = writer.write(t, drones, Vec::new()) {
+                error = Some(e);
+                break;
+            }
+        }
+        let error = error.expect("writing to /dev/full fails within 1000 simulated seconds");
+        assert!(error.to_string().contains("No space left on device"), "ENOSPC, not a stand-in: {error}");
+        let again = writer.write(1.0, Vec::new(), Vec::new()).unwrap_err();
+        assert!(again.to_string().contains("already closed after an error"), "{again}");
+        assert!(writer.finish().is_err());
+    }
+}
