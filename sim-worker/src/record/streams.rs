@@ -117,6 +117,21 @@ impl StreamWriter {
     }
 }
 
+impl Drop for StreamWriter {
+    /// Dropped without [`StreamWriter::finish`] (the run ended on an error, or unwinds):
+    /// hands over the pending windows and waits while the thread finishes the files, so
+    /// what was recorded is complete on disk (errors are the caller's to have seen).
+    fn drop(&mut self) {
+        if let Some(sender) = self.sender.take() {
+            if !self.pending.is_empty() {
+                let _ = sender.send(std::mem::take(&mut self.pending));
+            }
+            drop(sender);
+            let _ = self.join();
+        }
+    }
+}
+
 /// The thread: writes windows until the channel closes, then finishes the files. Returns
 /// at the first error (dropping the receiver, which the sender notices).
 fn write_all(
@@ -203,6 +218,31 @@ mod tests {
         for ((name, x), (_, y)) in a.iter().zip(&b) {
             assert!(x == y, "{name} differs");
         }
+    }
+
+    /// A writer dropped mid-batch (the run ended on an error) still writes every window it
+    /// was given and completes the files.
+    #[test]
+    fn dropping_the_writer_keeps_every_window_and_completes_the_files() {
+        let plan = plan_of(run_with_groups(&[("a", 3)]).build());
+        let dir = TempDir::new("streams-dropped");
+        let mut writer = StreamWriter::start(Some(McapRecorder::create(&dir.0, &plan).unwrap()), None).unwrap();
+        let sent = BATCH_WINDOWS * 3 + 7; // the last 7 are still pending
+        for (t, drones) in windows().take(sent) {
+            writer.write(t, drones, Vec::new()).unwrap();
+        }
+        drop(writer);
+        let mcap = std::fs::read(dir.0.join(MCAP_FILE)).unwrap();
+        assert!(mcap.ends_with(b"\x89MCAP0\r\n"), "no closing magic: the file was not finished");
+        let summary = mcap::Summary::read(&mcap).unwrap().expect("a summary section");
+        let stats = summary.stats.expect("statistics");
+        let poses: u64 = summary
+            .channels
+            .values()
+            .filter(|c| c.topic.ends_with("/pose"))
+            .map(|c| stats.channel_message_counts[&c.id])
+            .sum();
+        assert_eq!(poses, 3 * sent as u64, "100 Hz ground truth: one pose per drone and window");
     }
 
     /// A disk that fills up mid-run: the error reaches the caller at a later `write`, and
