@@ -1,9 +1,9 @@
 //! The high-rate recordings, `recording.mcap` and `ulog/*.ulg`, written on their own thread.
 //!
 //! Why a thread: the coordinator runs the lockstep loop, and every shard waits while it
-//! handles a window. Encoding and compressing a window's poses (about 180 µs per drone and
-//! simulated second, `docs/performance.md`) is most of that handling; for a 1000-drone run
-//! it would stall every shard for 180 ms per simulated second. Handed to this thread, it
+//! handles a window. Encoding and compressing a window's poses (about 150-180 µs per drone
+//! and simulated second, `docs/performance.md`) is most of that handling; for a 1000-drone
+//! run it would stall every shard for about 150 ms per simulated second. Handed to this thread, it
 //! overlaps with the shards' next window instead. It costs as much CPU as before; it only
 //! leaves the critical path.
 //!
@@ -14,12 +14,14 @@
 //! Guarantees:
 //! - Windows are written in the order they are sent; the files are byte for byte what a
 //!   synchronous writer produces.
-//! - At most [`QUEUE_WINDOWS`] windows wait: a writer slower than the simulation slows the
-//!   caller (backpressure), never grows memory.
+//! - At most `(QUEUE_BATCHES + 1) x BATCH_WINDOWS` windows wait besides the one being
+//!   written: a writer slower than the simulation slows the caller (backpressure), never
+//!   grows memory. A process killed mid-run loses those windows (0.3 simulated seconds by
+//!   default) besides the open MCAP chunk.
 //! - A write error stops the thread; the caller's next [`StreamWriter::write`] (or
 //!   [`StreamWriter::finish`]) returns it.
 //! - [`StreamWriter::finish`] waits until both files are complete. Dropped without it (the
-//!   caller unwinds), the thread still finishes the files it holds.
+//!   run ended on an error, or the caller unwinds), it does the same and drops the result.
 
 use std::io;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
