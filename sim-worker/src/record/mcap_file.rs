@@ -318,3 +318,17 @@ impl McapRecorder {
         Ok(())
     }
 }
+
+/// Test support: the pose messages (`/drones/<name>/pose`, all drones) in the finished
+/// `recording.mcap` of `dir`, from its summary's statistics.
+///
+/// # Panics
+/// When the file does not end with the closing magic or has no summary: it was not finished.
+#[cfg(test)]
+pub(crate) fn finished_pose_count(dir: &Path) -> u64 {
+    let mcap = std::fs::read(dir.join(MCAP_FILE)).unwrap();
+    assert!(mcap.ends_with(writer::MAGIC), "no closing magic: {MCAP_FILE} was not finished");
+    let summary = mcap::Summary::read(&mcap).unwrap().expect("a summary section");
+    let stats = summary.stats.expect("statistics");
+    summary.channels.values().filter(|c| c.topic.ends_with("/pose")).map(|c| stats.channel_message_counts[&c.id]).sum()
+}

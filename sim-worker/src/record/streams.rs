@@ -234,16 +234,7 @@ mod tests {
             writer.write(t, drones, Vec::new()).unwrap();
         }
         drop(writer);
-        let mcap = std::fs::read(dir.0.join(MCAP_FILE)).unwrap();
-        assert!(mcap.ends_with(b"\x89MCAP0\r\n"), "no closing magic: the file was not finished");
-        let summary = mcap::Summary::read(&mcap).unwrap().expect("a summary section");
-        let stats = summary.stats.expect("statistics");
-        let poses: u64 = summary
-            .channels
-            .values()
-            .filter(|c| c.topic.ends_with("/pose"))
-            .map(|c| stats.channel_message_counts[&c.id])
-            .sum();
+        let poses = crate::record::mcap_file::finished_pose_count(&dir.0);
         assert_eq!(poses, 3 * sent as u64, "100 Hz ground truth: one pose per drone and window");
     }
 

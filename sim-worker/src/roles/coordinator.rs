@@ -367,7 +367,6 @@ mod tests {
     use std::sync::Arc;
 
     use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
-    use crate::record::MCAP_FILE;
     use crate::record::test_dir::TempDir;
 
     /// The coordinator of a 4-drone plan in 2 shards on free ports of 127.0.0.1.
@@ -433,16 +432,7 @@ mod tests {
         assert_eq!(written.end_reason, outcome.reason);
         assert!(dir.0.join(AIRSPACE_FILE).is_file());
         // The MCAP was finished: summary section and closing magic, every pose in it.
-        let mcap = std::fs::read(dir.0.join(MCAP_FILE)).unwrap();
-        assert!(mcap.ends_with(b"\x89MCAP0\r\n"), "no closing magic");
-        let summary = mcap::Summary::read(&mcap).unwrap().expect("a summary section");
-        let stats = summary.stats.expect("statistics");
-        let poses: u64 = summary
-            .channels
-            .values()
-            .filter(|c| c.topic.ends_with("/pose"))
-            .map(|c| stats.channel_message_counts[&c.id])
-            .sum();
+        let poses = crate::record::mcap_file::finished_pose_count(&dir.0);
         assert_eq!(poses, 2 * 50, "100 Hz x 0.5 s x 2 drones");
     }
 
