@@ -15,8 +15,8 @@ use std::path::Path;
 
 use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::RunPlan;
+use sadesim_world::{World, WorldInputs};
 use serde_json::json;
-use sim_worker::world::{World, WorldInputs};
 
 use crate::archive::{Archive, ArchiveError};
 
@@ -116,7 +116,7 @@ mod tests {
 
     fn plan() -> RunPlan {
         let run = sadesim_crds::fixtures::RunBuilder::test().build();
-        crate::planner::plan(&run).expect("the fixture plans")
+        sadesim_planner::plan(&run).expect("the fixture plans")
     }
 
     #[test]

@@ -221,7 +221,7 @@ pub fn run_airspace(
 ) -> Result<sim_worker::airspace::load::LoadReport, AirspaceBenchError> {
     use sim_worker::airspace::{AirspaceState, load, service};
     let run = parse_run(CHICAGO).map_err(|e| AirspaceBenchError::Plan(e.to_string()))?;
-    let plan = crate::planner::plan(&run).map_err(|e| AirspaceBenchError::Plan(e.to_string()))?;
+    let plan = sadesim_planner::plan(&run).map_err(|e| AirspaceBenchError::Plan(e.to_string()))?;
     let state = AirspaceState::new(&plan, &|name| std::env::var(name).ok());
     let state = std::sync::Arc::new(std::sync::Mutex::new(state));
     let service = service::start(state, std::net::SocketAddr::from(([127, 0, 0, 1], 0)))?;

@@ -9,7 +9,7 @@ use sadesim_crds::document::{DocumentError, MAX_DOCUMENT_BYTES};
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::{SimulationRun, parse_runs, validate};
 
-use crate::planner::{self, Addressing};
+use sadesim_planner::{self as planner, Addressing};
 
 /// SADE-SIM: city-scale multi-drone simulation for validating software pilots.
 ///

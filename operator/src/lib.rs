@@ -6,6 +6,6 @@ pub mod assets;
 pub mod bench;
 pub mod cli;
 pub mod k8s;
-pub mod planner;
+
 pub mod report;
 pub mod runner;

@@ -25,4 +25,3 @@ pub mod sensors;
 pub mod shard;
 pub mod transport;
 pub mod vehicle;
-pub mod world;

@@ -15,7 +15,7 @@ use rapier3d_f64::prelude::{
     ActiveCollisionTypes, ColliderBuilder, ColliderHandle, PhysicsWorld, RigidBodyBuilder, RigidBodyHandle, Vector,
 };
 
-use crate::world::Building;
+use sadesim_world::Building;
 
 /// A shard's collision world.
 pub struct ContactWorld {

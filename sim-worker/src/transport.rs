@@ -12,7 +12,7 @@ use sadesim_crds::plan::RunPlan;
 use crate::coordinator::{LinkError, ShardLink};
 use crate::protocol::{FromShard, ToShard};
 use crate::shard::Shard;
-use crate::world::World;
+use sadesim_world::World;
 
 /// The coordinator's end of an in-process shard thread.
 #[derive(Debug)]

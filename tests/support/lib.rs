@@ -6,14 +6,14 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::fleet::{Mission, MissionItem};
 use sadesim_crds::geo::GeoPoint;
 use sadesim_crds::plan::RunPlan;
+use sadesim_world::{World, WorldInputs};
 use sim_worker::events::Event;
 use sim_worker::protocol::{DroneSnapshot, FromShard, ToShard};
 use sim_worker::shard::Shard;
-use sim_worker::world::{World, WorldInputs};
 
 /// Plans a run that must be valid.
 pub fn plan(run: &SimulationRun) -> RunPlan {
-    sadesim::planner::plan(run).expect("a valid run")
+    sadesim_planner::plan(run).expect("a valid run")
 }
 
 /// Flies shard 0 of `run` for `seconds` of simulated time after a 0.3 s warm-up (GNSS

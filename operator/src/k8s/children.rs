@@ -14,7 +14,7 @@
 //! | pilot | Job | `<run>-pilot` | the user's image, once every shard is ready |
 //!
 //! The Service and host names are the ones the planner writes into the fleet file
-//! ([`crate::planner::Addressing::Cluster`]), so a pilot and the router reach the same pods.
+//! ([`sadesim_planner::Addressing::Cluster`]), so a pilot and the router reach the same pods.
 //!
 //! # Guarantees
 //! - Every child carries an ownerReference to the run (controller, blockOwnerDeletion) and

@@ -11,7 +11,7 @@ use std::io::Write;
 use sadesim_crds::document::parse_runs;
 
 use super::children::{ClusterSettings, Stage, children, problems};
-use crate::planner::{DEFAULT_NAMESPACE, PlanError, plan};
+use sadesim_planner::{DEFAULT_NAMESPACE, PlanError, plan};
 
 /// The uid used when a document has none (documents in Git never do): obviously not a real
 /// one, and a valid value for `ownerReferences[].uid`.

@@ -10,13 +10,13 @@
 use std::path::{Path, PathBuf};
 
 use sadesim_crds::plan::RunPlan;
+use sadesim_world::WorldStats;
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
 use sim_worker::airspace::authority::{Lease, RequestRecord};
 use sim_worker::airspace::monitor::{ComplianceReport, Presence, ViolationRecord};
 use sim_worker::events::{Event, Place};
 use sim_worker::record::RunSummary;
-use sim_worker::world::WorldStats;
 
 use crate::runner::pilot::PilotRecord;
 

@@ -13,7 +13,7 @@
 
 use std::path::{Path, PathBuf};
 
-use sim_worker::world::{World, WorldInputs};
+use sadesim_world::{World, WorldInputs};
 
 pub mod data;
 pub mod html;

@@ -11,6 +11,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use indicatif::{ProgressBar, ProgressStyle};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
+use sadesim_world::{World, WorldInputs};
 use sim_worker::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use sim_worker::coordinator::{self, CoordinatorError, RunObserver, ShardLink};
 use sim_worker::events::{Event, EventKind};
@@ -21,9 +22,8 @@ use sim_worker::roles::coordinator::close_failed_run;
 use sim_worker::roles::router::RouterOptions;
 use sim_worker::shard::MavlinkOptions;
 use sim_worker::transport;
-use sim_worker::world::{World, WorldInputs};
 
-use crate::planner::{self, Addressing, PlanError};
+use sadesim_planner::{self as planner, Addressing, PlanError};
 
 pub mod pilot;
 mod workers;

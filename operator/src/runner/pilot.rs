@@ -26,7 +26,7 @@ use sadesim_crds::plan::RunPlan;
 use sadesim_crds::run::{Pilot, PilotExit};
 use serde::{Deserialize, Serialize};
 
-use crate::planner::credential_env_var;
+use sadesim_planner::credential_env_var;
 
 /// The fleet file in the output folder (path in `SADESIM_FLEET`).
 pub const FLEET_FILE: &str = "fleet.json";
@@ -406,7 +406,7 @@ mod tests {
     use super::*;
 
     fn plan_with(f: impl FnOnce(&mut sadesim_crds::SimulationRun)) -> RunPlan {
-        crate::planner::plan(&RunBuilder::test().with_group("beta-team", 1).with(f).build()).unwrap()
+        sadesim_planner::plan(&RunBuilder::test().with_group("beta-team", 1).with(f).build()).unwrap()
     }
 
     fn pilot(command: &[&str]) -> Pilot {

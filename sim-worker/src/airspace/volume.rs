@@ -23,20 +23,7 @@ pub const GROUND_SAMPLE_SPACING_M: f64 = 1.0;
 /// teleport-length segment; 100 km at 1 m spacing).
 pub const MAX_GROUND_SAMPLES: usize = 100_000;
 
-/// Terrain height under a horizontal position: ENU up (metres above the origin's ground).
-pub trait Ground {
-    fn ground_up_m(&self, east_m: f64, north_m: f64) -> f64;
-}
-
-/// Level ground at one height: for tests and flat worlds.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct FlatGround(pub f64);
-
-impl Ground for FlatGround {
-    fn ground_up_m(&self, _east_m: f64, _north_m: f64) -> f64 {
-        self.0
-    }
-}
+pub use sadesim_world::{FlatGround, Ground};
 
 /// One zone, ready for queries.
 #[derive(Clone, Debug, PartialEq)]

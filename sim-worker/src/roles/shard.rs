@@ -18,7 +18,7 @@ use crate::coordinator::LinkError;
 use crate::protocol::ToShard;
 use crate::shard::Shard;
 use crate::transport;
-use crate::world::{World, WorldInputs};
+use sadesim_world::{World, WorldInputs};
 
 /// Default of `--connect-timeout`: how long a shard keeps trying to reach a coordinator
 /// that is not up yet (its pod scheduled later, its Service name not yet resolving).

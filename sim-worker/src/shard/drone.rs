@@ -20,7 +20,7 @@ use crate::mavlink::telemetry::{BatteryView, MissionProgress, PositionEstimate, 
 use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail};
 use crate::sensors::{GnssFix, SensorSuite};
 use crate::vehicle::{Airframe, Battery, Motor, RigidState, wrench};
-use crate::world::World;
+use sadesim_world::World;
 
 /// Touchdown faster than this (m/s, downward) is a crash, not a landing.
 pub const CRASH_VERTICAL_MPS: f64 = 3.0;

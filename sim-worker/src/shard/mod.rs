@@ -18,7 +18,7 @@ use crate::pilot::scripted::{self, GroundHeight};
 use crate::protocol::{FromShard, PROTOCOL_VERSION, ToShard};
 use crate::sensors::SensorSuite;
 use crate::vehicle;
-use crate::world::World;
+use sadesim_world::World;
 
 pub use drone::{CRASH_HORIZONTAL_MPS, CRASH_VERTICAL_MPS, DroneSim, MavlinkLink};
 

@@ -12,7 +12,7 @@ use sadesim_crds::plan::RunPlan;
 
 use super::pod::Context;
 use super::{ASSET_KEY_ANNOTATION, Problem, names};
-use crate::planner::{Addressing, fleet_file};
+use sadesim_planner::{Addressing, fleet_file};
 
 /// Most bytes of `data` the API server accepts in one ConfigMap (1 MiB).
 pub const CONFIG_MAP_LIMIT_BYTES: usize = 1024 * 1024;

@@ -15,7 +15,7 @@ use sadesim_crds::fleet::Credential;
 use sadesim_crds::plan::{RoleResources, RunPlan};
 
 use super::{ClusterSettings, OWNER_API_VERSION, OWNER_KIND, ROLE_LABEL, RUN_LABEL};
-use crate::planner::credential_env_var;
+use sadesim_planner::credential_env_var;
 
 /// Uid and gid every pod runs as (distroless `nonroot`).
 pub const RUN_AS_ID: i64 = 65532;

@@ -11,7 +11,7 @@ use sadesim_crds::run::{Archive, Rendering};
 use serde_json::Value;
 
 use super::*;
-use crate::planner::{Addressing, fleet_file, plan};
+use sadesim_planner::{Addressing, fleet_file, plan};
 
 const UID: &str = "6f1c0a52-3c1e-4d7e-9a59-1f0e7c1d2b3a";
 

@@ -28,7 +28,7 @@ use super::observe::{Observed, WorkState};
 use super::progress::{self, TAIL_LINES};
 use super::queue::{self, Gang, QueueView, QueuedRun};
 use crate::k8s::children::{Child, ClusterSettings, ROLE_LABEL, RUN_LABEL, names};
-use crate::planner;
+use sadesim_planner as planner;
 
 /// Field manager of every server-side apply (children and status).
 pub const MANAGER: &str = "sadesim-operator";

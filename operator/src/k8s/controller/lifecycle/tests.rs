@@ -64,7 +64,7 @@ fn decide_full(
     now: Timestamp,
     last_sample: Option<Sample>,
 ) -> Decision {
-    let plan = crate::planner::plan(run).map_err(|e| e.to_string());
+    let plan = sadesim_planner::plan(run).map_err(|e| e.to_string());
     decide(&Input { run, plan: plan.as_ref().map_err(Clone::clone), settings, observed, admission, now, last_sample })
 }
 

@@ -190,7 +190,7 @@ impl fmt::Debug for World {
     }
 }
 
-impl crate::airspace::volume::Ground for World {
+impl crate::ground::Ground for World {
     fn ground_up_m(&self, east_m: f64, north_m: f64) -> f64 {
         World::ground_up_m(self, east_m, north_m)
     }

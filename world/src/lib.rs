@@ -1,4 +1,8 @@
-//! Ground, buildings and open areas around the origin (procedural city).
+//! The world as a pure library: ground, buildings and open areas around the run origin
+//! (procedural city), with the ground and line-of-sight queries every role reads.
+//!
+//! No I/O and no physics-engine types: the planner, the shards (which build their rapier
+//! colliders from [`Building`]s), the asset role and every test use the same values.
 //!
 //! Frame: world **ENU** metres from the run origin (x east, y north, z up); z = 0 is the
 //! ground altitude at the origin (`spec.origin.altitudeMslM`), so an MSL altitude is
@@ -12,9 +16,11 @@
 //! - `building`: one box and its geometry.
 //! - `index`: the uniform grid behind the fast queries.
 //! - `map`: [`World`] and its queries; `stats`: [`WorldStats`] for logs.
+//! - `ground`: the [`Ground`] height query, with [`FlatGround`] for tests.
 
 mod building;
 mod city;
+mod ground;
 mod index;
 mod inputs;
 mod map;
@@ -26,6 +32,7 @@ mod tests;
 
 pub use building::Building;
 pub use city::{MIN_HEIGHT_M, PARK_FRACTION};
+pub use ground::{FlatGround, Ground};
 pub use inputs::{EXPLICIT_HOME_CLEARANCE_M, OpenArea, WorldInputs};
 pub use map::World;
 pub use stats::WorldStats;

@@ -16,9 +16,9 @@ use sadesim_crds::random::{Purpose, Rng};
 use sadesim_crds::validate::duration_s;
 use sadesim_crds::zones::AltitudeReference;
 use sadesim_crds::{SimulationRun, ValidationErrors, validate};
+use sadesim_world::{World, WorldInputs};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
-use sim_worker::world::{World, WorldInputs};
 
 pub use fleet_file::{Addressing, credential_env_var, fleet_file, zones_geojson};
 pub use ports::{
