@@ -1,6 +1,7 @@
 # syntax=docker/dockerfile:1
-# The `sadesim` binary: the CLI and the Kubernetes operator (`sadesim operator`), which the
-# Helm chart runs with `args: [operator]`.
+# The `sadesim-operator` binary: the Kubernetes operator alone (crate `operator/`), which
+# links no simulation engine; the Helm chart runs it. (`sadesim operator` is the same
+# operator inside the full CLI.)
 #
 # Runtime: distroless `nonroot` (glibc, CA certificates for the API server and object
 # stores; no shell, no package manager).
@@ -12,10 +13,10 @@ WORKDIR /src
 COPY . .
 RUN --mount=type=cache,target=/usr/local/cargo/registry \
     --mount=type=cache,target=/src/target \
-    cargo build --release --locked -p sadesim \
- && install -D -m 0755 -t /out target/release/sadesim
+    cargo build --release --locked -p sadesim-operator \
+ && install -D -m 0755 -t /out target/release/sadesim-operator
 
 FROM gcr.io/distroless/cc-debian12:nonroot
-COPY --from=build /out/sadesim /usr/local/bin/sadesim
+COPY --from=build /out/sadesim-operator /usr/local/bin/sadesim-operator
 USER 65532:65532
-ENTRYPOINT ["/usr/local/bin/sadesim"]
+ENTRYPOINT ["/usr/local/bin/sadesim-operator"]

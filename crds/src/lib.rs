@@ -14,6 +14,7 @@ pub mod fixtures;
 pub mod fleet;
 pub mod fleet_file;
 pub mod geo;
+pub mod outcome;
 pub mod plan;
 pub mod polygon;
 pub mod random;

@@ -1,11 +1,10 @@
-//! SADE-SIM's `sadesim` binary as a library: the planner (pure `SimulationRun -> RunPlan`),
-//! the CLI commands, and (later) the Kubernetes reconciler and the local runner.
+//! The SADE-SIM Kubernetes operator: reconciles `SimulationRun`s into Jobs, Pods, Services
+//! and ConfigMaps (`k8s::children`), follows them through their lifecycle
+//! (`k8s::controller`), and renders the same objects offline (`k8s::manifests`). It plans
+//! runs with `sadesim-planner` and archives with `sadesim-evidence`, and links no
+//! simulation engine (no physics, MAVLink or HTTP server crates: a test checks it).
 
-pub mod archive;
-pub mod assets;
-pub mod bench;
-pub mod cli;
+pub mod args;
 pub mod k8s;
 
-pub mod report;
-pub mod runner;
+pub use args::OperatorArgs;

@@ -1,21 +1,16 @@
-//! `sadesim`: parse flags, run the command, map the outcome to an exit code.
-//! Exit codes: 0 success, 1 problems found (invalid scenario, failed criteria), 2 error.
+//! `sadesim-operator`: the Kubernetes operator binary the Helm chart runs (the same as
+//! `sadesim operator`, without the simulation engine linked in). Exit codes as `sadesim`:
+//! 0 after SIGTERM/SIGINT, 2 when it cannot start or go on (the message says the fix).
 
 use std::process::ExitCode;
 
 use clap::Parser;
-use sadesim::cli::{Cli, CliError, Outcome, execute};
+use sadesim_operator::OperatorArgs;
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let stdout = std::io::stdout();
-    let mut out = stdout.lock();
-    match execute(cli, &mut out) {
-        Ok(Outcome::Success) => ExitCode::SUCCESS,
-        Ok(Outcome::Problems) => ExitCode::from(1),
-        Ok(Outcome::Interrupted) => ExitCode::from(130),
-        // `sadesim plan ... | head`: the reader left; that is not an error worth reporting.
-        Err(CliError::Write(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+    let args = OperatorArgs::parse();
+    match sadesim_operator::k8s::controller::run(args.options()) {
+        Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(2)

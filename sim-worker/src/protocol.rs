@@ -99,15 +99,6 @@ pub struct GnssDetail {
     pub vdop: Option<f64>,
 }
 
-/// How many drones are in the air, on the ground, crashed: what progress displays show.
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
-#[serde(rename_all = "camelCase")]
-pub struct FleetCounts {
-    pub airborne: u32,
-    pub on_ground: u32,
-    pub crashed: u32,
-}
-
 #[cfg(test)]
 impl DroneSnapshot {
     /// For tests: drone `index` climbing at 1 m/s from the ground at `east_m` east of the
@@ -130,12 +121,11 @@ impl DroneSnapshot {
     }
 }
 
-impl FleetCounts {
-    pub fn of(drones: &[DroneSnapshot]) -> Self {
-        let crashed = drones.iter().filter(|d| d.crashed).count() as u32;
-        let airborne = drones.iter().filter(|d| !d.on_ground && !d.crashed).count() as u32;
-        Self { airborne, on_ground: drones.len() as u32 - airborne - crashed, crashed }
-    }
+pub use sadesim_crds::outcome::summary::FleetCounts;
+
+/// How many of `drones` are in the air, on the ground, crashed.
+pub fn fleet_counts(drones: &[DroneSnapshot]) -> FleetCounts {
+    FleetCounts::from_flags(drones.iter().map(|d| (d.on_ground, d.crashed)))
 }
 
 /// Coordinator -> shard.

@@ -41,7 +41,7 @@ use serde::Serialize;
 pub use config::{CONFIG_MAP_LIMIT_BYTES, config_map_sizes};
 pub use kueue::{KUEUE_QUEUE_LABEL, kueue_queue};
 pub use pod::{CONFIG_DIR, CONTROL_FILE, FLEET_PATH, OUT_DIR, PLAN_PATH, RUN_AS_ID};
-pub use sim_worker::roles::control::STOP_ANNOTATION;
+pub use sadesim_crds::outcome::control::STOP_ANNOTATION;
 
 /// Label with the run's name on every child.
 pub const RUN_LABEL: &str = "sadesim.io/run";
@@ -220,7 +220,7 @@ pub fn archive_url<'a>(plan: &'a RunPlan, settings: &'a ClusterSettings) -> Opti
 /// (`s3://`, `gs://`, `az://`). A `file://` archive would be a folder inside the pod, lost
 /// with it, so none is used (see [`problems`]).
 pub fn upload_url<'a>(plan: &'a RunPlan, settings: &'a ClusterSettings) -> Option<&'a str> {
-    archive_url(plan, settings).filter(|u| crate::archive::is_object_store(u))
+    archive_url(plan, settings).filter(|u| sadesim_evidence::archive::is_object_store(u))
 }
 
 /// Where the run's evidence lands: `<archive>/<namespace>/<run>/<uid>/` (the layout of
@@ -238,9 +238,9 @@ pub fn asset_cache_location(plan: &RunPlan, settings: &ClusterSettings) -> Optio
     Some(format!(
         "{}/{}/{}/{}/",
         url.trim_end_matches('/'),
-        crate::assets::ASSETS_NAMESPACE,
+        sadesim_evidence::assets::ASSETS_NAMESPACE,
         plan.asset_cache_key,
-        crate::assets::WORLD_FOLDER
+        sadesim_evidence::assets::WORLD_FOLDER
     ))
 }
 
@@ -291,7 +291,7 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
             message: "not set and the operator has no default archive: the run's evidence is not archived (only the coordinator's log remains)".into(),
             fatal: false,
         }),
-        Some(url) if !crate::archive::is_object_store(url) => out.push(Problem {
+        Some(url) if !sadesim_evidence::archive::is_object_store(url) => out.push(Problem {
             field: "spec.archive.url".into(),
             message: format!(
                 "{url:?} is a folder inside the coordinator pod, lost with it: use s3://, gs:// or az:// on Kubernetes (or omit it to use the operator's default archive)"

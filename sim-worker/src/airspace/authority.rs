@@ -13,6 +13,10 @@ use std::collections::{HashMap, HashSet};
 
 use serde::{Deserialize, Serialize};
 
+pub use sadesim_crds::outcome::compliance::{
+    AltitudeBand, DenyReason, Lease, LeaseConstraints, RequestRecord, Verdict,
+};
+
 use sadesim_crds::fleet::Credential;
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::validate::duration_s;
@@ -25,76 +29,6 @@ pub const DEFAULT_LEASE_S: f64 = 600.0;
 
 /// Highest altitude a request may name, metres AGL (the schema's limit for zone heights).
 pub const MAX_BAND_AGL_M: f64 = 20_000.0;
-
-/// Why a request was denied. Serialised as in the API: `insufficient_credentials`, ...
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[serde(rename_all = "snake_case")]
-pub enum DenyReason {
-    /// Wrong or missing credential for the drone, or its operator is not authorized.
-    InsufficientCredentials,
-    /// The zone's `capacity` leases are all held.
-    CapacityExhausted,
-    /// The requested altitude band is not within the zone's altitude constraints.
-    UnsafeAltitude,
-    /// The zone is not active at the time of the request.
-    ZoneInactive,
-}
-
-impl DenyReason {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::InsufficientCredentials => "insufficient_credentials",
-            Self::CapacityExhausted => "capacity_exhausted",
-            Self::UnsafeAltitude => "unsafe_altitude",
-            Self::ZoneInactive => "zone_inactive",
-        }
-    }
-}
-
-/// The altitude band a drone intends to fly in inside the zone, metres AGL.
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq)]
-#[serde(rename_all = "camelCase")]
-pub struct AltitudeBand {
-    pub min_agl_m: f64,
-    pub max_agl_m: f64,
-}
-
-/// Constraints a lease holder must respect inside the zone (AGL metres).
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Default)]
-#[serde(rename_all = "camelCase")]
-pub struct LeaseConstraints {
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub min_altitude_agl_m: Option<f64>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub max_altitude_agl_m: Option<f64>,
-}
-
-/// Permission for one drone to be inside one zone until `expires_at_s`.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(rename_all = "camelCase")]
-pub struct Lease {
-    /// `lease-<n>`, unique in the run.
-    pub id: String,
-    pub zone: String,
-    /// Global drone index.
-    pub drone: u32,
-    /// Drone name (`<group>-<k>`).
-    pub drone_name: String,
-    pub operator: String,
-    pub granted_at_s: f64,
-    pub expires_at_s: f64,
-    /// Set when released before expiry.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub released_at_s: Option<f64>,
-    pub constraints: LeaseConstraints,
-}
-
-impl Lease {
-    /// Whether the lease allows presence at `time_s`.
-    pub fn is_valid_at(&self, time_s: f64) -> bool {
-        time_s >= self.granted_at_s && time_s < self.expires_at_s && self.released_at_s.is_none_or(|r| time_s < r)
-    }
-}
 
 /// One zone's rules, resolved from the scenario.
 #[derive(Clone, Debug, PartialEq)]
@@ -288,34 +222,6 @@ fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
         diff |= std::hint::black_box(x ^ y);
     }
     diff == 0
-}
-
-/// One request and its verdict, kept for the report and the criteria.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(rename_all = "camelCase")]
-pub struct RequestRecord {
-    /// 1-based sequence number in the run.
-    pub id: u64,
-    pub time_s: f64,
-    pub zone: String,
-    pub drone: u32,
-    pub drone_name: String,
-    pub operator: String,
-    pub altitude: AltitudeBand,
-    /// `granted` or `denied`.
-    pub verdict: String,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub reason: Option<DenyReason>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub lease: Option<String>,
-}
-
-/// What the API answers a request with.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(tag = "verdict", rename_all = "camelCase", rename_all_fields = "camelCase")]
-pub enum Verdict {
-    Granted { request_id: u64, lease: Lease },
-    Denied { request_id: u64, reason: DenyReason, message: String },
 }
 
 /// A request the authority cannot decide: the API answers 4xx with the message.

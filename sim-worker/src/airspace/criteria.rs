@@ -21,11 +21,11 @@
 
 use std::collections::BTreeSet;
 
-use serde::{Deserialize, Serialize};
-
 use sadesim_crds::criteria::{Criterion, Expectation};
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::validate::duration_s;
+
+pub use sadesim_crds::outcome::verdict::{CriterionResult, RunVerdict};
 
 use super::authority::RequestRecord;
 use super::monitor::{ComplianceReport, ViolationKind, ViolationRecord};
@@ -33,31 +33,6 @@ use crate::events::Place;
 
 /// Most drone names a summary lists (the rest are counted).
 pub const MAX_NAMES_IN_SUMMARY: usize = 20;
-
-/// One criterion's result.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(rename_all = "camelCase")]
-pub struct CriterionResult {
-    /// `spec.criteria[i]`.
-    pub path: String,
-    /// The criterion's kind as written (`noUnauthorizedEntries`, ...).
-    pub criterion: String,
-    pub passed: bool,
-    /// One line on what was checked, e.g. "5 of 5 drones of public-safety were granted".
-    pub summary: String,
-    /// Each failure with drone, time and place, e.g. "journalists-3 inside museum-tfr
-    /// without a lease from 312.40 s for 18.20 s at 41.88011 N 87.62301 W, 104.2 m AGL".
-    pub failures: Vec<String>,
-}
-
-/// The verdict of a run.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(rename_all = "camelCase")]
-pub struct RunVerdict {
-    /// Every criterion passed (true when there are none).
-    pub passed: bool,
-    pub criteria: Vec<CriterionResult>,
-}
 
 /// Judges `plan.spec.criteria`. `end_s` is the sim time the run ended: violations still
 /// open (the monitor was not finished) last until then.

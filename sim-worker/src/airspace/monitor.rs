@@ -40,8 +40,6 @@
 
 use std::collections::BTreeMap;
 
-use serde::{Deserialize, Serialize};
-
 use sadesim_crds::criteria::Criterion;
 use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::RunPlan;
@@ -50,104 +48,7 @@ use super::authority::LeaseConstraints;
 use super::volume::{Ground, ZoneVolume};
 use crate::events::{Event, EventKind, Place};
 use crate::protocol::DroneSnapshot;
-
-/// The rules the monitor checks. Serialised as in events (`rule`): `unauthorizedEntry`, ...
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[serde(rename_all = "camelCase")]
-pub enum ViolationKind {
-    /// Inside an active zone without a valid lease.
-    UnauthorizedEntry,
-    /// Inside a zone below the lease's minimum altitude AGL.
-    BelowZoneMinimum,
-    /// Inside a zone above the lease's maximum altitude AGL.
-    AboveZoneMaximum,
-    /// Above the group's `altitude.maxAglM`, anywhere.
-    AboveAltitudeLimit,
-    /// Two airborne drones closer than a `minSeparation` criterion's distance.
-    SeparationLoss,
-}
-
-impl ViolationKind {
-    /// The rule's name in events and reports (the serde name).
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::UnauthorizedEntry => "unauthorizedEntry",
-            Self::BelowZoneMinimum => "belowZoneMinimum",
-            Self::AboveZoneMaximum => "aboveZoneMaximum",
-            Self::AboveAltitudeLimit => "aboveAltitudeLimit",
-            Self::SeparationLoss => "separationLoss",
-        }
-    }
-
-    /// Whether the worst value of an episode is the highest one seen (altitude above a
-    /// ceiling) rather than the lowest (altitude below a floor, distance, the lowest AGL
-    /// altitude of an unauthorized stay).
-    fn worst_is_highest(self) -> bool {
-        matches!(self, Self::AboveZoneMaximum | Self::AboveAltitudeLimit)
-    }
-}
-
-/// One violation, from start to end.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(rename_all = "camelCase")]
-pub struct ViolationRecord {
-    pub kind: ViolationKind,
-    pub drone: u32,
-    pub drone_name: String,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub other: Option<u32>,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub zone: Option<String>,
-    pub start_s: f64,
-    /// `None` while it lasts; [`Monitor::finish`] closes every open one.
-    pub end_s: Option<f64>,
-    /// Where it started.
-    pub at: Place,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub limit_m: Option<f64>,
-    /// Furthest value reached (AGL metres, or distance metres for separation). For an
-    /// unauthorized entry: the lowest AGL altitude inside.
-    pub worst_m: f64,
-}
-
-/// A stay inside a zone.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(rename_all = "camelCase")]
-pub struct Presence {
-    pub drone: u32,
-    pub zone: String,
-    pub entered_s: f64,
-    pub exited_s: Option<f64>,
-    /// Held a valid lease on entry.
-    pub authorized: bool,
-    /// Lowest height above ground inside, metres (at the entry point and the window
-    /// samples inside).
-    pub min_agl_m: f64,
-}
-
-/// Everything the criteria need.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default)]
-#[serde(rename_all = "camelCase")]
-pub struct ComplianceReport {
-    pub violations: Vec<ViolationRecord>,
-    pub presences: Vec<Presence>,
-    /// Crashed drones with the sim time of the crash.
-    pub crashes: Vec<(u32, f64)>,
-    /// Where each crash of `crashes` happened (same order): the wreck at the end of the
-    /// crash's window.
-    #[serde(default)]
-    pub crash_places: Vec<Place>,
-    /// Closest approach between two airborne drones: (distance m, time s, drone, drone),
-    /// tracked when the scenario has a `minSeparation` criterion.
-    ///
-    /// # Guarantees
-    /// Exact (over the window samples) whenever it is below the largest `minSeparation`
-    /// distance: every pair closer than that is compared. Above it, it is the closest pair
-    /// among those the grid compared (neighbouring cells), so the true closest approach
-    /// may be smaller, but still at least that distance; `None` when no two airborne
-    /// drones were ever in neighbouring cells.
-    pub closest_approach: Option<(f64, f64, u32, u32)>,
-}
+pub use sadesim_crds::outcome::compliance::{ComplianceReport, Presence, ViolationKind, ViolationRecord};
 
 /// The monitor's state for one run.
 #[derive(Debug)]

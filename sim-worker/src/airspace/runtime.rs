@@ -23,7 +23,7 @@ use crate::events::{Event, EventKind};
 use crate::protocol::DroneSnapshot;
 
 /// The file the airspace records of a run go to, next to `summary.json`.
-pub const AIRSPACE_FILE: &str = "airspace.json";
+pub const AIRSPACE_FILE: &str = sadesim_crds::outcome::run_folder::AIRSPACE;
 
 /// Everything airspace-related of one run.
 #[derive(Debug)]

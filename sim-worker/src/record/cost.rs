@@ -7,26 +7,7 @@
 //! this thread only), so other threads (shards, routers) and time spent waiting do not
 //! count. Each reading is one system call: one per kind of file per sync window, plus one.
 
-use serde::{Deserialize, Serialize};
-
-/// CPU seconds the recorder's threads spent on each kind of file over a run.
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
-#[serde(rename_all = "camelCase")]
-pub struct RecordingCost {
-    /// `recording.mcap`.
-    pub mcap: f64,
-    /// `ulog/*.ulg`.
-    pub ulog: f64,
-    /// `events.jsonl`, `trajectory.csv`, `trajectory.geojson` and the summary's totals.
-    pub other: f64,
-}
-
-impl RecordingCost {
-    /// Everything the recorder spent.
-    pub fn total(&self) -> f64 {
-        self.mcap + self.ulog + self.other
-    }
-}
+pub use sadesim_crds::outcome::summary::RecordingCost;
 
 /// CPU time of the calling thread so far, s.
 fn thread_cpu_s() -> f64 {

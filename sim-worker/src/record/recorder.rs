@@ -151,7 +151,7 @@ impl RunObserver for Recorder {
             self.tracks.add(drones, &self.frame);
         }
         if !final_window {
-            self.summary.observe(drones, events, &mut self.last_positions);
+            super::summary::observe_window(&mut self.summary, drones, events, &mut self.last_positions);
         } else {
             self.summary.events += events.len() as u64;
         }

@@ -18,21 +18,10 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use serde::{Deserialize, Serialize};
-
-/// Pod annotation whose value is the reason to end the run (e.g. `pilotExited`).
-pub const STOP_ANNOTATION: &str = "sadesim.io/stop";
+pub use sadesim_crds::outcome::control::{Control, STOP_ANNOTATION};
 
 /// How often the annotations file is read. The kubelet's own refresh takes longer.
 pub const POLL_PERIOD: Duration = Duration::from_millis(250);
-
-/// One line of the coordinator's stdin.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
-pub enum Control {
-    /// End the run after the current window with this reason (e.g. `pilotExited`).
-    Stop { reason: String },
-}
 
 /// The pending request to end the run, shared by the channels that fill it and the run
 /// loop that takes it. The first request wins; later ones are ignored.

@@ -16,60 +16,17 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use sadesim_crds::plan::RunPlan;
-use serde::{Deserialize, Serialize};
+
+pub use sadesim_crds::outcome::coordinator::{FailedRole, Report};
 
 use super::RoleError;
 use super::control::StopRequest;
 use crate::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use crate::coordinator::{self, CoordinatorError, LinkError, RunFailure, RunObserver, ShardLink};
 use crate::events::{Event, EventKind};
-use crate::protocol::{DroneSnapshot, FleetCounts, FromShard, PROTOCOL_VERSION};
+use crate::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION};
 use crate::record::{Recorder, RecorderOptions, RunSummary};
 use crate::transport::TcpLink;
-
-/// One line of the coordinator's stdout.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
-pub enum Report {
-    /// Bound and waiting for shards; the airspace API listens at `airspace`.
-    Listening { address: String, airspace: String },
-    /// Progress, about once per simulated second.
-    Progress {
-        sim_time_s: f64,
-        /// Flattened: the line reads `{"type":"progress","simTimeS":..,"airborne":..,...}`.
-        #[serde(flatten)]
-        counts: FleetCounts,
-    },
-    /// The pilots were released at `sim_time_s` (the `pilotsReleased` event, already in
-    /// `events.jsonl`): time to start the pilot process.
-    PilotsReleased { sim_time_s: f64 },
-    /// The run is over and its files are written.
-    Finished { summary: RunSummary },
-    /// The run failed; the process exits non-zero after this line.
-    ///
-    /// `role: shard`: shard `shard` (at `address`) failed mid-run, `reason` says how;
-    /// the run's files are written up to the failure and `summary` is `summary.json`
-    /// (`endReason: "shardFailed: ..."`). `role: coordinator`: this process could not
-    /// start or go on (listen, accept, record); no `summary`.
-    Failed {
-        role: FailedRole,
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        shard: Option<u32>,
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        address: Option<String>,
-        reason: String,
-        #[serde(default, skip_serializing_if = "Option::is_none")]
-        summary: Option<RunSummary>,
-    },
-}
-
-/// Which role a [`Report::Failed`] blames.
-#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
-#[serde(rename_all = "camelCase")]
-pub enum FailedRole {
-    Shard,
-    Coordinator,
-}
 
 /// Default of `--shard-timeout`: the longest wait for a shard's answer to a window. A shard
 /// whose process dies is noticed at once (its connection closes); this bounds the wait
@@ -98,7 +55,7 @@ impl RunObserver for Reporting<'_> {
         self.recorder.on_window(time_s, drones, events)?;
         if time_s >= self.next_report_s {
             self.next_report_s = time_s.floor() + 1.0;
-            report(&Report::Progress { sim_time_s: time_s, counts: FleetCounts::of(drones) });
+            report(&Report::Progress { sim_time_s: time_s, counts: crate::protocol::fleet_counts(drones) });
         }
         if let Some(e) = events.iter().find(|e| matches!(e.kind, EventKind::PilotsReleased)) {
             report(&Report::PilotsReleased { sim_time_s: e.time_s });
@@ -440,7 +397,7 @@ mod tests {
     fn progress_lines_keep_their_flat_shape() {
         let line = serde_json::to_string(&Report::Progress {
             sim_time_s: 1.0,
-            counts: FleetCounts { airborne: 4, on_ground: 0, crashed: 0 },
+            counts: crate::protocol::FleetCounts { airborne: 4, on_ground: 0, crashed: 0 },
         })
         .unwrap();
         assert_eq!(line, r#"{"type":"progress","simTimeS":1.0,"airborne":4,"onGround":0,"crashed":0}"#);

@@ -601,7 +601,7 @@ fn pilot_exited(d: &mut Decision, input: &Input, plan: &RunPlan) -> Option<&'sta
         d.events.push(Note { warning: end.is_err(), reason: outcome::PILOT_EXITED.into(), message: message.clone() });
     }
     d.condition(ct::RUNNING, true, outcome::PILOT_EXITED, message, now, generation);
-    ends_run.then_some(crate::runner::pilot::PILOT_EXITED)
+    ends_run.then_some(sadesim_crds::outcome::control::PILOT_EXITED)
 }
 
 fn round3(x: f64) -> f64 {

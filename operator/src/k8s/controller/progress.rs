@@ -1,9 +1,9 @@
-//! What the coordinator reports on stdout (`sim_worker::roles::coordinator::Report` JSON
+//! What the coordinator reports on stdout (`sadesim_crds::outcome::coordinator::Report` JSON
 //! lines), read back from the tail of its pod log: simulated time, whether the pilots were
 //! released, and the final summary with the criteria verdict.
 
+use sadesim_crds::outcome::coordinator::Report;
 use sadesim_crds::status::Verdict;
-use sim_worker::roles::coordinator::Report;
 
 /// Lines of the coordinator's log the operator reads per reconcile. Progress comes once
 /// per simulated second, so 20 lines cover 20 s of simulated time between reconciles.

@@ -259,7 +259,7 @@ async fn archive_logs(
     }
     let (url, namespace, run, uid) = archive.clone();
     let manifest = tokio::task::spawn_blocking(move || {
-        let archive = crate::archive::Archive::open(&url)?;
+        let archive = sadesim_evidence::archive::Archive::open(&url)?;
         archive.add_files(&namespace, &run, &uid, LOGS_PREFIX, &files)
     })
     .await

@@ -9,16 +9,16 @@
 
 use std::path::{Path, PathBuf};
 
+use sadesim_crds::outcome::compliance::{ComplianceReport, Presence, ViolationRecord};
+use sadesim_crds::outcome::compliance::{Lease, RequestRecord};
+use sadesim_crds::outcome::events::{Event, Place};
+use sadesim_crds::outcome::summary::RunSummary;
 use sadesim_crds::plan::RunPlan;
 use sadesim_world::WorldStats;
 use serde::Deserialize;
 use serde::de::DeserializeOwned;
-use sim_worker::airspace::authority::{Lease, RequestRecord};
-use sim_worker::airspace::monitor::{ComplianceReport, Presence, ViolationRecord};
-use sim_worker::events::{Event, Place};
-use sim_worker::record::RunSummary;
 
-use crate::runner::pilot::PilotRecord;
+use sadesim_crds::outcome::pilot::PilotRecord;
 
 /// Why a run folder could not be read. Every variant names the file.
 #[derive(Debug, thiserror::Error)]
@@ -125,10 +125,10 @@ pub struct RunData {
 pub const PLAN_FILE: &str = "plan.json";
 pub const TRAJECTORY_FILE: &str = "trajectory.csv";
 pub const EVENTS_FILE: &str = "events.jsonl";
-pub const AIRSPACE_FILE: &str = sim_worker::airspace::runtime::AIRSPACE_FILE;
+pub const AIRSPACE_FILE: &str = sadesim_crds::outcome::run_folder::AIRSPACE;
 pub const SUMMARY_FILE: &str = "summary.json";
 pub const WORLD_FILE: &str = "world.json";
-pub const PILOT_FILE: &str = crate::runner::pilot::RECORD_FILE;
+pub const PILOT_FILE: &str = sadesim_crds::outcome::run_folder::PILOT_RECORD;
 
 impl RunData {
     /// Reads the run folder `dir`.

@@ -24,20 +24,18 @@ use std::time::{Duration, Instant};
 use sadesim_crds::fleet::Credential;
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::run::{Pilot, PilotExit};
-use serde::{Deserialize, Serialize};
 
 use sadesim_planner::credential_env_var;
 
+pub use sadesim_crds::outcome::control::{PILOT_EXITED, PILOT_FAILED};
+pub use sadesim_crds::outcome::pilot::PilotRecord;
+
 /// The fleet file in the output folder (path in `SADESIM_FLEET`).
-pub const FLEET_FILE: &str = "fleet.json";
+pub const FLEET_FILE: &str = sadesim_crds::outcome::run_folder::FLEET;
 /// The pilot's stdout and stderr, interleaved, in the output folder.
-pub const LOG_FILE: &str = "pilot.log";
+pub const LOG_FILE: &str = sadesim_crds::outcome::run_folder::PILOT_LOG;
 /// What happened to the pilot ([`PilotRecord`]), in the output folder.
-pub const RECORD_FILE: &str = "pilot.json";
-/// The run's end reason when the pilot exits and `spec.pilot.onExit` is `endRun`.
-pub const PILOT_EXITED: &str = "pilotExited";
-/// The run's end reason when the pilot could not be started (the run then fails).
-pub const PILOT_FAILED: &str = "pilotFailed";
+pub const RECORD_FILE: &str = sadesim_crds::outcome::run_folder::PILOT_RECORD;
 /// Time between SIGTERM and SIGKILL when the run ends before the pilot.
 pub const TERM_GRACE: Duration = Duration::from_secs(5);
 
@@ -179,58 +177,6 @@ impl Launch {
                 _ => e.to_string(),
             },
         })
-    }
-}
-
-/// What happened to the pilot: `pilot.json` in the output folder.
-///
-/// Simulated times are those the runner had seen when it acted: the end of the window in
-/// which it noticed (in-process), or the coordinator's latest report, at most about one
-/// simulated second old (`--processes`).
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
-#[serde(rename_all = "camelCase")]
-pub struct PilotRecord {
-    /// `spec.pilot.command`.
-    pub command: Vec<String>,
-    /// Working directory (the scenario file's folder).
-    pub working_dir: String,
-    pub on_exit: PilotExit,
-    /// The log file, in the output folder.
-    pub log: String,
-    /// Process id while it ran.
-    pub pid: Option<u32>,
-    /// Simulated time at which the pilot was started, s; `None` when the run ended before
-    /// the pilots were released.
-    pub started_at_s: Option<f64>,
-    /// Simulated time at which the pilot's exit was seen (or the runner stopped it), s.
-    pub exited_at_s: Option<f64>,
-    /// Exit code when the pilot exited normally.
-    pub exit_code: Option<i32>,
-    /// Signal number when a signal ended it (15 SIGTERM, 9 SIGKILL).
-    pub signal: Option<i32>,
-    /// True when the run ended first and the runner stopped the pilot.
-    pub stopped_by_runner: bool,
-}
-
-impl PilotRecord {
-    /// One line for the terminal, e.g. `exited with code 0 at 12.3 s`.
-    pub fn describe(&self) -> String {
-        let Some(started) = self.started_at_s else {
-            return "not started: the run ended before the pilots were released".into();
-        };
-        let how = match (self.exit_code, self.signal) {
-            (Some(code), _) => format!("code {code}"),
-            (None, Some(15)) => "SIGTERM".into(),
-            (None, Some(9)) => "SIGKILL".into(),
-            (None, Some(s)) => format!("signal {s}"),
-            (None, None) => "unknown status".into(),
-        };
-        let at = self.exited_at_s.unwrap_or(started);
-        if self.stopped_by_runner {
-            format!("started at {started:.2} s, still running at the end of the run, stopped ({how})")
-        } else {
-            format!("started at {started:.2} s, exited with {how} at {at:.2} s")
-        }
     }
 }
 

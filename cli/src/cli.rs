@@ -170,66 +170,7 @@ pub enum Command {
     ///
     /// Logs JSON lines to stderr; stops cleanly on SIGTERM. The Lease for leader election is
     /// `sadesim-operator` in POD_NAMESPACE, held as POD_NAME.
-    Operator(OperatorArgs),
-}
-
-/// Flags of `sadesim operator` (each also read from the environment variable shown).
-#[derive(Debug, clap::Args)]
-pub struct OperatorArgs {
-    /// Image of sim-worker (assets, shard, coordinator, router and renderer roles).
-    #[arg(long, env = "SADESIM_WORKER_IMAGE", default_value = "ghcr.io/sadesim/sim-worker:0.1.0")]
-    pub worker_image: String,
-    /// Archive URL for runs without spec.archive (s3://bucket/prefix, gs://..., az://...).
-    #[arg(long, env = "SADESIM_DEFAULT_ARCHIVE_URL")]
-    pub default_archive_url: Option<String>,
-    /// Secret whose keys become environment variables of the roles that write the archive.
-    #[arg(long, env = "SADESIM_OBJECT_STORE_SECRET")]
-    pub object_store_secret: Option<String>,
-    /// Service type of the MAVLink router Services.
-    #[arg(long, env = "SADESIM_ROUTER_SERVICE_TYPE", default_value = "ClusterIP",
-          value_parser = ["ClusterIP", "NodePort", "LoadBalancer"])]
-    pub router_service_type: String,
-    /// Let Kueue admit runs whose spec.queue names a LocalQueue (true|false).
-    #[arg(long, env = "SADESIM_KUEUE", value_name = "BOOL", num_args = 0..=1, default_value = "false",
-          default_missing_value = "true", action = clap::ArgAction::Set,
-          value_parser = clap::builder::BoolishValueParser::new())]
-    pub kueue: bool,
-    /// Runs active at once per namespace without Kueue (0 = unlimited).
-    #[arg(long, env = "SADESIM_MAX_CONCURRENT_RUNS", default_value_t = 0)]
-    pub max_concurrent_runs: u32,
-    /// Address of /metrics and /healthz.
-    #[arg(long, env = "SADESIM_METRICS_ADDR", default_value = "0.0.0.0:8080")]
-    pub metrics_addr: std::net::SocketAddr,
-    /// Elect a leader through a Lease before reconciling (true|false).
-    #[arg(long, env = "SADESIM_LEADER_ELECTION", value_name = "BOOL", num_args = 0..=1, default_value = "true",
-          default_missing_value = "true", action = clap::ArgAction::Set,
-          value_parser = clap::builder::BoolishValueParser::new())]
-    pub leader_election: bool,
-    /// Reconcile without electing a leader (a single replica).
-    #[arg(long)]
-    pub no_leader_election: bool,
-}
-
-impl OperatorArgs {
-    /// The validated options (POD_NAMESPACE and POD_NAME name the Lease's namespace and
-    /// holder).
-    pub fn options(self) -> crate::k8s::controller::OperatorOptions {
-        let env = |k: &str| std::env::var(k).ok().filter(|v| !v.is_empty());
-        crate::k8s::controller::OperatorOptions {
-            settings: crate::k8s::children::ClusterSettings {
-                worker_image: self.worker_image,
-                default_archive_url: self.default_archive_url.filter(|u| !u.is_empty()),
-                object_store_secret: self.object_store_secret.filter(|s| !s.is_empty()),
-                router_service_type: self.router_service_type,
-                kueue: self.kueue,
-            },
-            max_concurrent_runs: self.max_concurrent_runs,
-            metrics_addr: self.metrics_addr,
-            leader_election: self.leader_election && !self.no_leader_election,
-            lease_namespace: env("POD_NAMESPACE"),
-            identity: env("POD_NAME"),
-        }
-    }
+    Operator(sadesim_operator::OperatorArgs),
 }
 
 /// `sadesim archive ...`
@@ -318,7 +259,7 @@ pub enum CliError {
     AirspaceBench(#[from] crate::bench::AirspaceBenchError),
     /// An archive command could not be carried out.
     #[error(transparent)]
-    Archive(#[from] crate::archive::ArchiveError),
+    Archive(#[from] sadesim_evidence::archive::ArchiveError),
     /// `archive put` without `--run`/`--uid` on a folder whose names cannot supply them.
     #[error("{dir}: cannot take --{flag} from the folder's name; give --{flag}")]
     ArchiveName { dir: String, flag: &'static str },
@@ -466,19 +407,19 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
         }
         Command::Archive { command } => archive_command(command, out),
         Command::Report { run_dir } => {
-            let files = crate::report::write_report(&run_dir).map_err(CliError::Failed)?;
+            let files = sadesim_evidence::report::write_report(&run_dir).map_err(CliError::Failed)?;
             writeln!(out, "report: {}", files.html.display())?;
             Ok(Outcome::Success)
         }
         Command::Manifests { files, namespace } => {
-            let settings = crate::k8s::children::ClusterSettings::default();
+            let settings = sadesim_operator::k8s::children::ClusterSettings::default();
             for (i, file) in files.iter().enumerate() {
                 let text = read_scenario(file)?;
                 if i > 0 {
                     // One YAML stream: a document separator between files.
                     writeln!(out, "---")?;
                 }
-                crate::k8s::manifests::write_manifests(&text, namespace.as_deref(), &settings, out)
+                sadesim_operator::k8s::manifests::write_manifests(&text, namespace.as_deref(), &settings, out)
                     .map_err(|e| CliError::Failed(format!("{}: {e}", file.display())))?;
             }
             Ok(Outcome::Success)
@@ -489,18 +430,18 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             let plan: sadesim_crds::plan::RunPlan = serde_json::from_slice(&bytes)
                 .map_err(|e| CliError::Failed(format!("{}: not a RunPlan: {e}", plan.display())))?;
             let scratch = std::env::temp_dir().join(format!("sadesim-assets-{}", std::process::id()));
-            let outcome = crate::assets::build_assets(&plan, &archive, &scratch);
+            let outcome = sadesim_evidence::assets::build_assets(&plan, &archive, &scratch);
             let _ = std::fs::remove_dir_all(&scratch);
             match outcome.map_err(|e| CliError::Failed(e.to_string()))? {
-                crate::assets::AssetsOutcome::CacheHit { url } => writeln!(out, "asset cache hit: {url}")?,
-                crate::assets::AssetsOutcome::Built { url, buildings } => {
+                sadesim_evidence::assets::AssetsOutcome::CacheHit { url } => writeln!(out, "asset cache hit: {url}")?,
+                sadesim_evidence::assets::AssetsOutcome::Built { url, buildings } => {
                     writeln!(out, "assets built: {buildings} buildings -> {url}")?;
                 }
             }
             Ok(Outcome::Success)
         }
         Command::Operator(args) => {
-            crate::k8s::controller::run(args.options()).map_err(CliError::Failed)?;
+            sadesim_operator::k8s::controller::run(args.options()).map_err(CliError::Failed)?;
             Ok(Outcome::Success)
         }
     }
@@ -508,8 +449,8 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
 
 /// `sadesim archive ...`: exit 1 (`Problems`) when a run does not match its manifest.
 fn archive_command(command: ArchiveCommand, out: &mut dyn Write) -> Result<Outcome, CliError> {
-    use crate::archive::Archive;
     use indicatif::HumanBytes;
+    use sadesim_evidence::archive::Archive;
 
     match command {
         ArchiveCommand::Ls { url } => {
@@ -568,7 +509,7 @@ fn archive_command(command: ArchiveCommand, out: &mut dyn Write) -> Result<Outco
                 count(m.file_count, "file"),
                 HumanBytes(m.total_bytes),
                 uploaded.url,
-                crate::archive::MANIFEST_FILE
+                sadesim_evidence::archive::MANIFEST_FILE
             )?;
             Ok(Outcome::Success)
         }
@@ -576,7 +517,11 @@ fn archive_command(command: ArchiveCommand, out: &mut dyn Write) -> Result<Outco
 }
 
 /// Prints a verify/get report: one line per problem, then the verdict.
-fn report_check(out: &mut dyn Write, report: &crate::archive::VerifyReport, verb: &str) -> Result<Outcome, CliError> {
+fn report_check(
+    out: &mut dyn Write,
+    report: &sadesim_evidence::archive::VerifyReport,
+    verb: &str,
+) -> Result<Outcome, CliError> {
     use indicatif::HumanBytes;
     if report.passed() {
         writeln!(
@@ -586,7 +531,7 @@ fn report_check(out: &mut dyn Write, report: &crate::archive::VerifyReport, verb
             verb,
             count(report.files_checked, "file"),
             HumanBytes(report.bytes_checked),
-            crate::archive::MANIFEST_FILE
+            sadesim_evidence::archive::MANIFEST_FILE
         )?;
         return Ok(Outcome::Success);
     }

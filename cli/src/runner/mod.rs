@@ -99,7 +99,7 @@ pub enum RunError {
     /// `manifest.json` could not be written, or `spec.archive.url` cannot be opened or the
     /// upload to it failed.
     #[error("archive: {0}")]
-    Archive(#[from] crate::archive::ArchiveError),
+    Archive(#[from] sadesim_evidence::archive::ArchiveError),
 }
 
 /// What a finished run reports.
@@ -135,7 +135,7 @@ fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError>
     // Object stores are written at the end of the run: a bad URL or store configuration
     // (credentials, account) fails now, not after the run.
     if let Some(a) = &spec.archive {
-        crate::archive::Archive::open(&a.url)?;
+        sadesim_evidence::archive::Archive::open(&a.url)?;
     }
     Ok(())
 }
@@ -203,7 +203,7 @@ impl RunObserver for Progress<'_> {
             self.pilot_exited = pilot.poll();
         }
         if !self.bar.is_hidden() {
-            show_progress(&self.bar, time_s, self.duration_s, self.started, FleetCounts::of(drones));
+            show_progress(&self.bar, time_s, self.duration_s, self.started, sim_worker::protocol::fleet_counts(drones));
         }
         Ok(())
     }
@@ -293,14 +293,14 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     }
     // The report is evidence too: written before manifest.json so the manifest lists it.
     // It cannot lose the run's files: a failure is a warning, kept in the folder.
-    let report_error = crate::report::write_report(&out_dir).err();
+    let report_error = sadesim_evidence::report::write_report(&out_dir).err();
     if let Some(e) = &report_error {
         eprintln!("warning: the run's report was not written: {e}");
         let _ = std::fs::write(out_dir.join(REPORT_ERROR_FILE), format!("{e}\n"));
     }
     // Archived whatever the run's end (DESIGN §8): manifest.json, then the upload.
     let archive_url = plan.spec.archive.as_ref().map(|a| a.url.as_str());
-    let archived = crate::archive::archive_run_folder(
+    let archived = sadesim_evidence::archive::archive_run_folder(
         &out_dir,
         archive_url,
         &plan.run.namespace,

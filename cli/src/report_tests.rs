@@ -13,7 +13,8 @@ use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
 use sadesim_crds::run::{Clock, ClockMode};
 use sadesim_crds::zones::{AltitudeReference, Zone, ZoneAltitude, ZonePolicy};
 
-use super::*;
+use sadesim_evidence::report::*;
+
 use crate::runner::{RunOptions, run_local};
 
 /// Two groups: `intruders` (2 drones, public safety) fly 300 m north straight through zone
@@ -299,21 +300,6 @@ fn rebuilding_an_unchanged_folder_writes_the_same_bytes() {
     for (f, bytes) in files.iter().zip(&first) {
         assert_eq!(&std::fs::read(dir.join(f)).unwrap(), bytes, "{f} changed");
     }
-}
-
-#[test]
-fn path_data_drops_points_closer_than_the_limit_but_keeps_both_ends() {
-    let d = svg::path_data([(0.0, 0.0), (0.1, 0.1), (0.2, 0.0), (5.0, 5.0), (5.1, 5.0)].into_iter(), 1.0);
-    assert_eq!(d, "M0.0 0.0L5.0 5.0L5.1 5.0");
-}
-
-#[test]
-fn ticks_are_round_and_cover_the_range() {
-    assert_eq!(model::ticks(-2800.0, 1900.0, 5), vec![-2000.0, -1000.0, 0.0, 1000.0]);
-    assert_eq!(model::ticks(0.0, 150.0, 5), vec![0.0, 50.0, 100.0, 150.0]);
-    assert_eq!(model::time_ticks(610.0, 10), vec![0.0, 120.0, 240.0, 360.0, 480.0, 600.0]);
-    assert_eq!(model::clock(312.4), "5:12");
-    assert_eq!(model::clock(3725.0), "1:02:05");
 }
 
 #[test]

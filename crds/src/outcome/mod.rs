@@ -1,0 +1,13 @@
+//! What a run produces and reports, as the roles write it and the CLI, the report and the
+//! Kubernetes controller read it: events, airspace records, the verdict, the summary, the
+//! coordinator's stdout lines, the stop requests, the pilot record and the run folder's
+//! file names. Plain serde types: no I/O.
+
+pub mod compliance;
+pub mod control;
+pub mod coordinator;
+pub mod events;
+pub mod pilot;
+pub mod run_folder;
+pub mod summary;
+pub mod verdict;

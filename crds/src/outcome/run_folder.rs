@@ -1,0 +1,22 @@
+//! The files of a run folder (`runs/<namespace>/<run>/<timestamp>/` locally, the same
+//! names under the archive URL on a cluster). One list, so that the runner, the coordinator
+//! role, the report and the archive agree on every name.
+
+/// The resolved plan (`RunPlan` JSON), written before the roles start.
+pub const PLAN: &str = "plan.json";
+/// The run's totals and verdict (`outcome::summary::RunSummary`), written at the end.
+pub const SUMMARY: &str = "summary.json";
+/// One JSON event a line (`outcome::events::Event`), flushed as the run goes.
+pub const EVENTS: &str = "events.jsonl";
+/// The airspace authority's requests and leases and the monitor's records.
+pub const AIRSPACE: &str = "airspace.json";
+/// What happened to the pilot process (`outcome::pilot::PilotRecord`), local runs.
+pub const PILOT_RECORD: &str = "pilot.json";
+/// The pilot's stdout and stderr, interleaved, local runs.
+pub const PILOT_LOG: &str = "pilot.log";
+/// The fleet file given to the pilot (path in `SADESIM_FLEET`).
+pub const FLEET: &str = "fleet.json";
+/// The human-readable report (`sadesim report`).
+pub const REPORT: &str = "report.html";
+/// The archive manifest with every file's checksum, written last.
+pub const MANIFEST: &str = "manifest.json";

@@ -1,0 +1,95 @@
+//! `summary.json`: the outcome of a run, per drone and in total, as the coordinator writes
+//! it at the end and the report, the CLI and the Kubernetes status read it.
+
+use serde::{Deserialize, Serialize};
+
+use super::verdict::RunVerdict;
+
+/// Per-drone outcome.
+#[derive(Serialize, Deserialize, Clone, Debug, Default, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct DroneSummary {
+    pub index: u32,
+    pub name: String,
+    pub group: String,
+    pub took_off: bool,
+    pub landed: bool,
+    pub crashed: bool,
+    pub max_height_agl_m: f64,
+    /// Horizontal distance flown, m.
+    pub distance_m: f64,
+    pub waypoints_reached: u32,
+    pub failsafes: u32,
+    pub final_battery_remaining: f64,
+}
+
+/// The whole run.
+#[derive(Serialize, Deserialize, Clone, Debug, Default, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct RunSummary {
+    pub run: String,
+    pub end_reason: String,
+    pub sim_time_s: f64,
+    pub wall_time_s: f64,
+    /// Simulated seconds per wall second over the whole run.
+    pub real_time_factor: f64,
+    pub drones: u32,
+    pub shards: u32,
+    pub airborne: u32,
+    pub crashed: u32,
+    pub events: u64,
+    pub pilots_released_at_s: Option<f64>,
+    pub per_drone: Vec<DroneSummary>,
+    /// The scenario's criteria judged at the end (absent when the run did not get that far).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub verdict: Option<RunVerdict>,
+    /// CPU seconds the recorder spent writing each kind of file (measured on its thread).
+    #[serde(default)]
+    pub recording_cpu_s: RecordingCost,
+}
+
+/// CPU seconds the recorder's threads spent on each kind of file over a run.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct RecordingCost {
+    /// `recording.mcap`.
+    pub mcap: f64,
+    /// `ulog/*.ulg`.
+    pub ulog: f64,
+    /// `events.jsonl`, `trajectory.csv`, `trajectory.geojson` and the summary's totals.
+    pub other: f64,
+}
+
+impl RecordingCost {
+    /// Everything the recorder spent.
+    pub fn total(&self) -> f64 {
+        self.mcap + self.ulog + self.other
+    }
+}
+
+/// How many drones are in the air, on the ground, crashed: what progress displays show.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[serde(rename_all = "camelCase")]
+pub struct FleetCounts {
+    pub airborne: u32,
+    pub on_ground: u32,
+    pub crashed: u32,
+}
+
+impl FleetCounts {
+    /// Counts drones from their `(on_ground, crashed)` flags: a crashed drone counts as
+    /// crashed only, a drone neither on the ground nor crashed as airborne.
+    pub fn from_flags(flags: impl IntoIterator<Item = (bool, bool)>) -> Self {
+        let mut c = Self::default();
+        for (on_ground, crashed) in flags {
+            if crashed {
+                c.crashed += 1;
+            } else if on_ground {
+                c.on_ground += 1;
+            } else {
+                c.airborne += 1;
+            }
+        }
+        c
+    }
+}

@@ -1,0 +1,27 @@
+//! The operator links no simulation engine: its normal dependency tree (what the
+//! `sadesim-operator` binary and image contain) has no physics, MAVLink or HTTP server
+//! framework crate. Checked with `cargo tree` on the real lock file.
+
+use std::process::Command;
+
+/// Crates that belong to the engine's roles, never to the controller.
+const ENGINE_CRATES: &[&str] = &["sim-worker", "rapier3d-f64", "parry3d-f64", "mavlink", "axum", "resvg"];
+
+#[test]
+fn the_operator_dependency_tree_has_no_engine_crate() {
+    let out = Command::new(env!("CARGO"))
+        .args(["tree", "--offline", "--locked", "-p", "sadesim-operator", "-e", "normal", "--prefix", "none"])
+        .args(["--format", "{p}"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .expect("cargo tree runs");
+    assert!(out.status.success(), "cargo tree failed: {}", String::from_utf8_lossy(&out.stderr));
+    let tree = String::from_utf8(out.stdout).unwrap();
+    let names: Vec<&str> = tree.lines().filter_map(|l| l.split_whitespace().next()).collect();
+    assert!(names.contains(&"kube"), "the tree was read: {tree}");
+    let found: Vec<&&str> = ENGINE_CRATES.iter().filter(|c| names.contains(c)).collect();
+    assert!(
+        found.is_empty(),
+        "the operator depends on {found:?}; `cargo tree -p sadesim-operator -i <crate>` shows why"
+    );
+}
