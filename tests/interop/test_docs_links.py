@@ -1,4 +1,5 @@
-"""Every repository path that README.md and docs/*.md name exists in the repository.
+"""Every repository path that README.md and docs/*.md name exists in the repository, and
+every link to a section (`pilots.md#the-fleet-file`) finds its heading.
 
 A path is named by a relative Markdown link (`[text](docs/pilots.md)`, resolved from the
 document's folder) or by a word, backticked or not, that starts with a top-level folder of
@@ -20,7 +21,8 @@ REPO = pathlib.Path(__file__).resolve().parents[2]
 # Folders a fresh clone does not have: build outputs, run outputs, installed tools.
 NOT_IN_REPOSITORY = {".git", "target", "runs", ".venv", ".tools", "__pycache__"}
 
-LINK = re.compile(r"\[[^\]]*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
+# `[text](target)`, the text possibly holding brackets itself (`[`spec.fleet[]`](#spec-fleet)`).
+LINK = re.compile(r"\[(?:[^\[\]]|\[[^\[\]]*\])*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 FENCE = re.compile(r"^\s*(```|~~~)")
 
 
@@ -89,10 +91,72 @@ def missing_paths(doc: pathlib.Path, root: pathlib.Path, folders: set[str]) -> l
     ]
 
 
+HEADING = re.compile(r"^(#{1,6})\s+(.*?)\s*#*\s*$")
+HTML_ANCHOR = re.compile(r"<a\s+(?:id|name)=\"([^\"]+)\"")
+
+
+def anchors(doc: pathlib.Path) -> set[str]:
+    """The anchors a link can point at in `doc`: GitHub's heading slugs (lowercase,
+    punctuation dropped, spaces as `-`, `-1`, `-2`, ... for repeats) and `<a id=...>`."""
+    seen: dict[str, int] = {}
+    out = set()
+    text = doc.read_text(encoding="utf-8")
+    for _, line in prose_lines(text):
+        heading = HEADING.match(line)
+        if heading:
+            slug = re.sub(r"[^\w\- ]", "", heading.group(2).strip().lower()).replace(" ", "-")
+            n = seen.get(slug, 0)
+            seen[slug] = n + 1
+            out.add(slug if n == 0 else f"{slug}-{n}")
+    out.update(HTML_ANCHOR.findall(text))
+    return out
+
+
+def missing_anchors(doc: pathlib.Path, root: pathlib.Path) -> list[str]:
+    """`document:line: link` for every link to `#anchor` (in `doc` or another Markdown file)
+    that no heading of the target defines."""
+    out = []
+    for number, line in prose_lines(doc.read_text(encoding="utf-8")):
+        for target in LINK.findall(line):
+            path, _, anchor = target.partition("#")
+            if not anchor or re.match(r"^[a-z][a-z0-9+.-]*:", target):
+                continue
+            linked = (doc.parent / path) if path else doc
+            if linked.suffix == ".md" and linked.is_file() and anchor not in anchors(linked):
+                out.append(f"{doc.relative_to(root)}:{number}: {target}")
+    return out
+
+
 @pytest.mark.parametrize("doc", documents(), ids=lambda d: str(d.relative_to(REPO)))
 def test_every_path_a_document_names_exists(doc):
     missing = missing_paths(doc, REPO, top_level_folders())
     assert not missing, "paths that do not exist in the repository:\n" + "\n".join(missing)
+
+
+@pytest.mark.parametrize("doc", documents(), ids=lambda d: str(d.relative_to(REPO)))
+def test_every_section_a_document_links_to_exists(doc):
+    missing = missing_anchors(doc, REPO)
+    assert not missing, "links to sections that do not exist:\n" + "\n".join(missing)
+
+
+def test_a_missing_section_is_reported(tmp_path):
+    """The anchor check can fail: a link to a heading that is not there is found; headings
+    with punctuation, repeated headings and `<a id>` anchors resolve."""
+    (tmp_path / "other.md").write_text(
+        "# Other\n## `--processes`: one per shard\n## Notes\n## Notes\n<a id=\"by-hand\"></a>\n",
+        encoding="utf-8",
+    )
+    doc = tmp_path / "doc.md"
+    doc.write_text(
+        "# Top\n[a](#top) [b](other.md#--processes-one-per-shard) [c](other.md#notes-1) "
+        "[d](other.md#by-hand)\n[e](other.md#gone) [`f[]`](#nowhere)\n```\n# not a heading\n```\n[g](#not-a-heading)\n",
+        encoding="utf-8",
+    )
+    assert missing_anchors(doc, tmp_path) == [
+        "doc.md:3: other.md#gone",
+        "doc.md:3: #nowhere",
+        "doc.md:7: #not-a-heading",
+    ]
 
 
 def test_a_missing_path_is_reported(tmp_path):
