@@ -1,9 +1,9 @@
 //! Names of the airframe presets a fleet group may use.
 //!
-//! The physical parameters (mass, inertia, arm length, motor constants) live with the
-//! vehicle model in `sim-worker`; this list is the contract the validator checks
-//! `spec.fleet[].airframe` against. A `sim-worker` test fails when a name here has no
-//! parameters there.
+//! Only the names and descriptions: each preset's record (physics, PX4 `SYS_AUTOSTART`,
+//! controller gains, parameter overrides) is `sim-worker`'s `vehicle::Preset`; this list is
+//! the contract the validator checks `spec.fleet[].airframe` against. A `sim-worker` test
+//! fails unless its one list of presets names exactly these, in this order.
 
 /// A preset's name and a one-line description for docs and error messages.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -32,10 +32,14 @@ pub struct Fmu {
 }
 
 impl Fmu {
+    /// A drone of `airframe` whose controller flies `gains` (its preset's,
+    /// [`crate::vehicle::Preset::gains`]).
+    ///
     /// # Errors
     /// When no mixer exists for the airframe's rotor layout.
     pub fn new(
         airframe: &Airframe,
+        gains: &Gains,
         home_enu_m: Vector3<f64>,
         config: NavigatorConfig,
         origin_alt_msl_m: f64,
@@ -43,7 +47,7 @@ impl Fmu {
         Ok(Self {
             estimator: Estimator::default(),
             navigator: Navigator::new(config, home_enu_m),
-            controller: Controller::new(airframe, &Gains::for_airframe(airframe))?,
+            controller: Controller::new(airframe, gains)?,
             origin_alt_msl_m,
             time_s: 0.0,
         })
@@ -57,6 +61,10 @@ impl Fmu {
     }
     pub fn estimate(&self) -> Option<Estimate> {
         self.estimator.estimate()
+    }
+    /// The flight controller (its stages' gains and limits, for inspection).
+    pub fn controller(&self) -> &Controller {
+        &self.controller
     }
     pub fn navigator(&self) -> &Navigator {
         &self.navigator

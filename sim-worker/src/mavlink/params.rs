@@ -10,13 +10,19 @@
 //! the autopilot, so `PARAM_SET RTL_RETURN_ALT` changes where the drone returns.
 //!
 //! # Values
-//! What a PX4 SITL x500 (`make px4_sitl gz_x500`, airframe 4001) reports: firmware defaults
-//! (PX4 main, the modules' `*_params.c` / `*.yaml`), overridden by `rc.mc_defaults` (MAV_TYPE,
-//! NAV_ACC_RAD, RTL_RETURN_ALT, RTL_DESCEND_ALT), by the SITL `rcS` (the simulated sensors'
-//! CAL_*_ID, BAT1_N_CELLS, EKF2_REQ_GPS_H) and by the airframe file `4001_gz_x500`
-//! (MPC_THR_HOVER, NAV_DLL_ACT). On top of those, [`ParamTable::px4`] writes this drone's
-//! MAVLink system id, its airframe id and the navigator's tunables: NAV_ACC_RAD is 1 m in this
-//! simulation (PX4: 10 m firmware default, 2 m for multicopters).
+//! What PX4 SITL reports for the drone's airframe preset ([`Preset`]), in layers:
+//! 1. firmware defaults (PX4 main, the modules' `*_params.c` / `*.yaml`), overridden by
+//!    `rc.mc_defaults` (MAV_TYPE, NAV_ACC_RAD, RTL_RETURN_ALT, RTL_DESCEND_ALT) and by the
+//!    SITL `rcS` (the simulated sensors' CAL_*_ID, EKF2_REQ_GPS_H);
+//! 2. the preset, through [`preset`]: the values the drone actually flies with, from its
+//!    physics and its controller gains (MC_*_P, MC_*RATE_*, MPC_*_P, MPC_*_VEL_*,
+//!    MPC_TILTMAX_AIR, BAT1_*), its PX4 airframe id (SYS_AUTOSTART) and the values its PX4
+//!    airframe file sets (for the x500 `4001_gz_x500`: MPC_THR_HOVER, NAV_DLL_ACT);
+//! 3. this drone's MAVLink system id and the navigator's tunables: NAV_ACC_RAD is 1 m in
+//!    this simulation (PX4: 10 m firmware default, 2 m for multicopters).
+//!
+//! The same table is written into the drone's ULog ([`plan::drone_table`]), so a log and a
+//! ground station see the same values.
 //!
 //! # Encoding
 //! PX4 advertises `MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE`: an INT32 value travels in
@@ -38,6 +44,9 @@
 //!   the client wait for its timeout instead of seeing at once that nothing changed.
 //! - MAV_SYS_ID, MAV_COMP_ID and SYS_AUTOSTART are read-only: the run plan assigns them and
 //!   the simulation never reboots to apply a change (PX4 needs a reboot for them too).
+//! - The controller's parameters (MC_*, MPC_* outside the navigator's) report what the
+//!   controller flies with; a PARAM_SET of one is stored and reported back but does not
+//!   retune the running controller.
 //! - `target_system` 0 (broadcast) is accepted; PX4 answers only its own system id.
 //! - PARAM_REQUEST_LIST is answered with the whole list at once; PX4 spreads it over its
 //!   stream cycles. Pacing is the caller's to do if a link needs it.
@@ -49,6 +58,10 @@ use ::mavlink::types::CharArray;
 
 use crate::autopilot::mission::DEFAULT_CRUISE_MPS;
 use crate::autopilot::navigator::NavigatorConfig;
+use crate::vehicle::Preset;
+
+pub mod plan;
+pub mod preset;
 
 /// MAV_COMP_ID_AUTOPILOT1: the component id PX4's autopilot answers as (MAV_COMP_ID).
 pub const AUTOPILOT_COMPONENT_ID: u8 = 1;
@@ -152,13 +165,13 @@ impl Param {
     }
 }
 
-/// A PX4 SITL x500's parameters before [`ParamTable::px4`] applies the drone's own values,
-/// grouped by PX4 module. Firmware defaults unless a comment names the script that overrides
-/// them.
-const PX4_X500: &[Param] = &[
-    // Battery (src/lib/battery). BAT1_N_CELLS 4: SITL rcS (firmware: 0, unknown).
+/// PX4 SITL's parameters before [`ParamTable::px4`] applies the preset's and the drone's own
+/// values, grouped by PX4 module. Firmware defaults unless a comment names the script that
+/// overrides them; values marked "preset" are always overwritten from the [`Preset`].
+const PX4_SITL: &[Param] = &[
+    // Battery (src/lib/battery). BAT1_CAPACITY, BAT1_N_CELLS: preset.
     Param::real("BAT1_CAPACITY", -1.0).range(-1.0, 100_000.0),
-    Param::int("BAT1_N_CELLS", 4).range(0.0, 16.0),
+    Param::int("BAT1_N_CELLS", 0).range(0.0, 16.0),
     Param::int("BAT1_SOURCE", 0).range(-1.0, 2.0),
     Param::real("BAT1_V_CHARGED", 4.05),
     Param::real("BAT1_V_EMPTY", 3.6),
@@ -171,7 +184,7 @@ const PX4_X500: &[Param] = &[
     Param::int("CAL_GYRO0_ID", 1_310_988),
     Param::int("CAL_MAG0_ID", 197_388),
     Param::int("SENS_BOARD_ROT", 0).range(-1.0, 40.0),
-    // Commander. NAV_DLL_ACT 2 (return on data link loss): 4001_gz_x500 (firmware: 0).
+    // Commander. NAV_DLL_ACT: preset (4001_gz_x500 sets 2, return on data link loss).
     Param::int("COM_ARM_WO_GPS", 1).range(0.0, 2.0),
     Param::real("COM_DISARM_LAND", 2.0),
     Param::real("COM_DISARM_PRFLT", 10.0),
@@ -185,7 +198,7 @@ const PX4_X500: &[Param] = &[
     Param::int("COM_RCL_EXCEPT", 0).range(0.0, 7.0),
     Param::int("COM_RC_IN_MODE", 3).range(0.0, 4.0),
     Param::real("COM_RC_LOSS_T", 0.5).range(0.0, 35.0),
-    Param::int("NAV_DLL_ACT", 2).range(0.0, 6.0),
+    Param::int("NAV_DLL_ACT", 0).range(0.0, 6.0),
     Param::int("NAV_RCL_ACT", 2).range(1.0, 6.0),
     // Estimator (src/modules/ekf2). EKF2_REQ_GPS_H 0.5 s: SITL rcS (firmware: 10 s).
     Param::int("EKF2_BARO_CTRL", 1).range(0.0, 1.0),
@@ -210,7 +223,7 @@ const PX4_X500: &[Param] = &[
     Param::int("MAV_COMP_ID", AUTOPILOT_COMPONENT_ID as i32).range(1.0, 250.0).fixed(),
     Param::int("MAV_SYS_ID", 1).range(1.0, 250.0).fixed(),
     Param::int("MAV_TYPE", 2).range(0.0, 22.0),
-    // Attitude and rate control (mc_att_control, mc_rate_control).
+    // Attitude and rate control (mc_att_control, mc_rate_control): preset.
     Param::real("MC_PITCHRATE_MAX", 220.0).range(0.0, 1800.0),
     Param::real("MC_PITCHRATE_P", 0.15).range(0.01, 0.6),
     Param::real("MC_PITCH_P", 4.0).range(0.0, 12.0),
@@ -226,13 +239,14 @@ const PX4_X500: &[Param] = &[
     Param::int("MIS_TKO_LAND_REQ", 0).range(0.0, 5.0),
     Param::real("NAV_ACC_RAD", 2.0).range(0.05, 200.0),
     Param::real("NAV_MC_ALT_RAD", 0.8).range(0.05, 200.0),
-    // Position control (mc_pos_control). MPC_THR_HOVER 0.6: 4001_gz_x500 (firmware: 0.5).
+    // Position control (mc_pos_control). Gains, speed and tilt limits: preset. MPC_THR_HOVER:
+    // preset (4001_gz_x500 sets 0.6).
     Param::real("MPC_ACC_HOR", 3.0).range(2.0, 15.0),
     Param::real("MPC_JERK_AUTO", 4.0).range(1.0, 80.0),
     Param::real("MPC_LAND_ALT1", 10.0).range(0.0, 122.0),
     Param::real("MPC_LAND_ALT2", 5.0).range(0.0, 122.0),
     Param::real("MPC_LAND_SPEED", 0.7).at_least(0.6),
-    Param::real("MPC_THR_HOVER", 0.6).range(0.1, 0.8),
+    Param::real("MPC_THR_HOVER", 0.5).range(0.1, 0.8),
     Param::real("MPC_TILTMAX_AIR", 45.0).range(20.0, 89.0),
     Param::real("MPC_TKO_SPEED", 1.5).range(1.0, 5.0),
     Param::real("MPC_XY_CRUISE", DEFAULT_CRUISE_MPS as f32).range(3.0, 20.0),
@@ -254,7 +268,7 @@ const PX4_X500: &[Param] = &[
     Param::real("RTL_LAND_DELAY", 0.0).at_least(-1.0),
     Param::real("RTL_RETURN_ALT", 30.0).at_least(0.0),
     Param::int("RTL_TYPE", 0).range(0.0, 4.0),
-    // System.
+    // System. SYS_AUTOSTART: preset.
     Param::int("SYS_AUTOSTART", 0).range(0.0, 9_999_999.0).fixed(),
     Param::int("SYS_HAS_BARO", 1).range(0.0, 1.0),
     Param::int("SYS_HAS_GPS", 1).range(0.0, 1.0),
@@ -337,21 +351,34 @@ pub struct ParamTable {
 }
 
 impl ParamTable {
-    /// The parameters of a PX4 SITL x500 with MAVLink system id `system_id`, airframe
-    /// `sys_autostart` (4001 for the x500) and the navigator tunables of `nav`.
+    /// The parameters PX4 SITL reports for a drone of `preset` with MAVLink system id
+    /// `system_id` and the navigator tunables of `nav` (see the module docs' layers).
     ///
-    /// `nav`'s values are taken as they are, even outside PX4's ranges (they are validated
-    /// where the scenario is); only later writes are range-checked.
-    pub fn px4(system_id: u8, sys_autostart: i32, nav: &NavigatorConfig) -> Self {
-        let mut params = PX4_X500.to_vec();
+    /// `nav`'s and the preset's values are taken as they are, even outside PX4's ranges
+    /// (they are validated where the scenario is, or are what the controller flies with);
+    /// only later writes are range-checked.
+    pub fn px4(system_id: u8, preset: &Preset, nav: &NavigatorConfig) -> Self {
+        let mut params = PX4_SITL.to_vec();
         params.sort_by(|a, b| a.name.cmp(b.name));
         let mut table = Self { params, system_id };
+        for (name, value) in self::preset::values(preset) {
+            table.put_number(name, value);
+        }
         table.put("MAV_SYS_ID", ParamValue::Int32(i32::from(system_id)));
-        table.put("SYS_AUTOSTART", ParamValue::Int32(sys_autostart));
         for p in &NAVIGATOR_PARAMS {
             table.put(p.name, ParamValue::Real32((p.get)(nav) as f32));
         }
         table
+    }
+
+    /// Overwrites a value in the parameter's own type without checks (construction only):
+    /// an INT32 takes the integer part of `value`, a REAL32 its nearest f32.
+    fn put_number(&mut self, name: &str, value: f64) {
+        match self.get(name) {
+            Some(ParamValue::Int32(_)) => self.put(name, ParamValue::Int32(value as i32)),
+            Some(ParamValue::Real32(_)) => self.put(name, ParamValue::Real32(value as f32)),
+            None => {}
+        }
     }
 
     /// Overwrites a value without checks (construction only).

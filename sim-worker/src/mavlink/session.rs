@@ -64,10 +64,11 @@ pub struct Session {
 }
 
 impl Session {
-    /// `sys_autostart` is the PX4 airframe id the parameters report (4001 for the x500).
-    pub fn new(id: VehicleIdentity, sys_autostart: i32, navigator: &NavigatorConfig) -> Self {
+    /// `params` is the drone's parameter table (`params::plan::drone_table`, or
+    /// [`ParamTable::px4`]).
+    pub fn new(id: VehicleIdentity, params: ParamTable) -> Self {
         Self {
-            params: ParamTable::px4(id.system_id, sys_autostart, navigator),
+            params,
             streams: StreamScheduler::px4_default(),
             missions: MissionProtocol::new(),
             outbox: Vec::new(),

@@ -19,6 +19,10 @@
 //! - each new GNSS receiver output: `sensor_gps` and `vehicle_gps_position` (same content);
 //! - each event of the drone (and run-wide events): a logged string.
 //!
+//! Parameters: the drone's MAVLink parameter table at the run start
+//! (`mavlink::params::plan::drone_table`), so the log and a ground station agree; only
+//! MPC_XY_CRUISE is the scripted mission's speed when the group's mission sets one.
+//!
 //! Timestamps are microseconds of simulated time since the run start.
 
 mod convert;
@@ -39,13 +43,16 @@ use sadesim_crds::plan::{PlannedDrone, RunPlan};
 use self::convert::{DroneFrame, Solution, StatusTracker, micros};
 use self::topics::Topic;
 use self::writer::{ParamValue, UlogWriter};
-use crate::autopilot::mission::DEFAULT_CRUISE_MPS;
 use crate::events::{Event, EventKind};
+use crate::mavlink::params::{self as mavlink_params, plan::drone_table};
 use crate::protocol::DroneSnapshot;
 use crate::record::Sampler;
 use crate::vehicle::BatterySpec;
 
 pub use self::convert::{nav_state, q_ned_frd};
+
+/// The cruise speed parameter, logged as the scripted mission's speed.
+const CRUISE_PARAM: &str = "MPC_XY_CRUISE";
 
 /// Folder inside the run folder.
 pub const ULOG_DIR: &str = "ulog";
@@ -81,15 +88,6 @@ mod msg_id {
     pub const BATTERY_STATUS: u16 = 8;
     pub const VEHICLE_STATUS: u16 = 9;
     pub const ACTUATOR_OUTPUTS: u16 = 10;
-}
-
-/// PX4's SYS_AUTOSTART of the airframe PX4 SITL flies for a preset (4001: gz_x500); 0
-/// when PX4 has no such airframe.
-fn sys_autostart(airframe: &str) -> i32 {
-    match airframe {
-        "x500" => 4001,
-        _ => 0,
-    }
 }
 
 /// One drone's file and what it remembers between windows.
@@ -153,7 +151,7 @@ impl UlogRecorder {
                 out,
                 system_id: drone.system_id,
                 component_id: drone.component_id,
-                battery: crate::vehicle::preset(&drone.airframe).map(|a| a.battery),
+                battery: crate::vehicle::Preset::named(&drone.airframe).map(|p| p.airframe.battery),
                 frame: None,
                 last_gnss_s: None,
                 status: StatusTracker::default(),
@@ -292,12 +290,19 @@ fn write_definitions<W: io::Write>(
     out.info_str("sys_os_name", "sadesim")?;
     // Local time = UTC: simulated time has no time zone.
     out.info_i32("time_ref_utc", 0)?;
+    // The drone's MAVLink parameter table as the run starts (none for an unknown airframe,
+    // which the validator refuses), except MPC_XY_CRUISE: the scripted mission's speed when
+    // it has one, what the drone flies (the table keeps PX4's default for MAVLink missions).
     let group = plan.spec.fleet.get(drone.group_index as usize);
-    let cruise = group.and_then(|g| g.mission.as_ref()).and_then(|m| m.speed_mps).unwrap_or(DEFAULT_CRUISE_MPS);
-    out.parameter("SYS_AUTOSTART", ParamValue::Int32(sys_autostart(&drone.airframe)))?;
-    out.parameter("MAV_SYS_ID", ParamValue::Int32(i32::from(drone.system_id)))?;
-    out.parameter("MAV_COMP_ID", ParamValue::Int32(i32::from(drone.component_id)))?;
-    out.parameter("MPC_XY_CRUISE", ParamValue::Float(cruise as f32))?;
+    let mission_speed_mps = group.and_then(|g| g.mission.as_ref()).and_then(|m| m.speed_mps);
+    for p in drone_table(plan, drone).iter().flat_map(|t| t.params()) {
+        let value = match (p.value, mission_speed_mps) {
+            (_, Some(speed_mps)) if p.name == CRUISE_PARAM => ParamValue::Float(speed_mps as f32),
+            (mavlink_params::ParamValue::Int32(i), _) => ParamValue::Int32(i),
+            (mavlink_params::ParamValue::Real32(v), _) => ParamValue::Float(v),
+        };
+        out.parameter(p.name, value)?;
+    }
     for (id, (name, _)) in topics.iter().enumerate() {
         out.add_logged(0, id as u16, name)?;
     }

@@ -19,7 +19,7 @@ use crate::mavlink::session::{Session, Vehicle};
 use crate::mavlink::telemetry::{BatteryView, MissionProgress, PositionEstimate, VehicleView};
 use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail};
 use crate::sensors::{GnssFix, SensorSuite};
-use crate::vehicle::{Airframe, Battery, Motor, RigidState, wrench};
+use crate::vehicle::{Airframe, Battery, Motor, Preset, RigidState, wrench};
 use sadesim_world::World;
 
 /// Touchdown faster than this (m/s, downward) is a crash, not a landing.
@@ -101,7 +101,7 @@ impl DroneSim {
     /// A drone resting on the ground at its home.
     pub fn new(
         plan: PlannedDrone,
-        airframe: Airframe,
+        preset: Preset,
         sensors: SensorSuite,
         world: &World,
         navigator: NavigatorConfig,
@@ -110,7 +110,8 @@ impl DroneSim {
     ) -> Result<Self, crate::autopilot::control::ControlError> {
         let (e, n) = (plan.home.local.east_m, plan.home.local.north_m);
         let home = Vector3::new(e, n, world.ground_up_m(e, n) + GEAR_HEIGHT_M);
-        let fmu = Fmu::new(&airframe, home, navigator, origin_alt_msl_m)?;
+        let Preset { airframe, gains, .. } = preset;
+        let fmu = Fmu::new(&airframe, &gains, home, navigator, origin_alt_msl_m)?;
         let radius_m = airframe.rotors.iter().map(|r| r.position_body_m.xy().norm()).fold(0.0, f64::max) + 0.12;
         Ok(Self {
             plan,

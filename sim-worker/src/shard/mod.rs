@@ -10,7 +10,6 @@ use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 
 use crate::airspace::volume::ZoneVolume;
-use crate::autopilot::navigator::NavigatorConfig;
 use crate::env::{EnvSample, Environment};
 use crate::events::Event;
 use crate::physics::ContactWorld;
@@ -58,12 +57,6 @@ impl MavlinkOptions {
         let localhost = std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
         Self { bind_ip: localhost, api_host: Some(localhost), unix_epoch_at_start_us: now.as_micros() as u64 }
     }
-}
-
-/// PX4's SYS_AUTOSTART for our airframe presets (the Gazebo x500 is 4001; other quads
-/// report the generic quadrotor-x id, also 4001).
-fn sys_autostart(_airframe: &str) -> i32 {
-    4001
 }
 
 impl GroundHeight for World {
@@ -123,8 +116,8 @@ impl Shard {
         let mut drones = Vec::with_capacity(planned.len());
         for d in planned {
             let group = &spec.fleet[d.group_index as usize];
-            let airframe =
-                vehicle::preset(&d.airframe).ok_or_else(|| ShardError::UnknownAirframe(d.airframe.clone()))?;
+            let preset =
+                vehicle::Preset::named(&d.airframe).ok_or_else(|| ShardError::UnknownAirframe(d.airframe.clone()))?;
             let home_en = nalgebra::Vector2::new(d.home.local.east_m, d.home.local.north_m);
             let home_area = match &group.homes {
                 HomePlacement::RandomInArea(a) => Some(a),
@@ -135,14 +128,11 @@ impl Shard {
                 .mission
                 .as_ref()
                 .map(|m| scripted::expand(m, &frame, world.as_ref(), home_en, home_area, plan.seed, d.index));
-            // Return below the group's ceiling (PX4's 60 m default is above many groups' limits).
-            let navigator = NavigatorConfig {
-                rtl_altitude_m: (group.altitude.max_agl_m * 0.8).min(60.0),
-                ..NavigatorConfig::default()
-            };
+            // Return below the group's ceiling (the same tunables the parameter table reports).
+            let navigator = crate::mavlink::params::plan::navigator_config(group);
             let sensors = SensorSuite::new(env_spec.gnss.as_ref(), plan.seed, d.index);
             let mut drone =
-                DroneSim::new(d.clone(), airframe, sensors, &world, navigator, spec.origin.altitude_msl_m, mission)?;
+                DroneSim::new(d.clone(), preset, sensors, &world, navigator, spec.origin.altitude_msl_m, mission)?;
             if let Some(action) = group.geofence {
                 drone.enable_geofence(action, spec.zones.len());
             }
@@ -202,7 +192,9 @@ impl Shard {
                 unix_epoch_at_start_us: options.unix_epoch_at_start_us,
                 uid: u64::from(d.index) + 1,
             };
-            let session = Session::new(id, sys_autostart(&d.airframe), &drone.navigator_config());
+            let params = crate::mavlink::params::plan::drone_table(plan, d)
+                .ok_or_else(|| ShardError::UnknownAirframe(d.airframe.clone()))?;
+            let session = Session::new(id, params);
             links.push(drone::MavlinkLink { session, endpoint });
         }
         for (drone, link) in self.drones.iter_mut().zip(links) {

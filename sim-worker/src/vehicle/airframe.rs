@@ -1,4 +1,7 @@
-//! Airframe presets: mass, inertia, rotor geometry, motor and drag constants, flight limits.
+//! Airframe physics: mass, inertia, rotor geometry, motor and drag constants, flight limits.
+//!
+//! The physics of each preset is built here; the preset record itself (physics, PX4 id,
+//! controller gains, parameter overrides) is [`super::preset::Preset`].
 //!
 //! Frames: body **FLU** (x forward, y left, z up), origin at the centre of mass. Rotor
 //! positions, inertia and drag coefficients are body-axis quantities.
@@ -122,15 +125,11 @@ impl Airframe {
     }
 }
 
-/// The parameters of a preset, `None` for an unknown name.
+/// The physics of a preset ([`super::preset::Preset::airframe`]), `None` for an unknown name.
 ///
 /// Every name in `sadesim_crds::airframe::AIRFRAME_PRESETS` has parameters (tested).
 pub fn preset(name: &str) -> Option<Airframe> {
-    match name {
-        "x500" => Some(x500()),
-        "mini250" => Some(mini250()),
-        _ => None,
-    }
+    super::preset::Preset::named(name).map(|p| p.airframe)
 }
 
 /// Holybro X500 V2 as PX4 simulates it: `Tools/simulation/gz/models/x500/model.sdf`.
@@ -145,7 +144,7 @@ pub fn preset(name: &str) -> Option<Airframe> {
 /// of tilt (7.3 N), and vertical drag from the larger top area. Battery: the X500 kit's 4S
 /// 5000 mAh LiPo, ~20 mΩ pack. Limits are PX4 defaults: MPC_TILTMAX_AIR 45°,
 /// MPC_XY_VEL_MAX 12 m/s, MPC_Z_VEL_MAX_UP 3 m/s, MPC_Z_VEL_MAX_DN 1.5 m/s.
-fn x500() -> Airframe {
+pub(super) fn x500() -> Airframe {
     let a = 0.174;
     let h = 0.06;
     let rotor = |x: f64, y: f64, spin| Rotor { position_body_m: Vector3::new(x, y, h), spin };
@@ -193,7 +192,7 @@ fn x500() -> Airframe {
 /// * Drag: 15 m/s needs ~26° of tilt (1.2 N, DJI's sport-mode top speed is 16 m/s).
 /// * Battery: 2S 2450 mAh (Mini 3 class), ~60 mΩ; hover draws ~34 W, i.e. ~32 min.
 /// * Limits: 35° tilt, 15 m/s, climb 5 m/s, descent 3.5 m/s (DJI Mini 2 published limits).
-fn mini250() -> Airframe {
+pub(super) fn mini250() -> Airframe {
     let arm_m = 0.213 / 2.0;
     let xy = arm_m / SQRT_2;
     let (body_kg, body_m) = (0.161, Vector3::new(0.14, 0.08, 0.055));
@@ -247,11 +246,15 @@ mod tests {
     use super::*;
 
     fn all() -> Vec<Airframe> {
-        sadesim_crds::airframe::AIRFRAME_PRESETS.iter().map(|p| preset(p.name).expect(p.name)).collect()
+        super::super::preset::Preset::all().into_iter().map(|p| p.airframe).collect()
     }
 
     #[test]
     fn every_crds_preset_has_parameters() {
+        // The one list of presets (`Preset::all`) covers the crds list, in the same order.
+        let names: Vec<String> = all().into_iter().map(|a| a.name).collect();
+        let crds: Vec<&str> = sadesim_crds::airframe::AIRFRAME_PRESETS.iter().map(|p| p.name).collect();
+        assert_eq!(names, crds);
         for p in sadesim_crds::airframe::AIRFRAME_PRESETS {
             let a = preset(p.name).unwrap_or_else(|| panic!("no parameters for preset {}", p.name));
             assert_eq!(a.name, p.name);

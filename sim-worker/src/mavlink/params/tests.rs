@@ -4,8 +4,12 @@ use super::*;
 
 const SYSID: u8 = 7;
 
+fn x500() -> Preset {
+    Preset::named("x500").expect("x500 preset")
+}
+
 fn table() -> ParamTable {
-    ParamTable::px4(SYSID, 4001, &NavigatorConfig::default())
+    ParamTable::px4(SYSID, &x500(), &NavigatorConfig::default())
 }
 
 fn request_list(target_system: u8) -> MavMessage {
@@ -61,7 +65,7 @@ fn table_size_order_and_names_are_stable() {
     assert!(names.windows(2).all(|w| w[0] < w[1]), "sorted and unique: {names:?}");
     assert!(names.iter().all(|n| n.len() <= NAME_MAX_LEN && n.bytes().all(|b| b.is_ascii_graphic())));
     // Same order for every drone, whatever its id or config.
-    let other = ParamTable::px4(200, 4001, &NavigatorConfig { rtl_altitude_m: 50.0, ..NavigatorConfig::default() });
+    let other = ParamTable::px4(200, &x500(), &NavigatorConfig { rtl_altitude_m: 50.0, ..NavigatorConfig::default() });
     assert_eq!(names, other.params().iter().map(|p| p.name).collect::<Vec<_>>());
 }
 
@@ -87,7 +91,7 @@ fn required_parameters_are_present_with_px4_types() {
 #[test]
 fn identity_and_navigator_values_come_from_the_constructor() {
     let nav = NavigatorConfig { rtl_altitude_m: 45.0, acceptance_radius_m: 1.5, ..NavigatorConfig::default() };
-    let t = ParamTable::px4(42, 4001, &nav);
+    let t = ParamTable::px4(42, &x500(), &nav);
     assert_eq!(t.get("MAV_SYS_ID"), Some(ParamValue::Int32(42)));
     assert_eq!(t.get("MAV_COMP_ID"), Some(ParamValue::Int32(1)));
     assert_eq!(t.get("MAV_TYPE"), Some(ParamValue::Int32(2)));
@@ -286,4 +290,20 @@ fn a_sixteen_character_name_without_terminator_is_found() {
     assert_eq!(name.len(), NAME_MAX_LEN);
     let reply = t.handle(&read_by_name(name));
     assert_eq!(name_of(only_value(&reply)), name);
+}
+
+#[test]
+fn every_preset_value_names_a_parameter_of_its_type() {
+    for p in Preset::all() {
+        let t = ParamTable::px4(SYSID, &p, &NavigatorConfig::default());
+        assert_eq!(t.len(), table().len(), "{}: same parameters for every preset", p.name());
+        for (name, value) in super::preset::values(&p) {
+            let expected = match t.get(name) {
+                Some(ParamValue::Int32(_)) => ParamValue::Int32(value as i32),
+                Some(ParamValue::Real32(_)) => ParamValue::Real32(value as f32),
+                None => panic!("{}: {name} is not a parameter", p.name()),
+            };
+            assert_eq!(t.get(name), Some(expected), "{}: {name}", p.name());
+        }
+    }
 }

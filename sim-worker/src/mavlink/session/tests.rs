@@ -34,7 +34,8 @@ fn frame_origin() -> LocalFrame {
 
 fn session() -> Session {
     let id = VehicleIdentity { system_id: 7, frame: frame_origin(), unix_epoch_at_start_us: 0, uid: 7 };
-    Session::new(id, 4001, &NavigatorConfig::default())
+    let preset = crate::vehicle::Preset::named("x500").expect("x500 preset");
+    Session::new(id, ParamTable::px4(7, &preset, &NavigatorConfig::default()))
 }
 
 fn view(t: f64) -> VehicleView {
@@ -451,3 +452,5 @@ fn reposition_with_an_unset_position_changes_only_the_altitude() {
     assert!((target_en_m.x - 10.0).abs() < 0.01 && (target_en_m.y - 20.0).abs() < 0.01, "{target_en_m}");
     assert!((altitude_rel_home_m - 40.0).abs() < 1e-6);
 }
+
+mod presets;

@@ -501,3 +501,58 @@ fn files_are_flushed_every_simulated_second() {
     assert!(gt.last().unwrap().timestamp() >= 1_000_000, "{} samples on disk", gt.len());
     drop(rec);
 }
+
+/// Regression (SYS_AUTOSTART was 4001 over MAVLink and 0 in the mini250's ULog): for every
+/// preset, the parameters in the drone's ULog are exactly the PARAM_VALUEs its MAVLink
+/// parameter table answers a PARAM_REQUEST_LIST with, name for name, type for type (the
+/// test fixture's mission has no speed, so MPC_XY_CRUISE is the table's too).
+#[test]
+fn ulog_parameters_equal_the_mavlink_table_for_every_preset() {
+    use ::mavlink::dialects::common::{MavMessage, PARAM_REQUEST_LIST_DATA};
+
+    use crate::mavlink::params::{self as mavlink_params, plan::drone_table};
+
+    for preset in crate::vehicle::Preset::all() {
+        let name = preset.name().to_owned();
+        let tmp = TempDir::new(&format!("params-{name}"));
+        let plan = plan_of(RunBuilder::test().with_drones(1).with(|r| r.spec.fleet[0].airframe = name.clone()).build());
+        let drone = &plan.drones[0];
+        assert_eq!(drone.airframe, name);
+        UlogRecorder::create(&tmp.0, &plan).unwrap().finish().unwrap();
+        let p = parse(&std::fs::read(tmp.0.join(format!("ulog/{}.ulg", drone.name))).unwrap());
+
+        let mut table = drone_table(&plan, drone).expect("known preset");
+        let list = MavMessage::PARAM_REQUEST_LIST(PARAM_REQUEST_LIST_DATA {
+            target_system: drone.system_id,
+            target_component: 1,
+        });
+        let mut mavlink = HashMap::new();
+        for msg in table.handle(&list).messages {
+            let MavMessage::PARAM_VALUE(v) = msg else { panic!("{msg:?}") };
+            let value = match mavlink_params::ParamValue::from_wire(v.param_value, v.param_type) {
+                Some(mavlink_params::ParamValue::Int32(i)) => ParamValue::Int32(i),
+                Some(mavlink_params::ParamValue::Real32(f)) => ParamValue::Float(f),
+                None => panic!("{v:?}"),
+            };
+            mavlink.insert(v.param_id.to_str().unwrap().to_owned(), value);
+        }
+        assert_eq!(mavlink.len(), table.len(), "{name}");
+        assert_eq!(p.params, mavlink, "{name}: ULog parameters differ from MAVLink's");
+        assert_eq!(p.params["SYS_AUTOSTART"], ParamValue::Int32(preset.sys_autostart), "{name}");
+        assert_eq!(p.params["BAT1_N_CELLS"], ParamValue::Int32(preset.airframe.battery.cells as i32), "{name}");
+        assert_eq!(p.params["MAV_SYS_ID"], ParamValue::Int32(i32::from(drone.system_id)), "{name}");
+    }
+}
+
+#[test]
+fn ulog_cruise_parameter_is_the_scripted_mission_speed() {
+    let tmp = TempDir::new("cruise");
+    let run =
+        RunBuilder::test().with_drones(1).with(|r| r.spec.fleet[0].mission.as_mut().unwrap().speed_mps = Some(8.0));
+    let plan = plan_of(run.build());
+    UlogRecorder::create(&tmp.0, &plan).unwrap().finish().unwrap();
+    let p = parse(&std::fs::read(tmp.0.join("ulog/alpha-0.ulg")).unwrap());
+    assert_eq!(p.params["MPC_XY_CRUISE"], ParamValue::Float(8.0));
+    let table = crate::mavlink::params::plan::drone_table(&plan, &plan.drones[0]).unwrap();
+    assert_eq!(p.params.len(), table.len(), "every other parameter is the table's");
+}

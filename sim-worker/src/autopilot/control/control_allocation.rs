@@ -1,0 +1,136 @@
+//! Control allocation (the mixer), PX4's `control_allocator`: collective thrust and body
+//! torques → per-rotor commands.
+
+use nalgebra::{Matrix4, Vector3, Vector4};
+
+use crate::vehicle::Airframe;
+
+/// Why a controller cannot be built for an airframe.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ControlError {
+    /// The rotors cannot produce independent thrust, roll, pitch and yaw (for example all
+    /// spin the same way, or they sit on one line).
+    #[error("failed to build the mixer for airframe {0}: rotor layout cannot control thrust, roll, pitch and yaw")]
+    Unallocatable(String),
+}
+
+/// Per-rotor thrusts of one allocation and how much of the request survived saturation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Allocation {
+    pub rotor_thrust_n: Vec<f64>,
+    /// Factor applied to the roll/pitch torque (1 = as requested).
+    pub roll_pitch_scale: f64,
+    /// Factor applied to the yaw torque (1 = as requested).
+    pub yaw_scale: f64,
+}
+
+/// Collective thrust + body torques → per-rotor commands, for any rotor layout.
+///
+/// The effectiveness matrix `B` (4 × n) maps rotor thrusts to (thrust, τx, τy, τz): column
+/// `i` is `(1, r_y, −r_x, s_i k_m)` (`r × T ẑ` plus the reaction torque, `s_i` from
+/// [`crate::vehicle::Spin::reaction_sign`]). The mixer uses the pseudo-inverse
+/// `B⁺ = Bᵀ (B Bᵀ)⁻¹` (the exact inverse for a quad).
+///
+/// Saturation, in priority order: roll/pitch first (scaled down only if they alone do not
+/// fit in `[0, T_max]`), then collective thrust (shifted to make room), then yaw (clipped
+/// to what headroom is left). Commands invert `T = k_f (u ω_max)²`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Mixer {
+    /// Row `i` of `B⁺`: rotor `i`'s thrust per unit of (thrust, τx, τy, τz).
+    pub(super) pinv: Vec<[f64; 4]>,
+    pub thrust_coeff_n_per_rad_s2: f64,
+    pub max_omega_rad_s: f64,
+    pub max_rotor_thrust_n: f64,
+}
+
+impl Mixer {
+    /// # Errors
+    /// [`ControlError::Unallocatable`] when `B Bᵀ` is singular or some rotor would not
+    /// contribute to collective thrust.
+    pub fn new(airframe: &Airframe) -> Result<Self, ControlError> {
+        let km = airframe.torque_coeff_m;
+        let columns: Vec<Vector4<f64>> = airframe
+            .rotors
+            .iter()
+            .map(|r| {
+                let p = r.position_body_m;
+                Vector4::new(1.0, p.y, -p.x, r.spin.reaction_sign() * km)
+            })
+            .collect();
+        let bbt: Matrix4<f64> = columns.iter().map(|c| c * c.transpose()).sum();
+        let err = || ControlError::Unallocatable(airframe.name.clone());
+        // Rank check on the correlation matrix (rows have different units: N vs N m).
+        let d = bbt.diagonal().map(|x| if x > 0.0 { 1.0 / x.sqrt() } else { 0.0 });
+        let correlation = Matrix4::from_diagonal(&d) * bbt * Matrix4::from_diagonal(&d);
+        if correlation.symmetric_eigenvalues().min() < 1e-9 {
+            return Err(err());
+        }
+        let inv = bbt.try_inverse().ok_or_else(err)?;
+        let pinv: Vec<[f64; 4]> = columns.iter().map(|c| (inv * c).into()).collect();
+        if pinv.iter().any(|row| row[0] <= 1e-9) || !pinv.iter().flatten().all(|x| x.is_finite()) {
+            return Err(err());
+        }
+        Ok(Self {
+            pinv,
+            thrust_coeff_n_per_rad_s2: airframe.thrust_coeff_n_per_rad_s2,
+            max_omega_rad_s: airframe.max_omega_rad_s,
+            max_rotor_thrust_n: airframe.max_rotor_thrust_n(),
+        })
+    }
+
+    /// Rotor thrusts for a collective thrust (N) and body torque (N m), saturation handled.
+    pub fn allocate(&self, thrust_n: f64, torque_body_nm: &Vector3<f64>) -> Allocation {
+        let t_max = self.max_rotor_thrust_n;
+        let tau = torque_body_nm;
+        // Rotor i's roll/pitch thrust rp_i, and ratio_i = rp_i / c0_i (c0 = collective column).
+        let rp = |row: &[f64; 4]| row[1] * tau.x + row[2] * tau.y;
+        let ratio = |row: &[f64; 4]| rp(row) / row[0];
+        // Some collective F keeps F c0_i + s rp_i in [0, T_max] for all i iff, for all i, j,
+        // s (ratio_j − ratio_i) ≤ T_max / c0_j: take the largest such s ≤ 1.
+        let mut s: f64 = 1.0;
+        for row_j in &self.pinv {
+            for row_i in &self.pinv {
+                let spread = ratio(row_j) - ratio(row_i);
+                if spread > 0.0 {
+                    s = s.min(t_max / row_j[0] / spread);
+                }
+            }
+        }
+        let lo = self.pinv.iter().map(|row| -s * ratio(row)).fold(f64::NEG_INFINITY, f64::max);
+        let hi = self.pinv.iter().map(|row| t_max / row[0] - s * ratio(row)).fold(f64::INFINITY, f64::min);
+        let f = if lo <= hi { thrust_n.clamp(lo, hi) } else { 0.5 * (lo + hi) };
+        let mut t: Vec<f64> = self.pinv.iter().map(|row| f * row[0] + s * rp(row)).collect();
+        // Yaw gets what headroom is left.
+        let mut k: f64 = 1.0;
+        for (ti, row) in t.iter().zip(&self.pinv) {
+            let y = row[3] * tau.z;
+            if y > 0.0 {
+                k = k.min((t_max - ti) / y);
+            } else if y < 0.0 {
+                k = k.min(-ti / y);
+            }
+        }
+        let k = k.max(0.0);
+        for (ti, row) in t.iter_mut().zip(&self.pinv) {
+            *ti = (*ti + k * row[3] * tau.z).clamp(0.0, t_max);
+        }
+        Allocation { rotor_thrust_n: t, roll_pitch_scale: s, yaw_scale: k }
+    }
+
+    /// Normalised command in [0, 1] for one rotor's thrust: `sqrt(T / k_f) / ω_max`.
+    pub fn command_for_thrust(&self, rotor_thrust_n: f64) -> f64 {
+        ((rotor_thrust_n.max(0.0) / self.thrust_coeff_n_per_rad_s2).sqrt() / self.max_omega_rad_s).clamp(0.0, 1.0)
+    }
+
+    /// Per-rotor normalised commands for a collective thrust (N) and body torque (N m).
+    pub fn mix(&self, thrust_n: f64, torque_body_nm: &Vector3<f64>) -> Vec<f64> {
+        self.commands(self.allocate(thrust_n, torque_body_nm))
+    }
+
+    /// Normalised commands for an allocation's rotor thrusts (reuses its buffer).
+    pub fn commands(&self, allocation: Allocation) -> Vec<f64> {
+        let mut u = allocation.rotor_thrust_n;
+        u.iter_mut().for_each(|t| *t = self.command_for_thrust(*t));
+        u
+    }
+}
