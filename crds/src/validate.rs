@@ -4,6 +4,9 @@
 //! expected (`spec.fleet[2].count: must be between 1 and 10000, got 0`), so a user fixes a
 //! scenario in one pass. It is pure: no I/O, no clock.
 //!
+//! [`schema_problems`] is the structural pass that runs before typed reading (every missing
+//! field and wrong type at once); `validate` runs on the typed run.
+//!
 //! The sections live in their own modules: `problems` (the list and its phrasing),
 //! `world`, `fleet` (groups, missions, the pilot), `zones`, `environment` and `criteria`.
 
@@ -11,6 +14,7 @@ mod criteria;
 mod environment;
 mod fleet;
 mod problems;
+mod schema;
 mod world;
 mod zones;
 
@@ -18,6 +22,7 @@ use crate::run::{ClockMode, SimulationRun, SimulationRunSpec};
 
 use problems::Problems;
 pub use problems::{FieldError, ValidationErrors, duration_s};
+pub use schema::schema_problems;
 
 /// Longest run name: children are named `<run>-<role>-<n>` and must fit 63 characters.
 pub const MAX_RUN_NAME_LEN: usize = 40;
