@@ -91,10 +91,10 @@ fn type_matches(expected: &str, v: &Value) -> bool {
 
 fn check(schema: &Value, v: &Value, path: &str, out: &mut Vec<FieldError>) {
     if v.is_null() {
-        if !schema.get("nullable").is_some_and(|n| n == true) {
-            if let Some(t) = schema.get("type").and_then(Value::as_str) {
-                add(out, path, format!("must be of type {t}, got null"));
-            }
+        if !schema.get("nullable").is_some_and(|n| n == true)
+            && let Some(t) = schema.get("type").and_then(Value::as_str)
+        {
+            add(out, path, format!("must be of type {t}, got null"));
         }
         return;
     }

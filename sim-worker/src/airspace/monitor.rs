@@ -27,6 +27,13 @@
 //!   at the activation time; a zone that stops being active ends every stay at its end time.
 //! - **Altitude limit**: an airborne drone strictly above its group's `altitude.maxAglM`
 //!   (no tolerance), anywhere, at the window samples.
+//! - **Altitude minimum** (groups with `altitude.minAglM`): a *cruising* drone strictly
+//!   below `minAglM` (no tolerance) at the window samples -> `belowAltitudeMinimum`. A drone
+//!   starts cruising at the first sample where it is airborne, in neither `land` nor
+//!   `returnToLaunch` mode, and at or above `minAglM`; it stops when it is seen on the
+//!   ground or crashed, or in `land` or `returnToLaunch` mode (which ends an open episode
+//!   at that sample). So the climb after takeoff and the final descent are not judged,
+//!   and a drone that never climbed to `minAglM` is never judged (see `altitude`).
 //! - **Separation** (only when the scenario has a `minSeparation` criterion): two airborne
 //!   drones closer than the smallest such distance in 3-D at a window sample.
 //!
@@ -63,6 +70,8 @@ pub enum ViolationKind {
     AboveZoneMaximum,
     /// Above the group's `altitude.maxAglM`, anywhere.
     AboveAltitudeLimit,
+    /// Below the group's `altitude.minAglM` while cruising (takeoff and landing excepted).
+    BelowAltitudeMinimum,
     /// Two airborne drones closer than a `minSeparation` criterion's distance.
     SeparationLoss,
 }
@@ -75,6 +84,7 @@ impl ViolationKind {
             Self::BelowZoneMinimum => "belowZoneMinimum",
             Self::AboveZoneMaximum => "aboveZoneMaximum",
             Self::AboveAltitudeLimit => "aboveAltitudeLimit",
+            Self::BelowAltitudeMinimum => "belowAltitudeMinimum",
             Self::SeparationLoss => "separationLoss",
         }
     }
@@ -169,12 +179,18 @@ impl Monitor {
         let drones: Vec<DroneState> = plan
             .drones
             .iter()
-            .map(|d| DroneState {
-                name: d.name.clone(),
-                max_agl_m: plan.spec.fleet.get(d.group_index as usize).map_or(f64::INFINITY, |g| g.altitude.max_agl_m),
-                last: None,
-                crashed: false,
-                above_limit: None,
+            .map(|d| {
+                let limits = plan.spec.fleet.get(d.group_index as usize).map(|g| &g.altitude);
+                DroneState {
+                    name: d.name.clone(),
+                    max_agl_m: limits.map_or(f64::INFINITY, |a| a.max_agl_m),
+                    min_agl_m: limits.and_then(|a| a.min_agl_m),
+                    last: None,
+                    crashed: false,
+                    above_limit: None,
+                    cruising: false,
+                    below_minimum: None,
+                }
             })
             .collect();
         let distances = plan.spec.criteria.iter().filter_map(|c| match c {
@@ -240,7 +256,7 @@ impl Monitor {
             for z in 0..self.zones.len() {
                 self.watch_zone(i, z, &prev, &now, airborne, lease);
             }
-            self.watch_altitude(i, &now, airborne);
+            self.watch_altitude(i, &now, airborne, snap.mode);
             self.drones[i].last = Some(now);
         }
         // Crashes of drones without a snapshot this window: where they were last seen.
@@ -266,7 +282,7 @@ impl Monitor {
                     log.leave(stay, &end);
                 }
             }
-            if let Some(v) = drone.above_limit.take() {
+            for v in [drone.above_limit.take(), drone.below_minimum.take()].into_iter().flatten() {
                 log.end(v, time_s);
             }
         }
@@ -354,24 +370,6 @@ impl Monitor {
             }
             None => {}
         }
-    }
-
-    /// The group altitude limit at the window sample.
-    fn watch_altitude(&mut self, i: usize, now: &Sample, airborne: bool) {
-        let Self { drones, log, .. } = self;
-        let d = &mut drones[i];
-        let limit_m = d.max_agl_m;
-        let agl_m = now.height_agl_m;
-        let breach = (airborne && agl_m > limit_m).then_some(agl_m);
-        log.track(&mut d.above_limit, breach, now, || NewViolation {
-            kind: ViolationKind::AboveAltitudeLimit,
-            drone: i as u32,
-            drone_name: d.name.clone(),
-            other: None,
-            zone: None,
-            limit_m: Some(limit_m),
-            detail: format!("{agl_m:.1} m AGL, above the group's limit of {limit_m:.1} m AGL"),
-        });
     }
 
     /// Separation between airborne drones at the window samples, by grid hashing.
@@ -574,6 +572,13 @@ struct DroneState {
     crashed: bool,
     /// Open `aboveAltitudeLimit` violation (index in the report's violations).
     above_limit: Option<usize>,
+    /// The group's `altitude.minAglM`, if set.
+    min_agl_m: Option<f64>,
+    /// Judged against `min_agl_m`: climbed to it since the last ground contact, landing
+    /// or return (see the module's rules).
+    cruising: bool,
+    /// Open `belowAltitudeMinimum` violation.
+    below_minimum: Option<usize>,
 }
 
 /// One drone and one zone: the open stay and zone violations, as indices in the report.
@@ -791,6 +796,7 @@ impl Log {
     }
 }
 
+mod altitude;
 #[cfg(test)]
 pub(crate) mod test_plan;
 #[cfg(test)]
