@@ -27,13 +27,9 @@
 //!   at the activation time; a zone that stops being active ends every stay at its end time.
 //! - **Altitude limit**: an airborne drone strictly above its group's `altitude.maxAglM`
 //!   (no tolerance), anywhere, at the window samples.
-//! - **Altitude minimum** (groups with `altitude.minAglM`): a *cruising* drone strictly
-//!   below `minAglM` (no tolerance) at the window samples -> `belowAltitudeMinimum`. A drone
-//!   starts cruising at the first sample where it is airborne, in neither `land` nor
-//!   `returnToLaunch` mode, and at or above `minAglM`; it stops when it is seen on the
-//!   ground or crashed, or in `land` or `returnToLaunch` mode (which ends an open episode
-//!   at that sample). So the climb after takeoff and the final descent are not judged,
-//!   and a drone that never climbed to `minAglM` is never judged (see `altitude`).
+//! - **Altitude minimum**: a *cruising* drone strictly below its group's `altitude.minAglM`
+//!   at the window samples (cruising: from its first climb to `minAglM` until the ground or
+//!   `land`/`returnToLaunch` mode; the `altitude` module defines it precisely).
 //! - **Separation** (only when the scenario has a `minSeparation` criterion): two airborne
 //!   drones closer than the smallest such distance in 3-D at a window sample.
 //!
