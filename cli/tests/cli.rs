@@ -65,6 +65,31 @@ fn each_broken_scenario_fails_naming_its_field() {
     }
 }
 
+/// A first scenario written from scratch misses four required fields: one `validate` names
+/// all four (not one per run), as `kubectl apply` would.
+#[test]
+fn validate_lists_every_missing_required_field_in_one_run() {
+    let dir = std::env::temp_dir().join(format!("sadesim-cli-missing-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("from-scratch.yaml");
+    std::fs::write(
+        &file,
+        "apiVersion: sadesim.io/v1alpha1\nkind: SimulationRun\nmetadata: {name: first}\nspec:\n  \
+         origin: {latitudeDeg: 41.88, longitudeDeg: -87.62}\n  duration: 1m\n  fleet:\n  \
+         - {name: solo, count: 1, airframe: x500, mission: {items: [{takeoff: {altitudeAglM: 10}}, {land: {}}]}}\n",
+    )
+    .unwrap();
+    let out = sadesim(&["validate", file.to_str().unwrap()]);
+    let report = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{report}");
+    assert!(report.contains("document 1: 4 structural problems"), "{report}");
+    for path in ["spec.fleet[0].operator", "spec.fleet[0].homes", "spec.fleet[0].altitude", "spec.origin.altitudeMslM"]
+    {
+        assert!(report.contains(&format!("  {path}: Required value")), "expected {path} in\n{report}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn huge_and_deeply_nested_inputs_are_refused_cleanly() {
     let dir = std::env::temp_dir().join(format!("sadesim-cli-{}", std::process::id()));

@@ -21,7 +21,9 @@ pub enum Criterion {
     NoUnauthorizedEntries {},
     /// Drones inside a zone respect the zone's altitude constraints.
     ZoneConstraintsRespected {},
-    /// Every drone stays within its group's altitude limits.
+    /// Every drone stays within its group's altitude limits: at or below `maxAglM`
+    /// anywhere, and at or above `minAglM` while cruising (from its first climb to
+    /// `minAglM` until it lands or switches to `land` or `returnToLaunch`).
     AltitudeLimitsRespected {},
     /// No drone crashes (building or ground contact above landing speed).
     NoCrashes {},

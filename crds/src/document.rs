@@ -6,11 +6,15 @@
 //! - Nesting deeper than 128 levels is refused by the parsers' recursion limits, and YAML
 //!   alias expansion is bounded by serde_yaml, so hostile input cannot hang or crash us.
 //! - Type errors name the field path (`spec.fleet[2].count: invalid type: ...`).
+//! - A document that fails typed reading is checked against the CRD's schema
+//!   ([`schema_problems`]): every missing required field, wrong type, unsupported value
+//!   and unknown field is reported at once ([`DocumentError::Fields`]), not one per run.
 //! - `.nan` / `.inf` are refused with their path: no non-finite number enters a run.
 
 use serde_json::{Map, Value};
 
 use crate::run::SimulationRun;
+use crate::validate::{FieldError, ValidationErrors, schema_problems};
 
 /// Largest accepted scenario input, bytes. A 10 000-drone fleet with explicit homes is
 /// about 1 MB of YAML.
@@ -49,6 +53,14 @@ pub enum DocumentError {
     /// A field has the wrong type, an unknown name, or a non-finite number.
     #[error("document {document}: {path}: {message}")]
     Field { document: usize, path: String, message: String },
+    /// Several structural problems (missing, wrong type, unknown), all found in one pass.
+    /// Shown as a count, then one `path: message` line each.
+    #[error("document {document}: {} structural problems\n{}", problems.0.len(), indented(problems))]
+    Fields { document: usize, problems: ValidationErrors },
+}
+
+fn indented(problems: &ValidationErrors) -> String {
+    problems.0.iter().map(|e| format!("  {e}")).collect::<Vec<_>>().join("\n")
 }
 
 /// Parses every SimulationRun in `text`. Documents are numbered from 1 in messages (items
@@ -268,13 +280,35 @@ fn to_run(document: usize, v: Value) -> Result<SimulationRun, DocumentError> {
     if api_version != API_VERSION || kind != KIND {
         return Err(DocumentError::WrongKind { document, api_version, kind });
     }
-    serde_path_to_error::deserialize::<_, SimulationRun>(v).map_err(|e| {
-        let path = e.path().to_string();
-        DocumentError::Field {
-            document,
-            path: if path == "." { "(document root)".into() } else { path },
-            message: e.into_inner().to_string(),
+    let typed = serde_path_to_error::deserialize::<_, SimulationRun>(&v);
+    let e = match typed {
+        Ok(run) => return Ok(run),
+        Err(e) => e,
+    };
+    let path = e.path().to_string();
+    let first = FieldError {
+        path: if path == "." { "(document root)".into() } else { path },
+        message: e.into_inner().to_string(),
+    };
+    let mut problems = schema_problems(&v);
+    // Typed reading may stop at something the schema cannot see (a bad duration string, a
+    // negative count): keep it unless a schema problem is about the same field (serde names
+    // the object of a missing field, the schema the field itself).
+    let covered = |p: &FieldError| {
+        first.path == "(document root)"
+            || p.path == first.path
+            || p.path.starts_with(&format!("{}.", first.path))
+            || p.path.starts_with(&format!("{}[", first.path))
+    };
+    if !problems.iter().any(covered) {
+        problems.push(first);
+    }
+    Err(match problems.len() {
+        1 => {
+            let FieldError { path, message } = problems.remove(0);
+            DocumentError::Field { document, path, message }
         }
+        _ => DocumentError::Fields { document, problems: ValidationErrors(problems) },
     })
 }
 
@@ -339,6 +373,78 @@ spec:
         assert!(message.contains("colour"), "{message}");
         let (path, _) = field_error(&MINIMAL.replace("duration: 2m", "duration: two minutes"));
         assert_eq!(path, "spec.duration");
+    }
+
+    /// A first scenario written from scratch: four required fields left out (a group's
+    /// `operator`, `homes` and `altitude`, the origin's `altitudeMslM`) are all named in
+    /// one pass, in the API server's words.
+    #[test]
+    fn every_missing_required_field_is_listed_at_once() {
+        let text = MINIMAL
+            .replace("      operator: acme\n", "")
+            .replace("      homes: {explicit: [{latitudeDeg: 41.8796, longitudeDeg: -87.6237}]}\n", "")
+            .replace("      altitude: {maxAglM: 100}\n", "")
+            .replace(", altitudeMslM: 181", "");
+        let err = parse_run(&text).unwrap_err();
+        let DocumentError::Fields { document: 1, problems } = &err else { panic!("expected all problems, got {err}") };
+        let listed: Vec<String> = problems.0.iter().map(ToString::to_string).collect();
+        for path in
+            ["spec.fleet[0].operator", "spec.fleet[0].homes", "spec.fleet[0].altitude", "spec.origin.altitudeMslM"]
+        {
+            assert!(listed.contains(&format!("{path}: Required value")), "{path} missing from {listed:?}");
+        }
+        assert_eq!(listed.len(), 4, "{listed:?}");
+        let shown = err.to_string();
+        assert!(shown.starts_with("document 1: 4 structural problems\n  "), "{shown}");
+    }
+
+    #[test]
+    fn wrong_types_unknown_fields_and_bad_values_are_listed_together() {
+        let text = MINIMAL
+            .replace("count: 1", "count: many")
+            .replace("airframe: x500", "airframe: x500\n      colour: red")
+            .replace("{land: {}}", "{land: {now: true}}")
+            .replace("duration: 2m", "duration: 2m\n  clock: {mode: fast}");
+        let err = parse_run(&text).unwrap_err();
+        let DocumentError::Fields { problems, .. } = &err else { panic!("expected all problems, got {err}") };
+        let paths: Vec<&str> = problems.0.iter().map(|p| p.path.as_str()).collect();
+        assert_eq!(
+            paths,
+            [
+                "spec.clock.mode",
+                "spec.fleet[0].colour",
+                "spec.fleet[0].count",
+                "spec.fleet[0].mission.items[1].land.now"
+            ],
+            "{err}"
+        );
+        assert!(problems.0[0].message.contains(r#"Unsupported value: "fast""#), "{err}");
+        assert!(problems.0[2].message.contains(r#"must be of type integer, got string "many""#), "{err}");
+    }
+
+    #[test]
+    fn homes_need_exactly_one_placement() {
+        let both = MINIMAL.replace(
+            "homes: {explicit: [{latitudeDeg: 41.8796, longitudeDeg: -87.6237}]}",
+            "homes: {explicit: [{latitudeDeg: 41.8796, longitudeDeg: -87.6237}], randomInArea: {center: {latitudeDeg: 41.8796, longitudeDeg: -87.6237}, radiusM: 50}}",
+        );
+        let (path, message) = field_error(&both);
+        assert_eq!(path, "spec.fleet[0].homes");
+        assert!(message.contains("exactly one of"), "{message}");
+        let (path, message) =
+            field_error(&MINIMAL.replace("{explicit: [{latitudeDeg: 41.8796, longitudeDeg: -87.6237}]}", "{}"));
+        assert_eq!((path.as_str(), message.contains("Required value")), ("spec.fleet[0].homes", true), "{message}");
+    }
+
+    /// What only typed reading sees (a bad duration string) is kept next to the schema's
+    /// problems, not hidden by them.
+    #[test]
+    fn a_typed_reading_error_the_schema_cannot_see_is_kept() {
+        let text = MINIMAL.replace("duration: 2m", "duration: two minutes").replace("      operator: acme\n", "");
+        let err = parse_run(&text).unwrap_err();
+        let DocumentError::Fields { problems, .. } = &err else { panic!("expected all problems, got {err}") };
+        let paths: Vec<&str> = problems.0.iter().map(|p| p.path.as_str()).collect();
+        assert_eq!(paths, ["spec.fleet[0].operator", "spec.duration"], "{err}");
     }
 
     #[test]

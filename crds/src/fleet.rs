@@ -129,8 +129,9 @@ pub struct AltitudeLimits {
     /// Highest allowed altitude above ground, metres (1..1000).
     #[schemars(range(min = 1.0, max = 1000.0))]
     pub max_agl_m: f64,
-    /// Lowest allowed altitude above ground while cruising, metres (takeoff and landing
-    /// excepted).
+    /// Lowest allowed altitude above ground while cruising, metres (0..1000): judged from
+    /// the drone's first climb to it after takeoff until it lands or switches to `land` or
+    /// `returnToLaunch`, so takeoff and landing are excepted.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 0.0, max = 1000.0))]
     pub min_agl_m: Option<f64>,

@@ -516,8 +516,8 @@ fn semantic_checks(out: &mut String) {
     let max_h = MAX_DURATION_S / 3600.0;
     out.push_str("## Semantic checks\n\n");
     out.push_str(
-        "`sadesim validate` reads a document with the types above (unknown fields and wrong types \
-         are errors), checks the numeric limits and the rules, and also checks what the schema \
+        "`sadesim validate` reads a document with the types above (missing required fields, unknown \
+         fields, wrong types and unsupported values are errors, all listed at once), checks the numeric limits and the rules, and also checks what the schema \
          cannot express. It reports every problem at once, each with its field path.\n\n",
     );
     let checks = [

@@ -118,6 +118,8 @@ pub enum ViolationKind {
     AboveAltitudeLimit,
     /// Two airborne drones closer than a `minSeparation` criterion's distance.
     SeparationLoss,
+    /// Below the group's `altitude.minAglM` while cruising (takeoff and landing excepted).
+    BelowAltitudeMinimum,
 }
 
 impl ViolationKind {
@@ -129,6 +131,7 @@ impl ViolationKind {
             Self::AboveZoneMaximum => "aboveZoneMaximum",
             Self::AboveAltitudeLimit => "aboveAltitudeLimit",
             Self::SeparationLoss => "separationLoss",
+            Self::BelowAltitudeMinimum => "belowAltitudeMinimum",
         }
     }
 

@@ -5,7 +5,8 @@
 //! What each criterion checks:
 //! - `noUnauthorizedEntries`: no `unauthorizedEntry` violation.
 //! - `zoneConstraintsRespected`: no `belowZoneMinimum` or `aboveZoneMaximum` violation.
-//! - `altitudeLimitsRespected`: no `aboveAltitudeLimit` violation.
+//! - `altitudeLimitsRespected`: no `aboveAltitudeLimit` violation, nor
+//!   `belowAltitudeMinimum` (groups with `altitude.minAglM`: below it while cruising).
 //! - `noCrashes`: no crash.
 //! - `minSeparation {distanceM}`: the closest approach between airborne drones is at least
 //!   `distanceM` (each loss of separation is a failure line).
@@ -84,6 +85,11 @@ impl Judge<'_> {
                 "drones inside zones kept to their leases' altitude constraints",
                 "breaches of a lease's altitude constraints",
             ),
+            Criterion::AltitudeLimitsRespected {} if self.any_altitude_minimum() => self.no_violations(
+                &[ViolationKind::AboveAltitudeLimit, ViolationKind::BelowAltitudeMinimum],
+                "every drone stayed within its group's altitude limits (at or below maxAglM, at or above minAglM while cruising)",
+                "flights outside a group's altitude limits",
+            ),
             Criterion::AltitudeLimitsRespected {} => self.no_violations(
                 &[ViolationKind::AboveAltitudeLimit],
                 "every drone stayed at or below its group's altitude limit",
@@ -101,6 +107,11 @@ impl Judge<'_> {
             summary: outcome.summary,
             failures: outcome.failures,
         }
+    }
+
+    /// Whether some group sets `altitude.minAglM` (judged by `altitudeLimitsRespected`).
+    fn any_altitude_minimum(&self) -> bool {
+        self.plan.spec.fleet.iter().any(|g| g.altitude.min_agl_m.is_some())
     }
 
     fn name(&self, drone: u32) -> String {
@@ -142,6 +153,9 @@ impl Judge<'_> {
             ),
             ViolationKind::AboveAltitudeLimit => format!(
                 "{who} above its group's limit of {limit_m:.1} m AGL {when} at {at}; highest {worst_m:.1} m AGL"
+            ),
+            ViolationKind::BelowAltitudeMinimum => format!(
+                "{who} below its group's minimum of {limit_m:.1} m AGL while cruising {when} at {at}; lowest {worst_m:.1} m AGL"
             ),
             ViolationKind::SeparationLoss => {
                 let other = v.other.map_or_else(|| "?".to_string(), |o| self.name(o));

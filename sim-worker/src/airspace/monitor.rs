@@ -27,6 +27,9 @@
 //!   at the activation time; a zone that stops being active ends every stay at its end time.
 //! - **Altitude limit**: an airborne drone strictly above its group's `altitude.maxAglM`
 //!   (no tolerance), anywhere, at the window samples.
+//! - **Altitude minimum**: a *cruising* drone strictly below its group's `altitude.minAglM`
+//!   at the window samples (cruising: from its first climb to `minAglM` until the ground or
+//!   `land`/`returnToLaunch` mode; the `altitude` module defines it precisely).
 //! - **Separation** (only when the scenario has a `minSeparation` criterion): two airborne
 //!   drones closer than the smallest such distance in 3-D at a window sample.
 //!
@@ -70,12 +73,18 @@ impl Monitor {
         let drones: Vec<DroneState> = plan
             .drones
             .iter()
-            .map(|d| DroneState {
-                name: d.name.clone(),
-                max_agl_m: plan.spec.fleet.get(d.group_index as usize).map_or(f64::INFINITY, |g| g.altitude.max_agl_m),
-                last: None,
-                crashed: false,
-                above_limit: None,
+            .map(|d| {
+                let limits = plan.spec.fleet.get(d.group_index as usize).map(|g| &g.altitude);
+                DroneState {
+                    name: d.name.clone(),
+                    max_agl_m: limits.map_or(f64::INFINITY, |a| a.max_agl_m),
+                    min_agl_m: limits.and_then(|a| a.min_agl_m),
+                    last: None,
+                    crashed: false,
+                    above_limit: None,
+                    cruising: false,
+                    below_minimum: None,
+                }
             })
             .collect();
         let distances = plan.spec.criteria.iter().filter_map(|c| match c {
@@ -141,7 +150,7 @@ impl Monitor {
             for z in 0..self.zones.len() {
                 self.watch_zone(i, z, &prev, &now, airborne, lease);
             }
-            self.watch_altitude(i, &now, airborne);
+            self.watch_altitude(i, &now, airborne, snap.mode);
             self.drones[i].last = Some(now);
         }
         // Crashes of drones without a snapshot this window: where they were last seen.
@@ -167,7 +176,7 @@ impl Monitor {
                     log.leave(stay, &end);
                 }
             }
-            if let Some(v) = drone.above_limit.take() {
+            for v in [drone.above_limit.take(), drone.below_minimum.take()].into_iter().flatten() {
                 log.end(v, time_s);
             }
         }
@@ -255,24 +264,6 @@ impl Monitor {
             }
             None => {}
         }
-    }
-
-    /// The group altitude limit at the window sample.
-    fn watch_altitude(&mut self, i: usize, now: &Sample, airborne: bool) {
-        let Self { drones, log, .. } = self;
-        let d = &mut drones[i];
-        let limit_m = d.max_agl_m;
-        let agl_m = now.height_agl_m;
-        let breach = (airborne && agl_m > limit_m).then_some(agl_m);
-        log.track(&mut d.above_limit, breach, now, || NewViolation {
-            kind: ViolationKind::AboveAltitudeLimit,
-            drone: i as u32,
-            drone_name: d.name.clone(),
-            other: None,
-            zone: None,
-            limit_m: Some(limit_m),
-            detail: format!("{agl_m:.1} m AGL, above the group's limit of {limit_m:.1} m AGL"),
-        });
     }
 
     /// Separation between airborne drones at the window samples, by grid hashing.
@@ -475,6 +466,13 @@ struct DroneState {
     crashed: bool,
     /// Open `aboveAltitudeLimit` violation (index in the report's violations).
     above_limit: Option<usize>,
+    /// The group's `altitude.minAglM`, if set.
+    min_agl_m: Option<f64>,
+    /// Judged against `min_agl_m`: climbed to it since the last ground contact, landing
+    /// or return (see the module's rules).
+    cruising: bool,
+    /// Open `belowAltitudeMinimum` violation.
+    below_minimum: Option<usize>,
 }
 
 /// One drone and one zone: the open stay and zone violations, as indices in the report.
@@ -692,6 +690,7 @@ impl Log {
     }
 }
 
+mod altitude;
 #[cfg(test)]
 pub(crate) mod test_plan;
 #[cfg(test)]

@@ -127,6 +127,39 @@ fn zone_constraints_fail_on_breaches_below_or_above_a_lease_band() {
     );
 }
 
+/// With a group `altitude.minAglM`, `altitudeLimitsRespected` also fails on flying below it
+/// while cruising, and says so in its summary.
+#[test]
+fn altitude_limits_fail_below_a_group_minimum_when_a_group_sets_one() {
+    let plan = |min: Option<f64>| {
+        plan_of(
+            run_with_groups(&[("journalists", 3)])
+                .with(|r| r.spec.fleet[0].altitude.min_agl_m = min)
+                .with(|r| r.spec.criteria = vec![Criterion::AltitudeLimitsRespected {}])
+                .build(),
+        )
+    };
+    let mut v = violation(ViolationKind::BelowAltitudeMinimum, 1, "journalists-1", 7.0, Some(9.0));
+    (v.limit_m, v.worst_m) = (Some(30.0), 21.5);
+    let report = ComplianceReport { violations: vec![v], ..Default::default() };
+    let verdict = evaluate(&plan(Some(30.0)), &report, &[], 600.0);
+    let r = &verdict.criteria[0];
+    assert!(!verdict.passed && !r.passed);
+    assert_eq!(r.summary, "1 flights outside a group's altitude limits by 1 drones");
+    assert_eq!(
+        r.failures,
+        [
+            "journalists-1 below its group's minimum of 30.0 m AGL while cruising from 7.00 s for 2.00 s at 41.88011 N 87.62301 W, 104.2 m AGL; lowest 21.5 m AGL"
+        ]
+    );
+    let clean = evaluate(&plan(Some(30.0)), &ComplianceReport::default(), &[], 600.0);
+    assert!(clean.passed);
+    assert!(clean.criteria[0].summary.contains("at or above minAglM while cruising"), "{:?}", clean.criteria[0]);
+    // Without a minimum the summary is the one it always was.
+    let none = evaluate(&plan(None), &ComplianceReport::default(), &[], 600.0);
+    assert_eq!(none.criteria[0].summary, "every drone stayed at or below its group's altitude limit");
+}
+
 #[test]
 fn altitude_limits_fail_on_any_flight_above_a_group_limit() {
     assert!(judge(Criterion::AltitudeLimitsRespected {}, &ComplianceReport::default(), &[]).passed);

@@ -123,6 +123,7 @@ fn rule_names_are_the_serde_names() {
         ViolationKind::BelowZoneMinimum,
         ViolationKind::AboveZoneMaximum,
         ViolationKind::AboveAltitudeLimit,
+        ViolationKind::BelowAltitudeMinimum,
         ViolationKind::SeparationLoss,
     ] {
         assert_eq!(serde_json::to_value(kind).unwrap(), kind.as_str());
@@ -355,6 +356,95 @@ fn lease_altitude_constraints_apply_inside_the_volume() {
     let mut h = Harness::new(&plan).with(Grant { constraints, ..grant(0, 0.0, 100.0) });
     h.window(1.0, &[at(0, -50.0, 50.0, 20.0)]);
     assert!(h.events.is_empty());
+}
+
+/// Drone `index` west of the zone at `up` m over flat ground, flying in `mode`.
+fn flying(index: u32, up: f64, mode: FlightMode) -> DroneSnapshot {
+    DroneSnapshot { mode, ..at(index, -500.0, 0.0, up) }
+}
+
+/// Drone `index` standing on the ground west of the zone.
+fn landed(index: u32) -> DroneSnapshot {
+    DroneSnapshot { on_ground: true, armed: false, mode: FlightMode::Idle, ..at(index, -500.0, 0.0, 0.0) }
+}
+
+/// Group `alpha` with `altitude.minAglM: 30`.
+fn plan_with_minimum(n: u32) -> RunPlan {
+    plan(n, |r| r.spec.fleet[0].altitude.min_agl_m = Some(30.0))
+}
+
+#[test]
+fn dipping_below_the_group_minimum_while_cruising_is_a_violation_with_the_lowest_altitude() {
+    let plan = plan_with_minimum(1);
+    let mut h = Harness::new(&plan);
+    h.window(1.0, &[landed(0)]);
+    // The climb after takeoff passes below 30 m: not judged.
+    h.window(2.0, &[flying(0, 10.0, FlightMode::Takeoff)]);
+    h.window(3.0, &[flying(0, 29.0, FlightMode::Takeoff)]);
+    // Cruising from here; exactly at the minimum is allowed.
+    h.window(4.0, &[flying(0, 40.0, FlightMode::Mission)]);
+    h.window(5.0, &[flying(0, 30.0, FlightMode::Mission)]);
+    h.window(6.0, &[flying(0, 25.0, FlightMode::Mission)]);
+    h.window(7.0, &[flying(0, 22.0, FlightMode::Hold)]);
+    h.window(8.0, &[flying(0, 35.0, FlightMode::Mission)]);
+    assert_eq!(
+        h.log(),
+        [
+            row(6.0, 0, "violationStarted", "belowAltitudeMinimum"),
+            row(8.0, 0, "violationEnded", "belowAltitudeMinimum")
+        ]
+    );
+    let v = &h.report().violations[0];
+    assert_eq!(
+        (v.kind, v.limit_m, v.worst_m, v.zone.as_deref(), v.end_s),
+        (ViolationKind::BelowAltitudeMinimum, Some(30.0), 22.0, None, Some(8.0))
+    );
+    let EventKind::ViolationStarted { detail, .. } = &h.events[0].kind else { panic!("{:?}", h.events) };
+    assert!(detail.contains("25.0") && detail.contains("30.0"), "{detail}");
+}
+
+#[test]
+fn taking_off_and_landing_below_the_group_minimum_is_not_a_violation() {
+    let plan = plan_with_minimum(2);
+    let mut h = Harness::new(&plan);
+    // Drone 0: takeoff, cruise, land descent, on the ground, a second takeoff.
+    // Drone 1: a return to launch, then a mission that never climbs to the minimum.
+    let flights = [
+        [landed(0), landed(1)],
+        [flying(0, 15.0, FlightMode::Takeoff), flying(1, 20.0, FlightMode::Takeoff)],
+        [flying(0, 45.0, FlightMode::Mission), flying(1, 50.0, FlightMode::Offboard)],
+        [flying(0, 20.0, FlightMode::Land), flying(1, 18.0, FlightMode::ReturnToLaunch)],
+        [flying(0, 3.0, FlightMode::Land), flying(1, 2.0, FlightMode::ReturnToLaunch)],
+        [landed(0), landed(1)],
+        [flying(0, 12.0, FlightMode::Takeoff), flying(1, 20.0, FlightMode::Mission)],
+        [flying(0, 12.0, FlightMode::Mission), flying(1, 25.0, FlightMode::Mission)],
+    ];
+    for (k, window) in flights.iter().enumerate() {
+        h.window(k as f64, window);
+    }
+    h.finish(10.0);
+    assert!(h.events.is_empty(), "{:?}", h.log());
+    assert!(h.report().violations.is_empty());
+}
+
+#[test]
+fn an_episode_below_the_minimum_ends_when_the_landing_starts_or_the_run_ends() {
+    let plan = plan_with_minimum(2);
+    let mut h = Harness::new(&plan);
+    h.window(1.0, &[flying(0, 40.0, FlightMode::Offboard), flying(1, 40.0, FlightMode::Offboard)]);
+    h.window(2.0, &[flying(0, 20.0, FlightMode::Offboard), flying(1, 20.0, FlightMode::Offboard)]);
+    h.window(3.0, &[flying(0, 15.0, FlightMode::Land), flying(1, 15.0, FlightMode::Offboard)]);
+    h.finish(4.0);
+    assert_eq!(
+        h.log(),
+        [
+            row(2.0, 0, "violationStarted", "belowAltitudeMinimum"),
+            row(2.0, 1, "violationStarted", "belowAltitudeMinimum"),
+            row(3.0, 0, "violationEnded", "belowAltitudeMinimum"),
+            row(4.0, 1, "violationEnded", "belowAltitudeMinimum"),
+        ]
+    );
+    assert_eq!(h.report().violations[1].worst_m, 15.0);
 }
 
 #[test]

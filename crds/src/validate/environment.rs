@@ -1,0 +1,51 @@
+//! `spec.environment`: wind and GNSS (noise and dropouts).
+
+use std::collections::HashSet;
+
+use crate::run::SimulationRunSpec;
+
+use super::MAX_DURATION_S;
+use super::criteria::check_group_refs;
+use super::problems::{Problems, duration_s};
+
+pub(super) fn check_environment(spec: &SimulationRunSpec, groups: &HashSet<String>, p: &mut Problems) {
+    let env = spec.environment();
+    if let Some(w) = &env.wind {
+        p.range("spec.environment.wind.speedMps", w.speed_mps, 0.0, 40.0);
+        p.range("spec.environment.wind.directionFromDeg", w.direction_from_deg, 0.0, 360.0);
+        if let Some(h) = w.reference_height_m {
+            p.range("spec.environment.wind.referenceHeightM", h, 1.0, 500.0);
+        }
+    }
+    if let Some(g) = &env.gnss {
+        let base = "spec.environment.gnss";
+        if let Some(r) = g.rate_hz {
+            p.range(format!("{base}.rateHz"), r, 1.0, 20.0);
+        }
+        let limits = [
+            ("horizontalSigmaM", g.horizontal_sigma_m, 100.0),
+            ("verticalSigmaM", g.vertical_sigma_m, 100.0),
+            ("biasWalkMPerSqrtS", g.bias_walk_m_per_sqrt_s, 10.0),
+        ];
+        for (field, value, hi) in limits {
+            if let Some(v) = value {
+                p.range(format!("{base}.{field}"), v, 0.0, hi);
+            }
+        }
+        p.max_items(format!("{base}.dropouts"), g.dropouts.len(), 256);
+        for (k, d) in g.dropouts.iter().enumerate() {
+            let dp = format!("{base}.dropouts[{k}]");
+            let start = duration_s(&d.start);
+            if start < 0.0 {
+                p.add(format!("{dp}.start"), "must not be negative");
+            } else if start >= spec.duration_s() {
+                p.add(
+                    format!("{dp}.start"),
+                    format!("is after the run ends ({} s): the dropout would never happen", spec.duration_s()),
+                );
+            }
+            p.duration(format!("{dp}.duration"), &d.duration, MAX_DURATION_S);
+            check_group_refs(&d.groups, groups, &format!("{dp}.groups"), p);
+        }
+    }
+}

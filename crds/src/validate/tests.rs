@@ -1,0 +1,230 @@
+//! The main rules of each section, on the fixture run with one thing broken: each test
+//! asserts the path and the message a user sees, and that the valid fixture passes.
+
+use kube::core::Duration;
+use serde_json::json;
+
+use super::*;
+use crate::criteria::Criterion;
+use crate::fixtures::{CHICAGO, RunBuilder};
+use crate::fleet::{HomePlacement, LatLon, MissionItem};
+use crate::run::Clock;
+
+/// The problems of `run` as `path: message` lines (empty when valid).
+fn problems(run: &SimulationRun) -> Vec<String> {
+    match validate(run) {
+        Ok(()) => Vec::new(),
+        Err(e) => e.0.iter().map(ToString::to_string).collect(),
+    }
+}
+
+/// The fixture with `edit` applied, and its problems.
+fn problems_of(edit: impl FnOnce(&mut SimulationRun)) -> Vec<String> {
+    problems(&RunBuilder::test().with(edit).build())
+}
+
+fn duration(text: &str) -> Duration {
+    text.parse().expect("a valid Go duration")
+}
+
+#[test]
+fn the_fixture_is_valid() {
+    assert_eq!(problems(&RunBuilder::test().with_zone("tfr").build()), Vec::<String>::new());
+}
+
+#[test]
+fn every_problem_is_listed_in_one_pass_in_section_order() {
+    let found = problems_of(|r| {
+        r.metadata.name = Some("Bad_Name".into());
+        r.spec.fleet[0].count = 0;
+        r.spec.queue = Some("-queue".into());
+    });
+    let paths: Vec<&str> = found.iter().map(|l| l.split(':').next().unwrap()).collect();
+    assert_eq!(paths, ["metadata.name", "spec.fleet[0].count", "spec.queue"], "{found:?}");
+    assert!(found[1].ends_with("must be between 1 and 10000, got 0"), "{found:?}");
+}
+
+#[test]
+fn a_missing_run_name_is_required() {
+    let found = problems_of(|r| r.metadata.name = None);
+    assert_eq!(found, ["metadata.name: is required (a DNS label such as `chicago-museum`)"]);
+}
+
+#[test]
+fn durations_must_be_positive_and_at_most_a_day() {
+    assert_eq!(duration_s(&duration("-90s")), -90.0);
+    let found = problems_of(|r| r.spec.duration = duration("0s"));
+    assert_eq!(found, ["spec.duration: must be a positive duration such as `90s` or `15m`, got 0ns"]);
+    let found = problems_of(|r| r.spec.duration = duration("25h"));
+    assert_eq!(found.len(), 1);
+    assert!(found[0].starts_with("spec.duration: must be at most 86400 s"), "{found:?}");
+}
+
+#[test]
+fn a_scaled_clock_needs_a_factor_and_only_it_may_have_one() {
+    let scaled = |factor| Clock { mode: crate::run::ClockMode::Scaled, factor };
+    let found = problems_of(|r| r.spec.clock = Some(scaled(None)));
+    assert_eq!(found, ["spec.clock.factor: is required with mode `scaled` (e.g. 4.0)"]);
+    let found = problems_of(|r| r.spec.clock = Some(Clock { factor: Some(2.0), ..Clock::default() }));
+    assert_eq!(found, ["spec.clock.factor: is only allowed with mode `scaled`"]);
+    assert_eq!(problems_of(|r| r.spec.clock = Some(scaled(Some(4.0)))), Vec::<String>::new());
+}
+
+#[test]
+fn an_unusable_origin_skips_the_checks_that_need_it() {
+    let found = problems_of(|r| {
+        r.spec.origin.latitude_deg = 89.0;
+        r.spec.fleet[0].homes = HomePlacement::Explicit(vec![LatLon { latitude_deg: 0.0, longitude_deg: 0.0 }]);
+    });
+    // No "outside the world" noise for the home: the world cannot be placed.
+    assert_eq!(found, ["spec.origin.latitudeDeg: must be between -85 and 85, got 89"]);
+}
+
+#[test]
+fn homes_must_lie_inside_the_world() {
+    let found = problems_of(|r| {
+        r.spec.fleet[0].homes = HomePlacement::Explicit(vec![LatLon {
+            latitude_deg: CHICAGO.latitude_deg + 0.1, // about 11 km north
+            longitude_deg: CHICAGO.longitude_deg,
+        }]);
+    });
+    assert_eq!(found.len(), 1, "{found:?}");
+    assert!(found[0].starts_with("spec.fleet[0].homes.explicit[0]: must lie inside the world"), "{found:?}");
+    assert!(found[0].contains("north of the origin"), "{found:?}");
+}
+
+#[test]
+fn group_names_are_unique_labels_and_airframes_are_presets() {
+    let found = problems(&RunBuilder::test().with_group("alpha", 1).build());
+    assert_eq!(found, [r#"spec.fleet[1].name: duplicate group name "alpha": group names must be unique"#]);
+    let found = problems_of(|r| r.spec.fleet[0].airframe = "x9000".into());
+    assert_eq!(found.len(), 1);
+    assert!(found[0].starts_with(r#"spec.fleet[0].airframe: unknown airframe preset "x9000", expected one of:"#));
+    let found = problems_of(|r| r.spec.fleet[0].operator = "-acme".into());
+    assert!(found[0].starts_with("spec.fleet[0].operator: must be 1 to 63 letters"), "{found:?}");
+}
+
+#[test]
+fn the_altitude_minimum_is_below_the_maximum_and_missions_stay_below_the_maximum() {
+    let found = problems_of(|r| r.spec.fleet[0].altitude.min_agl_m = Some(120.0));
+    assert_eq!(found, ["spec.fleet[0].altitude.minAglM: must be below altitude.maxAglM (120), got 120"]);
+    assert_eq!(problems_of(|r| r.spec.fleet[0].altitude.min_agl_m = Some(25.0)), Vec::<String>::new());
+    let found = problems_of(|r| {
+        r.spec.fleet[0].mission.as_mut().unwrap().items[0] = MissionItem::Takeoff { altitude_agl_m: 150.0 };
+    });
+    assert_eq!(
+        found,
+        ["spec.fleet[0].mission.items[0].takeoff.altitudeAglM: is above the group's altitude.maxAglM (120 m), got 150"]
+    );
+}
+
+#[test]
+fn a_mission_starts_with_takeoff() {
+    let found = problems_of(|r| {
+        r.spec.fleet[0].mission.as_mut().unwrap().items.remove(0);
+    });
+    assert_eq!(found, ["spec.fleet[0].mission.items[0]: a mission must start with a `takeoff` item"]);
+}
+
+#[test]
+fn groups_without_a_mission_need_a_pilot() {
+    let found = problems_of(|r| r.spec.fleet[0].mission = None);
+    assert_eq!(found.len(), 1);
+    assert!(found[0].starts_with("spec.pilot: is required: groups without a mission (alpha)"), "{found:?}");
+    assert_eq!(problems(&RunBuilder::test().with_pilot(&["./pilot"]).build()), Vec::<String>::new());
+}
+
+#[test]
+fn zone_floors_are_below_ceilings_and_homes_outside_ground_zones() {
+    let found = problems(
+        &RunBuilder::test()
+            .with_zone("tfr")
+            .with(|r| r.spec.zones[0].ceiling.height_m = -10.0)
+            .with(|r| r.spec.fleet[0].homes = HomePlacement::Explicit(vec![CHICAGO]))
+            .build(),
+    );
+    assert_eq!(
+        found,
+        [
+            "spec.zones[0].ceiling: floor must be below ceiling: floor 0 m agl, ceiling -10 m agl",
+            r#"spec.fleet[0].homes.explicit[0]: is inside zone "tfr", which reaches the ground: drones would start inside restricted airspace"#,
+        ]
+    );
+}
+
+#[test]
+fn zone_polygons_need_three_distinct_vertices_without_a_closing_repeat() {
+    let found = problems(&RunBuilder::test().with_zone("tfr").with(|r| r.spec.zones[0].polygon.truncate(2)).build());
+    assert_eq!(found, ["spec.zones[0].polygon: must have at least 3 vertices, got 2"]);
+    let found = problems(
+        &RunBuilder::test()
+            .with_zone("tfr")
+            .with(|r| {
+                let first = r.spec.zones[0].polygon[0];
+                r.spec.zones[0].polygon.push(first);
+            })
+            .build(),
+    );
+    assert_eq!(found.len(), 1);
+    assert!(found[0].starts_with("spec.zones[0].polygon[4]: repeats vertex 0"), "{found:?}");
+}
+
+#[test]
+fn criteria_name_existing_groups_and_zones() {
+    let found = problems_of(|r| {
+        r.spec.criteria =
+            vec![Criterion::ReachZone { groups: vec!["beta".into()], zone: "museum".into(), within: duration("1m") }]
+    });
+    assert_eq!(
+        found,
+        [
+            r#"spec.criteria[0].reachZone.groups[0]: unknown group "beta", expected one of: alpha"#,
+            r#"spec.criteria[0].reachZone.zone: unknown zone "museum", expected one of: (none defined)"#,
+        ]
+    );
+}
+
+#[test]
+fn archive_urls_need_a_known_scheme() {
+    let found = problems_of(|r| r.spec.archive = Some(crate::run::Archive { url: "ftp://host/runs".into() }));
+    assert_eq!(found, [r#"spec.archive.url: unsupported scheme "ftp": expected file, s3, gs or az"#]);
+}
+
+/// The structural pass, on JSON values: what typed reading would stop at, all at once.
+#[test]
+fn the_schema_pass_lists_missing_fields_types_enums_and_unknown_fields() {
+    let doc = json!({
+        "apiVersion": "sadesim.io/v1alpha1",
+        "kind": "SimulationRun",
+        "metadata": {"name": "x"},
+        "spec": {
+            "origin": {"latitudeDeg": 41.88, "longitudeDeg": "west"},
+            "clock": {"mode": "fast"},
+            "fleet": [{"name": "a", "count": 1.5, "airframe": "x500", "operator": "acme",
+                       "homes": {}, "altitude": {"maxAglM": 100}, "colour": "red"}],
+        },
+    });
+    let found: Vec<String> = schema_problems(&doc).iter().map(ToString::to_string).collect();
+    assert_eq!(
+        found,
+        [
+            "spec.duration: Required value",
+            r#"spec.clock.mode: Unsupported value: "fast": supported values: "realtime", "scaled", "asFastAsPossible""#,
+            "spec.fleet[0].colour: unknown field `colour`, expected one of `airframe`, `altitude`, `count`, `credential`, `geofence`, `homes`, `mission`, `name`, `operator`, `role`",
+            "spec.fleet[0].count: must be of type integer, got number 1.5",
+            "spec.fleet[0].homes: Required value: exactly one of `explicit`, `randomInArea`, `areas`",
+            "spec.origin.altitudeMslM: Required value",
+            r#"spec.origin.longitudeDeg: must be of type number, got string "west""#,
+        ]
+    );
+    assert_eq!(schema_problems(&json!({"apiVersion": "v", "kind": "k"})).len(), 1, "spec is required");
+}
+
+/// A valid document has no structural problem: the pass never refuses what typed
+/// reading accepts.
+#[test]
+fn the_schema_pass_accepts_the_fixture() {
+    let run = RunBuilder::test().with_zone("tfr").with(|r| r.spec.criteria = vec![Criterion::NoCrashes {}]).build();
+    let doc = serde_json::to_value(&run).unwrap();
+    assert_eq!(schema_problems(&doc), Vec::<FieldError>::new());
+}
