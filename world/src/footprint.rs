@@ -77,7 +77,7 @@ pub struct Footprint {
 impl Footprint {
     /// An axis-aligned rectangle `[center ± half]` (both halves > 0, finite; not checked:
     /// the procedural city constructs these). Its vertices run SW, SE, NE, NW.
-    pub fn rectangle(rect: AxisRect) -> Self {
+    pub(crate) fn rectangle(rect: AxisRect) -> Self {
         let AxisRect { center_east_m: ce, center_north_m: cn, half_east_m: he, half_north_m: hn } = rect;
         let bounds = [ce - he, cn - hn, ce + he, cn + hn];
         let outer =
