@@ -264,7 +264,7 @@ impl Footprint {
 
     /// The same footprint without the rectangle shortcut: queries take the polygon path.
     #[cfg(test)]
-    pub(crate) fn as_general_polygon(mut self) -> Self {
+    pub(crate) fn into_general_polygon(mut self) -> Self {
         self.rect = None;
         self
     }

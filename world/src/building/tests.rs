@@ -247,7 +247,7 @@ proptest! {
     ) {
         let rect = AxisRect { center_east_m: c.0, center_north_m: c.1, half_east_m: half.0, half_north_m: half.1 };
         let boxed = Building::boxed(rect, 1.0, 50.0);
-        let general = Building::new(boxed.footprint().clone().as_general_polygon(), 1.0, 50.0).unwrap();
+        let general = Building::new(boxed.footprint().clone().into_general_polygon(), 1.0, 50.0).unwrap();
         let (a, b) = (p(a.0, a.1, a.2), p(b.0, b.1, b.2));
         prop_assert_eq!(boxed.contains(&a), general.contains(&a));
         prop_assert_eq!(boxed.footprint_touches_disc(a.x, a.y, 3.0), general.footprint_touches_disc(a.x, a.y, 3.0));
