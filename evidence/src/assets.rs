@@ -51,23 +51,21 @@ pub fn buildings_geojson(world: &World, frame: &LocalFrame) -> serde_json::Value
         .buildings()
         .iter()
         .map(|b| {
-            let corner = |de: f64, dn: f64| {
-                let p = frame.to_geodetic(Enu {
-                    east_m: b.center_east_m + de * b.half_east_m,
-                    north_m: b.center_north_m + dn * b.half_north_m,
-                    up_m: b.base_up_m,
-                });
+            let corner = |v: &[f64; 2]| {
+                let p = frame.to_geodetic(Enu { east_m: v[0], north_m: v[1], up_m: b.base_up_m() });
                 // 1e-7 deg (~1 cm) is all a footprint needs; it keeps the file small.
                 let round = |x: f64| (x * 1e7).round() / 1e7;
                 json!([round(p.longitude_deg), round(p.latitude_deg)])
             };
-            let ring = [corner(-1., -1.), corner(1., -1.), corner(1., 1.), corner(-1., 1.), corner(-1., -1.)];
+            // GeoJSON rings are closed; the outer one counter-clockwise, holes clockwise.
+            let rings: Vec<Vec<_>> =
+                b.footprint().rings().map(|ring| ring.iter().chain(&ring[..1]).map(corner).collect()).collect();
             json!({
                 "type": "Feature",
-                "geometry": {"type": "Polygon", "coordinates": [ring]},
+                "geometry": {"type": "Polygon", "coordinates": rings},
                 "properties": {
-                    "heightM": (b.height_m * 100.0).round() / 100.0,
-                    "baseAltitudeMslM": ((origin_alt + b.base_up_m) * 100.0).round() / 100.0,
+                    "heightM": (b.height_m() * 100.0).round() / 100.0,
+                    "baseAltitudeMslM": ((origin_alt + b.base_up_m()) * 100.0).round() / 100.0,
                 },
             })
         })

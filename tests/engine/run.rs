@@ -171,12 +171,16 @@ fn flying_into_a_building_is_a_crash_event_and_the_run_goes_on() {
     let tower = w
         .buildings()
         .iter()
-        .filter(|b| (b.center_east_m - home.east_m).hypot(b.center_north_m - home.north_m) < 1500.0)
-        .max_by(|a, b| a.height_m.total_cmp(&b.height_m))
+        .filter(|b| {
+            let [e, n] = b.footprint().bounds_center();
+            (e - home.east_m).hypot(n - home.north_m) < 1500.0
+        })
+        .max_by(|a, b| a.height_m().total_cmp(&b.height_m()))
         .expect("downtown has buildings");
-    assert!(tower.height_m > 20.0);
+    assert!(tower.height_m() > 20.0);
     let frame = LocalFrame::new(r.spec.origin.geo());
-    let target = frame.to_geodetic(Enu::new(tower.center_east_m, tower.center_north_m, 0.0));
+    let [tower_east_m, tower_north_m] = tower.footprint().bounds_center();
+    let target = frame.to_geodetic(Enu::new(tower_east_m, tower_north_m, 0.0));
     r.spec.duration = "3m".parse().unwrap();
     r.spec.fleet[0].count = 2;
     r.spec.fleet[0].altitude.max_agl_m = 200.0;

@@ -1,31 +1,76 @@
-//! One building: an axis-aligned box in world ENU, and the box geometry the queries need.
+//! One building: a vertical prism over a polygon footprint (holes allowed) in world ENU,
+//! and the prism geometry the queries need.
+//!
+//! Frame and units: world ENU metres (x east, y north, z up from the origin's ground). The
+//! prism is `{(e, n, u) : (e, n) on the footprint, base_up_m <= u <= roof_up_m}`: vertical
+//! walls, a flat base and a flat roof; closed (a point on a face is inside).
 
 use nalgebra::Vector3;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
+use thiserror::Error;
 
-/// An axis-aligned box standing on the ground, world ENU metres.
+use super::footprint::{AxisRect, Footprint};
+
+/// Why a prism cannot be a building.
+#[derive(Clone, Debug, Error, PartialEq)]
+pub enum BuildingError {
+    /// The base or the height is NaN or infinite.
+    #[error("failed to build a building: base {base_up_m} m or height {height_m} m is not finite")]
+    NotFinite { base_up_m: f64, height_m: f64 },
+    /// The roof is not above the base.
+    #[error("failed to build a building: height {height_m} m must be > 0")]
+    NotTall { height_m: f64 },
+}
+
+/// A vertical prism standing on (or above) the ground, world ENU metres.
 ///
-/// The footprint is `[center_east_m ± half_east_m] x [center_north_m ± half_north_m]`; the
-/// box spans `up` from `base_up_m` (the ground at the footprint's centre) to
-/// [`Building::roof_up_m`]. Boxes are closed: a point on a face is inside.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// The roof altitude is `base_up_m + height_m` ([`Building::roof_up_m`]), computed the same
+/// way for every query, so the top face is one value.
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Building {
-    /// Footprint centre, metres east of the origin.
-    pub center_east_m: f64,
-    /// Footprint centre, metres north of the origin.
-    pub center_north_m: f64,
-    /// Half the footprint's east-west side, metres (> 0).
-    pub half_east_m: f64,
-    /// Half the footprint's north-south side, metres (> 0).
-    pub half_north_m: f64,
-    /// Height of the box's bottom above the origin's ground (ENU up), metres: the terrain
-    /// height at the footprint's centre.
-    pub base_up_m: f64,
-    /// Height of the roof above the base, metres (> 0).
-    pub height_m: f64,
+    footprint: Footprint,
+    base_up_m: f64,
+    height_m: f64,
 }
 
 impl Building {
+    /// A prism over `footprint` from `base_up_m` (ENU up, metres: for a building on the
+    /// ground, the terrain height; plus `min_height` for an OpenStreetMap `building:part`)
+    /// up `height_m` metres.
+    ///
+    /// # Errors
+    /// A non-finite base or height, or a height that is not positive.
+    pub fn new(footprint: Footprint, base_up_m: f64, height_m: f64) -> Result<Self, BuildingError> {
+        if !base_up_m.is_finite() || !height_m.is_finite() {
+            return Err(BuildingError::NotFinite { base_up_m, height_m });
+        }
+        if height_m <= 0.0 {
+            return Err(BuildingError::NotTall { height_m });
+        }
+        Ok(Self { footprint, base_up_m, height_m })
+    }
+
+    /// The procedural city's box: an axis-aligned rectangle prism. `height_m > 0` and finite
+    /// values are the caller's to ensure.
+    pub(crate) fn boxed(rect: AxisRect, base_up_m: f64, height_m: f64) -> Self {
+        Self { footprint: Footprint::rectangle(rect), base_up_m, height_m }
+    }
+
+    /// The footprint polygon.
+    pub fn footprint(&self) -> &Footprint {
+        &self.footprint
+    }
+
+    /// Height of the prism's bottom (ENU up), metres.
+    pub fn base_up_m(&self) -> f64 {
+        self.base_up_m
+    }
+
+    /// Height of the roof above the base, metres (> 0).
+    pub fn height_m(&self) -> f64 {
+        self.height_m
+    }
+
     /// Roof altitude in ENU up, metres: `base_up_m + height_m`.
     pub fn roof_up_m(&self) -> f64 {
         self.base_up_m + self.height_m
@@ -33,43 +78,106 @@ impl Building {
 
     /// Footprint area, square metres.
     pub fn footprint_area_m2(&self) -> f64 {
-        4.0 * self.half_east_m * self.half_north_m
+        self.footprint.area_m2()
     }
 
-    /// Lower corner (west, south, base), ENU metres.
+    /// Lower corner of the bounding box (west, south, base), ENU metres.
     pub fn min_corner(&self) -> Vector3<f64> {
-        Vector3::new(self.center_east_m - self.half_east_m, self.center_north_m - self.half_north_m, self.base_up_m)
+        let r = self.footprint.bounds();
+        Vector3::new(r[0], r[1], self.base_up_m)
     }
 
-    /// Upper corner (east, north, roof), ENU metres.
+    /// Upper corner of the bounding box (east, north, roof), ENU metres.
     pub fn max_corner(&self) -> Vector3<f64> {
-        Vector3::new(self.center_east_m + self.half_east_m, self.center_north_m + self.half_north_m, self.roof_up_m())
+        let r = self.footprint.bounds();
+        Vector3::new(r[2], r[3], self.roof_up_m())
     }
 
-    /// Whether the horizontal point lies on the footprint (edges included).
+    /// Whether the horizontal point lies on the footprint (edges included, holes not).
     pub fn footprint_contains(&self, east_m: f64, north_m: f64) -> bool {
-        (east_m - self.center_east_m).abs() <= self.half_east_m
-            && (north_m - self.center_north_m).abs() <= self.half_north_m
+        self.footprint.contains(east_m, north_m)
     }
 
-    /// Whether the ENU point lies inside the closed box.
+    /// Whether the ENU point lies inside the closed prism.
     pub fn contains(&self, pos: &Vector3<f64>) -> bool {
-        self.footprint_contains(pos.x, pos.y) && pos.z >= self.base_up_m && pos.z <= self.roof_up_m()
+        pos.z >= self.base_up_m && pos.z <= self.roof_up_m() && self.footprint_contains(pos.x, pos.y)
     }
 
     /// Whether the footprint and the closed disc of `radius_m` around (east, north) share a
     /// point: the distance from the disc centre to the nearest footprint point is <= radius.
     pub fn footprint_touches_disc(&self, east_m: f64, north_m: f64, radius_m: f64) -> bool {
-        let dx = ((east_m - self.center_east_m).abs() - self.half_east_m).max(0.0);
-        let dy = ((north_m - self.center_north_m).abs() - self.half_north_m).max(0.0);
-        dx * dx + dy * dy <= radius_m * radius_m
+        self.footprint.touches_disc(east_m, north_m, radius_m)
     }
 
-    /// Where the segment `a + t (b - a)`, `t` in [0, 1], first meets the closed box: the
-    /// smallest such `t`, or `None`. A segment starting inside the box meets it at `t = 0`.
+    /// Where the segment `a + t (b - a)`, `t` in [0, 1], first meets the closed prism: the
+    /// smallest such `t`, or `None`. A segment starting inside the prism meets it at `t = 0`.
     pub fn segment_entry_t(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> Option<f64> {
-        clip_segment(a, &(b - a), &self.min_corner(), &self.max_corner()).map(|(t_enter, _)| t_enter)
+        if self.footprint.axis_rect().is_some() {
+            return clip_segment(a, &(b - a), &self.min_corner(), &self.max_corner()).map(|(t_enter, _)| t_enter);
+        }
+        self.segment_intervals(a, b).first().map(|&(t_enter, _)| t_enter)
     }
+
+    /// The parameter intervals `[t_enter, t_exit]` within [0, 1], ascending and disjoint,
+    /// where `a + t (b - a)` lies in the closed prism: one for a convex footprint, several
+    /// when the segment crosses a courtyard or a concave notch. A grazing contact gives
+    /// `t_enter == t_exit`.
+    ///
+    /// Exact up to rounding: the segment's height band `[base, roof]` is one slab
+    /// (Kay & Kajiya), and the footprint's boundary crossings cut the horizontal projection
+    /// into pieces that lie wholly inside or outside, each tested at its middle.
+    pub fn segment_intervals(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> Vec<(f64, f64)> {
+        let d = b - a;
+        if self.footprint.axis_rect().is_some() {
+            return clip_segment(a, &d, &self.min_corner(), &self.max_corner()).into_iter().collect();
+        }
+        let Some((z_enter, z_exit)) = clip_axis(a.z, d.z, self.base_up_m, self.roof_up_m()) else {
+            return Vec::new();
+        };
+        let at = |t: f64| self.footprint.contains(a.x + t * d.x, a.y + t * d.y);
+        if d.x == 0.0 && d.y == 0.0 {
+            return if at(0.0) { vec![(z_enter, z_exit)] } else { Vec::new() };
+        }
+        let mut ts = self.footprint.boundary_crossings([a.x, a.y], [d.x, d.y]);
+        ts.push(0.0);
+        ts.push(1.0);
+        ts.sort_by(f64::total_cmp);
+        ts.dedup();
+        let mut horizontal: Vec<(f64, f64)> = Vec::new();
+        let mut push = |lo: f64, hi: f64| match horizontal.last_mut() {
+            Some(last) if last.1 >= lo => last.1 = last.1.max(hi),
+            _ => horizontal.push((lo, hi)),
+        };
+        for (k, &t) in ts.iter().enumerate() {
+            // The crossing itself (a grazed vertex is inside alone), then the piece after it.
+            if at(t) {
+                push(t, t);
+            }
+            if let Some(&next) = ts.get(k + 1)
+                && at(0.5 * (t + next))
+            {
+                push(t, next);
+            }
+        }
+        horizontal
+            .into_iter()
+            .filter_map(|(lo, hi)| {
+                let (lo, hi) = (lo.max(z_enter), hi.min(z_exit));
+                (lo <= hi).then_some((lo, hi))
+            })
+            .collect()
+    }
+}
+
+/// The interval of `t` in [0, 1] where `a + t d` lies in `[lo, hi]` along one axis.
+fn clip_axis(a: f64, d: f64, lo: f64, hi: f64) -> Option<(f64, f64)> {
+    if d == 0.0 {
+        return (a >= lo && a <= hi).then_some((0.0, 1.0));
+    }
+    let (t0, t1) = ((lo - a) / d, (hi - a) / d);
+    let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+    let (t_enter, t_exit) = (near.max(0.0), far.min(1.0));
+    (t_enter <= t_exit).then_some((t_enter, t_exit))
 }
 
 /// The parameter interval `[t0, t1]` within [0, 1] where `a + t d` lies in the closed box
@@ -98,52 +206,4 @@ pub fn clip_segment(a: &Vector3<f64>, d: &Vector3<f64>, lo: &Vector3<f64>, hi: &
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn unit_box() -> Building {
-        // 10 m x 20 m footprint centred at (100, 50), base 2 m, 30 m tall.
-        Building {
-            center_east_m: 100.0,
-            center_north_m: 50.0,
-            half_east_m: 5.0,
-            half_north_m: 10.0,
-            base_up_m: 2.0,
-            height_m: 30.0,
-        }
-    }
-
-    #[test]
-    fn contains_is_closed_and_bounded_by_base_and_roof() {
-        let b = unit_box();
-        assert_eq!(b.roof_up_m(), 32.0);
-        assert!(b.contains(&Vector3::new(100.0, 50.0, 10.0)));
-        assert!(b.contains(&Vector3::new(105.0, 60.0, 32.0)), "faces belong to the box");
-        assert!(!b.contains(&Vector3::new(100.0, 50.0, 32.1)), "above the roof");
-        assert!(!b.contains(&Vector3::new(100.0, 50.0, 1.9)), "below the base");
-        assert!(!b.contains(&Vector3::new(105.1, 50.0, 10.0)));
-    }
-
-    #[test]
-    fn segment_entry_hits_the_near_face_and_misses_beside_and_above() {
-        let b = unit_box();
-        let a = Vector3::new(0.0, 50.0, 10.0);
-        let t = b.segment_entry_t(&a, &Vector3::new(200.0, 50.0, 10.0)).expect("crosses the box");
-        assert!((a.x + t * 200.0 - 95.0).abs() < 1e-9, "enters through the west face at x = 95");
-        assert_eq!(b.segment_entry_t(&a, &Vector3::new(90.0, 50.0, 10.0)), None, "stops short");
-        assert_eq!(b.segment_entry_t(&Vector3::new(0.0, 70.0, 10.0), &Vector3::new(200.0, 70.0, 10.0)), None);
-        assert_eq!(b.segment_entry_t(&Vector3::new(0.0, 50.0, 40.0), &Vector3::new(200.0, 50.0, 40.0)), None);
-        assert_eq!(b.segment_entry_t(&Vector3::new(100.0, 50.0, 5.0), &Vector3::new(0.0, 0.0, 0.0)), Some(0.0));
-    }
-
-    #[test]
-    fn disc_touch_uses_distance_to_the_nearest_footprint_point() {
-        let b = unit_box();
-        assert!(b.footprint_touches_disc(100.0, 50.0, 0.1), "centre inside");
-        assert!(b.footprint_touches_disc(110.0, 50.0, 5.0), "touches the east face");
-        assert!(!b.footprint_touches_disc(110.0, 50.0, 4.9));
-        // Corner (105, 60): distance from (108, 64) is 5.
-        assert!(b.footprint_touches_disc(108.0, 64.0, 5.0));
-        assert!(!b.footprint_touches_disc(108.0, 64.0, 4.99));
-    }
-}
+mod tests;

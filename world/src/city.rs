@@ -1,4 +1,5 @@
-//! The procedural city: a street grid, blocks split into lots, one box per built lot.
+//! The procedural city: a street grid, blocks split into lots, one box per built lot (a
+//! [`Building`] prism over an axis-aligned rectangle).
 //!
 //! Layout (world ENU metres, `P = blockSizeM + streetWidthM`, `s = streetWidthM`):
 //! - Streets are corridors of width `s` centred on the lines `east = k P` and `north = k P`,
@@ -23,6 +24,7 @@ use sadesim_crds::random::Rng;
 use sadesim_crds::run::City;
 
 use super::building::Building;
+use super::footprint::{AxisRect, Footprint};
 use super::index::{GridIndex, Rect};
 use super::inputs::OpenArea;
 use super::terrain::Terrain;
@@ -95,9 +97,15 @@ impl StreetGrid {
     }
 }
 
+/// A built lot's rectangle and base (ENU up, metres: the ground at its centre).
+struct Lot {
+    rect: AxisRect,
+    base_up_m: f64,
+}
+
 /// A built lot before its height is known.
 struct Draft {
-    footprint: Building,
+    footprint: Lot,
     /// log-height offset from the downtown profile, `g(r)`.
     downtown_log: f64,
     /// log-height offset from the random block and lot terms.
@@ -145,7 +153,8 @@ pub fn generate(city: &City, extent_m: f64, open_areas: &[OpenArea], terrain: &T
                     }
                     let Some(footprint) = footprint(lot_we, lot_ns, mean_fill, &draws[1..], terrain) else { continue };
                     drafts.push(Draft {
-                        downtown_log: DOWNTOWN_BOOST.ln() * downtown(footprint.center_east_m, footprint.center_north_m),
+                        downtown_log: DOWNTOWN_BOOST.ln()
+                            * downtown(footprint.rect.center_east_m, footprint.rect.center_north_m),
                         noise_log: block_log + lot_log,
                         footprint,
                     });
@@ -177,7 +186,7 @@ fn cuts(lo: f64, hi: f64, lot_width_m: f64, rng: &mut Rng) -> Vec<f64> {
 
 /// The footprint inside one lot from four uniform draws (fill, aspect, shift east, shift
 /// north), or `None` if the lot is too small. The base is the ground at the centre.
-fn footprint(we: &[f64], sn: &[f64], mean_fill: f64, u: &[f64], terrain: &Terrain) -> Option<Building> {
+fn footprint(we: &[f64], sn: &[f64], mean_fill: f64, u: &[f64], terrain: &Terrain) -> Option<Lot> {
     let (lot_e, lot_n) = (we[1] - we[0], sn[1] - sn[0]);
     if lot_e.min(lot_n) < MIN_LOT_SIDE_M {
         return None;
@@ -192,13 +201,9 @@ fn footprint(we: &[f64], sn: &[f64], mean_fill: f64, u: &[f64], terrain: &Terrai
     let slack_n = 0.5 * lot_n - MIN_SETBACK_M - half_north_m;
     let center_east_m = 0.5 * (we[0] + we[1]) + slack_e * (2.0 * u[2] - 1.0);
     let center_north_m = 0.5 * (sn[0] + sn[1]) + slack_n * (2.0 * u[3] - 1.0);
-    Some(Building {
-        center_east_m,
-        center_north_m,
-        half_east_m,
-        half_north_m,
+    Some(Lot {
+        rect: AxisRect { center_east_m, center_north_m, half_east_m, half_north_m },
         base_up_m: terrain.up_m(center_east_m, center_north_m),
-        height_m: 0.0,
     })
 }
 
@@ -225,16 +230,10 @@ fn drop_open(drafts: &mut Vec<Draft>, open_areas: &[OpenArea], grid: &StreetGrid
         .collect();
     let index = GridIndex::new(grid.pitch_m, &rects);
     drafts.retain(|d| {
-        let b = &d.footprint;
-        let rect = [
-            b.center_east_m - b.half_east_m,
-            b.center_north_m - b.half_north_m,
-            b.center_east_m + b.half_east_m,
-            b.center_north_m + b.half_north_m,
-        ];
-        !index.in_rect(&rect).any(|k| {
+        let footprint = Footprint::rectangle(d.footprint.rect);
+        !index.in_rect(&footprint.bounds()).any(|k| {
             let a = discs[k as usize];
-            b.footprint_touches_disc(a.east_m, a.north_m, a.radius_m)
+            footprint.touches_disc(a.east_m, a.north_m, a.radius_m)
         })
     });
 }
@@ -254,7 +253,7 @@ fn heights(drafts: Vec<Draft>, city: &City) -> Vec<Building> {
         .into_iter()
         .map(|d| {
             let height_m = (median_m * (d.downtown_log - g_median + d.noise_log).exp()).clamp(min_m, max_m);
-            Building { height_m, ..d.footprint }
+            Building::boxed(d.footprint.rect, d.footprint.base_up_m, height_m)
         })
         .collect()
 }

@@ -13,13 +13,15 @@
 //! - `inputs`: what shapes the world, and its seed (a hash of the inputs, not `spec.seed`).
 //! - `terrain`: the smooth seeded ground relief.
 //! - `city`: street grid, blocks, lots, buildings and their heights.
-//! - `building`: one box and its geometry.
+//! - `building`: one building, a prism over a footprint, and its geometry.
+//! - `footprint`: the footprint polygon (holes allowed) and its 2D geometry.
 //! - `index`: the uniform grid behind the fast queries.
 //! - `map`: [`World`] and its queries; `stats`: [`WorldStats`] for logs.
 //! - `ground`: the [`Ground`] height query, with [`FlatGround`] for tests.
 
 mod building;
 mod city;
+mod footprint;
 mod ground;
 mod index;
 mod inputs;
@@ -30,8 +32,9 @@ mod terrain;
 #[cfg(test)]
 mod tests;
 
-pub use building::Building;
+pub use building::{Building, BuildingError};
 pub use city::{MIN_HEIGHT_M, PARK_FRACTION};
+pub use footprint::{AxisRect, Footprint, FootprintError, Point2};
 pub use ground::{FlatGround, Ground};
 pub use inputs::{EXPLICIT_HOME_CLEARANCE_M, OpenArea, WorldInputs};
 pub use map::World;

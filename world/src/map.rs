@@ -78,19 +78,12 @@ impl World {
         cell_m: f64,
         open_area_count: usize,
     ) -> Self {
-        let rects: Vec<Rect> = layout
-            .buildings
-            .iter()
-            .map(|b| {
-                let (lo, hi) = (b.min_corner(), b.max_corner());
-                [lo.x, lo.y, hi.x, hi.y]
-            })
-            .collect();
+        let rects: Vec<Rect> = layout.buildings.iter().map(|b| b.footprint().bounds()).collect();
         let index = GridIndex::new(cell_m, &rects);
         let z_band_up_m = layout
             .buildings
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| (lo.min(b.base_up_m), hi.max(b.roof_up_m())));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| (lo.min(b.base_up_m()), hi.max(b.roof_up_m())));
         let ground = ground_range(&terrain, extent_m);
         let stats = WorldStats::new(seed, extent_m, &layout, open_area_count, ground);
         Self { extent_m, seed, terrain, buildings: layout.buildings, index, z_band_up_m, stats }
@@ -151,7 +144,7 @@ impl World {
         pos.z - self.ground_up_m(pos.x, pos.y)
     }
 
-    /// Whether the ENU point is inside a building's box (faces included).
+    /// Whether the ENU point is inside a building's prism (faces included).
     pub fn is_inside_building(&self, pos: Vector3<f64>) -> bool {
         self.building_at(pos.x, pos.y).is_some_and(|b| b.contains(&pos))
     }

@@ -47,7 +47,7 @@ impl WorldStats {
         ground_range_up_m: (f64, f64),
     ) -> Self {
         let buildings: &[Building] = &layout.buildings;
-        let mut heights: Vec<f64> = buildings.iter().map(|b| b.height_m).collect();
+        let mut heights: Vec<f64> = buildings.iter().map(Building::height_m).collect();
         let (median_height_m, mean_height_m, max_height_m) = if heights.is_empty() {
             (0.0, 0.0, 0.0)
         } else {

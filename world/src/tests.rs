@@ -23,7 +23,8 @@ fn bits(world: &World) -> Vec<[u64; 6]> {
         .buildings()
         .iter()
         .map(|b| {
-            [b.center_east_m, b.center_north_m, b.half_east_m, b.half_north_m, b.base_up_m, b.height_m]
+            let r = b.footprint().axis_rect().expect("procedural buildings are rectangles");
+            [r.center_east_m, r.center_north_m, r.half_east_m, r.half_north_m, b.base_up_m(), b.height_m()]
                 .map(f64::to_bits)
         })
         .collect()
@@ -112,13 +113,14 @@ fn buildings_stay_inside_blocks_off_the_street_corridors() {
         let k = (c / pitch).floor();
         c - h >= k * pitch + half_street && c + h <= (k + 1.0) * pitch - half_street
     };
-    for b in world.buildings() {
+    for bl in world.buildings() {
+        let b = bl.footprint().axis_rect().expect("procedural buildings are rectangles");
         assert!(inside_one_block(b.center_east_m, b.half_east_m), "{b:?} on a north-south street");
         assert!(inside_one_block(b.center_north_m, b.half_north_m), "{b:?} on an east-west street");
-        let (lo, hi) = (b.min_corner(), b.max_corner());
+        let (lo, hi) = (bl.min_corner(), bl.max_corner());
         assert!(lo.x >= -extent_m && lo.y >= -extent_m && hi.x <= extent_m && hi.y <= extent_m);
         assert!(b.half_east_m > 0.0 && b.half_north_m > 0.0);
-        assert_eq!(b.base_up_m, world.ground_up_m(b.center_east_m, b.center_north_m), "stands on the ground");
+        assert_eq!(bl.base_up_m(), world.ground_up_m(b.center_east_m, b.center_north_m), "stands on the ground");
     }
 }
 
@@ -127,7 +129,7 @@ fn heights_are_capped_log_normal_around_the_configured_median() {
     let low_rise = City { median_building_height_m: 12.0, max_building_height_m: 40.0, ..City::default() };
     for city in [City::default(), low_rise] {
         let world = World::generate(&inputs(3000.0, Some(city.clone()), vec![]));
-        let heights: Vec<f64> = world.buildings().iter().map(|b| b.height_m).collect();
+        let heights: Vec<f64> = world.buildings().iter().map(Building::height_m).collect();
         assert!(heights.len() > 1000);
         assert!(heights.iter().all(|&h| h > 0.0 && h <= city.max_building_height_m));
         let m = median(heights.clone());
@@ -148,8 +150,11 @@ fn downtown_is_taller_than_the_edge() {
         let h: Vec<f64> = world
             .buildings()
             .iter()
-            .filter(|b| keep(b.center_east_m.hypot(b.center_north_m)))
-            .map(|b| b.height_m)
+            .filter(|b| {
+                let [e, n] = b.footprint().bounds_center();
+                keep(e.hypot(n))
+            })
+            .map(Building::height_m)
             .collect();
         assert!(h.len() > 50);
         h.iter().sum::<f64>() / h.len() as f64
@@ -206,13 +211,14 @@ fn terrain_is_zero_at_the_origin_smooth_bounded_and_not_flat() {
 #[test]
 fn segments_hit_a_box_from_outside_and_nothing_along_a_street() {
     let world = shared();
-    let (k, b) = world
+    let (k, bl, b) = world
         .buildings()
         .iter()
         .enumerate()
-        .find(|(_, b)| b.center_east_m > 200.0 && b.center_north_m > 200.0)
+        .filter_map(|(k, bl)| Some((k, bl, bl.footprint().axis_rect()?)))
+        .find(|(_, _, b)| b.center_east_m > 200.0 && b.center_north_m > 200.0)
         .expect("a building north-east of the origin");
-    let mid_z = b.base_up_m + 0.5 * b.height_m;
+    let mid_z = bl.base_up_m() + 0.5 * bl.height_m();
     let target = Vector3::new(b.center_east_m, b.center_north_m, mid_z);
     // From 5 m west of the west face, level: the hit is on that face.
     let from = Vector3::new(b.center_east_m - b.half_east_m - 5.0, b.center_north_m, mid_z);
@@ -220,9 +226,9 @@ fn segments_hit_a_box_from_outside_and_nothing_along_a_street() {
     assert_eq!(hit_k, k);
     assert!((p.x - (b.center_east_m - b.half_east_m)).abs() < 1e-6 && (p.z - mid_z).abs() < 1e-9, "{p:?}");
     // From above the roof straight down: the hit is on the roof.
-    let above = Vector3::new(b.center_east_m, b.center_north_m, b.roof_up_m() + 50.0);
+    let above = Vector3::new(b.center_east_m, b.center_north_m, bl.roof_up_m() + 50.0);
     let (_, p) = world.segment_hits_building(above, target).expect("hits the roof");
-    assert!((p.z - b.roof_up_m()).abs() < 1e-6);
+    assert!((p.z - bl.roof_up_m()).abs() < 1e-6);
     // Above every roof: clear.
     let sky = 400.0;
     assert_eq!(world.segment_hits_building(Vector3::new(-1400.0, 0.0, sky), Vector3::new(1400.0, 0.0, sky)), None);
@@ -238,11 +244,11 @@ fn segments_hit_a_box_from_outside_and_nothing_along_a_street() {
 #[test]
 fn point_queries_agree_with_the_boxes() {
     let world = shared();
-    let b = world.buildings()[world.buildings().len() / 3];
-    let (e, n) = (b.center_east_m, b.center_north_m);
-    assert_eq!(world.building_at(e, n), Some(&b));
+    let b = &world.buildings()[world.buildings().len() / 3];
+    let [e, n] = b.footprint().bounds_center();
+    assert_eq!(world.building_at(e, n), Some(b));
     assert_eq!(world.surface_up_m(e, n), b.roof_up_m());
-    assert!(world.is_inside_building(Vector3::new(e, n, b.base_up_m + 1.0)));
+    assert!(world.is_inside_building(Vector3::new(e, n, b.base_up_m() + 1.0)));
     assert!(!world.is_inside_building(Vector3::new(e, n, b.roof_up_m() + 0.1)));
     let ground = world.ground_up_m(e, n);
     assert!((world.height_agl_m(Vector3::new(e, n, ground + 10.0)) - 10.0).abs() < 1e-9);

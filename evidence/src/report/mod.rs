@@ -59,11 +59,10 @@ fn buildings(data: &RunData) -> Vec<svg::Footprint> {
     world
         .buildings()
         .iter()
-        .map(|b| svg::Footprint {
-            east_min_m: b.center_east_m - b.half_east_m,
-            north_min_m: b.center_north_m - b.half_north_m,
-            east_max_m: b.center_east_m + b.half_east_m,
-            north_max_m: b.center_north_m + b.half_north_m,
+        .map(|b| {
+            // The bounding rectangle: the footprint itself for the procedural city's boxes.
+            let [east_min_m, north_min_m, east_max_m, north_max_m] = b.footprint().bounds();
+            svg::Footprint { east_min_m, north_min_m, east_max_m, north_max_m }
         })
         .collect()
 }
