@@ -7,6 +7,7 @@
 pub mod airframe;
 pub mod battery;
 pub mod dynamics;
+pub mod ground;
 pub mod motor;
 
 pub use airframe::{Airframe, BatterySpec, GRAVITY_MPS2, Rotor, Spin, preset};
