@@ -5,16 +5,7 @@
 //! is called by [`super::Shard::advance_with`] at fixed points of a window, so the core
 //! never waits on a socket (rapier's `PhysicsPipeline::step` does no I/O either).
 //!
-//! # When the I/O runs (the timing MAVLink clients see)
-//! At the end of every window the core builds each drone's due telemetry. Every
-//! [`super::MAVLINK_IO_PERIOD_S`] of sim time that window end is also an *exchange*:
-//! 1. [`MavlinkIo::receive`] fills the inbound queues (what peers sent since the last one);
-//! 2. each session handles its inbound frames (commands act on the autopilot) and builds
-//!    its telemetry and replies into its outbound queue;
-//! 3. [`MavlinkIo::send`] takes the outbound queues, with `flush` set: everything leaves.
-//!
-//! At the other window ends only 2 (without frames) and 3 (with `flush` unset: the I/O side
-//! encodes what was built, and sends it at the next exchange) run.
+//! When the I/O side runs, relative to the windows, is told at [`MavlinkIo`].
 
 use crate::mavlink::frame::Frame;
 use crate::mavlink::session::Outgoing;
@@ -37,6 +28,17 @@ pub struct MavlinkQueues {
 
 /// What carries the shard's MAVLink queues to the network (index in the slices = the
 /// drone's position in the shard).
+///
+/// # When the I/O runs (the timing MAVLink clients see)
+/// At the end of every window the core builds each drone's due telemetry. Every
+/// [`MAVLINK_IO_PERIOD_S`](super::MAVLINK_IO_PERIOD_S) of sim time that window end is also an *exchange*:
+/// 1. [`MavlinkIo::receive`] fills the inbound queues (what peers sent since the last one);
+/// 2. each session handles its inbound frames (commands act on the autopilot) and builds
+///    its telemetry and replies into its outbound queue;
+/// 3. [`MavlinkIo::send`] takes the outbound queues, with `flush` set: everything leaves.
+///
+/// At the other window ends only 2 (without frames) and 3 (with `flush` unset: the I/O side
+/// encodes what was built, and sends it at the next exchange) run.
 pub trait MavlinkIo {
     /// At an exchange, before the sessions act: appends what arrived for each drone to its
     /// `inbound` queue.

@@ -257,7 +257,7 @@ impl Shard {
 
     /// Simulates up to (excluding) `until_step`, returning the events. At the window's end
     /// the MAVLink sessions run, and `io` fills and drains their queues around them (see
-    /// [`mavlink_io`] for when).
+    /// [`MavlinkIo`] for when).
     pub fn advance_with(&mut self, until_step: u64, io: &mut impl MavlinkIo) -> Vec<Event> {
         let mut events = Vec::new();
         while self.step < until_step {

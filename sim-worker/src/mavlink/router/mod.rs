@@ -37,6 +37,11 @@
 //!   heartbeats (forwarded to every drone) count as a ground station.
 //! - Within one GCS datagram, frames keep their order per drone; frames to different drones
 //!   are sent as separate datagrams.
+//!
+//! # Layout
+//! `config` (what a router serves, its limits, errors and counters), `handle` (start and
+//! stop), `routing_table` (the state the threads share and how a frame is routed),
+//! `sockets` (the threads), `tests` (against real sockets on loopback).
 
 mod config;
 mod handle;
