@@ -11,7 +11,8 @@ use sadesim_crds::plan::RunPlan;
 
 use crate::coordinator::{LinkError, ShardLink};
 use crate::protocol::{FromShard, ToShard};
-use crate::shard::Shard;
+use crate::roles::shard::ShardSockets;
+use crate::shard::{MavlinkIo, Shard};
 use sadesim_world::World;
 
 /// The coordinator's end of an in-process shard thread.
@@ -30,14 +31,20 @@ impl ShardLink for ThreadLink {
     }
 }
 
-/// Serves one shard over any message source and sink until `Stop` or disconnection.
-pub fn serve(mut shard: Shard, mut recv: impl FnMut() -> Option<ToShard>, mut send: impl FnMut(FromShard) -> bool) {
+/// Serves one shard over any message source and sink until `Stop` or disconnection, `io`
+/// carrying its MAVLink queues.
+pub fn serve(
+    mut shard: Shard,
+    mut io: impl MavlinkIo,
+    mut recv: impl FnMut() -> Option<ToShard>,
+    mut send: impl FnMut(FromShard) -> bool,
+) {
     if !send(shard.hello()) {
         return;
     }
     while let Some(msg) = recv() {
         // `None` is the answer to Stop: the shard is done.
-        let Some(reply) = shard.handle(msg) else { return };
+        let Some(reply) = shard.handle_with(msg, &mut io) else { return };
         if !send(reply) {
             return;
         }
@@ -55,14 +62,12 @@ pub fn spawn_thread(
     mavlink: Option<&crate::shard::MavlinkOptions>,
 ) -> Result<(ThreadLink, JoinHandle<()>), crate::shard::ShardError> {
     let mut shard = Shard::new(plan, index, world)?;
-    if let Some(options) = mavlink {
-        shard.open_mavlink(plan, options)?;
-    }
+    let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
     let (to_shard, shard_rx) = channel::<ToShard>();
     let (shard_tx, from_shard) = channel::<FromShard>();
     let handle = std::thread::Builder::new()
         .name(format!("shard-{index}"))
-        .spawn(move || serve(shard, || shard_rx.recv().ok(), |m| shard_tx.send(m).is_ok()))
+        .spawn(move || serve(shard, sockets, || shard_rx.recv().ok(), |m| shard_tx.send(m).is_ok()))
         .expect("the OS can start a thread");
     Ok((ThreadLink { to_shard, from_shard }, handle))
 }
@@ -137,6 +142,7 @@ pub fn serve_tcp(shard: Shard, stream: TcpStream) -> std::io::Result<()> {
     let mut buf = String::new();
     serve(
         shard,
+        crate::shard::NoMavlinkIo,
         || read_line::<ToShard>(&mut reader, &mut buf).ok().flatten(),
         |m| write_line(&mut writer, &m).is_ok(),
     );

@@ -1,4 +1,8 @@
 //! Pilots that fly drones without an external program: scripted missions from the
-//! scenario. External MAVLink pilots connect through the `mavlink` module instead.
+//! scenario (`scripted` expands them, `scripted_pilot` flies them). External MAVLink pilots
+//! connect through the `mavlink` module instead.
 
 pub mod scripted;
+pub mod scripted_pilot;
+
+pub use scripted_pilot::ScriptedPilot;

@@ -5,6 +5,13 @@
 //! resolving), so connecting is retried, each attempt bounded, until `connect_timeout`.
 //! Losing the coordinator before it said `Stop` is an error (exit 2 with the address):
 //! the run is over and this shard's part of it was not recorded to the end.
+//!
+//! The role owns the drones' MAVLink sockets ([`ShardSockets`]); the shard core only sees
+//! their queues.
+
+mod sockets;
+
+pub use sockets::ShardSockets;
 
 use std::io::{BufReader, BufWriter};
 use std::net::{TcpStream, ToSocketAddrs};
@@ -49,9 +56,7 @@ pub fn run(
     // one (the assets role will fetch it from the cache instead).
     let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
     let mut shard = Shard::new(plan, index, world)?;
-    if let Some(options) = mavlink {
-        shard.open_mavlink(plan, options)?;
-    }
+    let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
     let stream = connect(coordinator, connect_timeout)?;
     // On stderr (the role's log), so a run across hosts says who was where.
     let local = stream.local_addr().map_or_else(|_| "?".into(), |a| a.to_string());
@@ -59,7 +64,7 @@ pub fn run(
         "shard {index}: {} drones; connected to the coordinator at {coordinator} from {local}",
         shard.drones().len()
     );
-    serve(shard, stream, coordinator)
+    serve(shard, sockets, stream, coordinator)
 }
 
 /// Connects to `coordinator`, resolving and retrying until `timeout` has passed.
@@ -99,7 +104,12 @@ pub fn connect(coordinator: &str, timeout: Duration) -> Result<TcpStream, RoleEr
 }
 
 /// Serves the shard protocol over `stream` until the coordinator says `Stop`.
-fn serve(mut shard: Shard, stream: TcpStream, coordinator: &str) -> Result<(), RoleError> {
+fn serve(
+    mut shard: Shard,
+    mut sockets: Option<ShardSockets>,
+    stream: TcpStream,
+    coordinator: &str,
+) -> Result<(), RoleError> {
     stream.set_nodelay(true)?;
     let mut reader = BufReader::new(stream.try_clone()?);
     let mut writer = BufWriter::new(stream);
@@ -118,7 +128,7 @@ fn serve(mut shard: Shard, stream: TcpStream, coordinator: &str) -> Result<(), R
             Err(LinkError::Decode(e)) => return Err(lost(format!("unreadable message: {e}"))),
         };
         // `None` is the answer to Stop: the run is over.
-        let Some(reply) = shard.handle(msg) else { return Ok(()) };
+        let Some(reply) = shard.handle_with(msg, &mut sockets) else { return Ok(()) };
         transport::write_line(&mut writer, &reply).map_err(|e| lost(e.to_string()))?;
     }
 }

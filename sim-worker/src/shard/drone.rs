@@ -1,51 +1,32 @@
 //! One simulated drone: rigid body, motors, battery, sensors and its FMU, stepped at the
-//! physics rate. Ground contact is handled here (landing gear on the terrain); building
-//! contact comes from the shard's rapier world.
+//! physics rate, with its scripted pilot (`pilot::ScriptedPilot`), its ground contact
+//! (`vehicle::ground`) and its MAVLink session, which reads and writes the shard's queues
+//! (`shard::mavlink_io`), never a socket. Building contact comes from the shard's rapier
+//! world.
 
-use nalgebra::{UnitQuaternion, Vector3};
+use nalgebra::Vector3;
 use sadesim_crds::fleet::GeofenceAction;
 use sadesim_crds::plan::PlannedDrone;
 
 use crate::airspace::volume::ZoneVolume;
-use crate::autopilot::control::yaw_of;
 use crate::autopilot::fmu::{Fmu, SensorFrame};
 use crate::autopilot::geofence::Geofence;
 use crate::autopilot::mission::MissionPlan;
 use crate::autopilot::navigator::{Command, NavigatorConfig, Rejection};
 use crate::env::{EnvSample, SampleContext};
 use crate::events::{EventKind, FlightMode};
-use crate::mavlink::endpoint::Endpoint;
-use crate::mavlink::session::{Session, Vehicle};
+use crate::mavlink::session::{Outgoing, Session, Vehicle};
 use crate::mavlink::telemetry::{BatteryView, MissionProgress, PositionEstimate, VehicleView};
+use crate::pilot::ScriptedPilot;
 use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail};
 use crate::sensors::{GnssFix, SensorSuite};
+use crate::vehicle::ground::{GEAR_HEIGHT_M, ground_contact};
 use crate::vehicle::{Airframe, Battery, Motor, Preset, RigidState, wrench};
 use sadesim_world::World;
 
-/// Touchdown faster than this (m/s, downward) is a crash, not a landing.
-pub const CRASH_VERTICAL_MPS: f64 = 3.0;
-/// Touching the ground faster than this horizontally (m/s) is a crash.
-pub const CRASH_HORIZONTAL_MPS: f64 = 4.0;
-/// Landing-gear height: body origin (centre of mass) above the ground at rest, m.
-const GEAR_HEIGHT_M: f64 = 0.1;
+use super::mavlink_io::MavlinkQueues;
 /// Barometer readings every this many physics steps (50 Hz at 1 kHz, like PX4's baro).
 const BARO_DIVIDER: u64 = 20;
-
-/// A scripted pilot: loads its mission, arms (retrying each second while arming checks
-/// fail, as a pilot script would) and starts the mission when pilots are released.
-#[derive(Clone, Debug)]
-struct ScriptedPilot {
-    mission: MissionPlan,
-    started: bool,
-    next_try_s: f64,
-}
-
-/// A drone's MAVLink edge: its session (pure) and its sockets.
-#[derive(Debug)]
-pub struct MavlinkLink {
-    pub session: Session,
-    pub endpoint: Endpoint,
-}
 
 /// The autopilot as a MAVLink session sees it for one call.
 struct FmuVehicle<'a> {
@@ -92,7 +73,8 @@ pub struct DroneSim {
     local_origin_enu_m: Vector3<f64>,
     /// Ground height under the drone, ENU up, m.
     ground_up_m: f64,
-    link: Option<Box<MavlinkLink>>,
+    /// The MAVLink session, once the shard has MAVLink (boxed: most of a drone's size).
+    session: Option<Box<Session>>,
     /// The group's built-in geofence (`spec.fleet[].geofence`), when set.
     geofence: Option<Geofence>,
 }
@@ -121,7 +103,7 @@ impl DroneSim {
             airframe,
             sensors,
             fmu,
-            pilot: mission.map(|mission| ScriptedPilot { mission, started: false, next_try_s: 0.0 }),
+            pilot: mission.map(ScriptedPilot::new),
             radius_m,
             on_ground: true,
             crashed: false,
@@ -132,7 +114,7 @@ impl DroneSim {
             last_gnss: None,
             local_origin_enu_m: home,
             ground_up_m: home.z - GEAR_HEIGHT_M,
-            link: None,
+            session: None,
             geofence: None,
         })
     }
@@ -178,48 +160,41 @@ impl DroneSim {
         *self.fmu.navigator().config()
     }
 
-    /// Gives the drone a MAVLink endpoint.
-    pub fn attach_mavlink(&mut self, link: MavlinkLink) {
-        self.link = Some(Box::new(link));
+    /// Gives the drone its MAVLink session.
+    pub fn attach_session(&mut self, session: Session) {
+        self.session = Some(Box::new(session));
     }
 
-    /// Builds the telemetry due at `time_s` and queues it (sent at the next exchange).
-    pub fn mavlink_collect(&mut self, time_s: f64) {
-        let Some(mut link) = self.link.take() else { return };
+    /// Builds the telemetry due at `time_s` into `outbound` (sent at the next exchange).
+    pub fn mavlink_collect(&mut self, time_s: f64, outbound: &mut Vec<Outgoing>) {
+        if self.session.is_none() {
+            return;
+        }
         let view = self.view(time_s);
-        let out = link.session.poll(&view);
-        link.endpoint.queue(&out);
-        self.link = Some(link);
-    }
-
-    /// The shard's readiness wait found this drone's `socket` readable.
-    pub fn mavlink_mark_ready(&mut self, socket: crate::mavlink::endpoint::SocketKind) {
-        if let Some(link) = &mut self.link {
-            link.endpoint.mark_ready(socket);
+        if let Some(session) = &mut self.session {
+            outbound.extend(session.poll(&view));
         }
     }
 
-    /// Reads what peers sent, lets the session act on the autopilot, and sends everything
-    /// queued (replies included).
-    pub fn mavlink_exchange(&mut self, time_s: f64) {
-        let Some(mut link) = self.link.take() else { return };
-        let frames = link.endpoint.receive();
-        if !frames.is_empty() {
+    /// An exchange: the session acts on what peers sent (`queues.inbound`, emptied) and
+    /// builds its replies and the telemetry due into `queues.outbound`.
+    pub fn mavlink_exchange(&mut self, time_s: f64, queues: &mut MavlinkQueues) {
+        if self.session.is_none() {
+            return;
+        }
+        if !queues.inbound.is_empty() {
             let view = self.view(time_s);
+            let Some(session) = &mut self.session else { return };
             let mut vehicle = FmuVehicle {
                 fmu: &mut self.fmu,
                 on_ground: self.on_ground,
                 battery: self.battery.remaining_fraction(),
             };
-            for f in &frames {
-                link.session.handle(f, &view, &mut vehicle);
+            for f in queues.inbound.drain(..) {
+                session.handle(&f, &view, &mut vehicle);
             }
         }
-        self.link = Some(link);
-        self.mavlink_collect(time_s);
-        if let Some(link) = &mut self.link {
-            link.endpoint.flush();
-        }
+        self.mavlink_collect(time_s, &mut queues.outbound);
     }
 
     /// What MAVLink peers see of this drone at `time_s`.
@@ -310,7 +285,7 @@ impl DroneSim {
         );
         let v_before = self.state.velocity_enu_mps;
         self.state.integrate(&self.airframe, &w, dt_s);
-        self.ground_contact(world);
+        self.touch_ground(world);
         if self.crashed {
             return;
         }
@@ -340,52 +315,25 @@ impl DroneSim {
         self.events.extend(self.fmu.take_events());
     }
 
+    /// The scripted pilot's turn (if the drone has one) at `t_s`.
     fn fly_scripted_pilot(&mut self, t_s: f64, released: bool) {
         let Some(pilot) = &mut self.pilot else { return };
-        if !released || pilot.started || t_s < pilot.next_try_s {
-            return;
-        }
-        let battery = self.battery.remaining_fraction();
-        let plan = pilot.mission.clone();
-        let result = self
-            .fmu
-            .command(Command::LoadMission(plan), self.on_ground, battery)
-            .and_then(|()| self.fmu.command(Command::Arm, self.on_ground, battery))
-            .and_then(|()| self.fmu.command(Command::StartMission, self.on_ground, battery));
-        match result {
-            Ok(()) => pilot.started = true,
-            Err(e) => {
-                pilot.next_try_s = t_s + 1.0;
-                self.events.push(EventKind::CommandRejected { command: "startMission".into(), reason: e.to_string() });
-            }
+        let (fmu, on_ground, battery) = (&mut self.fmu, self.on_ground, self.battery.remaining_fraction());
+        if let Some(event) = pilot.fly(t_s, released, |command| fmu.command(command, on_ground, battery)) {
+            self.events.push(event);
         }
     }
 
-    /// Landing gear on the terrain: touchdown below the crash speeds rests the drone level
-    /// on its gear; faster is a crash.
-    fn ground_contact(&mut self, world: &World) {
+    /// Landing gear on the terrain under the drone ([`ground_contact`]).
+    fn touch_ground(&mut self, world: &World) {
         let p = self.state.position_enu_m;
         self.ground_up_m = world.ground_up_m(p.x, p.y);
-        let floor = self.ground_up_m + GEAR_HEIGHT_M;
-        self.height_agl_m = p.z - floor + GEAR_HEIGHT_M;
-        if p.z > floor {
-            if p.z > floor + 0.02 {
-                self.on_ground = false;
-            }
-            return;
+        let contact = ground_contact(&mut self.state, self.ground_up_m, self.on_ground);
+        self.height_agl_m = contact.height_agl_m;
+        self.on_ground = contact.on_ground;
+        if let Some(speed_mps) = contact.crash_speed_mps {
+            self.crash("ground", speed_mps);
         }
-        let v = self.state.velocity_enu_mps;
-        let horizontal = v.xy().norm();
-        if !self.on_ground && (-v.z > CRASH_VERTICAL_MPS || horizontal > CRASH_HORIZONTAL_MPS) {
-            self.crash("ground", v.norm());
-            return;
-        }
-        self.on_ground = true;
-        self.state.position_enu_m.z = floor;
-        self.state.velocity_enu_mps = Vector3::zeros();
-        self.state.rate_body_rps = Vector3::zeros();
-        self.state.attitude = UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_of(&self.state.attitude));
-        self.height_agl_m = GEAR_HEIGHT_M;
     }
 
     /// Stops the drone where it is: motors off, nothing simulated any more.
@@ -407,9 +355,9 @@ impl DroneSim {
     pub fn take_events(&mut self) -> Vec<EventKind> {
         let events = std::mem::take(&mut self.events);
         if !events.is_empty()
-            && let Some(link) = &mut self.link
+            && let Some(session) = &mut self.session
         {
-            link.session.on_events(&events);
+            session.on_events(&events);
         }
         events
     }

@@ -1,7 +1,15 @@
 //! A physics shard: owns the drones `[first, first + count)` of the plan, steps them in
 //! sync windows, and reports their states and events at each window boundary (DESIGN §5).
+//!
+//! The shard is a pure core: it does no I/O. Its drones' MAVLink sessions exchange frames
+//! through queues the shard owns ([`MavlinkQueues`]); the caller moves them to and from
+//! the sockets through a [`MavlinkIo`] (`roles::shard::ShardSockets`), called at fixed
+//! points of [`Shard::advance_with`].
 
 mod drone;
+mod mavlink_io;
+#[cfg(test)]
+mod tests;
 
 use std::sync::Arc;
 
@@ -19,7 +27,9 @@ use crate::sensors::SensorSuite;
 use crate::vehicle;
 use sadesim_world::World;
 
-pub use drone::{CRASH_HORIZONTAL_MPS, CRASH_VERTICAL_MPS, DroneSim, MavlinkLink};
+pub use crate::vehicle::ground::{CRASH_HORIZONTAL_MPS, CRASH_VERTICAL_MPS};
+pub use drone::DroneSim;
+pub use mavlink_io::{MavlinkIo, MavlinkQueues, NoMavlinkIo};
 
 /// Why a shard could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -79,10 +89,10 @@ pub struct Shard {
     step: u64,
     dt_s: f64,
     released: bool,
-    /// Sim time of the next MAVLink I/O.
+    /// Sim time of the next MAVLink exchange.
     next_mavlink_io_s: f64,
-    /// Readiness of every drone's MAVLink sockets (index = position in `drones`).
-    mavlink_poll: Option<crate::mavlink::endpoint::EndpointPoll>,
+    /// Every drone's MAVLink queues (index = position in `drones`); empty without MAVLink.
+    mavlink: Vec<MavlinkQueues>,
     /// The run's zones, for the geofences; empty when no drone of the shard has one.
     zones: Vec<ZoneVolume>,
 }
@@ -155,53 +165,34 @@ impl Shard {
             dt_s: 1.0 / f64::from(plan.physics_rate_hz),
             released: false,
             next_mavlink_io_s: 0.0,
-            mavlink_poll: None,
+            mavlink: Vec::new(),
             zones: if fenced { spec.zones.iter().map(|z| ZoneVolume::new(z, &frame)).collect() } else { Vec::new() },
         })
     }
 
-    /// Opens a MAVLink endpoint for every drone of the shard.
-    ///
-    /// # Errors
-    /// The first endpoint that cannot bind (its port is named); none stay open then.
-    pub fn open_mavlink(&mut self, plan: &RunPlan, options: &MavlinkOptions) -> Result<(), ShardError> {
-        use crate::mavlink::endpoint::{Endpoint, EndpointConfig, EndpointPoll};
+    /// Gives every drone of the shard a MAVLink session (PX4 SITL's identity: system id,
+    /// parameters) and its queues; SYSTEM_TIME counts from `unix_epoch_at_start_us` (µs) at
+    /// sim time 0. Opens no socket.
+    pub fn enable_mavlink(&mut self, plan: &RunPlan, unix_epoch_at_start_us: u64) -> Result<(), ShardError> {
         use crate::mavlink::session::Session;
         use crate::mavlink::telemetry::VehicleIdentity;
         let frame = LocalFrame::new(plan.spec.origin.geo());
-        let mut links = Vec::with_capacity(self.drones.len());
-        // Without a readiness queue (should the OS refuse one) every socket is read at
-        // every exchange: slower, not wrong.
-        let mut poll = EndpointPoll::new().ok();
-        for (index, drone) in self.drones.iter().enumerate() {
+        for drone in &mut self.drones {
             let d = &drone.plan;
-            let mut endpoint = Endpoint::open(EndpointConfig {
-                system_id: d.system_id,
-                bind_ip: options.bind_ip,
-                port: d.ports.endpoint,
-                api_target: options.api_host.map(|h| std::net::SocketAddr::new(h, d.ports.api_udp)),
-                peer_timeout: crate::mavlink::endpoint::PEER_HEARTBEAT_TIMEOUT,
-            })?;
-            if let Some(p) = &mut poll {
-                // Unregistered, the endpoint reads all its sockets: still correct.
-                let _ = p.register(&mut endpoint, index);
-            }
-            let id = VehicleIdentity {
-                system_id: d.system_id,
-                frame,
-                unix_epoch_at_start_us: options.unix_epoch_at_start_us,
-                uid: u64::from(d.index) + 1,
-            };
+            let id =
+                VehicleIdentity { system_id: d.system_id, frame, unix_epoch_at_start_us, uid: u64::from(d.index) + 1 };
             let params = crate::mavlink::params::plan::drone_table(plan, d)
                 .ok_or_else(|| ShardError::UnknownAirframe(d.airframe.clone()))?;
-            let session = Session::new(id, params);
-            links.push(drone::MavlinkLink { session, endpoint });
+            drone.attach_session(Session::new(id, params));
         }
-        for (drone, link) in self.drones.iter_mut().zip(links) {
-            drone.attach_mavlink(link);
-        }
-        self.mavlink_poll = poll;
+        self.mavlink = (0..self.drones.len()).map(|_| MavlinkQueues::default()).collect();
         Ok(())
+    }
+
+    /// Every drone's MAVLink queues (index = position in [`Shard::drones`]); empty until
+    /// [`Shard::enable_mavlink`].
+    pub fn mavlink_queues(&mut self) -> &mut [MavlinkQueues] {
+        &mut self.mavlink
     }
 
     /// The greeting sent when the shard is built.
@@ -213,8 +204,14 @@ impl Shard {
         &self.drones
     }
 
-    /// Handles one coordinator message; `None` means the shard is done.
+    /// Handles one coordinator message; `None` means the shard is done. MAVLink frames stay
+    /// in their queues ([`NoMavlinkIo`]).
     pub fn handle(&mut self, msg: ToShard) -> Option<FromShard> {
+        self.handle_with(msg, &mut NoMavlinkIo)
+    }
+
+    /// [`Shard::handle`], with `io` carrying the MAVLink queues ([`Shard::advance_with`]).
+    pub fn handle_with(&mut self, msg: ToShard, io: &mut impl MavlinkIo) -> Option<FromShard> {
         match msg {
             ToShard::Advance { until_step, release_pilots, leases } => {
                 if release_pilots {
@@ -223,7 +220,7 @@ impl Shard {
                 if let Some(leases) = leases {
                     self.set_leases(&leases);
                 }
-                let events = self.advance(until_step);
+                let events = self.advance_with(until_step, io);
                 Some(FromShard::Advanced {
                     shard: self.index,
                     step: self.step,
@@ -244,8 +241,16 @@ impl Shard {
         }
     }
 
-    /// Simulates up to (excluding) `until_step`, returning the events.
+    /// Simulates up to (excluding) `until_step`, returning the events; MAVLink frames stay
+    /// in their queues ([`NoMavlinkIo`]).
     pub fn advance(&mut self, until_step: u64) -> Vec<Event> {
+        self.advance_with(until_step, &mut NoMavlinkIo)
+    }
+
+    /// Simulates up to (excluding) `until_step`, returning the events. At the window's end
+    /// the MAVLink sessions run, and `io` fills and drains their queues around them (see
+    /// [`MavlinkIo`] for when).
+    pub fn advance_with(&mut self, until_step: u64, io: &mut impl MavlinkIo) -> Vec<Event> {
         let mut events = Vec::new();
         while self.step < until_step {
             let t = self.step as f64 * self.dt_s;
@@ -291,24 +296,16 @@ impl Shard {
         let exchange = t_end + 1e-9 >= self.next_mavlink_io_s;
         if exchange {
             self.next_mavlink_io_s = t_end + MAVLINK_IO_PERIOD_S;
-            // One readiness wait for the whole shard: only sockets with something to read
-            // are read.
-            if let Some(poll) = &mut self.mavlink_poll {
-                let drones = &mut self.drones;
-                poll.dispatch(|index, socket| {
-                    if let Some(drone) = drones.get_mut(index) {
-                        drone.mavlink_mark_ready(socket);
-                    }
-                });
-            }
+            io.receive(&mut self.mavlink);
         }
-        for drone in &mut self.drones {
+        for (drone, queues) in self.drones.iter_mut().zip(&mut self.mavlink) {
             if exchange {
-                drone.mavlink_exchange(t_end);
+                drone.mavlink_exchange(t_end, queues);
             } else {
-                drone.mavlink_collect(t_end);
+                drone.mavlink_collect(t_end, &mut queues.outbound);
             }
         }
+        io.send(&mut self.mavlink, exchange);
         events
     }
 }

@@ -8,6 +8,7 @@
 pub mod airframe;
 pub mod battery;
 pub mod dynamics;
+pub mod ground;
 pub mod motor;
 pub mod preset;
 

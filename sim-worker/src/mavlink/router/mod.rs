@@ -1,0 +1,58 @@
+//! The MAVLink router of one segment (DESIGN §3): one GCS-facing endpoint (UDP and TCP)
+//! multiplexing every drone of the segment, like mavlink-router or MAVProxy but small.
+//!
+//! Why it exists: every simulated drone has its own endpoint port, but a ground station
+//! (QGroundControl) connects to one address and tells vehicles apart by system id. The
+//! planner gives the drones of a segment distinct system ids (1..=250), so one router per
+//! segment can merge their streams without rewriting anything.
+//!
+//! # How it works
+//! - **Drone side**: one UDP socket on an ephemeral port. A drone endpoint sends its
+//!   telemetry to every peer that has sent it a datagram, so the router registers by
+//!   sending its own HEARTBEAT to every endpoint once a second (which also re-registers
+//!   after a drone's endpoint restarts). Datagrams from the endpoints go to every GCS client
+//!   unchanged; only the router's own heartbeat (should a drone echo it) and bad frames are
+//!   taken out.
+//! - **GCS side**: UDP clients are whoever sent a valid frame to the GCS UDP port (the most
+//!   recent [`MAX_UDP_GCS`], least recently heard evicted); TCP clients are connections on
+//!   the GCS TCP port (at most [`MAX_TCP_GCS`]). Their frames go to the drone whose system id
+//!   is the message's `target_system`, to every drone when the target is 0 or the message
+//!   has none, and nowhere (counted) for a system id outside the segment. Each GCS also
+//!   receives the other GCS clients' frames, so two ground stations see each other, as
+//!   with mavlink-router.
+//!
+//! Frames are forwarded byte for byte, never re-encoded: sequence numbers, signatures and
+//! extension fields survive, and a frame costs one checksum check and a copy.
+//!
+//! # Threads
+//! Plain std threads with blocking sockets and short read timeouts ([`POLL`]), so
+//! [`RouterHandle::stop`] returns within about 100 ms: one for the drone side, one for GCS
+//! UDP, one accepting TCP, and per TCP client a reader and a writer. The writer drains a
+//! bounded queue, so a stalled TCP client loses whole datagrams (counted) instead of
+//! stalling telemetry for everyone else.
+//!
+//! # Caveats
+//! - The router's heartbeat is `MAV_TYPE_ONBOARD_CONTROLLER`, not `MAV_TYPE_GCS`, so it
+//!   cannot keep a drone's GCS-link-loss failsafe from triggering: only a real GCS's
+//!   heartbeats (forwarded to every drone) count as a ground station.
+//! - Within one GCS datagram, frames keep their order per drone; frames to different drones
+//!   are sent as separate datagrams.
+//!
+//! # Layout
+//! `config` (what a router serves, its limits, errors and counters), `handle` (start and
+//! stop), `routing_table` (the state the threads share and how a frame is routed),
+//! `sockets` (the threads), `tests` (against real sockets on loopback).
+
+mod config;
+mod handle;
+mod routing_table;
+mod sockets;
+
+pub use config::{
+    MAX_DRONES, MAX_TCP_GCS, MAX_UDP_GCS, POLL, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone, RouterConfig,
+    RouterError, RouterStats,
+};
+pub use handle::{RouterHandle, start};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,257 @@
+//! The state every router thread shares: who the ground stations are, which drone a
+//! system id is, and how a frame from either side is routed (byte for byte).
+
+use std::borrow::Cow;
+use std::collections::HashSet;
+use std::net::{SocketAddr, TcpStream, UdpSocket};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{SyncSender, TrySendError};
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
+use std::thread::JoinHandle;
+
+use ::mavlink::MavHeader;
+use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
+
+use super::config::{MAX_UDP_GCS, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone};
+use crate::mavlink::frame::{Decoded, Frame, FrameParser, encode, target_system};
+
+/// A poisoned lock only means another router thread panicked; the tables stay usable.
+pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The UDP ground stations, most recently heard kept. Time is a counter of datagrams, so
+/// the eviction order does not depend on the clock.
+#[derive(Debug, Default)]
+pub(super) struct PeerTable {
+    /// (address, tick last heard)
+    pub(super) peers: Vec<(SocketAddr, u64)>,
+    pub(super) tick: u64,
+}
+
+impl PeerTable {
+    pub(super) fn heard(&mut self, addr: SocketAddr) {
+        self.tick += 1;
+        let tick = self.tick;
+        if let Some(p) = self.peers.iter_mut().find(|p| p.0 == addr) {
+            p.1 = tick;
+        } else if self.peers.len() < MAX_UDP_GCS {
+            self.peers.push((addr, tick));
+        } else if let Some(oldest) = self.peers.iter_mut().min_by_key(|p| p.1) {
+            *oldest = (addr, tick);
+        }
+    }
+}
+
+/// Who sent frames on the GCS side (they are not echoed back to it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum GcsOrigin {
+    Udp(SocketAddr),
+    Tcp(u64),
+}
+
+/// A TCP ground station as the other threads see it.
+#[derive(Debug)]
+pub(super) struct TcpClient {
+    pub(super) id: u64,
+    pub(super) queue: SyncSender<Arc<[u8]>>,
+    /// A handle for shutting the connection down from outside its threads.
+    pub(super) stream: TcpStream,
+    pub(super) closed: Arc<AtomicBool>,
+}
+
+impl TcpClient {
+    pub(super) fn is_closed(&self) -> bool {
+        self.closed.load(Ordering::Relaxed)
+    }
+}
+
+#[derive(Debug, Default)]
+pub(super) struct Counters {
+    pub(super) frames_to_drones: AtomicU64,
+    pub(super) datagrams_to_gcs: AtomicU64,
+    pub(super) dropped_unknown_target: AtomicU64,
+    pub(super) dropped_unknown_source: AtomicU64,
+    pub(super) bad_checksum: AtomicU64,
+    pub(super) garbage_bytes: AtomicU64,
+    pub(super) dropped_gcs_backlog: AtomicU64,
+    pub(super) refused_tcp_clients: AtomicU64,
+}
+
+pub(super) fn add(counter: &AtomicU64, n: u64) {
+    if n > 0 {
+        counter.fetch_add(n, Ordering::Relaxed);
+    }
+}
+
+/// State every router thread reads.
+#[derive(Debug)]
+pub(super) struct Shared {
+    pub(super) stop: AtomicBool,
+    pub(super) drones: Vec<RoutedDrone>,
+    /// Drone endpoints, to accept drone-side datagrams only from them.
+    pub(super) endpoints: HashSet<SocketAddr>,
+    /// System id -> index into `drones`.
+    pub(super) index_of: Vec<Option<usize>>,
+    pub(super) drone_socket: UdpSocket,
+    pub(super) gcs_udp: UdpSocket,
+    pub(super) udp_peers: Mutex<PeerTable>,
+    pub(super) tcp_clients: Mutex<Vec<TcpClient>>,
+    pub(super) tcp_threads: Mutex<Vec<JoinHandle<()>>>,
+    pub(super) next_tcp_id: AtomicU64,
+    pub(super) counters: Arc<Counters>,
+}
+
+impl Shared {
+    pub(super) fn stopping(&self) -> bool {
+        self.stop.load(Ordering::Relaxed)
+    }
+
+    /// Parses one datagram (or one TCP read) and counts what the parser threw away.
+    pub(super) fn parse(&self, parser: &mut FrameParser, bytes: &[u8]) -> Vec<Frame> {
+        let before = parser.stats;
+        let frames = parser.push(bytes);
+        add(&self.counters.bad_checksum, parser.stats.bad_checksum - before.bad_checksum);
+        add(&self.counters.garbage_bytes, parser.stats.skipped_bytes - before.skipped_bytes);
+        frames
+    }
+
+    /// Sends the router's HEARTBEAT to every drone endpoint, which makes the endpoint send
+    /// its telemetry here.
+    pub(super) fn has_ground_stations(&self) -> bool {
+        !lock(&self.udp_peers).peers.is_empty() || !lock(&self.tcp_clients).is_empty()
+    }
+
+    pub(super) fn register_with_drones(&self, sequence: u8) {
+        let header = MavHeader { system_id: u32::from(ROUTER_SYSTEM_ID), component_id: ROUTER_COMPONENT_ID, sequence };
+        let heartbeat = encode(
+            header,
+            &MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                custom_mode: 0,
+                mavtype: MavType::MAV_TYPE_ONBOARD_CONTROLLER,
+                autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+                base_mode: MavModeFlag::empty(),
+                system_status: MavState::MAV_STATE_ACTIVE,
+                mavlink_version: 3,
+            }),
+        );
+        for d in &self.drones {
+            // A drone not up yet is registered by a later heartbeat.
+            let _ = self.drone_socket.send_to(&heartbeat, d.endpoint);
+        }
+    }
+
+    /// A datagram on the drone socket: to every ground station, unchanged when it is clean.
+    pub(super) fn forward_drone_datagram(&self, datagram: &[u8], from: SocketAddr, parser: &mut FrameParser) {
+        if !self.endpoints.contains(&from) {
+            add(&self.counters.dropped_unknown_source, 1);
+            return;
+        }
+        if !self.has_ground_stations() {
+            return; // nobody to forward to: not worth checking
+        }
+        parser.reset();
+        let frames = self.parse(parser, datagram);
+        let own = |f: &Frame| {
+            f.header.system_id == u32::from(ROUTER_SYSTEM_ID) && f.header.component_id == ROUTER_COMPONENT_ID
+        };
+        let clean = frames.iter().map(|f| f.bytes.len()).sum::<usize>() == datagram.len() && !frames.iter().any(own);
+        let out: Cow<'_, [u8]> = if clean {
+            Cow::Borrowed(datagram)
+        } else {
+            Cow::Owned(frames.iter().filter(|f| !own(f)).flat_map(|f| f.bytes.iter().copied()).collect())
+        };
+        if !out.is_empty() {
+            self.to_gcs(&out, None);
+        }
+    }
+
+    /// Sends `bytes` (whole frames) to every ground station except `origin`.
+    pub(super) fn to_gcs(&self, bytes: &[u8], origin: Option<GcsOrigin>) {
+        let mut sent = 0;
+        {
+            let peers = lock(&self.udp_peers);
+            for &(addr, _) in &peers.peers {
+                if origin != Some(GcsOrigin::Udp(addr)) && self.gcs_udp.send_to(bytes, addr).is_ok() {
+                    sent += 1;
+                }
+            }
+        }
+        let mut clients = lock(&self.tcp_clients);
+        clients.retain(|c| !c.is_closed());
+        let mut shared: Option<Arc<[u8]>> = None;
+        for c in clients.iter() {
+            if origin == Some(GcsOrigin::Tcp(c.id)) {
+                continue;
+            }
+            let chunk = shared.get_or_insert_with(|| Arc::from(bytes)).clone();
+            match c.queue.try_send(chunk) {
+                Ok(()) => sent += 1,
+                Err(TrySendError::Full(_)) => add(&self.counters.dropped_gcs_backlog, 1),
+                Err(TrySendError::Disconnected(_)) => c.closed.store(true, Ordering::Relaxed),
+            }
+        }
+        add(&self.counters.datagrams_to_gcs, sent);
+    }
+
+    /// Frames from a ground station: to the other ground stations, and to their drones.
+    pub(super) fn route_gcs_frames(&self, frames: &[Frame], origin: GcsOrigin) {
+        if frames.is_empty() {
+            return;
+        }
+        let all: Vec<u8> = frames.iter().flat_map(|f| f.bytes.iter().copied()).collect();
+        self.to_gcs(&all, Some(origin));
+
+        // (drone index or None for every drone, frame)
+        let mut routed: Vec<(Option<usize>, &Frame)> = Vec::with_capacity(frames.len());
+        for f in frames {
+            match destination(f) {
+                None | Some(0) => routed.push((None, f)),
+                Some(id) => match self.index_of[usize::from(id)] {
+                    Some(i) => routed.push((Some(i), f)),
+                    None => add(&self.counters.dropped_unknown_target, 1),
+                },
+            }
+        }
+        if routed.is_empty() {
+            return;
+        }
+        // What a drone gets when every frame is for it (the common case: one frame, or
+        // broadcasts only), built once.
+        let every: Cow<'_, [u8]> = if routed.len() == frames.len() {
+            Cow::Borrowed(&all)
+        } else {
+            Cow::Owned(routed.iter().flat_map(|(_, f)| f.bytes.iter().copied()).collect())
+        };
+        let mut delivered = 0;
+        for (i, drone) in self.drones.iter().enumerate() {
+            let reaches = |to: &Option<usize>| to.is_none_or(|t| t == i);
+            let count = routed.iter().filter(|(to, _)| reaches(to)).count();
+            if count == 0 {
+                continue;
+            }
+            let result = if count == routed.len() {
+                self.drone_socket.send_to(&every, drone.endpoint)
+            } else {
+                let mine: Vec<u8> =
+                    routed.iter().filter(|(to, _)| reaches(to)).flat_map(|(_, f)| f.bytes.iter().copied()).collect();
+                self.drone_socket.send_to(&mine, drone.endpoint)
+            };
+            if result.is_ok() {
+                delivered += count as u64;
+            }
+        }
+        add(&self.counters.frames_to_drones, delivered);
+    }
+}
+
+/// The system a GCS frame is for: `None` or `Some(0)` mean every drone. A message the
+/// dialect cannot decode goes to every drone, which drop what is not theirs, as on any
+/// shared MAVLink link.
+pub(super) fn destination(frame: &Frame) -> Option<u8> {
+    match &frame.message {
+        Decoded::Message(m) => target_system(m),
+        Decoded::UnknownCommand { target_system, .. } => Some(*target_system),
+        Decoded::Undecodable(_) | Decoded::NotDecoded => None,
+    }
+}

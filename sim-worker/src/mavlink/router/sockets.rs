@@ -1,0 +1,162 @@
+//! The router's threads: the drone-side socket, GCS UDP, the TCP accept loop, and a
+//! reader and a writer per TCP ground station.
+
+use std::io::{self, Read, Write};
+use std::net::{Shutdown, TcpListener, TcpStream};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
+use std::time::Instant;
+
+use super::config::{HEARTBEAT_PERIOD, MAX_DATAGRAM, MAX_TCP_GCS, POLL, TCP_QUEUE, TCP_WRITE_TIMEOUT};
+use super::handle::spawn;
+use super::routing_table::{GcsOrigin, Shared, TcpClient, add, lock};
+use crate::mavlink::frame::FrameParser;
+
+pub(super) fn is_timeout(e: &io::Error) -> bool {
+    matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut | io::ErrorKind::Interrupted)
+}
+
+/// The drone-side thread: registration heartbeats and telemetry to the ground stations.
+pub(super) fn drone_side(shared: &Shared) {
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    let mut parser = FrameParser::checksum_only();
+    let mut sequence: u8 = 0;
+    let mut next_heartbeat = Instant::now();
+    while !shared.stopping() {
+        let now = Instant::now();
+        if now >= next_heartbeat {
+            // Only while someone listens: drones forget a peer whose heartbeats stop, so a
+            // router without ground stations costs the drones nothing.
+            if shared.has_ground_stations() {
+                shared.register_with_drones(sequence);
+            }
+            sequence = sequence.wrapping_add(1);
+            next_heartbeat = now + HEARTBEAT_PERIOD;
+        }
+        match shared.drone_socket.recv_from(&mut buf) {
+            Ok((n, from)) => shared.forward_drone_datagram(&buf[..n], from, &mut parser),
+            Err(e) if is_timeout(&e) => {}
+            // E.g. an ICMP port-unreachable reported on a later call (Windows): keep
+            // serving, without spinning should the error persist.
+            Err(_) => std::thread::sleep(POLL),
+        }
+    }
+}
+
+/// The GCS UDP thread: learns ground stations and routes their frames.
+pub(super) fn gcs_udp_side(shared: &Shared) {
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    let mut parser = FrameParser::new();
+    while !shared.stopping() {
+        match shared.gcs_udp.recv_from(&mut buf) {
+            Ok((n, from)) => {
+                parser.reset();
+                let frames = shared.parse(&mut parser, &buf[..n]);
+                // Only a sender of at least one valid frame becomes a client, so a port
+                // scan or stray traffic does not subscribe to the telemetry.
+                if !frames.is_empty() {
+                    lock(&shared.udp_peers).heard(from);
+                }
+                shared.route_gcs_frames(&frames, GcsOrigin::Udp(from));
+            }
+            Err(e) if is_timeout(&e) => {}
+            Err(_) => std::thread::sleep(POLL),
+        }
+    }
+}
+
+/// The TCP accept thread.
+pub(super) fn accept_tcp(shared: &Arc<Shared>, listener: &TcpListener) {
+    while !shared.stopping() {
+        match listener.accept() {
+            // A client that cannot be set up is simply not served.
+            Ok((stream, _)) => {
+                let _ = add_tcp_client(shared, stream);
+            }
+            Err(_) => std::thread::sleep(POLL),
+        }
+        // Reap the threads of clients that left.
+        let mut threads = lock(&shared.tcp_threads);
+        let (done, running): (Vec<_>, Vec<_>) = threads.drain(..).partition(|t| t.is_finished());
+        *threads = running;
+        drop(threads);
+        for t in done {
+            let _ = t.join();
+        }
+    }
+}
+
+pub(super) fn add_tcp_client(shared: &Arc<Shared>, stream: TcpStream) -> io::Result<()> {
+    // Accepted sockets may inherit the listener's non-blocking mode on some platforms.
+    stream.set_nonblocking(false)?;
+    stream.set_nodelay(true)?;
+    stream.set_read_timeout(Some(POLL))?;
+    stream.set_write_timeout(Some(TCP_WRITE_TIMEOUT))?;
+    let mut clients = lock(&shared.tcp_clients);
+    clients.retain(|c| !c.is_closed());
+    if clients.len() >= MAX_TCP_GCS {
+        add(&shared.counters.refused_tcp_clients, 1);
+        let _ = stream.shutdown(Shutdown::Both);
+        return Ok(());
+    }
+    let id = shared.next_tcp_id.fetch_add(1, Ordering::Relaxed);
+    let (queue, outgoing) = mpsc::sync_channel(TCP_QUEUE);
+    let closed = Arc::new(AtomicBool::new(false));
+    let writer_stream = stream.try_clone()?;
+    clients.push(TcpClient { id, queue, stream: stream.try_clone()?, closed: closed.clone() });
+    drop(clients);
+
+    let mut threads = lock(&shared.tcp_threads);
+    let (s, c) = (shared.clone(), closed.clone());
+    let reader = spawn(format!("router-tcp-{id}-in"), move || tcp_reader(&s, stream, id, &c));
+    let (s, c) = (shared.clone(), closed.clone());
+    let writer = spawn(format!("router-tcp-{id}-out"), move || tcp_writer(&s, writer_stream, &outgoing, &c));
+    for t in [reader, writer] {
+        match t {
+            Ok(t) => threads.push(t),
+            // The other thread sees `closed` and ends; the client is removed on next use.
+            Err(e) => {
+                closed.store(true, Ordering::Relaxed);
+                return Err(e);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Reads one TCP ground station's stream and routes its frames.
+pub(super) fn tcp_reader(shared: &Shared, mut stream: TcpStream, id: u64, closed: &AtomicBool) {
+    let mut parser = FrameParser::new();
+    let mut buf = vec![0u8; 16 * 1024];
+    while !shared.stopping() && !closed.load(Ordering::Relaxed) {
+        match stream.read(&mut buf) {
+            Ok(0) => break,
+            Ok(n) => {
+                let frames = shared.parse(&mut parser, &buf[..n]);
+                shared.route_gcs_frames(&frames, GcsOrigin::Tcp(id));
+            }
+            Err(e) if is_timeout(&e) => {}
+            Err(_) => break,
+        }
+    }
+    closed.store(true, Ordering::Relaxed);
+    let _ = stream.shutdown(Shutdown::Both);
+}
+
+/// Writes queued chunks to one TCP ground station.
+pub(super) fn tcp_writer(shared: &Shared, mut stream: TcpStream, outgoing: &Receiver<Arc<[u8]>>, closed: &AtomicBool) {
+    while !shared.stopping() && !closed.load(Ordering::Relaxed) {
+        match outgoing.recv_timeout(POLL) {
+            Ok(chunk) => {
+                if stream.write_all(&chunk).is_err() {
+                    break;
+                }
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => break,
+        }
+    }
+    closed.store(true, Ordering::Relaxed);
+    let _ = stream.shutdown(Shutdown::Both);
+}

@@ -1,0 +1,379 @@
+//! The router against real sockets on loopback.
+
+use std::collections::BTreeSet;
+use std::thread;
+
+use ::mavlink::dialects::common::{ATTITUDE_DATA, COMMAND_LONG_DATA, MavCmd};
+
+use super::config::{
+    HEARTBEAT_PERIOD, MAX_DATAGRAM, MAX_UDP_GCS, ROUTER_SYSTEM_ID, RoutedDrone, RouterConfig, RouterError,
+};
+use super::handle::{RouterHandle, start};
+use super::routing_table::PeerTable;
+use std::io::{Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use ::mavlink::MavHeader;
+use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
+
+use crate::mavlink::frame::{Decoded, Frame, FrameParser, encode};
+
+const DEADLINE: Duration = Duration::from_secs(5);
+const GCS_SYSID: u32 = 255;
+
+fn heartbeat(mavtype: MavType) -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_STANDBY,
+        mavlink_version: 3,
+    })
+}
+
+fn frame(system_id: u32, message: &MavMessage) -> Vec<u8> {
+    encode(MavHeader { system_id, component_id: 1, sequence: 0 }, message)
+}
+
+fn command(target_system: u8, param1: f32) -> MavMessage {
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        target_system,
+        target_component: 1,
+        command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        param1,
+        ..Default::default()
+    })
+}
+
+/// Polls `f` until it returns `Some` or the deadline passes.
+fn wait_for<T>(what: &str, mut f: impl FnMut() -> Option<T>) -> T {
+    let end = Instant::now() + DEADLINE;
+    loop {
+        if let Some(v) = f() {
+            return v;
+        }
+        assert!(Instant::now() < end, "timed out waiting for {what}");
+        thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// A drone endpoint stand-in: sends HEARTBEAT + ATTITUDE in one datagram every 20 ms to
+/// whoever registered with a heartbeat, and records every other frame it receives.
+struct FakeDrone {
+    addr: SocketAddr,
+    received: Arc<Mutex<Vec<Frame>>>,
+    registrations: Arc<AtomicU64>,
+    stop: Arc<AtomicBool>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl FakeDrone {
+    fn start(system_id: u8) -> Self {
+        let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+        socket.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+        let addr = socket.local_addr().unwrap();
+        let received = Arc::new(Mutex::new(Vec::new()));
+        let registrations = Arc::new(AtomicU64::new(0));
+        let stop = Arc::new(AtomicBool::new(false));
+        let (rec, regs, halt) = (received.clone(), registrations.clone(), stop.clone());
+        let thread = thread::spawn(move || {
+            let sysid = u32::from(system_id);
+            let mut telemetry = frame(sysid, &heartbeat(MavType::MAV_TYPE_QUADROTOR));
+            telemetry.extend(frame(sysid, &MavMessage::ATTITUDE(ATTITUDE_DATA::default())));
+            let mut peer = None;
+            let mut parser = FrameParser::new();
+            let mut buf = [0u8; 4096];
+            let mut next_send = Instant::now();
+            while !halt.load(Ordering::Relaxed) {
+                if let Ok((n, from)) = socket.recv_from(&mut buf) {
+                    parser.reset();
+                    for f in parser.push(&buf[..n]) {
+                        if f.header.system_id == u32::from(ROUTER_SYSTEM_ID) {
+                            peer = Some(from);
+                            regs.fetch_add(1, Ordering::Relaxed);
+                        } else {
+                            rec.lock().unwrap().push(f);
+                        }
+                    }
+                }
+                if let Some(p) = peer
+                    && Instant::now() >= next_send
+                {
+                    let _ = socket.send_to(&telemetry, p);
+                    next_send = Instant::now() + Duration::from_millis(20);
+                }
+            }
+        });
+        Self { addr, received, registrations, stop, thread: Some(thread) }
+    }
+
+    /// COMMAND_LONG param1 values received.
+    fn commands(&self) -> Vec<f32> {
+        let frames = self.received.lock().unwrap();
+        frames
+            .iter()
+            .filter_map(|f| match &f.message {
+                Decoded::Message(MavMessage::COMMAND_LONG(c)) => Some(c.param1),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+impl Drop for FakeDrone {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn fleet(n: u8) -> (Vec<FakeDrone>, RouterHandle) {
+    let drones: Vec<FakeDrone> = (1..=n).map(FakeDrone::start).collect();
+    let config = RouterConfig {
+        segment: 0,
+        gcs_udp: "127.0.0.1:0".parse().unwrap(),
+        gcs_tcp: "127.0.0.1:0".parse().unwrap(),
+        drones: drones
+            .iter()
+            .enumerate()
+            .map(|(i, d)| RoutedDrone { system_id: i as u8 + 1, endpoint: d.addr })
+            .collect(),
+    };
+    let router = start(config).unwrap();
+    (drones, router)
+}
+
+/// A UDP ground station that announced itself with a GCS heartbeat.
+fn udp_gcs(router: &RouterHandle) -> UdpSocket {
+    let socket = UdpSocket::bind("127.0.0.1:0").unwrap();
+    socket.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+    socket.send_to(&frame(GCS_SYSID, &heartbeat(MavType::MAV_TYPE_GCS)), router.gcs_udp()).unwrap();
+    socket
+}
+
+/// Reads from a GCS socket until `want` holds for the frames seen so far.
+fn udp_until(socket: &UdpSocket, what: &str, mut want: impl FnMut(&[Frame]) -> bool) -> Vec<Frame> {
+    let mut seen = Vec::new();
+    let mut parser = FrameParser::new();
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    wait_for(what, || {
+        while let Ok(n) = socket.recv(&mut buf) {
+            parser.reset();
+            seen.extend(parser.push(&buf[..n]));
+        }
+        want(&seen).then_some(())
+    });
+    seen
+}
+
+fn sysids(frames: &[Frame]) -> BTreeSet<u32> {
+    frames.iter().map(|f| f.header.system_id).collect()
+}
+
+#[test]
+fn a_gcs_sees_every_drone_of_the_segment_but_not_the_router() {
+    let (drones, router) = fleet(32);
+    // No ground station yet: the drones are left alone (their telemetry would go nowhere).
+    thread::sleep(HEARTBEAT_PERIOD + Duration::from_millis(200));
+    assert!(drones.iter().all(|d| d.registrations.load(Ordering::Relaxed) == 0));
+    let gcs = udp_gcs(&router);
+    wait_for("every drone registered", || {
+        drones.iter().all(|d| d.registrations.load(Ordering::Relaxed) > 0).then_some(())
+    });
+    let frames = udp_until(&gcs, "32 system ids", |f| sysids(f).len() >= 32);
+    assert_eq!(sysids(&frames), (1..=32).collect());
+    assert!(router.stats().datagrams_to_gcs > 0);
+    assert_eq!(router.stats().gcs_udp_clients, 1);
+}
+
+#[test]
+fn a_command_reaches_its_target_only_and_a_broadcast_reaches_all() {
+    let (drones, router) = fleet(32);
+    let gcs = udp_gcs(&router);
+    gcs.send_to(&frame(GCS_SYSID, &command(7, 1.0)), router.gcs_udp()).unwrap();
+    wait_for("drone 7 to get its command", || (drones[6].commands() == [1.0]).then_some(()));
+    // The router sends in order on one socket, so once the broadcast sent after the
+    // command has arrived everywhere, a misrouted copy would have arrived too.
+    gcs.send_to(&frame(GCS_SYSID, &command(0, 2.0)), router.gcs_udp()).unwrap();
+    wait_for("the broadcast everywhere", || drones.iter().all(|d| d.commands().contains(&2.0)).then_some(()));
+    for (i, d) in drones.iter().enumerate() {
+        let expected: &[f32] = if i == 6 { &[1.0, 2.0] } else { &[2.0] };
+        assert_eq!(d.commands(), expected, "drone {}", i + 1);
+    }
+    // The GCS heartbeat (no target) reached every drone as well.
+    for d in &drones {
+        let frames = d.received.lock().unwrap();
+        assert!(frames.iter().any(|f| f.header.system_id == GCS_SYSID && f.message_id == 0));
+    }
+    // A target outside the segment goes nowhere.
+    gcs.send_to(&frame(GCS_SYSID, &command(99, 3.0)), router.gcs_udp()).unwrap();
+    wait_for("the unknown target counted", || (router.stats().dropped_unknown_target == 1).then_some(()));
+    assert_eq!(router.stats().frames_to_drones, 1 + 32 + 32);
+}
+
+#[test]
+fn udp_and_tcp_ground_stations_both_get_telemetry_and_see_each_other() {
+    let (_drones, router) = fleet(4);
+    let udp = udp_gcs(&router);
+    let mut tcp = TcpStream::connect(router.gcs_tcp()).unwrap();
+    tcp.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+    wait_for("the TCP client registered", || (router.stats().gcs_tcp_clients == 1).then_some(()));
+    tcp.write_all(&frame(254, &heartbeat(MavType::MAV_TYPE_GCS))).unwrap();
+    udp.send_to(&frame(GCS_SYSID, &heartbeat(MavType::MAV_TYPE_GCS)), router.gcs_udp()).unwrap();
+
+    let mut parser = FrameParser::new();
+    let mut seen = BTreeSet::new();
+    let mut buf = [0u8; 4096];
+    wait_for("telemetry over TCP", || {
+        if let Ok(n) = tcp.read(&mut buf) {
+            seen.extend(parser.push(&buf[..n]).iter().map(|f| f.header.system_id));
+        }
+        ((1..=4).all(|s| seen.contains(&s)) && seen.contains(&GCS_SYSID)).then_some(())
+    });
+    let frames = udp_until(&udp, "telemetry and the TCP GCS over UDP", |f| {
+        let s = sysids(f);
+        (1..=4).all(|id| s.contains(&id)) && s.contains(&254)
+    });
+    assert!(!sysids(&frames).contains(&GCS_SYSID), "a GCS's own frames are not echoed back");
+}
+
+#[test]
+fn garbage_and_bad_checksums_from_a_gcs_are_dropped_and_routing_goes_on() {
+    let (drones, router) = fleet(3);
+    let udp = udp_gcs(&router);
+    let mut bad = frame(GCS_SYSID, &command(2, 9.0));
+    let last = bad.len() - 1;
+    bad[last] ^= 0xFF;
+    let mut noise: Vec<u8> = (0..=255u8).collect();
+    noise.extend([0xFD, 200, 0, 0]); // a start marker with a long, never-completed frame
+    udp.send_to(&bad, router.gcs_udp()).unwrap();
+    udp.send_to(&noise, router.gcs_udp()).unwrap();
+    let mut tcp = TcpStream::connect(router.gcs_tcp()).unwrap();
+    tcp.write_all(&bad).unwrap();
+    tcp.write_all(&(0..100u8).collect::<Vec<_>>()).unwrap();
+    // A good frame after garbage on the same stream still gets through.
+    tcp.write_all(&frame(254, &command(2, 1.0))).unwrap();
+    udp.send_to(&frame(GCS_SYSID, &command(2, 2.0)), router.gcs_udp()).unwrap();
+    wait_for("both good commands", || {
+        let mut c = drones[1].commands();
+        c.sort_by(f32::total_cmp);
+        (c == [1.0, 2.0]).then_some(())
+    });
+    let stats = router.stats();
+    assert!(stats.bad_checksum >= 2, "{stats:?}");
+    assert!(stats.garbage_bytes > 0, "{stats:?}");
+    assert!(drones[0].commands().is_empty() && drones[2].commands().is_empty());
+}
+
+#[test]
+fn the_router_heartbeat_and_strangers_never_reach_a_gcs() {
+    let (drones, router) = fleet(1);
+    let gcs = udp_gcs(&router);
+    wait_for("drone telemetry", || (router.stats().datagrams_to_gcs > 0).then_some(()));
+    // A stranger writes to the drone-side socket: dropped.
+    let stranger = UdpSocket::bind("127.0.0.1:0").unwrap();
+    stranger.send_to(&frame(42, &heartbeat(MavType::MAV_TYPE_QUADROTOR)), router.drone_side()).unwrap();
+    wait_for("the stranger counted", || (router.stats().dropped_unknown_source == 1).then_some(()));
+    let frames = udp_until(&gcs, "a few datagrams", |f| f.len() >= 10);
+    assert!(frames.iter().all(|f| f.header.system_id == 1), "{:?}", sysids(&frames));
+    drop(drones);
+}
+
+#[test]
+fn an_echoed_router_heartbeat_is_taken_out_of_a_drone_datagram() {
+    // A drone endpoint played by hand: it echoes the router's heartbeat with its own.
+    let drone = UdpSocket::bind("127.0.0.1:0").unwrap();
+    drone.set_read_timeout(Some(DEADLINE)).unwrap();
+    let router = start(RouterConfig {
+        segment: 1,
+        gcs_udp: "127.0.0.1:0".parse().unwrap(),
+        gcs_tcp: "127.0.0.1:0".parse().unwrap(),
+        drones: vec![RoutedDrone { system_id: 5, endpoint: drone.local_addr().unwrap() }],
+    })
+    .unwrap();
+    let gcs = udp_gcs(&router);
+    let mut buf = [0u8; 512];
+    // The GCS's heartbeat, forwarded to every drone, may come first.
+    let (mut datagram, router_addr) = loop {
+        let (n, from) = drone.recv_from(&mut buf).unwrap();
+        let frames = FrameParser::new().push(&buf[..n]);
+        if frames.iter().any(|f| f.header.system_id == u32::from(ROUTER_SYSTEM_ID)) {
+            break (buf[..n].to_vec(), from);
+        }
+    };
+    wait_for("the GCS registered", || (router.stats().gcs_udp_clients == 1).then_some(()));
+    datagram.extend(frame(5, &heartbeat(MavType::MAV_TYPE_QUADROTOR)));
+    drone.send_to(&datagram, router_addr).unwrap();
+    let frames = udp_until(&gcs, "the drone's heartbeat", |f| !f.is_empty());
+    assert_eq!(frames.len(), 1);
+    assert_eq!(frames[0].header.system_id, 5);
+}
+
+#[test]
+fn a_port_in_use_is_named_in_the_error() {
+    let taken = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap();
+    let err =
+        start(RouterConfig { segment: 0, gcs_udp: addr, gcs_tcp: "127.0.0.1:0".parse().unwrap(), drones: Vec::new() })
+            .unwrap_err();
+    let message = err.to_string();
+    assert!(message.contains(&addr.to_string()) && message.contains("in use"), "{message}");
+}
+
+#[test]
+fn invalid_drone_lists_are_refused() {
+    let d = |system_id| RoutedDrone { system_id, endpoint: "127.0.0.1:9".parse().unwrap() };
+    let config = |drones| RouterConfig {
+        segment: 0,
+        gcs_udp: "127.0.0.1:0".parse().unwrap(),
+        gcs_tcp: "127.0.0.1:0".parse().unwrap(),
+        drones,
+    };
+    assert!(matches!(start(config(vec![d(3), d(3)])), Err(RouterError::DuplicateSystemId(3))));
+    assert!(matches!(start(config(vec![d(0)])), Err(RouterError::InvalidSystemId(0))));
+    assert!(matches!(start(config(vec![d(251)])), Err(RouterError::InvalidSystemId(251))));
+    assert!(matches!(start(config(vec![d(1); 251])), Err(RouterError::TooManyDrones(251))));
+    let v6 = RoutedDrone { system_id: 2, endpoint: "[::1]:9".parse().unwrap() };
+    assert!(matches!(start(config(vec![d(1), v6])), Err(RouterError::MixedAddressFamilies(..))));
+}
+
+#[test]
+fn stop_is_prompt_and_releases_the_ports() {
+    let (_drones, mut router) = fleet(2);
+    let gcs = udp_gcs(&router);
+    let _tcp = TcpStream::connect(router.gcs_tcp()).unwrap();
+    wait_for("both clients", || {
+        let s = router.stats();
+        (s.gcs_tcp_clients == 1 && s.gcs_udp_clients == 1).then_some(())
+    });
+    let (udp_addr, tcp_addr) = (router.gcs_udp(), router.gcs_tcp());
+    let started = Instant::now();
+    router.stop();
+    // ~100 ms by design; the bound is loose so a loaded CI machine does not fail it.
+    assert!(started.elapsed() < Duration::from_secs(1), "stop took {:?}", started.elapsed());
+    drop(gcs);
+    UdpSocket::bind(udp_addr).unwrap();
+    TcpListener::bind(tcp_addr).unwrap();
+    router.stop(); // idempotent
+}
+
+#[test]
+fn the_least_recently_heard_udp_gcs_is_evicted() {
+    let mut table = PeerTable::default();
+    let addr = |p: u16| SocketAddr::from(([127, 0, 0, 1], p));
+    for p in 0..MAX_UDP_GCS as u16 {
+        table.heard(addr(p));
+    }
+    table.heard(addr(0)); // 0 is now the most recent; 1 the least
+    table.heard(addr(100));
+    let peers: BTreeSet<u16> = table.peers.iter().map(|p| p.0.port()).collect();
+    assert_eq!(peers.len(), MAX_UDP_GCS);
+    assert!(peers.contains(&0) && peers.contains(&100) && !peers.contains(&1));
+}

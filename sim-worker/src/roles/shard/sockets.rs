@@ -1,0 +1,141 @@
+//! The sockets of a shard's drones: one MAVLink [`Endpoint`] per drone and one readiness
+//! wait ([`EndpointPoll`]) for them all, carrying the shard core's MAVLink queues to the
+//! network ([`MavlinkIo`]). Used by the `sim-worker shard` role and by in-process shard
+//! threads alike.
+
+use sadesim_crds::plan::RunPlan;
+
+use crate::mavlink::endpoint::{Endpoint, EndpointConfig, EndpointPoll, PEER_HEARTBEAT_TIMEOUT};
+use crate::shard::{MavlinkIo, MavlinkOptions, MavlinkQueues, Shard, ShardError};
+
+/// A shard's MAVLink endpoints (index = the drone's position in the shard).
+#[derive(Debug)]
+pub struct ShardSockets {
+    endpoints: Vec<Endpoint>,
+    /// `None` when the OS refused a readiness queue: every socket is read at every
+    /// exchange then, slower but not wrong.
+    poll: Option<EndpointPoll>,
+}
+
+impl ShardSockets {
+    /// Gives `shard`'s drones their MAVLink sessions ([`Shard::enable_mavlink`]) and opens
+    /// an endpoint for each, as `options` say.
+    ///
+    /// # Errors
+    /// The first endpoint that cannot bind (its port is named); none stay open then.
+    pub fn open(shard: &mut Shard, plan: &RunPlan, options: &MavlinkOptions) -> Result<Self, ShardError> {
+        let mut poll = EndpointPoll::new().ok();
+        let mut endpoints = Vec::with_capacity(shard.drones().len());
+        for (index, drone) in shard.drones().iter().enumerate() {
+            let d = &drone.plan;
+            let mut endpoint = Endpoint::open(EndpointConfig {
+                system_id: d.system_id,
+                bind_ip: options.bind_ip,
+                port: d.ports.endpoint,
+                api_target: options.api_host.map(|h| std::net::SocketAddr::new(h, d.ports.api_udp)),
+                peer_timeout: PEER_HEARTBEAT_TIMEOUT,
+            })?;
+            if let Some(p) = &mut poll {
+                // Unregistered, the endpoint reads all its sockets: still correct.
+                let _ = p.register(&mut endpoint, index);
+            }
+            endpoints.push(endpoint);
+        }
+        shard.enable_mavlink(plan, options.unix_epoch_at_start_us)?;
+        Ok(Self { endpoints, poll })
+    }
+
+    /// The endpoints, in the shard's drone order.
+    pub fn endpoints(&self) -> &[Endpoint] {
+        &self.endpoints
+    }
+}
+
+impl MavlinkIo for ShardSockets {
+    /// One readiness wait for the whole shard, then only sockets with something to read
+    /// are read.
+    fn receive(&mut self, queues: &mut [MavlinkQueues]) {
+        if let Some(poll) = &mut self.poll {
+            let endpoints = &mut self.endpoints;
+            poll.dispatch(|index, socket| {
+                if let Some(endpoint) = endpoints.get_mut(index) {
+                    endpoint.mark_ready(socket);
+                }
+            });
+        }
+        for (endpoint, queue) in self.endpoints.iter_mut().zip(queues) {
+            queue.inbound.extend(endpoint.receive());
+        }
+    }
+
+    /// Encodes every drone's outbound messages into its datagrams (with the endpoint's
+    /// sequence numbers); on `flush` sends them to every peer.
+    fn send(&mut self, queues: &mut [MavlinkQueues], flush: bool) {
+        for (endpoint, queue) in self.endpoints.iter_mut().zip(queues) {
+            endpoint.queue(&queue.outbound);
+            queue.outbound.clear();
+            if flush {
+                endpoint.flush();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+    use std::time::{Duration, Instant};
+
+    use ::mavlink::MavHeader;
+    use ::mavlink::dialects::common::{MavMessage, PARAM_REQUEST_READ_DATA};
+    use ::mavlink::types::CharArray;
+    use sadesim_crds::plan::PlannedShard;
+    use sadesim_world::{World, WorldInputs};
+
+    use super::*;
+    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
+    use crate::mavlink::frame::{Decoded, FrameParser, encode};
+
+    #[test]
+    fn a_udp_client_gets_its_parameter_through_the_shards_sockets() {
+        let mut plan = plan_of(run_with_groups(&[("a", 1)]).build());
+        plan.shards = vec![PlannedShard { index: 0, first_drone: 0, drone_count: 1 }];
+        plan.drones[0].ports.endpoint = 0; // any free port
+        let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
+        let mut shard = Shard::new(&plan, 0, world).unwrap();
+        let localhost = std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
+        let options = MavlinkOptions { bind_ip: localhost, api_host: None, unix_epoch_at_start_us: 0 };
+        let mut sockets = ShardSockets::open(&mut shard, &plan, &options).unwrap();
+        let endpoint = sockets.endpoints()[0].local_addr().unwrap();
+
+        let client = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        client.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+        let request = MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+            param_index: -1,
+            target_system: 1,
+            target_component: 1,
+            param_id: CharArray::from("SYS_AUTOSTART"),
+        });
+        client
+            .send_to(&encode(MavHeader { system_id: 255, component_id: 190, sequence: 0 }, &request), endpoint)
+            .unwrap();
+
+        let deadline = Instant::now() + Duration::from_secs(5);
+        let mut buf = [0u8; 2048];
+        let mut step = 0;
+        while Instant::now() < deadline {
+            step += 10;
+            shard.advance_with(step, &mut sockets);
+            let Ok(n) = client.recv(&mut buf) else { continue };
+            for frame in FrameParser::new().push(&buf[..n]) {
+                if let Decoded::Message(MavMessage::PARAM_VALUE(v)) = frame.message {
+                    // An INT32 parameter travels as its bytes in the float (PX4).
+                    assert_eq!((v.param_id.to_str().unwrap(), v.param_value.to_bits()), ("SYS_AUTOSTART", 4001));
+                    assert!(shard.mavlink_queues()[0].outbound.is_empty(), "the sockets took the queue");
+                    return;
+                }
+            }
+        }
+        panic!("no PARAM_VALUE within 5 s");
+    }
+}
