@@ -28,6 +28,12 @@ def sadesim() -> str:
 
 
 @pytest.fixture(scope="session")
+def sadesim_operator() -> str:
+    """Path of the debug `sadesim-operator` binary (the chart's image), built if missing."""
+    return debug_binary("sadesim-operator", "sadesim-operator")
+
+
+@pytest.fixture(scope="session")
 def sim_worker() -> str:
     """Path of the debug `sim-worker` binary, built if missing."""
     return debug_binary("sim-worker", "sim-worker")

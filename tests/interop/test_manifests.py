@@ -125,7 +125,8 @@ def test_the_chart_configures_the_operator_with_the_contract_env_only():
         "SADESIM_LEADER_ELECTION", "POD_NAMESPACE", "POD_NAME",
     }
     assert env["SADESIM_KUEUE"] == "true" and env["SADESIM_METRICS_ADDR"] == "0.0.0.0:8080"
-    assert container["args"] == ["operator"]
+    # The image's entrypoint is the operator binary itself (images/operator.Dockerfile).
+    assert "args" not in container and "command" not in container
     assert container["livenessProbe"]["httpGet"]["path"] == "/healthz"
     sc = container["securityContext"]
     assert sc["readOnlyRootFilesystem"] and not sc["allowPrivilegeEscalation"] and sc["capabilities"]["drop"] == ["ALL"]
@@ -137,3 +138,17 @@ def test_the_chart_configures_the_operator_with_the_contract_env_only():
     assert any("workloads" in r["resources"] for r in role["rules"])
     plain = next(d for d in yaml.safe_load_all(helm_template()) if d and d["kind"] == "ClusterRole")
     assert not any("workloads" in r["resources"] for r in plain["rules"])
+
+
+def test_the_operator_binary_reads_every_variable_the_chart_sets(sadesim_operator):
+    """The chart's env names are the `sadesim-operator` flags' variables (POD_* come from
+    the downward API and name the leader-election Lease's namespace and holder)."""
+    out = subprocess.run([sadesim_operator, "--help"], capture_output=True, text=True, check=True).stdout
+    help_text = " ".join(out.split())  # clap wraps long lines
+    docs = [d for d in yaml.safe_load_all(helm_template()) if d]
+    deployment = next(d for d in docs if d["kind"] == "Deployment")
+    env = {e["name"] for e in deployment["spec"]["template"]["spec"]["containers"][0]["env"]}
+    flags = {name for name in env if name.startswith("SADESIM_")}
+    assert flags == env - {"POD_NAMESPACE", "POD_NAME"}
+    for name in sorted(flags):
+        assert f"env: {name}" in help_text, f"{name} is not a sadesim-operator flag:\n{help_text}"
