@@ -1,65 +1,25 @@
-//! Test support: a `RunPlan` made from a fixture run without the operator's planner (which
-//! sim-worker cannot depend on), and zones given as ENU rectangles.
+//! Test support: a `RunPlan` planned from a fixture run by the real planner, and zones given
+//! as ENU rectangles.
 
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::LatLon;
 use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
-use sadesim_crds::plan::{
-    DronePorts, Home, PLAN_FORMAT_VERSION, PlannedDrone, ResourcePlan, RoleResources, RunPlan, RunRef, ServicePorts,
-};
+use sadesim_crds::plan::RunPlan;
 use sadesim_crds::run::SimulationRun;
 use sadesim_crds::zones::{AltitudeReference, Zone, ZoneAltitude, ZonePolicy};
 
 use crate::airspace::volume::ZoneVolume;
 
-/// The plan of `run`: drones `<group>-<k>` in fleet order, all in shard 0, homes at the
-/// origin. Only what the airspace code reads is meaningful.
+/// The plan of `run`, made by the real planner (`sadesim-planner`, as `sadesim run` and the
+/// operator make it): drones `<group>-<k>` in fleet order, MAVLink ids, shards, ports and
+/// homes exactly as a run gets them.
+///
+/// # Panics
+/// When the planner refuses `run`: a test fixture must be a valid run.
 pub(crate) fn plan_of(run: SimulationRun) -> RunPlan {
-    let none = RoleResources { cpu_millis: 0, memory_mib: 0 };
-    let mut drones = Vec::new();
-    for (gi, g) in run.spec.fleet.iter().enumerate() {
-        for k in 0..g.count {
-            let index = drones.len() as u32;
-            drones.push(PlannedDrone {
-                index,
-                name: format!("{}-{k}", g.name),
-                group: g.name.clone(),
-                group_index: gi as u32,
-                member: k,
-                operator: g.operator.clone(),
-                role: g.role,
-                airframe: g.airframe.clone(),
-                system_id: (index % 250 + 1) as u8,
-                component_id: 1,
-                segment: index / 250,
-                shard: 0,
-                ports: DronePorts { api_udp: 14540, endpoint: 24600 },
-                home: Home { local: Enu::default(), global: run.spec.origin.geo() },
-                scripted: true,
-            });
-        }
-    }
-    RunPlan {
-        format_version: PLAN_FORMAT_VERSION,
-        run: RunRef { name: "test-run".into(), namespace: "default".into(), uid: None },
-        duration_s: run.spec.duration_s(),
-        spec: run.spec,
-        physics_rate_hz: 1000,
-        sync_window_steps: 10,
-        seed: 7,
-        drones,
-        shards: Vec::new(),
-        segments: Vec::new(),
-        asset_cache_key: String::new(),
-        services: ServicePorts { coordinator: 7400, airspace_http: 8480, renderer_http: 8490, metrics: 9090 },
-        resources: ResourcePlan {
-            assets: none,
-            shards: Vec::new(),
-            coordinator: none,
-            router: none,
-            renderer: None,
-            pilot: None,
-        },
+    match sadesim_planner::plan(&run) {
+        Ok(plan) => plan,
+        Err(e) => panic!("the test run does not plan: {e}"),
     }
 }
 
