@@ -12,6 +12,9 @@ fn plan(criteria: Vec<Criterion>) -> RunPlan {
         run_with_groups(&[("public-safety", 2), ("journalists", 3)])
             .with(|r| r.spec.zones.push(rect_zone("tfr", (0.0, 100.0), (0.0, 100.0), 0.0, 150.0)))
             .with(|r| r.spec.criteria = criteria)
+            // Long enough for the 300 s `reachZone` windows below (the planner refuses a
+            // window longer than the run).
+            .with(|r| r.spec.duration = "10m".parse().unwrap())
             .build(),
     )
 }
