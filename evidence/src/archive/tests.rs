@@ -1,4 +1,12 @@
+use std::collections::BTreeMap;
+use std::path::{Path as FsPath, PathBuf};
+
+use sha2::{Digest, Sha256};
+
 use super::*;
+use super::manifest::hex;
+use super::upload::PART_BYTES;
+use super::url::{Location, parse_location};
 
 /// A fresh, empty temporary folder for one test.
 fn temp(name: &str) -> PathBuf {
