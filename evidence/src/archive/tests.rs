@@ -3,10 +3,10 @@ use std::path::{Path as FsPath, PathBuf};
 
 use sha2::{Digest, Sha256};
 
-use super::*;
 use super::manifest::hex;
 use super::upload::PART_BYTES;
 use super::url::{Location, parse_location};
+use super::*;
 
 /// A fresh, empty temporary folder for one test.
 fn temp(name: &str) -> PathBuf {
