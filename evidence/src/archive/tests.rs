@@ -1,3 +1,11 @@
+use std::collections::BTreeMap;
+use std::path::{Path as FsPath, PathBuf};
+
+use sha2::{Digest, Sha256};
+
+use super::manifest::hex;
+use super::upload::PART_BYTES;
+use super::url::{Location, parse_location};
 use super::*;
 
 /// A fresh, empty temporary folder for one test.
