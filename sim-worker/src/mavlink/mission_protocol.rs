@@ -2,8 +2,9 @@
 //! as PX4 speaks it to MAVSDK, QGroundControl and pymavlink: upload, download and clear.
 //!
 //! A pure state machine in the style of the session: messages and the time go in, replies
-//! and (when an upload completes) a [`MissionPlan`] for the autopilot come out. No sockets,
-//! no clock: `now_s` is whatever monotonic clock the caller drives it with, in seconds.
+//! and (when an upload completes) a [`MissionPlan`](crate::autopilot::mission::MissionPlan)
+//! for the autopilot come out. No sockets, no clock: `now_s` is whatever monotonic clock the
+//! caller drives it with, in seconds.
 //!
 //! # What is stored
 //! Only `MAV_MISSION_TYPE_MISSION`. The mission is kept as the `MISSION_ITEM_INT` list the
