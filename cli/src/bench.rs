@@ -10,6 +10,8 @@
 //! service with the Chicago case study's zone and fleet on 127.0.0.1, under an open-loop
 //! load of entry requests, `GET /zones` and `GET /events` (see `sim_worker::airspace::load`).
 
+pub mod pairs;
+
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 

@@ -1,0 +1,152 @@
+//! The throughput `sadesim bench`: its runs (one, or back-to-back off/on pairs of MAVLink or
+//! recordings), one line each, and the median cost of the "on" variant over the pairs.
+
+use std::io::Write;
+
+use super::Recordings;
+use crate::cli::{CliError, Outcome, count};
+
+/// Runs the throughput benchmark (`sadesim bench` without `--airspace`) and writes its
+/// report to `out`: each run, then with `mavlink` or `recording` the paired comparison.
+///
+/// # Errors
+/// A run that could not start or finish ([`CliError::Run`]), or a failed write.
+pub fn run_pairs(
+    drones: u32,
+    seconds: Option<u32>,
+    drones_per_shard: u32,
+    mavlink: bool,
+    recording: Option<super::RecordingSet>,
+    repeat: u32,
+    out: &mut dyn Write,
+) -> Result<Outcome, CliError> {
+    use crate::bench::BenchResult;
+    let seconds = seconds.unwrap_or(60);
+    let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
+    let variants = schedule(mavlink, recording, repeat);
+    let mut results = Vec::new();
+    for &(with_mavlink, recordings) in &variants {
+        let result = crate::bench::run(drones, seconds, drones_per_shard, root.clone(), with_mavlink, recordings)
+            .map_err(|source| CliError::Run { path: "bench".into(), source })?;
+        writeln!(
+            out,
+            "bench{}{}: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall{} = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
+            if with_mavlink { " (MAVLink on)" } else { "" },
+            if recording.is_some() { format!(" ({})", recordings.label()) } else { String::new() },
+            count(result.drones as usize, "drone"),
+            count(result.shards as usize, "shard"),
+            result.sim_time_s,
+            result.wall_time_s,
+            result.cpu_time_s.map(|c| format!(", {c:.2} s CPU")).unwrap_or_default(),
+            result.drone_steps_per_s,
+            result.sim_time_s / result.wall_time_s,
+            std::thread::available_parallelism().map_or(1, usize::from)
+        )?;
+        let cost = result.report.summary.recording_cpu_s;
+        if result.recordings != Recordings::NONE {
+            writeln!(
+                out,
+                "  recorder's thread: {:.3} s CPU on recording.mcap, {:.3} s on the ULogs ({:.0} + {:.0} µs per drone-second)",
+                cost.mcap,
+                cost.ulog,
+                cost.mcap / drone_seconds(&result) * 1e6,
+                cost.ulog / drone_seconds(&result) * 1e6,
+            )?;
+        }
+        results.push(result);
+    }
+    let _ = std::fs::remove_dir_all(&root);
+    // What the pairs compare: the report's label, and which runs are the "on" variant.
+    let label = match recording {
+        _ if mavlink => Some("MAVLink cost".to_string()),
+        Some(set) => Some(format!("Recording cost ({})", set.recordings().label())),
+        None => None,
+    };
+    let is_on = |r: &BenchResult| if mavlink { r.mavlink } else { r.recordings != Recordings::NONE };
+    if let Some(label) = label {
+        // Each pair (one run off, one on) ran back to back.
+        let pairs = |f: &dyn Fn(&BenchResult) -> Option<f64>| -> Vec<(f64, f64)> {
+            results
+                .chunks_exact(2)
+                .filter_map(|p| {
+                    let (off, on) = if is_on(&p[1]) { (&p[0], &p[1]) } else { (&p[1], &p[0]) };
+                    (!is_on(off) && is_on(on)).then_some(())?;
+                    f(off).zip(f(on))
+                })
+                .collect()
+        };
+        let wall = pairs(&|r: &BenchResult| Some(r.wall_time_s));
+        let cpu = pairs(&|r: &BenchResult| r.cpu_time_s);
+        writeln!(
+            out,
+            "{label} (median of {repeat} back-to-back pairs): {}{}",
+            crate::bench::paired_cost_percent(&wall).map(|c| format!("{c:+.1} % wall time")).unwrap_or_default(),
+            crate::bench::paired_cost_percent(&cpu).map(|c| format!(", {c:+.1} % CPU time")).unwrap_or_default()
+        )?;
+        // Within each run: the recorder's CPU time on the recordings against the
+        // rest of the process's CPU time (the simulation), immune to the drift
+        // between runs that the pairs above suffer from.
+        let shares: Vec<f64> =
+            results.iter().filter(|r| is_on(r)).filter_map(crate::bench::recorder_share_percent).collect();
+        if !mavlink && let Some(c) = crate::bench::median(shares) {
+            writeln!(
+                out,
+                "{label} measured on the recorder's thread (median of {repeat}): {c:.1} % of the simulation's CPU time"
+            )?;
+        }
+    }
+    Ok(Outcome::Success)
+}
+
+/// The runs of a benchmark in order, each as (MAVLink on, recordings written): with
+/// `mavlink` or `recording`, `repeat` (at least 1) back-to-back (off, on) pairs, every other
+/// one "on" first; otherwise one run with MAVLink off and every recording.
+fn schedule(mavlink: bool, recording: Option<super::RecordingSet>, repeat: u32) -> Vec<(bool, Recordings)> {
+    // (MAVLink on, recordings written) per run; the "off" variant of each pair first.
+    // The (off, on) variants a comparison alternates: MAVLink off/on, or recordings
+    // off/on; `None` for a single run.
+    let compared: Option<[(bool, Recordings); 2]> = match (mavlink, recording) {
+        (true, _) => Some([(false, Recordings::ALL), (true, Recordings::ALL)]),
+        (false, Some(set)) => Some([(false, Recordings::NONE), (false, set.recordings())]),
+        (false, None) => None,
+    };
+    match compared {
+        // Every other pair runs "on" first, so what one position in a pair gains
+        // (caches warmed, the previous run's files being written back) cancels out.
+        Some([off, on]) => (0..repeat.max(1)).flat_map(|i| if i % 2 == 0 { [off, on] } else { [on, off] }).collect(),
+        None => vec![(false, Recordings::ALL)],
+    }
+}
+
+/// Drones x simulated seconds of a benchmark run.
+fn drone_seconds(result: &crate::bench::BenchResult) -> f64 {
+    (f64::from(result.drones) * result.sim_time_s).max(1e-9)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bench::RecordingSet;
+
+    #[test]
+    fn mavlink_pairs_alternate_which_variant_runs_first() {
+        let (off, on) = ((false, Recordings::ALL), (true, Recordings::ALL));
+        assert_eq!(schedule(true, None, 3), vec![off, on, on, off, off, on]);
+    }
+
+    #[test]
+    fn recording_pairs_compare_the_chosen_set_against_recordings_off() {
+        let (off, on) = ((false, Recordings::NONE), (false, Recordings { mcap: true, ulog: false }));
+        assert_eq!(schedule(false, Some(RecordingSet::Mcap), 2), vec![off, on, on, off]);
+    }
+
+    #[test]
+    fn zero_repeats_still_run_one_pair() {
+        assert_eq!(schedule(true, None, 0), vec![(false, Recordings::ALL), (true, Recordings::ALL)]);
+    }
+
+    #[test]
+    fn without_a_comparison_one_run_with_every_recording() {
+        assert_eq!(schedule(false, None, 5), vec![(false, Recordings::ALL)]);
+    }
+}

@@ -1,0 +1,233 @@
+//! The clap types of the `sadesim` command line: commands, flags and their parsers.
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+/// SADE-SIM: city-scale multi-drone simulation for validating software pilots.
+///
+/// A SimulationRun document declares a run: origin, world, environment, fleet, airspace
+/// zones, pilot, criteria and archive. The same document runs locally (`sadesim run`) and on
+/// Kubernetes (`kubectl apply -f`). Scenario files may hold several runs (YAML `---`
+/// documents, a `kind: List`, or a JSON array).
+#[derive(Debug, Parser)]
+#[command(name = "sadesim", version, propagate_version = true, max_term_width = 100)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Check scenario files and list every problem with its field path.
+    ///
+    /// Exits 0 when every run in every file is valid, 1 otherwise. Use `-` for stdin.
+    Validate {
+        /// Scenario files (YAML or JSON).
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+    },
+    /// Show how a run will be laid out: groups, shards, router segments, ports, resources.
+    Plan {
+        /// Scenario file with exactly one run (use `-` for stdin).
+        file: PathBuf,
+        /// Print the full RunPlan as JSON instead of the summary.
+        #[arg(long)]
+        json: bool,
+        /// Print the fleet file a local pilot would get (`SADESIM_FLEET`) as JSON.
+        #[arg(long, conflicts_with = "json")]
+        fleet: bool,
+        /// Namespace to plan for (default: the document's, else `default`).
+        #[arg(long)]
+        namespace: Option<String>,
+    },
+    /// Print the SimulationRun CustomResourceDefinition (YAML), for `kubectl apply -f -`.
+    Crd,
+    /// Measure simulation throughput (drone-steps per second) on a synthetic scenario:
+    /// x500s flying random waypoints over Chicago at 1 kHz with wind, GNSS noise and
+    /// recording, as fast as possible. With --airspace, measure the airspace authority's
+    /// HTTP API instead. Results go in docs/performance.md.
+    Bench {
+        /// Drones in the fleet.
+        #[arg(long, default_value_t = 32)]
+        drones: u32,
+        /// Simulated seconds (default 60); with --airspace, seconds of load (default 10).
+        #[arg(long)]
+        seconds: Option<u32>,
+        /// Drones per shard (one thread per shard).
+        #[arg(long, default_value_t = 100)]
+        drones_per_shard: u32,
+        /// Also run with MAVLink endpoints and routers on (PX4 default telemetry rates) and
+        /// report the CPU cost of MAVLink as a ratio of the run without.
+        #[arg(long)]
+        mavlink: bool,
+        /// Also run with `spec.recording` off (no recording.mcap, no ULogs) and report the CPU
+        /// cost of the recordings as a ratio of the run without: `all` (default) turns both on
+        /// in the other runs, `mcap` or `ulog` one of them.
+        #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "all", conflicts_with_all = ["mavlink", "airspace"])]
+        recording: Option<crate::bench::RecordingSet>,
+        /// With --mavlink or --recording: run this many back-to-back pairs of the two
+        /// variants (every other pair "on" first) and report the median ratio of the pairs
+        /// (this machine's speed drifts by tens of percent between minutes).
+        #[arg(long, default_value_t = 3)]
+        repeat: u32,
+        /// Load the airspace authority's HTTP API (Chicago example's zone and fleet, on
+        /// 127.0.0.1) with entry requests, GET /zones and GET /events, open-loop, and report
+        /// latency percentiles. Exits 1 when any request failed.
+        #[arg(long, conflicts_with = "mavlink")]
+        airspace: bool,
+        /// With --airspace: requests per second (default 1000).
+        #[arg(long, requires = "airspace")]
+        rate: Option<u32>,
+        /// With --airspace: keep-alive connections, one client thread each (default 8).
+        #[arg(long, requires = "airspace")]
+        connections: Option<usize>,
+    },
+    /// Run a scenario locally: world, shards, coordinator and recorder in this process,
+    /// and `spec.pilot` as a child process.
+    ///
+    /// Writes plan.json, fleet.json, world.json, events.jsonl, trajectory.csv,
+    /// trajectory.geojson and summary.json (and pilot.json, pilot.log with a pilot) into
+    /// `<out>/<run>/<UTC time>/` (out: the archive folder of a file:// archive URL, else
+    /// ./runs). Ctrl-C ends the run cleanly and keeps everything written.
+    Run {
+        /// Scenario file with exactly one run (use `-` for stdin).
+        file: PathBuf,
+        /// Folder to create the run folder in.
+        #[arg(long)]
+        out: Option<PathBuf>,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+        /// Run the coordinator and each shard as separate `sim-worker` processes over TCP
+        /// (as on Kubernetes) instead of threads.
+        #[arg(long)]
+        processes: bool,
+        /// Override the scenario's clock: `realtime`, `asFastAsPossible` (or `afap`), or
+        /// `scaled:FACTOR` (e.g. `scaled:4`).
+        #[arg(long, value_parser = parse_clock)]
+        clock: Option<sadesim_crds::run::Clock>,
+        /// Do not start `spec.pilot`: attach a pilot, SDK script or ground station yourself
+        /// (the fleet file is `fleet.json` in the run folder, or `sadesim plan --fleet`).
+        /// The run lasts until `duration` or Ctrl-C.
+        #[arg(long)]
+        no_pilot: bool,
+        /// Serve no MAVLink endpoints (scripted missions only; groups without a `mission`
+        /// are then refused).
+        #[arg(long)]
+        no_mavlink: bool,
+    },
+    /// Run archives: list, verify, download and upload run folders with their
+    /// manifest.json (sizes and SHA-256 of every file).
+    ///
+    /// An archive is a URL: file:///abs/folder, file://relative/folder, s3://bucket/prefix,
+    /// gs://bucket/prefix, az://container/prefix, or a plain folder path. A run in it is
+    /// `<archive>/<namespace>/<run>/<uid>/`; a local run folder (`runs/<run>/<UTC time>/`)
+    /// is one too. Object-store credentials come from the usual environment variables
+    /// (AWS_ACCESS_KEY_ID, AWS_SECRET_ACCESS_KEY, AWS_REGION, AWS_ENDPOINT_URL,
+    /// AWS_ALLOW_HTTP; GOOGLE_*; AZURE_*).
+    Archive {
+        #[command(subcommand)]
+        command: ArchiveCommand,
+    },
+    /// Rebuild a run's report (report.html, report/*.svg, report/*.png) from the files in
+    /// its run folder.
+    Report {
+        /// Run folder (`runs/<run>/<UTC time>/`, or one fetched with `archive get`).
+        run_dir: PathBuf,
+    },
+    /// Print the Kubernetes objects the operator would create for each run in FILE (YAML,
+    /// one document per object), for review in GitOps pull requests.
+    Manifests {
+        /// Scenario files (use `-` for stdin); the objects of all runs are printed as one
+        /// YAML stream.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Namespace of the run (default: the document's, else `default`).
+        #[arg(long)]
+        namespace: Option<String>,
+    },
+    /// Build a run's world assets (city footprints as GeoJSON, world statistics) into the
+    /// archive's asset cache `<archive>/assets/<cache key>/world/`, unless a verified entry
+    /// is there. The operator runs this as the `<run>-assets` Job.
+    Assets {
+        /// RunPlan JSON (`sadesim plan FILE --json`).
+        #[arg(long)]
+        plan: PathBuf,
+        /// Archive URL holding the cache (s3://, gs://, az:// or file://).
+        #[arg(long)]
+        archive: String,
+    },
+    /// Run the Kubernetes operator: reconcile SimulationRuns in the cluster of the current
+    /// kubeconfig or service account.
+    ///
+    /// Logs JSON lines to stderr; stops cleanly on SIGTERM. The Lease for leader election is
+    /// `sadesim-operator` in POD_NAMESPACE, held as POD_NAME.
+    Operator(sadesim_operator::OperatorArgs),
+}
+
+/// `sadesim archive ...`
+#[derive(Debug, Subcommand)]
+pub enum ArchiveCommand {
+    /// List the runs in an archive: path, files, size, complete (manifest.json written) or
+    /// incomplete (an upload that did not finish).
+    Ls {
+        /// Archive URL or folder.
+        url: String,
+    },
+    /// Re-read every file of a run and check its size and SHA-256 against manifest.json.
+    ///
+    /// Exits 0 when everything matches, 1 when a file differs, is missing, is not in the
+    /// manifest, or the manifest is missing (incomplete run), naming each file.
+    Verify {
+        /// The run folder: URL/NAMESPACE/RUN/UID (e.g. s3://bucket/runs/default/quickstart/20261122T010058Z)
+        /// or a local run folder (runs/quickstart/20261122T010058Z).
+        location: String,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Download a run into a folder, checking every file against manifest.json (exit 1 on
+    /// any mismatch, as `verify`).
+    Get {
+        /// The run folder, as for `verify`.
+        location: String,
+        /// Folder to download into (created if needed; files there are overwritten).
+        dir: PathBuf,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Upload a local run folder to URL/NAMESPACE/RUN/UID/, manifest.json last.
+    Put {
+        /// The local run folder (e.g. runs/quickstart/20261122T010058Z).
+        dir: PathBuf,
+        /// Archive URL or folder.
+        url: String,
+        /// Namespace segment of the layout.
+        #[arg(long, default_value = "default")]
+        namespace: String,
+        /// Run name (default: the name of DIR's parent folder, as in runs/<run>/<UTC time>).
+        #[arg(long)]
+        run: Option<String>,
+        /// Uid of this execution (default: DIR's name).
+        #[arg(long)]
+        uid: Option<String>,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+}
+
+/// `--clock` values.
+fn parse_clock(s: &str) -> Result<sadesim_crds::run::Clock, String> {
+    use sadesim_crds::run::{Clock, ClockMode};
+    match s {
+        "realtime" => Ok(Clock { mode: ClockMode::Realtime, factor: None }),
+        "asFastAsPossible" | "afap" => Ok(Clock { mode: ClockMode::AsFastAsPossible, factor: None }),
+        _ => match s.strip_prefix("scaled:").map(str::parse::<f64>) {
+            Some(Ok(f)) if f.is_finite() && f > 0.0 => Ok(Clock { mode: ClockMode::Scaled, factor: Some(f) }),
+            _ => Err(format!("expected realtime, asFastAsPossible or scaled:FACTOR (e.g. scaled:4), got {s:?}")),
+        },
+    }
+}
