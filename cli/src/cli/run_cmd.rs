@@ -56,7 +56,11 @@ pub(super) fn run_file(
             }
             writeln!(out, "  output: {}", report.out_dir.display())?;
             match &report.report_error {
-                None => writeln!(out, "  report: {}", report.out_dir.join("report.html").display())?,
+                None => writeln!(
+                    out,
+                    "  report: {}",
+                    report.out_dir.join(sadesim_crds::outcome::run_folder::REPORT).display()
+                )?,
                 Some(e) => writeln!(out, "  report: not written: {e}")?,
             }
             if let Some(url) = &report.archive {

@@ -251,7 +251,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     };
     std::fs::create_dir_all(&out_dir)
         .map_err(|source| RunError::Output { path: out_dir.display().to_string(), source })?;
-    write_json(&out_dir, "plan.json", &plan)?;
+    write_json(&out_dir, sadesim_crds::outcome::run_folder::PLAN, &plan)?;
     // The airspace authority answers before the pilot starts. In `--processes` runs the
     // coordinator process serves it on the planned port instead.
     let mut airspace = Airspace::new(&plan, &|key| std::env::var(key).ok());

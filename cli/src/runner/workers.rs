@@ -75,7 +75,7 @@ pub(super) fn run(
     airspace: std::net::SocketAddr,
 ) -> Result<RunSummary, RunError> {
     let worker = worker_binary(worker)?;
-    let plan_path = out_dir.join("plan.json");
+    let plan_path = out_dir.join(sadesim_crds::outcome::run_folder::PLAN);
     let mut coordinator = spawn(
         Command::new(&worker)
             .arg("coordinator")

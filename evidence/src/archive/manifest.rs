@@ -12,7 +12,7 @@ use super::ArchiveError;
 use super::url::{check_relative_path, check_segment};
 
 /// The manifest's name in every run folder.
-pub const MANIFEST_FILE: &str = "manifest.json";
+pub const MANIFEST_FILE: &str = sadesim_crds::outcome::run_folder::MANIFEST;
 /// `formatVersion` of the manifests this build writes and reads.
 pub const MANIFEST_FORMAT_VERSION: u32 = 1;
 

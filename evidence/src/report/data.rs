@@ -122,11 +122,11 @@ pub struct RunData {
 }
 
 /// File names, as the recorder and the runner write them.
-pub const PLAN_FILE: &str = "plan.json";
+pub const PLAN_FILE: &str = sadesim_crds::outcome::run_folder::PLAN;
 pub const TRAJECTORY_FILE: &str = "trajectory.csv";
-pub const EVENTS_FILE: &str = "events.jsonl";
+pub const EVENTS_FILE: &str = sadesim_crds::outcome::run_folder::EVENTS;
 pub const AIRSPACE_FILE: &str = sadesim_crds::outcome::run_folder::AIRSPACE;
-pub const SUMMARY_FILE: &str = "summary.json";
+pub const SUMMARY_FILE: &str = sadesim_crds::outcome::run_folder::SUMMARY;
 pub const WORLD_FILE: &str = "world.json";
 pub const PILOT_FILE: &str = sadesim_crds::outcome::run_folder::PILOT_RECORD;
 

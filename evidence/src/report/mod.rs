@@ -27,7 +27,7 @@ mod tests;
 pub use data::{DataError, RunData};
 
 /// The page, next to the run's other files.
-pub const HTML_FILE: &str = "report.html";
+pub const HTML_FILE: &str = sadesim_crds::outcome::run_folder::REPORT;
 /// The folder of the plots.
 pub const IMAGES_DIR: &str = "report";
 

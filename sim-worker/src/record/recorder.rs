@@ -83,7 +83,7 @@ impl Recorder {
             streams,
             dir: dir.to_path_buf(),
             frame: LocalFrame::new(plan.spec.origin.geo()),
-            events: EventLog::create(&dir.join("events.jsonl"))?,
+            events: EventLog::create(&dir.join(sadesim_crds::outcome::run_folder::EVENTS))?,
             csv: TrajectoryCsv::create(&dir.join("trajectory.csv"))?,
             tracks: TrajectoryGeoJson::new(plan.drones.len()),
             rows: Sampler::new(options.trajectory_hz),
@@ -128,7 +128,7 @@ impl Recorder {
         self.summary.real_time_factor = outcome.sim_time_s / outcome.wall_time.as_secs_f64().max(1e-9);
         self.summary.pilots_released_at_s = outcome.released_at_s;
         let json = serde_json::to_vec_pretty(&self.summary).map_err(std::io::Error::other)?;
-        std::fs::write(self.dir.join("summary.json"), json)?;
+        std::fs::write(self.dir.join(sadesim_crds::outcome::run_folder::SUMMARY), json)?;
         Ok(self.summary)
     }
 }
