@@ -118,7 +118,7 @@ pub struct RunReport {
 }
 
 /// Where a report failure is recorded in the run folder (the run's other files stay).
-pub const REPORT_ERROR_FILE: &str = "report-error.txt";
+pub const REPORT_ERROR_FILE: &str = sadesim_crds::outcome::run_folder::REPORT_ERROR;
 
 /// Refuses what the local runner cannot do (yet, or with these options), naming the field.
 fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError> {

@@ -5,6 +5,11 @@ use serde::{Deserialize, Serialize};
 
 use super::summary::{FleetCounts, RunSummary};
 
+/// Exit status of `sim-worker coordinator --finish-run` (the coordinator pod) when the run
+/// itself finished but its upload to the archive failed: the operator reports the run's
+/// outcome and an archive failure, not a failed run. A failed run exits 2.
+pub const UPLOAD_FAILED_EXIT: u8 = 3;
+
 /// One line of the coordinator's stdout.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]

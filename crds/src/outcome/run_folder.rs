@@ -18,5 +18,8 @@ pub const PILOT_LOG: &str = "pilot.log";
 pub const FLEET: &str = "fleet.json";
 /// The human-readable report (`sadesim report`).
 pub const REPORT: &str = "report.html";
+/// Why `report.html` could not be written, when it could not (the run's other files are
+/// kept: a report failure never loses evidence).
+pub const REPORT_ERROR: &str = "report-error.txt";
 /// The archive manifest with every file's checksum, written last.
 pub const MANIFEST: &str = "manifest.json";
