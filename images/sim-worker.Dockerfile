@@ -1,12 +1,11 @@
 # syntax=docker/dockerfile:1
-# The worker image every run's pods use: `sim-worker` (assets, shard, coordinator, router,
-# renderer roles) and `sadesim`, which the coordinator pod runs after the coordinator to
-# upload the run folder (`sadesim archive put`).
+# The worker image every run's pods use: `sim-worker` (shard, coordinator, router roles; the
+# coordinator pod runs `sim-worker coordinator --finish-run`, which also writes the report and
+# uploads the run folder, docs/kubernetes.md "Archive") and `sadesim` (the assets Job runs
+# `sadesim assets`).
 #
-# The runtime is distroless (glibc, CA certificates, no package manager) in its
-# `debug-nonroot` flavour, whose only addition is a static busybox at /busybox: the
-# coordinator pod's entrypoint is a short /busybox/sh script that runs the coordinator, then
-# the upload, whatever the coordinator's exit status (docs/kubernetes.md, "Archive").
+# The runtime is distroless (glibc, CA certificates, no package manager, no shell) in its
+# `nonroot` flavour: every pod runs one program.
 #
 # Build from the repository root:
 #   docker build -f images/sim-worker.Dockerfile -t ghcr.io/sadesim/sim-worker:0.1.0 .
@@ -20,7 +19,7 @@ RUN --mount=type=cache,target=/usr/local/cargo/registry \
     cargo build --release --locked -p sim-worker -p sadesim \
  && install -D -m 0755 -t /out target/release/sim-worker target/release/sadesim
 
-FROM gcr.io/distroless/cc-debian12:debug-nonroot
+FROM gcr.io/distroless/cc-debian12:nonroot
 COPY --from=build /out/sim-worker /out/sadesim /usr/local/bin/
 # 65532 = distroless `nonroot`; pods also set runAsUser 65532 and a read-only root.
 USER 65532:65532

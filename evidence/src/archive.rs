@@ -34,5 +34,5 @@ pub use error::ArchiveError;
 pub use listing::{RunListing, list};
 pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT_VERSION, Manifest, ManifestFile, write_manifest};
 pub use store::Archive;
-pub use upload::{MULTIPART_THRESHOLD_BYTES, Uploaded, archive_run_folder};
+pub use upload::{MULTIPART_THRESHOLD_BYTES, Uploaded};
 pub use url::is_object_store;

@@ -6,4 +6,6 @@
 pub mod archive;
 pub mod assets;
 #[cfg(feature = "report")]
+pub mod finish;
+#[cfg(feature = "report")]
 pub mod report;

@@ -9,6 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
 use clap::{Parser, Subcommand};
+use sadesim_crds::outcome::coordinator::UPLOAD_FAILED_EXIT;
 use sim_worker::roles;
 
 /// SADE-SIM runtime roles.
@@ -78,6 +79,17 @@ enum Role {
         /// the same when stdin is not a terminal.
         #[arg(long, value_name = "FILE")]
         control_file: Option<PathBuf>,
+        /// After the run, whatever its end, finish the run folder as `sadesim run` does:
+        /// `plan.json`, `report.html` with its plots, `manifest.json`, then the upload to
+        /// `--archive-url` when given. SIGTERM (a Pod deleted) then ends the run like
+        /// Ctrl-C, so the files are still written and uploaded. Exit status: 0, 2 when the
+        /// run failed, 3 when only the upload failed.
+        #[arg(long)]
+        finish_run: bool,
+        /// With `--finish-run`: the archive (`s3://`, `gs://`, `az://`, `file://`) to upload
+        /// the run folder to, at `<url>/<namespace>/<run>/<uid>/` (names from the plan).
+        #[arg(long, env = "SADESIM_ARCHIVE_URL", value_name = "URL", requires = "finish_run")]
+        archive_url: Option<String>,
     },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
@@ -131,25 +143,54 @@ fn main() -> ExitCode {
                     .and_then(|plan| roles::shard::run(&plan, shard, &coordinator, mavlink.as_ref(), timeout))
             })
         }
-        Role::Coordinator { plan, listen, out, airspace_bind, shard_timeout, connect_timeout, control_file } => {
+        Role::Coordinator {
+            plan,
+            listen,
+            out,
+            airspace_bind,
+            shard_timeout,
+            connect_timeout,
+            control_file,
+            finish_run,
+            archive_url,
+        } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+            if finish_run {
+                // No shell in the pod passes SIGTERM on as SIGINT: this process is PID 1 of
+                // its container and ends the run itself, so the files are still finished.
+                if let Err(e) = signal_hook::flag::register(signal_hook::consts::SIGTERM, stop.clone()) {
+                    eprintln!("warning: SIGTERM cannot be caught ({e}): a deleted Pod loses the run's end");
+                }
+            }
             let requests = roles::control::StopRequest::new();
             requests.read_stdin();
             let watched = match &control_file {
                 Some(file) => requests.watch_annotations(file).map_err(roles::RoleError::ControlFile),
                 None => Ok(()),
             };
-            watched.and_then(|()| roles::read_plan(&plan)).and_then(|plan| {
-                std::fs::create_dir_all(&out)?;
+            let plan_file = plan;
+            let plan = match watched.and_then(|()| roles::read_plan(&plan_file)) {
+                Ok(plan) => plan,
+                Err(e) => return failure(&e),
+            };
+            let ran = std::fs::create_dir_all(&out).map_err(roles::RoleError::from).and_then(|()| {
                 let airspace = airspace_bind
                     .unwrap_or_else(|| std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.airspace_http)));
                 let positive = |s: f64| (s > 0.0).then(|| Duration::from_secs_f64(s));
                 let timeouts =
                     roles::coordinator::Timeouts { connect: positive(connect_timeout), shard: positive(shard_timeout) };
                 roles::coordinator::run(&plan, listen.as_str(), airspace, &out, &stop, timeouts, requests).map(|_| ())
-            })
+            });
+            // Whatever the run's end: the folder's files are evidence of a failed run too.
+            let archived = !finish_run
+                || roles::coordinator::finish(&plan_file, &plan, &out, archive_url.as_deref()).archived.is_ok();
+            return match ran {
+                Err(e) => failure(&e),
+                Ok(()) if !archived => ExitCode::from(UPLOAD_FAILED_EXIT),
+                Ok(()) => ExitCode::SUCCESS,
+            };
         }
         Role::Router { plan, segment, bind, drone_host } => {
             let stop = Arc::new(AtomicBool::new(false));
@@ -164,9 +205,12 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            ExitCode::from(2)
-        }
+        Err(e) => failure(&e),
     }
+}
+
+/// A failed role: the reason on stderr (the Pod's termination message), exit status 2.
+fn failure(e: &roles::RoleError) -> ExitCode {
+    eprintln!("error: {e}");
+    ExitCode::from(2)
 }

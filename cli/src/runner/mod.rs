@@ -11,6 +11,8 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 use indicatif::{ProgressBar, ProgressStyle};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
+use sadesim_evidence::archive::is_object_store;
+use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
 use sadesim_world::{World, WorldInputs};
 use sim_worker::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use sim_worker::coordinator::{self, CoordinatorError, RunObserver, ShardLink};
@@ -116,9 +118,6 @@ pub struct RunReport {
     /// `report-error.txt`); `None` when the report was written.
     pub report_error: Option<String>,
 }
-
-/// Where a report failure is recorded in the run folder (the run's other files stay).
-pub const REPORT_ERROR_FILE: &str = sadesim_crds::outcome::run_folder::REPORT_ERROR;
 
 /// Refuses what the local runner cannot do (yet, or with these options), naming the field.
 fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError> {
@@ -291,22 +290,16 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             written?;
         }
     }
-    // The report is evidence too: written before manifest.json so the manifest lists it.
-    // It cannot lose the run's files: a failure is a warning, kept in the folder.
-    let report_error = sadesim_evidence::report::write_report(&out_dir).err();
+    // The end of every run, as the coordinator pod does it (DESIGN §8): report, manifest,
+    // and the upload when `spec.archive.url` is an object store (a folder archive holds the
+    // run folder already). The report cannot lose the run's files: a failure is a warning.
+    let uid = out_dir.file_name().and_then(|n| n.to_str()).unwrap_or_default().to_string();
+    let address = RunAddress { namespace: &plan.run.namespace, run: &plan.run.name, uid: &uid };
+    let upload_to = plan.spec.archive.as_ref().map(|a| a.url.as_str()).filter(|url| is_object_store(url));
+    let Finished { report_error, archived } = finish_run(&out_dir, address, upload_to, options.progress);
     if let Some(e) = &report_error {
         eprintln!("warning: the run's report was not written: {e}");
-        let _ = std::fs::write(out_dir.join(REPORT_ERROR_FILE), format!("{e}\n"));
     }
-    // Archived whatever the run's end (DESIGN §8): manifest.json, then the upload.
-    let archive_url = plan.spec.archive.as_ref().map(|a| a.url.as_str());
-    let archived = sadesim_evidence::archive::archive_run_folder(
-        &out_dir,
-        archive_url,
-        &plan.run.namespace,
-        &plan.run.name,
-        options.progress,
-    );
     let summary = summary?;
     Ok(RunReport { out_dir, summary, pilot: record, archive: archived?.map(|a| a.url), report_error })
 }

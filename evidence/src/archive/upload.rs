@@ -1,5 +1,6 @@
 //! Uploads: a local run folder to `<archive>/<namespace>/<run>/<uid>/` (multipart for large
-//! files, manifest last), files added to an uploaded run, and the end of `sadesim run`.
+//! files, manifest last), and files added to an uploaded run (the end of a run is
+//! `crate::finish`).
 
 use std::io::Read;
 use std::path::Path as FsPath;
@@ -13,7 +14,7 @@ use sha2::{Digest, Sha256};
 use super::manifest::{LocalFile, READ_CHUNK_BYTES, hex, scan_local};
 use super::store::FILES_IN_FLIGHT;
 use super::url::{check_relative_path, check_run_names, child_path};
-use super::{Archive, ArchiveError, MANIFEST_FILE, Manifest, ManifestFile, is_object_store, write_manifest};
+use super::{Archive, ArchiveError, MANIFEST_FILE, Manifest, ManifestFile};
 
 /// Files larger than this (bytes) are uploaded in parts; smaller ones in one request.
 pub const MULTIPART_THRESHOLD_BYTES: u64 = 8 * 1024 * 1024;
@@ -196,31 +197,5 @@ impl Archive {
             writer.finish().await.map_err(err)?;
         }
         Ok(ManifestFile { path: file.rel.clone(), size, sha256: hex(&hasher.finalize()) })
-    }
-}
-
-/// The end of `sadesim run`, whatever the run's outcome: `manifest.json` into the local run
-/// folder `out_dir`, then, when `archive_url` is an object store, the folder uploaded to
-/// `<archive_url>/<namespace>/<run>/<uid>/` with `uid` the folder's name (its UTC start
-/// time). Returns the upload, `None` for local archives (the folder is the archive).
-///
-/// # Errors
-/// See [`write_manifest`], [`Archive::open`] and [`Archive::upload_run`].
-pub fn archive_run_folder(
-    out_dir: &FsPath,
-    archive_url: Option<&str>,
-    namespace: &str,
-    run: &str,
-    progress: bool,
-) -> Result<Option<Uploaded>, ArchiveError> {
-    let uid = out_dir.file_name().and_then(|n| n.to_str()).unwrap_or_default().to_string();
-    write_manifest(out_dir, namespace, run, &uid)?;
-    match archive_url {
-        Some(url) if is_object_store(url) => {
-            let mut archive = Archive::open(url)?;
-            archive.set_progress(progress);
-            archive.upload_run(out_dir, namespace, run, &uid).map(Some)
-        }
-        _ => Ok(None),
     }
 }

@@ -15,7 +15,9 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use sadesim_crds::outcome::run_folder;
 use sadesim_crds::plan::RunPlan;
+use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
 
 pub use sadesim_crds::outcome::coordinator::{FailedRole, Report};
 
@@ -76,6 +78,35 @@ pub struct Timeouts {
     pub connect: Option<Duration>,
     /// Longest wait for a shard's answer to a window during the run (`None`: forever).
     pub shard: Option<Duration>,
+}
+
+/// The end of the coordinator pod (`--finish-run`), after [`run`] whatever its outcome:
+/// `plan.json` (the bytes of `plan_file`) into `out_dir` so the folder has the files of a
+/// local run, then [`finish_run`]: report, manifest, and the upload to
+/// `<upload_to>/<namespace>/<run>/<uid>/` (the plan's run; the folder name as uid for a run
+/// without one). Problems go to stderr and into the returned [`Finished`].
+pub fn finish(plan_file: &Path, plan: &RunPlan, out_dir: &Path, upload_to: Option<&str>) -> Finished {
+    let copy = out_dir.join(run_folder::PLAN);
+    let same = |a: &Path, b: &Path| matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b);
+    if !same(plan_file, &copy)
+        && let Err(e) = std::fs::copy(plan_file, &copy)
+    {
+        // The report then names the missing plan.json; the other files are still archived.
+        eprintln!("warning: cannot copy the plan {} to {}: {e}", plan_file.display(), copy.display());
+    }
+    let folder_name = out_dir.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+    let uid = plan.run.uid.as_deref().unwrap_or(folder_name);
+    let address = RunAddress { namespace: &plan.run.namespace, run: &plan.run.name, uid };
+    let finished = finish_run(out_dir, address, upload_to, false);
+    if let Some(e) = &finished.report_error {
+        eprintln!("warning: the run's report was not written (the run's other files are kept): {e}");
+    }
+    match &finished.archived {
+        Ok(Some(uploaded)) => eprintln!("archived the run folder to {}", uploaded.url),
+        Ok(None) => eprintln!("no archive URL: the run folder is not uploaded"),
+        Err(e) => eprintln!("error: the run folder was not archived: {e}"),
+    }
+    finished
 }
 
 /// Accepts the plan's shards on `listen`, runs the run, records into `out_dir`. Shards

@@ -1,0 +1,132 @@
+//! The end of a run, the one sequence every run goes through, whatever its outcome: the
+//! report (`report.html` and its plots), then `manifest.json` (so the manifest lists the
+//! report), then the upload of the folder when it is to go to an archive. The local runner
+//! (`sadesim run`) and the coordinator role (`sim-worker coordinator --finish-run`, the
+//! coordinator pod on Kubernetes) both call [`finish_run`], so a run folder holds the same
+//! files on a laptop and on a cluster (DESIGN §8: nothing is lost).
+//!
+//! A report failure never costs the run its evidence: the message goes to
+//! `report-error.txt` in the folder and the manifest and upload still happen.
+
+use std::path::Path;
+
+use sadesim_crds::outcome::run_folder;
+
+use crate::archive::{Archive, ArchiveError, Uploaded, write_manifest};
+
+/// Which run a folder holds, as its archive names it: `<archive>/<namespace>/<run>/<uid>/`.
+#[derive(Debug, Clone, Copy)]
+pub struct RunAddress<'a> {
+    pub namespace: &'a str,
+    pub run: &'a str,
+    /// The run's uid on Kubernetes; the folder's UTC start time for local runs.
+    pub uid: &'a str,
+}
+
+/// What [`finish_run`] did.
+#[derive(Debug)]
+pub struct Finished {
+    /// Why `report.html` could not be written (also in `report-error.txt`); `None` when it
+    /// was.
+    pub report_error: Option<String>,
+    /// The upload (`None` when there was nothing to upload to), or why the manifest or the
+    /// upload failed. The local folder keeps every file either way.
+    pub archived: Result<Option<Uploaded>, ArchiveError>,
+}
+
+/// Finishes the run folder `run_dir`: writes the report (a failure is recorded in
+/// `report-error.txt`), writes `manifest.json`, then, with `upload_to` (an archive URL:
+/// object store or `file://`), uploads the folder to `<upload_to>/<namespace>/<run>/<uid>/`,
+/// manifest last. `progress` shows a progress bar for the upload.
+///
+/// Without `upload_to` the folder itself is the archive (a local run whose `spec.archive`
+/// is a folder, or no archive at all).
+pub fn finish_run(run_dir: &Path, address: RunAddress<'_>, upload_to: Option<&str>, progress: bool) -> Finished {
+    let report_error = crate::report::write_report(run_dir).err();
+    if let Some(e) = &report_error {
+        // Best effort: the folder may be unwritable, and the message is returned anyway.
+        let _ = std::fs::write(run_dir.join(run_folder::REPORT_ERROR), format!("{e}\n"));
+    }
+    let archived = archive(run_dir, address, upload_to, progress);
+    Finished { report_error, archived }
+}
+
+fn archive(
+    run_dir: &Path,
+    address: RunAddress<'_>,
+    upload_to: Option<&str>,
+    progress: bool,
+) -> Result<Option<Uploaded>, ArchiveError> {
+    let RunAddress { namespace, run, uid } = address;
+    write_manifest(run_dir, namespace, run, uid)?;
+    let Some(url) = upload_to else { return Ok(None) };
+    let mut archive = Archive::open(url)?;
+    archive.set_progress(progress);
+    archive.upload_run(run_dir, namespace, run, uid).map(Some)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::archive::verify;
+
+    fn temp(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("sadesim-finish-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    const ADDRESS: RunAddress<'static> = RunAddress { namespace: "default", run: "quickstart", uid: "u-1" };
+
+    /// A folder without `plan.json` cannot be reported on: the reason is kept in the folder,
+    /// and the manifest (which lists `report-error.txt`) and the upload still happen.
+    #[test]
+    fn a_report_failure_is_recorded_and_the_folder_is_still_archived() {
+        let root = temp("report-error");
+        let run_dir = root.join("run");
+        std::fs::create_dir_all(&run_dir).unwrap();
+        std::fs::write(run_dir.join(run_folder::EVENTS), "").unwrap();
+        let archive_url = format!("file://{}", root.join("archive").display());
+
+        let done = finish_run(&run_dir, ADDRESS, Some(&archive_url), false);
+
+        let error = done.report_error.expect("no plan.json: no report");
+        assert!(error.contains(run_folder::PLAN), "{error}");
+        let recorded = std::fs::read_to_string(run_dir.join(run_folder::REPORT_ERROR)).unwrap();
+        assert_eq!(recorded.trim_end(), error);
+        assert!(!run_dir.join(run_folder::REPORT).exists());
+        let uploaded = done.archived.expect("archived").expect("uploaded");
+        assert_eq!(uploaded.url, format!("{archive_url}/default/quickstart/u-1"));
+        let listed: Vec<&str> = uploaded.manifest.files.iter().map(|f| f.path.as_str()).collect();
+        assert_eq!(listed, vec![run_folder::EVENTS, run_folder::REPORT_ERROR]);
+        assert!(verify(&uploaded.url).unwrap().passed());
+        // The local folder is verifiable too.
+        assert!(verify(run_dir.to_str().unwrap()).unwrap().passed());
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    /// Without an upload target the folder is the archive: a manifest, no upload.
+    #[test]
+    fn without_an_archive_the_folder_gets_its_manifest_only() {
+        let root = temp("local");
+        std::fs::write(root.join(run_folder::EVENTS), "").unwrap();
+        let done = finish_run(&root, ADDRESS, None, false);
+        assert!(done.archived.expect("manifest written").is_none());
+        assert!(verify(root.to_str().unwrap()).unwrap().passed());
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    /// An archive that cannot be opened is an error naming it; the local folder still has
+    /// its manifest.
+    #[test]
+    fn an_archive_that_cannot_be_opened_is_named() {
+        let root = temp("bad-url");
+        std::fs::write(root.join(run_folder::EVENTS), "").unwrap();
+        let done = finish_run(&root, ADDRESS, Some("ftp://nowhere/runs"), false);
+        let err = done.archived.expect_err("ftp is not an archive");
+        assert!(err.to_string().contains("ftp://nowhere/runs"), "{err}");
+        assert!(verify(root.to_str().unwrap()).unwrap().passed());
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+}

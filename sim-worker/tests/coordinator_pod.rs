@@ -1,0 +1,179 @@
+//! The coordinator pod's program, run for real: `sim-worker coordinator --finish-run` and
+//! one `sim-worker shard` process a shard, as the Kubernetes Pods run them (no shell, no
+//! `sadesim` after it), with a `file://` archive standing in for object storage. The run
+//! folder must arrive in the archive with the files a local run has (plan, report with its
+//! plots, manifest last and verifiable), also when the Pod is deleted mid-run (SIGTERM),
+//! and a failed upload must be told apart from a failed run by the exit status.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, ChildStdout, Command, ExitStatus, Stdio};
+
+use sadesim_crds::fixtures::RunBuilder;
+use sadesim_crds::outcome::coordinator::{Report, UPLOAD_FAILED_EXIT};
+use sadesim_crds::outcome::run_folder;
+use sadesim_crds::outcome::summary::RunSummary;
+use sadesim_crds::plan::RunPlan;
+use sadesim_crds::run::{Clock, ClockMode};
+use sadesim_evidence::archive::{Manifest, verify};
+
+const SIM_WORKER: &str = env!("CARGO_BIN_EXE_sim-worker");
+const UID: &str = "6f1c2a9e-0d4b-4e57-9a1b-3c8d2e7f5a10";
+
+fn temp(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("sadesim-coordinator-pod-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The plan of a one-drone fixture run with a uid (as the operator's runs have), written
+/// where the Pod's config volume would hold it.
+fn write_plan(dir: &Path, clock: ClockMode) -> (PathBuf, RunPlan) {
+    let run = RunBuilder::test()
+        .with(|r| {
+            r.metadata.uid = Some(UID.into());
+            r.spec.clock = Some(Clock { mode: clock, factor: None });
+        })
+        .build();
+    let plan = sadesim_planner::plan(&run).expect("the fixture plans");
+    let path = dir.join("config").join(run_folder::PLAN);
+    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+    std::fs::write(&path, serde_json::to_vec_pretty(&plan).unwrap()).unwrap();
+    (path, plan)
+}
+
+/// A coordinator Pod and its shard processes.
+struct Pod {
+    coordinator: Child,
+    stdout: BufReader<ChildStdout>,
+    shards: Vec<Child>,
+}
+
+impl Pod {
+    /// Starts the coordinator as the operator's Pod spec does (`--finish-run`, the archive
+    /// from `SADESIM_ARCHIVE_URL`), then every shard once it listens.
+    fn start(plan_file: &Path, plan: &RunPlan, out: &Path, archive_url: &str) -> Self {
+        let mut coordinator = Command::new(SIM_WORKER)
+            .args(["coordinator", "--plan"])
+            .arg(plan_file)
+            .args(["--listen", "127.0.0.1:0", "--airspace-bind", "127.0.0.1:0", "--out"])
+            .arg(out)
+            .arg("--finish-run")
+            .env("SADESIM_ARCHIVE_URL", archive_url)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("sim-worker starts");
+        let mut stdout = BufReader::new(coordinator.stdout.take().unwrap());
+        let Report::Listening { address, .. } = next_report(&mut stdout) else { panic!("expected listening first") };
+        let shards = (0..plan.shards.len())
+            .map(|i| {
+                Command::new(SIM_WORKER)
+                    .args(["shard", "--plan"])
+                    .arg(plan_file)
+                    .args(["--shard", &i.to_string(), "--coordinator", &address, "--no-mavlink"])
+                    .stdin(Stdio::null())
+                    .stdout(Stdio::null())
+                    .spawn()
+                    .expect("sim-worker shard starts")
+            })
+            .collect();
+        Pod { coordinator, stdout, shards }
+    }
+
+    /// Waits for every process; the coordinator's exit status. Its stdout is drained so a
+    /// full pipe cannot stall it.
+    fn wait(mut self) -> ExitStatus {
+        while !matches!(read_report(&mut self.stdout), None | Some(Report::Finished { .. } | Report::Failed { .. })) {}
+        std::io::copy(&mut self.stdout, &mut std::io::sink()).unwrap();
+        let status = self.coordinator.wait().unwrap();
+        for mut shard in self.shards {
+            assert!(shard.wait().unwrap().success(), "a shard failed");
+        }
+        status
+    }
+}
+
+fn read_report(stdout: &mut BufReader<ChildStdout>) -> Option<Report> {
+    let mut line = String::new();
+    (stdout.read_line(&mut line).unwrap() > 0)
+        .then(|| serde_json::from_str(&line).unwrap_or_else(|e| panic!("not a report line {line:?}: {e}")))
+}
+
+fn next_report(stdout: &mut BufReader<ChildStdout>) -> Report {
+    read_report(stdout).expect("the coordinator ended its stdout early")
+}
+
+/// The archived run folder `<archive>/default/test-run/<uid>/`: its manifest verifies, and
+/// it lists what a local run folder has.
+fn check_archived(archive: &Path, out: &Path) -> RunSummary {
+    let folder = archive.join("default/test-run").join(UID);
+    let url = format!("file://{}", folder.display());
+    let report = verify(&url).unwrap();
+    assert!(report.passed(), "{report:?}");
+    let manifest: Manifest =
+        serde_json::from_slice(&std::fs::read(folder.join(run_folder::MANIFEST)).unwrap()).unwrap();
+    let listed: Vec<&str> = manifest.files.iter().map(|f| f.path.as_str()).collect();
+    for name in [run_folder::PLAN, run_folder::SUMMARY, run_folder::EVENTS, run_folder::REPORT, "report/map.png"] {
+        assert!(listed.contains(&name), "{name} is not archived: {listed:?}");
+    }
+    assert!(!listed.contains(&run_folder::REPORT_ERROR), "the report failed: {listed:?}");
+    // The same files as the Pod's own folder (which has its manifest too).
+    let local: Manifest = serde_json::from_slice(&std::fs::read(out.join(run_folder::MANIFEST)).unwrap()).unwrap();
+    assert_eq!(local.files, manifest.files);
+    // The plan is the one the Pod was given, byte for byte.
+    let html = std::fs::read_to_string(folder.join(run_folder::REPORT)).unwrap();
+    assert!(html.contains("test-run"), "the report names the run");
+    serde_json::from_slice(&std::fs::read(folder.join(run_folder::SUMMARY)).unwrap()).unwrap()
+}
+
+#[test]
+fn the_coordinator_pod_reports_and_archives_its_run_folder() {
+    let dir = temp("archive");
+    let (plan_file, plan) = write_plan(&dir, ClockMode::AsFastAsPossible);
+    let (out, archive) = (dir.join("out"), dir.join("archive"));
+    let status = Pod::start(&plan_file, &plan, &out, &format!("file://{}", archive.display())).wait();
+    assert!(status.success(), "{status}");
+    let summary = check_archived(&archive, &out);
+    assert_eq!(summary.end_reason, "duration");
+    assert_eq!(std::fs::read(out.join(run_folder::PLAN)).unwrap(), std::fs::read(&plan_file).unwrap());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Deleting the Pod sends SIGTERM to the coordinator (PID 1, no shell to pass it on): the
+/// run ends there, and its files are still written, reported and archived.
+#[test]
+fn sigterm_ends_the_run_and_the_folder_is_still_archived() {
+    let dir = temp("sigterm");
+    let (plan_file, plan) = write_plan(&dir, ClockMode::Realtime);
+    let (out, archive) = (dir.join("out"), dir.join("archive"));
+    let mut pod = Pod::start(&plan_file, &plan, &out, &format!("file://{}", archive.display()));
+    // One simulated second in: the run is under way.
+    while !matches!(next_report(&mut pod.stdout), Report::Progress { sim_time_s, .. } if sim_time_s >= 1.0) {}
+    let killed = Command::new("kill").args(["-TERM", &pod.coordinator.id().to_string()]).status().unwrap();
+    assert!(killed.success());
+    let status = pod.wait();
+    assert!(status.success(), "{status}");
+    let summary = check_archived(&archive, &out);
+    assert_eq!(summary.end_reason, "interrupted");
+    assert!(summary.sim_time_s < 60.0, "the run went on after SIGTERM: {}", summary.sim_time_s);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// An archive that cannot take the upload: the run itself succeeded, so the exit status
+/// is UPLOAD_FAILED_EXIT (not a failed run), and the Pod's folder keeps every file.
+#[test]
+fn a_failed_upload_has_its_own_exit_status() {
+    let dir = temp("upload-failed");
+    let (plan_file, plan) = write_plan(&dir, ClockMode::AsFastAsPossible);
+    let out = dir.join("out");
+    // A regular file where the archive's folders would go.
+    let blocked = dir.join("not-a-folder");
+    std::fs::write(&blocked, "").unwrap();
+    let status = Pod::start(&plan_file, &plan, &out, &format!("file://{}/runs", blocked.display())).wait();
+    assert_eq!(status.code(), Some(i32::from(UPLOAD_FAILED_EXIT)), "{status}");
+    assert!(verify(out.to_str().unwrap()).unwrap().passed());
+    assert!(out.join(run_folder::REPORT).exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
