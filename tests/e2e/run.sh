@@ -176,7 +176,8 @@ case "$url" in
   "s3://$BUCKET/$RUN_NS/$RUN/$uid"*) echo "  status.archive.url=$url" ;;
   *) echo "e2e: status.archive.url is '$url', expected s3://$BUCKET/$RUN_NS/$RUN/$uid/" >&2; exit 1 ;;
 esac
-# `sadesim archive verify` re-reads every file against manifest.json; it runs in the
+# `sadesim archive verify` (in the worker image: the operator image has only the controller)
+# re-reads every file against manifest.json; it runs in the
 # cluster (with the run's object-store Secret) so MinIO need not be reachable from here.
 kubectl delete pod -n "$RUN_NS" archive-verify --ignore-not-found --wait
 kubectl apply -n "$RUN_NS" -f - <<YAML
@@ -188,7 +189,8 @@ spec:
   securityContext: {runAsNonRoot: true, runAsUser: 65532, seccompProfile: {type: RuntimeDefault}}
   containers:
     - name: verify
-      image: $OPERATOR_IMAGE
+      image: $WORKER_IMAGE
+      command: [/usr/local/bin/sadesim]
       args: [archive, verify, --quiet, "$url"]
       envFrom: [{secretRef: {name: sadesim-object-store}}]
       securityContext: {allowPrivilegeEscalation: false, readOnlyRootFilesystem: true, capabilities: {drop: [ALL]}}
