@@ -103,33 +103,29 @@ pub(super) fn run(
             )));
         }
     };
+    // One process per shard, then one router per segment, like the pods of a cluster run;
+    // each logs to `<role>-<index>.log`.
+    let start = |role: &str, index_flag: &str, index: u32, extra: &[&str]| {
+        spawn(
+            Command::new(&worker)
+                .args([role, "--plan"])
+                .arg(&plan_path)
+                .args([index_flag, &index.to_string()])
+                .args(extra)
+                .stdout(Stdio::null())
+                .stderr(log_file(out_dir, &format!("{role}-{index}.log"))?),
+            role,
+        )
+    };
     let mut shards = Vec::new();
     for shard in &plan.shards {
-        shards.push(spawn(
-            Command::new(&worker)
-                .arg("shard")
-                .arg("--plan")
-                .arg(&plan_path)
-                .args(["--shard", &shard.index.to_string(), "--coordinator", &address])
-                .args(if mavlink { &[][..] } else { &["--no-mavlink"][..] })
-                .stdout(Stdio::null())
-                .stderr(log_file(out_dir, &format!("shard-{}.log", shard.index))?),
-            "shard",
-        )?);
+        let extra: &[&str] =
+            if mavlink { &["--coordinator", &address] } else { &["--coordinator", &address, "--no-mavlink"] };
+        shards.push(start("shard", "--shard", shard.index, extra)?);
     }
-    // One router process per segment, like the router pods of a cluster run.
     if mavlink {
         for segment in &plan.segments {
-            shards.push(spawn(
-                Command::new(&worker)
-                    .arg("router")
-                    .arg("--plan")
-                    .arg(&plan_path)
-                    .args(["--segment", &segment.index.to_string()])
-                    .stdout(Stdio::null())
-                    .stderr(log_file(out_dir, &format!("router-{}.log", segment.index))?),
-                "router",
-            )?);
+            shards.push(start("router", "--segment", segment.index, &[])?);
         }
     }
     // Progress lines arrive on a reader thread so Ctrl-C is noticed between them.
