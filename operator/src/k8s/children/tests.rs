@@ -390,10 +390,11 @@ fn the_coordinator_uploads_its_run_folder_with_values_from_the_environment() {
     assert!(env.contains(&("SADESIM_ARCHIVE_URL".into(), Some("s3://sadesim-runs/team-a".into()))), "{env:?}");
     assert!(env.contains(&("SADESIM_RUN_UID".into(), Some(UID.into()))));
     assert_eq!(c.env_from.unwrap()[0].secret_ref.as_ref().unwrap().name, "sadesim-object-store");
-    let script = &c.args.unwrap()[0];
-    assert!(script.contains("sim-worker coordinator --plan /etc/sadesim/plan.json"), "{script}");
-    assert!(script.contains(r#"archive put --quiet --namespace "$SADESIM_NAMESPACE""#), "{script}");
-    assert!(!script.contains("s3://"), "URLs come from the environment, never spliced into the script");
+    assert_eq!(c.command.as_deref(), Some(&[super::pod::SIM_WORKER.to_string()][..]), "one program, no shell");
+    let args = c.args.unwrap();
+    assert_eq!(args[..3], ["coordinator", "--plan", "/etc/sadesim/plan.json"]);
+    assert_eq!(args.last().map(String::as_str), Some("--finish-run"), "{args:?}");
+    assert!(!args.iter().any(|a| a.contains("s3://")), "URLs come from the environment, never spliced into arguments");
     assert_eq!(
         archive_location(&plan, &s3()).as_deref(),
         Some(format!("s3://sadesim-runs/team-a/default/test-run/{UID}/").as_str())
@@ -426,10 +427,12 @@ fn a_stop_is_an_annotation_the_coordinator_reads_through_a_downward_api_file() {
     assert_eq!(running.spec, stopping.spec, "the spec of a running Pod cannot change");
     assert_eq!(running.metadata.labels, stopping.metadata.labels);
 
-    // The file the script names is the one the volume projects.
+    // The file the coordinator is given is the one the volume projects.
     let spec = running.spec.unwrap();
     let c = &spec.containers[0];
-    assert!(c.args.as_ref().unwrap()[0].contains(&format!("--control-file {CONTROL_FILE} ")));
+    let args = c.args.as_ref().unwrap();
+    let named = args.iter().position(|a| a == "--control-file").map(|i| args[i + 1].as_str());
+    assert_eq!(named, Some(CONTROL_FILE));
     let m = c.volume_mounts.as_ref().unwrap().iter().find(|m| m.name == "control").expect("control mount");
     assert_eq!(m.read_only, Some(true));
     let volume = spec.volumes.as_ref().unwrap().iter().find(|v| v.name == "control").expect("control volume");
@@ -528,43 +531,19 @@ fn children_are_deterministic() {
     );
 }
 
-/// Runs the coordinator pod's script under `sh` with stub binaries that log their calls:
-/// the report is built and the folder uploaded whatever the coordinator's exit status, in
-/// that order, and the pod's exit status is the coordinator's.
+/// The coordinator pod's arguments: the `sim-worker coordinator` flags (the process test
+/// `sim-worker/tests/coordinator_pod.rs` runs the role with the same ones), binding every
+/// interface of the pod on the planned ports, and `--finish-run` last.
 #[test]
-fn the_coordinator_script_reports_then_uploads_whatever_the_run_s_end() {
+fn the_coordinator_pod_runs_the_coordinator_role_on_the_planned_ports() {
     let run = piloted(3);
     let plan = planned(&run);
     let children = children(&run, &plan, &s3(), Stage::ALL);
-    let script = container(&children, "test-run-coordinator").args.unwrap()[0].clone();
-    for coordinator_status in [0, 1] {
-        let dir = std::env::temp_dir().join(format!("sadesim-script-{}-{coordinator_status}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        let calls = dir.join("calls.log");
-        let stub = |name: &str, status: i32| {
-            let path = dir.join(name);
-            std::fs::write(&path, format!("#!/bin/sh\necho \"{name} $1\" >> {}\nexit {status}\n", calls.display()))
-                .unwrap();
-            use std::os::unix::fs::PermissionsExt;
-            std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).unwrap();
-            path.display().to_string()
-        };
-        let script = script
-            .replace(super::pod::SIM_WORKER, &stub("sim-worker", coordinator_status))
-            .replace(super::pod::SADESIM, &stub("sadesim", 0));
-        let status = std::process::Command::new("sh")
-            .arg("-c")
-            .arg(&script)
-            .env("SADESIM_ARCHIVE_URL", "s3://bucket/prefix")
-            .env("SADESIM_NAMESPACE", "default")
-            .env("SADESIM_RUN", "test-run")
-            .env("SADESIM_RUN_UID", UID)
-            .status()
-            .expect("sh runs");
-        assert_eq!(status.code(), Some(coordinator_status), "the pod's status is the coordinator's");
-        let log = std::fs::read_to_string(&calls).unwrap();
-        assert_eq!(log.lines().collect::<Vec<_>>(), ["sim-worker coordinator", "sadesim report", "sadesim archive"]);
-        let _ = std::fs::remove_dir_all(&dir);
-    }
+    let args = container(&children, "test-run-coordinator").args.unwrap();
+    let value = |flag: &str| args.iter().position(|a| a == flag).map(|i| args[i + 1].clone());
+    assert_eq!(value("--listen"), Some(format!("0.0.0.0:{}", plan.services.coordinator)));
+    assert_eq!(value("--airspace-bind"), Some(format!("0.0.0.0:{}", plan.services.airspace_http)));
+    assert_eq!(value("--out").as_deref(), Some(super::pod::OUT_DIR));
+    let flags: Vec<&str> = args.iter().filter(|a| a.starts_with("--")).map(String::as_str).collect();
+    assert_eq!(flags, ["--plan", "--listen", "--airspace-bind", "--out", "--control-file", "--finish-run"]);
 }

@@ -24,9 +24,6 @@ use super::{ASSET_KEY_ANNOTATION, SEGMENT_LABEL, STOP_ANNOTATION, asset_cache_lo
 /// Seconds a stopping coordinator gets to finish the run, write its files and upload them.
 pub const COORDINATOR_GRACE_S: i64 = 600;
 
-/// Exit code of the coordinator pod when the run finished but its upload failed.
-pub const UPLOAD_FAILED_EXIT: i32 = 3;
-
 fn strings(items: &[&str]) -> Vec<String> {
     items.iter().map(|s| s.to_string()).collect()
 }
@@ -109,33 +106,34 @@ pub(super) fn airspace_service(ctx: &Context) -> Service {
     }
 }
 
-/// The coordinator pod's program: the coordinator, then (whatever its exit status) the
-/// report (`sadesim report`, as a local run writes it) and the upload of its run folder when an archive URL is set; exit status the coordinator's, or
-/// [`UPLOAD_FAILED_EXIT`] when only the upload failed. SIGTERM (pod deletion, abort) is
-/// passed on as SIGINT, which makes the coordinator end the run and write its files.
-/// Values come from the environment, never spliced into the script.
-fn coordinator_script(ctx: &Context) -> String {
+/// The coordinator pod's program, one process (no shell): `sim-worker coordinator
+/// --finish-run`, which runs the run, then, whatever its end, writes `plan.json`, the report
+/// and `manifest.json` into [`OUT_DIR`] and uploads the folder to `SADESIM_ARCHIVE_URL` (from
+/// the environment, never spliced into arguments). It catches SIGTERM (pod deletion) itself
+/// and still finishes the folder; it exits with `UPLOAD_FAILED_EXIT` when only the upload
+/// failed.
+fn coordinator_args(ctx: &Context) -> Vec<String> {
     let s = ctx.plan.services;
-    format!(
-        r#"{SIM_WORKER} coordinator --plan {PLAN_PATH} --listen 0.0.0.0:{link} --airspace-bind 0.0.0.0:{api} --out {OUT_DIR} --control-file {CONTROL_FILE} &
-child=$!
-trap 'kill -INT "$child" 2>/dev/null' INT TERM
-while :; do wait "$child"; rc=$?; kill -0 "$child" 2>/dev/null || break; done
-{SADESIM} report {OUT_DIR} || echo "sadesim: the report could not be built (the run's other files are kept)" >&2
-if [ -n "${{SADESIM_ARCHIVE_URL:-}}" ]; then
-  {SADESIM} archive put --quiet --namespace "$SADESIM_NAMESPACE" --run "$SADESIM_RUN" --uid "$SADESIM_RUN_UID" {OUT_DIR} "$SADESIM_ARCHIVE_URL" || {{ [ "$rc" -ne 0 ] || rc={UPLOAD_FAILED_EXIT}; }}
-else
-  echo "sadesim: no object-store archive configured: the run folder is not uploaded" >&2
-fi
-exit "$rc"
-"#,
-        link = s.coordinator,
-        api = s.airspace_http,
-    )
+    let listen = format!("0.0.0.0:{}", s.coordinator);
+    let airspace = format!("0.0.0.0:{}", s.airspace_http);
+    strings(&[
+        "coordinator",
+        "--plan",
+        PLAN_PATH,
+        "--listen",
+        &listen,
+        "--airspace-bind",
+        &airspace,
+        "--out",
+        OUT_DIR,
+        "--control-file",
+        CONTROL_FILE,
+        "--finish-run",
+    ])
 }
 
-/// `<run>-coordinator`: lockstep clock, recorder, airspace authority; uploads the run
-/// folder at the end (`sadesim archive put`, from the same image). Its stdout is the JSON
+/// `<run>-coordinator`: lockstep clock, recorder, airspace authority; finishes and uploads
+/// the run folder at the end (see [`coordinator_args`]). Its stdout is the JSON
 /// progress stream the controller reads.
 ///
 /// With `stop`, the Pod carries the annotation `sadesim.io/stop: <stop>`: the coordinator
@@ -144,9 +142,8 @@ exit "$rc"
 /// operator may change, so the same server-side apply that created the Pod asks it to stop.
 pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
     let s = ctx.plan.services;
-    let command = strings(&["/busybox/sh", "-c"]);
-    let mut c =
-        worker_container(ctx, "coordinator", command, vec![coordinator_script(ctx)], ctx.plan.resources.coordinator);
+    let command = strings(&[SIM_WORKER]);
+    let mut c = worker_container(ctx, "coordinator", command, coordinator_args(ctx), ctx.plan.resources.coordinator);
     let env = c.env.get_or_insert_with(Vec::new);
     if let Some(url) = upload_url(ctx.plan, ctx.settings) {
         env.push(super::pod::env("SADESIM_ARCHIVE_URL", url));
