@@ -6,6 +6,9 @@ import subprocess
 import pytest
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
+# Where cargo puts its builds: `CARGO_TARGET_DIR` when set (relative to the repository, where
+# `tests/run.sh` runs cargo), else `target/`.
+TARGET = REPO / os.environ.get("CARGO_TARGET_DIR", "target")
 
 
 @pytest.fixture(scope="session")
@@ -15,7 +18,7 @@ def repo() -> pathlib.Path:
 
 def debug_binary(name: str, package: str) -> str:
     """Path of the debug binary `name` of cargo package `package`, built if missing."""
-    exe = REPO / "target" / "debug" / name
+    exe = TARGET / "debug" / name
     if not exe.exists():
         subprocess.run(["cargo", "build", "-p", package], cwd=REPO, check=True)
     return str(exe)
