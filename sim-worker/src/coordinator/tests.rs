@@ -79,11 +79,12 @@ impl RunObserver for Windows {
 
 fn plan() -> RunPlan {
     let run = run_with_groups(&[("a", 1)])
-        .with(|r| r.spec.clock = Some(Clock { mode: ClockMode::AsFastAsPossible, factor: None }))
+        .with(|r| {
+            r.spec.clock = Some(Clock { mode: ClockMode::AsFastAsPossible, factor: None });
+            r.spec.duration = "1s".parse().expect("a valid duration");
+        })
         .build();
-    let mut plan = plan_of(run);
-    plan.duration_s = 1.0;
-    plan
+    plan_of(run)
 }
 
 fn run_two(

@@ -165,71 +165,19 @@ mod tests {
     use std::net::Ipv4Addr;
 
     use sadesim_crds::fixtures::RunBuilder;
-    use sadesim_crds::geo::{Enu, GeoPoint};
-    use sadesim_crds::plan::{
-        DronePorts, Home, PLAN_FORMAT_VERSION, PlannedDrone, ResourcePlan, RoleResources, RouterSegment, RunRef,
-        ServicePorts,
-    };
 
     use super::*;
+    use crate::airspace::monitor::test_plan::plan_of;
 
-    /// A plan with `n` drones in two segments (sysids restart at 1), two drones per shard.
-    fn plan(n: u32, per_segment: u32) -> RunPlan {
-        let run = RunBuilder::test().build();
-        let none = RoleResources { cpu_millis: 0, memory_mib: 0 };
-        let drones = (0..n)
-            .map(|i| PlannedDrone {
-                index: i,
-                name: format!("g-{i}"),
-                group: "g".into(),
-                group_index: 0,
-                member: i,
-                operator: "op".into(),
-                role: Default::default(),
-                airframe: "x500".into(),
-                system_id: (i % per_segment + 1) as u8,
-                component_id: 1,
-                segment: i / per_segment,
-                shard: i / 2,
-                ports: DronePorts { api_udp: 14540 + i as u16, endpoint: 24600 + i as u16 },
-                home: Home {
-                    local: Enu::default(),
-                    global: GeoPoint { latitude_deg: 0.0, longitude_deg: 0.0, altitude_msl_m: 0.0 },
-                },
-                scripted: true,
-            })
-            .collect();
-        let segments = (0..n.div_ceil(per_segment))
-            .map(|s| RouterSegment {
-                index: s,
-                first_drone: s * per_segment,
-                drone_count: per_segment.min(n - s * per_segment),
-                gcs_udp: 14550 + s as u16,
-                gcs_tcp: 5760 + s as u16,
-            })
-            .collect();
-        RunPlan {
-            format_version: PLAN_FORMAT_VERSION,
-            run: RunRef { name: "demo".into(), namespace: "default".into(), uid: None },
-            spec: run.spec,
-            duration_s: 1.0,
-            physics_rate_hz: 1000,
-            sync_window_steps: 10,
-            seed: 1,
-            drones,
-            shards: Vec::new(),
-            segments,
-            asset_cache_key: String::new(),
-            services: ServicePorts { coordinator: 7400, airspace_http: 8480, renderer_http: 8490, metrics: 9090 },
-            resources: ResourcePlan {
-                assets: none,
-                shards: Vec::new(),
-                coordinator: none,
-                router: none,
-                renderer: None,
-                pilot: None,
-            },
-        }
+    /// The planned run of `n` drones, `per_shard` drones per shard: 250 drones per router
+    /// segment (system ids restart at 1 in each).
+    fn plan(n: u32, per_shard: u32) -> RunPlan {
+        plan_of(RunBuilder::test().with_drones(n).with_drones_per_shard(per_shard).build())
+    }
+
+    /// `drone`'s endpoint port on `host`.
+    fn endpoint(plan: &RunPlan, host: &str, drone: usize) -> String {
+        format!("{host}:{}", plan.drones[drone].ports.endpoint)
     }
 
     fn options(segment: u32, drone_host: &str) -> RouterOptions {
@@ -238,34 +186,35 @@ mod tests {
 
     #[test]
     fn a_segment_gets_its_ports_and_only_its_drones() {
-        let plan = plan(7, 4);
+        let plan = plan(253, 100);
         let config = config(&plan, &options(1, DEFAULT_DRONE_HOST), &mut resolve).unwrap();
-        assert_eq!(config.gcs_udp, "0.0.0.0:14551".parse().unwrap());
-        assert_eq!(config.gcs_tcp, "0.0.0.0:5761".parse().unwrap());
+        let segment = &plan.segments[1];
+        assert_eq!(config.gcs_udp, SocketAddr::from((Ipv4Addr::UNSPECIFIED, segment.gcs_udp)));
+        assert_eq!(config.gcs_tcp, SocketAddr::from((Ipv4Addr::UNSPECIFIED, segment.gcs_tcp)));
         let drones: Vec<(u8, String)> = config.drones.iter().map(|d| (d.system_id, d.endpoint.to_string())).collect();
-        assert_eq!(
-            drones,
-            [(1, "127.0.0.1:24604".into()), (2, "127.0.0.1:24605".into()), (3, "127.0.0.1:24606".into())]
-        );
+        let local = |drone| endpoint(&plan, "127.0.0.1", drone);
+        assert_eq!(drones, [(1, local(250)), (2, local(251)), (3, local(252))]);
     }
 
     #[test]
     fn drone_hosts_follow_the_template_and_resolve_once_per_shard() {
-        let plan = plan(4, 250);
+        let plan = plan(4, 2);
         let mut asked = Vec::new();
         let config = config(&plan, &options(0, "{run}-shard-{shard}.{run}-shards"), &mut |host| {
             asked.push(host.to_string());
             Ok(IpAddr::V4(Ipv4Addr::new(10, 0, 0, asked.len() as u8)))
         })
         .unwrap();
-        assert_eq!(asked, ["demo-shard-0.demo-shards", "demo-shard-1.demo-shards"]);
+        let run = &plan.run.name;
+        assert_eq!(asked, [format!("{run}-shard-0.{run}-shards"), format!("{run}-shard-1.{run}-shards")]);
         let ips: Vec<String> = config.drones.iter().map(|d| d.endpoint.to_string()).collect();
-        assert_eq!(ips, ["10.0.0.1:24600", "10.0.0.1:24601", "10.0.0.2:24602", "10.0.0.2:24603"]);
+        let at = |ip, drone| endpoint(&plan, ip, drone);
+        assert_eq!(ips, [at("10.0.0.1", 0), at("10.0.0.1", 1), at("10.0.0.2", 2), at("10.0.0.2", 3)]);
     }
 
     #[test]
     fn bad_segments_and_templates_are_refused_with_the_flag_named() {
-        let plan = plan(3, 250);
+        let plan = plan(3, 100);
         let e = config(&plan, &options(1, DEFAULT_DRONE_HOST), &mut resolve).unwrap_err().to_string();
         assert!(e.contains("--segment 1") && e.contains("1 router segment"), "{e}");
         let e = config(&plan, &options(0, "{run}-{shards}"), &mut resolve).unwrap_err().to_string();
@@ -278,7 +227,7 @@ mod tests {
 
     #[test]
     fn the_role_serves_until_stopped() {
-        let mut plan = plan(2, 250);
+        let mut plan = plan(2, 100);
         let mut opts = options(0, DEFAULT_DRONE_HOST);
         opts.bind = IpAddr::V4(Ipv4Addr::LOCALHOST);
         // The plan's fixed ports would collide with parallel tests: take free ones.

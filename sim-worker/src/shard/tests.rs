@@ -7,7 +7,7 @@ use ::mavlink::dialects::common::{
     COMMAND_ACK_DATA, COMMAND_LONG_DATA, MavCmd, MavMessage, MavResult, PARAM_REQUEST_READ_DATA,
 };
 use ::mavlink::types::CharArray;
-use sadesim_crds::plan::{PlannedShard, RunPlan};
+use sadesim_crds::plan::RunPlan;
 use sadesim_world::{World, WorldInputs};
 
 use super::*;
@@ -17,9 +17,7 @@ use crate::mavlink::session::Outgoing;
 
 /// One drone (system id 1) in shard 0.
 fn plan() -> RunPlan {
-    let mut plan = plan_of(run_with_groups(&[("a", 1)]).build());
-    plan.shards = vec![PlannedShard { index: 0, first_drone: 0, drone_count: 1 }];
-    plan
+    plan_of(run_with_groups(&[("a", 1)]).build())
 }
 
 /// Shard 0 of `plan` with MAVLink sessions and no sockets.

@@ -1,11 +1,8 @@
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::{Credential, SecretKeyRef};
-use sadesim_crds::geo::{Enu, GeoPoint};
-use sadesim_crds::plan::{
-    DronePorts, Home, PLAN_FORMAT_VERSION, PlannedDrone, ResourcePlan, RoleResources, RunRef, ServicePorts,
-};
 
 use super::*;
+use crate::airspace::monitor::test_plan::plan_of;
 
 const DPS_TOKEN: &str = "dps-secret-token";
 const NEWS_TOKEN: &str = "news-secret-token";
@@ -51,55 +48,7 @@ fn plan() -> RunPlan {
             later.active_until = Some(serde_yaml::from_str("5m").unwrap());
         })
         .build();
-    let mut drones = Vec::new();
-    for (gi, g) in run.spec.fleet.iter().enumerate() {
-        for k in 0..g.count {
-            let index = drones.len() as u32;
-            drones.push(PlannedDrone {
-                index,
-                name: format!("{}-{k}", g.name),
-                group: g.name.clone(),
-                group_index: gi as u32,
-                member: k,
-                operator: g.operator.clone(),
-                role: g.role,
-                airframe: g.airframe.clone(),
-                system_id: index as u8 + 1,
-                component_id: 1,
-                segment: 0,
-                shard: 0,
-                ports: DronePorts { api_udp: 14540 + index as u16, endpoint: 24600 + index as u16 },
-                home: Home {
-                    local: Enu::default(),
-                    global: GeoPoint { latitude_deg: 0.0, longitude_deg: 0.0, altitude_msl_m: 0.0 },
-                },
-                scripted: false,
-            });
-        }
-    }
-    let none = RoleResources { cpu_millis: 0, memory_mib: 0 };
-    RunPlan {
-        format_version: PLAN_FORMAT_VERSION,
-        run: RunRef { name: "test-run".into(), namespace: "default".into(), uid: None },
-        spec: run.spec,
-        duration_s: 900.0,
-        physics_rate_hz: 1000,
-        sync_window_steps: 10,
-        seed: 1,
-        drones,
-        shards: Vec::new(),
-        segments: Vec::new(),
-        asset_cache_key: String::new(),
-        services: ServicePorts { coordinator: 7400, airspace_http: 8480, renderer_http: 8490, metrics: 9090 },
-        resources: ResourcePlan {
-            assets: none,
-            shards: Vec::new(),
-            coordinator: none,
-            router: none,
-            renderer: None,
-            pilot: None,
-        },
-    }
+    plan_of(run)
 }
 
 /// The Secret's value is in the coordinator's environment.

@@ -5,15 +5,13 @@ use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 
-use sadesim_crds::geo::{Enu, GeoPoint};
-use sadesim_crds::plan::{
-    DronePorts, Home, PLAN_FORMAT_VERSION, PlannedDrone, ResourcePlan, RoleResources, RunPlan, RunRef, ServicePorts,
-};
+use sadesim_crds::run::SimulationRun;
 use sadesim_crds::zones::Zone;
 use serde_json::{Value, json};
 
 use super::*;
 use crate::airspace::load::{self, HttpClient, HttpResponse};
+use crate::airspace::monitor::test_plan::plan_of;
 
 const DPS: &str = "dps-token-local-only";
 const NEWS: &str = "news-token-local-only";
@@ -33,61 +31,11 @@ const ROUTES: &[(&str, &str)] = &[
     ("get", "/events"),
 ];
 
-/// The Chicago case study (`examples/chicago-museum.yaml`) as a plan: its spec, and its
-/// drones named and numbered as the planner does (`<group>-<k>` in fleet order). The
-/// planner lives in the operator crate, which sim-worker cannot depend on.
-fn chicago_plan() -> RunPlan {
+/// The Chicago case study (`examples/chicago-museum.yaml`), to be planned by the real
+/// planner (drones `<group>-<k>` in fleet order).
+fn chicago_run() -> SimulationRun {
     let text = include_str!("../../../../examples/chicago-museum.yaml");
-    let run = sadesim_crds::parse_run(text).expect("the Chicago example parses");
-    let mut drones = Vec::new();
-    for (g, group) in run.spec.fleet.iter().enumerate() {
-        for member in 0..group.count {
-            let index = drones.len() as u32;
-            drones.push(PlannedDrone {
-                index,
-                name: format!("{}-{member}", group.name),
-                group: group.name.clone(),
-                group_index: g as u32,
-                member,
-                operator: group.operator.clone(),
-                role: group.role,
-                airframe: group.airframe.clone(),
-                system_id: (index + 1) as u8,
-                component_id: 1,
-                segment: 0,
-                shard: 0,
-                ports: DronePorts { api_udp: 14540 + index as u16, endpoint: 24600 + index as u16 },
-                home: Home {
-                    local: Enu::default(),
-                    global: GeoPoint { latitude_deg: 0.0, longitude_deg: 0.0, altitude_msl_m: 0.0 },
-                },
-                scripted: true,
-            });
-        }
-    }
-    let none = RoleResources { cpu_millis: 0, memory_mib: 0 };
-    RunPlan {
-        format_version: PLAN_FORMAT_VERSION,
-        run: RunRef { name: "chicago-museum".into(), namespace: "default".into(), uid: None },
-        spec: run.spec,
-        duration_s: 900.0,
-        physics_rate_hz: 1000,
-        sync_window_steps: 10,
-        seed: 42,
-        drones,
-        shards: Vec::new(),
-        segments: Vec::new(),
-        asset_cache_key: String::new(),
-        services: ServicePorts { coordinator: 7400, airspace_http: 8480, renderer_http: 8490, metrics: 9090 },
-        resources: ResourcePlan {
-            assets: none,
-            shards: Vec::new(),
-            coordinator: none,
-            router: none,
-            renderer: None,
-            pilot: None,
-        },
-    }
+    sadesim_crds::parse_run(text).expect("the Chicago example parses")
 }
 
 /// A zone next to the museum, from JSON (as a scenario would write it).
@@ -111,12 +59,13 @@ fn extra_zone(name: &str, extra: Value) -> Zone {
 /// The Chicago zone plus `later` (active from 300 s) and `single` (capacity 1), served on
 /// a free port.
 fn serve() -> (ServiceHandle, SharedAirspace) {
-    let mut plan = chicago_plan();
-    plan.spec.zones.push(extra_zone("later", json!({"activeFrom": "5m"})));
-    plan.spec.zones.push(extra_zone(
+    let mut run = chicago_run();
+    run.spec.zones.push(extra_zone("later", json!({"activeFrom": "5m"})));
+    run.spec.zones.push(extra_zone(
         "single",
         json!({"policy": {"authorizedOperators": ["chicago-dps"], "capacity": 1, "leaseDuration": "2m"}}),
     ));
+    let plan = plan_of(run);
     let state = Arc::new(Mutex::new(AirspaceState::new(&plan, &|_| None)));
     let handle = start(state.clone(), "127.0.0.1:0".parse().unwrap()).expect("the service starts");
     (handle, state)

@@ -89,7 +89,6 @@ mod tests {
     use ::mavlink::MavHeader;
     use ::mavlink::dialects::common::{MavMessage, PARAM_REQUEST_READ_DATA};
     use ::mavlink::types::CharArray;
-    use sadesim_crds::plan::PlannedShard;
     use sadesim_world::{World, WorldInputs};
 
     use super::*;
@@ -99,7 +98,6 @@ mod tests {
     #[test]
     fn a_udp_client_gets_its_parameter_through_the_shards_sockets() {
         let mut plan = plan_of(run_with_groups(&[("a", 1)]).build());
-        plan.shards = vec![PlannedShard { index: 0, first_drone: 0, drone_count: 1 }];
         plan.drones[0].ports.endpoint = 0; // any free port
         let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
         let mut shard = Shard::new(&plan, 0, world).unwrap();
