@@ -351,7 +351,6 @@ impl ShardLink for Greeted {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sadesim_crds::plan::PlannedShard;
     use std::sync::Arc;
 
     use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
@@ -360,8 +359,8 @@ mod tests {
     /// The coordinator of a 4-drone plan in 2 shards on free ports of 127.0.0.1.
     fn wait_for_shards(name: &str, stop: &AtomicBool, connect: Option<Duration>) -> (RoleError, Duration) {
         let dir = TempDir::new(name);
-        let mut plan = plan_of(run_with_groups(&[("a", 4)]).build());
-        plan.shards = (0..2).map(|index| PlannedShard { index, first_drone: 2 * index, drone_count: 2 }).collect();
+        let plan = plan_of(run_with_groups(&[("a", 4)]).with_drones_per_shard(2).build());
+        assert_eq!(plan.shards.len(), 2);
         let started = Instant::now();
         let timeouts = Timeouts { connect, shard: None };
         let any = SocketAddr::from(([127, 0, 0, 1], 0));
