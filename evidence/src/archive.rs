@@ -27,7 +27,7 @@ mod upload;
 mod url;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
 pub use check::{Problem, VerifyReport, get, verify};
 pub use error::ArchiveError;

@@ -68,13 +68,17 @@ fn archive(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::archive::tests::{file_url, temp};
     use crate::archive::verify;
 
-    fn temp(name: &str) -> std::path::PathBuf {
-        let dir = std::env::temp_dir().join(format!("sadesim-finish-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    /// A run folder `<temp>/<name>/run` holding an empty `events.jsonl` and no `plan.json`;
+    /// returns (temp root, run folder).
+    fn unreportable_run(name: &str) -> (std::path::PathBuf, std::path::PathBuf) {
+        let root = temp(&format!("finish-{name}"));
+        let run_dir = root.join("run");
+        std::fs::create_dir_all(&run_dir).unwrap();
+        std::fs::write(run_dir.join(run_folder::EVENTS), "").unwrap();
+        (root, run_dir)
     }
 
     const ADDRESS: RunAddress<'static> = RunAddress { namespace: "default", run: "quickstart", uid: "u-1" };
@@ -83,11 +87,8 @@ mod tests {
     /// and the manifest (which lists `report-error.txt`) and the upload still happen.
     #[test]
     fn a_report_failure_is_recorded_and_the_folder_is_still_archived() {
-        let root = temp("report-error");
-        let run_dir = root.join("run");
-        std::fs::create_dir_all(&run_dir).unwrap();
-        std::fs::write(run_dir.join(run_folder::EVENTS), "").unwrap();
-        let archive_url = format!("file://{}", root.join("archive").display());
+        let (root, run_dir) = unreportable_run("report-error");
+        let archive_url = file_url(&root.join("archive"));
 
         let done = finish_run(&run_dir, ADDRESS, Some(&archive_url), false);
 
@@ -109,11 +110,10 @@ mod tests {
     /// Without an upload target the folder is the archive: a manifest, no upload.
     #[test]
     fn without_an_archive_the_folder_gets_its_manifest_only() {
-        let root = temp("local");
-        std::fs::write(root.join(run_folder::EVENTS), "").unwrap();
-        let done = finish_run(&root, ADDRESS, None, false);
+        let (root, run_dir) = unreportable_run("local");
+        let done = finish_run(&run_dir, ADDRESS, None, false);
         assert!(done.archived.expect("manifest written").is_none());
-        assert!(verify(root.to_str().unwrap()).unwrap().passed());
+        assert!(verify(run_dir.to_str().unwrap()).unwrap().passed());
         std::fs::remove_dir_all(&root).unwrap();
     }
 
@@ -121,12 +121,11 @@ mod tests {
     /// its manifest.
     #[test]
     fn an_archive_that_cannot_be_opened_is_named() {
-        let root = temp("bad-url");
-        std::fs::write(root.join(run_folder::EVENTS), "").unwrap();
-        let done = finish_run(&root, ADDRESS, Some("ftp://nowhere/runs"), false);
+        let (root, run_dir) = unreportable_run("bad-url");
+        let done = finish_run(&run_dir, ADDRESS, Some("ftp://nowhere/runs"), false);
         let err = done.archived.expect_err("ftp is not an archive");
         assert!(err.to_string().contains("ftp://nowhere/runs"), "{err}");
-        assert!(verify(root.to_str().unwrap()).unwrap().passed());
+        assert!(verify(run_dir.to_str().unwrap()).unwrap().passed());
         std::fs::remove_dir_all(&root).unwrap();
     }
 }

@@ -122,7 +122,6 @@ fn check_archived(archive: &Path, out: &Path) -> RunSummary {
     // The same files as the Pod's own folder (which has its manifest too).
     let local: Manifest = serde_json::from_slice(&std::fs::read(out.join(run_folder::MANIFEST)).unwrap()).unwrap();
     assert_eq!(local.files, manifest.files);
-    // The plan is the one the Pod was given, byte for byte.
     let html = std::fs::read_to_string(folder.join(run_folder::REPORT)).unwrap();
     assert!(html.contains("test-run"), "the report names the run");
     serde_json::from_slice(&std::fs::read(folder.join(run_folder::SUMMARY)).unwrap()).unwrap()
@@ -137,6 +136,7 @@ fn the_coordinator_pod_reports_and_archives_its_run_folder() {
     assert!(status.success(), "{status}");
     let summary = check_archived(&archive, &out);
     assert_eq!(summary.end_reason, "duration");
+    // The plan is the one the Pod was given, byte for byte.
     assert_eq!(std::fs::read(out.join(run_folder::PLAN)).unwrap(), std::fs::read(&plan_file).unwrap());
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -9,7 +9,7 @@ use super::url::{Location, parse_location};
 use super::*;
 
 /// A fresh, empty temporary folder for one test.
-fn temp(name: &str) -> PathBuf {
+pub(crate) fn temp(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("sadesim-archive-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
@@ -39,7 +39,7 @@ fn make_run(dir: &FsPath) -> BTreeMap<String, Vec<u8>> {
     files
 }
 
-fn file_url(dir: &FsPath) -> String {
+pub(crate) fn file_url(dir: &FsPath) -> String {
     format!("file://{}", dir.display())
 }
 
