@@ -8,8 +8,9 @@
 //!
 //! `sadesim bench --airspace` measures the airspace authority's HTTP API instead: the
 //! service with the Chicago case study's zone and fleet on 127.0.0.1, under an open-loop
-//! load of entry requests, `GET /zones` and `GET /events` (see `sim_worker::airspace::load`).
+//! load of entry requests, `GET /zones` and `GET /events` (see [`airspace_load`]).
 
+pub mod airspace_load;
 pub mod pairs;
 
 use std::sync::Arc;
@@ -220,21 +221,43 @@ pub fn run_airspace(
     rate_per_s: f64,
     seconds: f64,
     connections: usize,
-) -> Result<sim_worker::airspace::load::LoadReport, AirspaceBenchError> {
-    use sim_worker::airspace::{AirspaceState, load, service};
+) -> Result<airspace_load::LoadReport, AirspaceBenchError> {
+    run_airspace_with(rate_per_s, seconds, connections).map(|(report, _)| report)
+}
+
+/// [`run_airspace`], also returning the service's state afterwards (what the authority
+/// recorded).
+fn run_airspace_with(
+    rate_per_s: f64,
+    seconds: f64,
+    connections: usize,
+) -> Result<(airspace_load::LoadReport, sim_worker::airspace::SharedAirspace), AirspaceBenchError> {
+    use sim_worker::airspace::{AirspaceState, service};
     let run = parse_run(CHICAGO).map_err(|e| AirspaceBenchError::Plan(e.to_string()))?;
     let plan = sadesim_planner::plan(&run).map_err(|e| AirspaceBenchError::Plan(e.to_string()))?;
     let state = AirspaceState::new(&plan, &|name| std::env::var(name).ok());
     let state = std::sync::Arc::new(std::sync::Mutex::new(state));
-    let service = service::start(state, std::net::SocketAddr::from(([127, 0, 0, 1], 0)))?;
-    let report = load::run(service.addr, rate_per_s, seconds, connections);
+    let service = service::start(state.clone(), std::net::SocketAddr::from(([127, 0, 0, 1], 0)))?;
+    let report = airspace_load::run(service.addr, rate_per_s, seconds, connections);
     service.stop();
-    Ok(report)
+    Ok((report, state))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_short_airspace_load_gets_every_request_answered_as_expected() {
+        let (report, state) = run_airspace_with(200.0, 1.0, 4).unwrap();
+        assert_eq!(report.requests, 200, "{report}");
+        assert_eq!(report.answered, 200, "{report}");
+        assert_eq!(report.errors, 0, "{report}");
+        // The mix: 3 grants, 5 denials, GET /zones and GET /events in every 10 requests.
+        assert_eq!((report.granted, report.denied), (60, 100), "{report}");
+        assert_eq!(state.lock().unwrap().authority.requests.len(), 160);
+        assert!(report.p50_ms <= report.p99_ms && report.p99_ms <= report.max_ms, "{report}");
+    }
 
     #[test]
     fn paired_costs_take_the_median_ratio_of_back_to_back_runs() {

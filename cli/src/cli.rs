@@ -62,7 +62,8 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
         }
         Command::Archive { command } => archive_command(command, out),
         Command::Report { run_dir } => {
-            let files = sadesim_evidence::report::write_report(&run_dir).map_err(CliError::Failed)?;
+            let files =
+                sadesim_evidence::report::write_report(&run_dir).map_err(|e| CliError::Failed(e.to_string()))?;
             writeln!(out, "report: {}", files.html.display())?;
             Ok(Outcome::Success)
         }
@@ -96,7 +97,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             Ok(Outcome::Success)
         }
         Command::Operator(args) => {
-            sadesim_operator::k8s::controller::run(args.options()).map_err(CliError::Failed)?;
+            sadesim_operator::k8s::controller::run(args.options()).map_err(|e| CliError::Failed(e.to_string()))?;
             Ok(Outcome::Success)
         }
     }

@@ -247,12 +247,12 @@ fn a_malformed_trajectory_fails_naming_the_file_line_and_column() {
     fields[7] = "12.5.3".into();
     lines[4] = fields.join(",");
     std::fs::write(dir.join("trajectory.csv"), lines.join("\n")).unwrap();
-    let err = write_report(&dir).unwrap_err();
+    let err = write_report(&dir).unwrap_err().to_string();
     assert!(err.contains("trajectory.csv: line 5: column `east_m`") && err.contains("\"12.5.3\""), "{err}");
     // A row with a missing field.
     lines[4] = "1.0,0,intruders-0".into();
     std::fs::write(dir.join("trajectory.csv"), lines.join("\n")).unwrap();
-    let err = write_report(&dir).unwrap_err();
+    let err = write_report(&dir).unwrap_err().to_string();
     assert!(err.contains("trajectory.csv: line 5: 3 fields, the header has 22"), "{err}");
 }
 
@@ -262,13 +262,13 @@ fn malformed_json_files_name_the_file_and_the_field() {
     let mut airspace: serde_json::Value = serde_json::from_str(&read(&dir, "airspace.json")).unwrap();
     airspace["violations"][0]["kind"] = "flyingTooFast".into();
     std::fs::write(dir.join("airspace.json"), serde_json::to_vec_pretty(&airspace).unwrap()).unwrap();
-    let err = write_report(&dir).unwrap_err();
+    let err = write_report(&dir).unwrap_err().to_string();
     assert!(err.contains("airspace.json: field `violations[0].kind`") && err.contains("flyingTooFast"), "{err}");
     let dir = copy_of_run("bad-events");
     let events = format!("{}{{\"timeS\": \"late\"}}\n", read(&dir, "events.jsonl"));
     let line = events.lines().count();
     std::fs::write(dir.join("events.jsonl"), events).unwrap();
-    let err = write_report(&dir).unwrap_err();
+    let err = write_report(&dir).unwrap_err().to_string();
     assert!(err.contains(&format!("events.jsonl: line {line}: not an event")), "{err}");
 }
 
@@ -277,7 +277,7 @@ fn missing_files_are_noted_and_a_missing_plan_is_an_error() {
     let dir = std::env::temp_dir().join(format!("sadesim-report-{}-plan-only", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let err = write_report(&dir).unwrap_err();
+    let err = write_report(&dir).unwrap_err().to_string();
     assert!(err.contains("plan.json: failed to read"), "{err}");
     std::fs::copy(run_dir().join("plan.json"), dir.join("plan.json")).unwrap();
     write_report(&dir).unwrap();
@@ -308,7 +308,7 @@ fn a_folder_that_cannot_take_the_plots_fails_naming_the_path() {
     std::fs::remove_file(dir.join(HTML_FILE)).unwrap();
     // A file where the plots' folder goes.
     std::fs::write(dir.join(IMAGES_DIR), b"not a folder").unwrap();
-    let err = write_report(&dir).unwrap_err();
+    let err = write_report(&dir).unwrap_err().to_string();
     assert!(err.contains(&format!("{}: cannot create", dir.join(IMAGES_DIR).display())), "{err}");
     // The page is written last: no page without its plots.
     assert!(!dir.join(HTML_FILE).exists());

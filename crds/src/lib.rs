@@ -2,7 +2,7 @@
 //! the resolved `RunPlan` every role reads, and the pilot-facing fleet file.
 //!
 //! This crate does no I/O (like `kube-core`): parsing takes `&str`, validation and geodesy
-//! are pure functions. Dependency direction: `crds` <- `sim-worker` <- `operator`.
+//! are pure functions. Every other crate depends on it; it depends on none of them.
 
 pub mod airframe;
 pub mod crd;
@@ -18,7 +18,6 @@ pub mod outcome;
 pub mod plan;
 pub mod polygon;
 pub mod random;
-pub mod reference;
 pub mod run;
 pub mod status;
 pub mod validate;

@@ -28,7 +28,7 @@ pub struct RunAddress<'a> {
 pub struct Finished {
     /// Why `report.html` could not be written (also in `report-error.txt`); `None` when it
     /// was.
-    pub report_error: Option<String>,
+    pub report_error: Option<crate::report::ReportError>,
     /// The upload (`None` when there was nothing to upload to), or why the manifest or the
     /// upload failed. The local folder keeps every file either way.
     pub archived: Result<Option<Uploaded>, ArchiveError>,
@@ -92,7 +92,7 @@ mod tests {
 
         let done = finish_run(&run_dir, ADDRESS, Some(&archive_url), false);
 
-        let error = done.report_error.expect("no plan.json: no report");
+        let error = done.report_error.expect("no plan.json: no report").to_string();
         assert!(error.contains(run_folder::PLAN), "{error}");
         let recorded = std::fs::read_to_string(run_dir.join(run_folder::REPORT_ERROR)).unwrap();
         assert_eq!(recorded.trim_end(), error);

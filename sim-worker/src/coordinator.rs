@@ -55,7 +55,14 @@ pub enum CoordinatorError {
     #[error("shard {shard} sent an unexpected message: {message}")]
     Unexpected { shard: usize, message: String },
     #[error("the observer failed: {0}")]
-    Observer(String),
+    Observer(#[source] ObserverError),
+    /// A shard failed, and then the observer could not record the end of the run.
+    #[error("{failure}; then recording the end of the run failed: {source}")]
+    ObserverAfterFailure {
+        failure: Box<RunFailure>,
+        #[source]
+        source: ObserverError,
+    },
     /// A shard failed once [`run`] had started; see [`RunFailure`]. [`run`] returns the
     /// shard variants above only inside this one, and otherwise only `Observer`.
     #[error("{0}")]
@@ -104,14 +111,22 @@ impl std::fmt::Display for RunFailure {
     }
 }
 
+/// Why an observer stopped the run (what it had written is kept).
+#[derive(Debug, thiserror::Error)]
+pub enum ObserverError {
+    /// The recording could not be written (disk full, the folder removed).
+    #[error("failed to record: {0}")]
+    Record(#[source] std::io::Error),
+}
+
 /// What the coordinator reports each window, and asks about ending early.
 pub trait RunObserver {
     /// A window ended at `time_s`: every drone's state (by global index) and the events
     /// that happened during the window, in time order.
     ///
     /// # Errors
-    /// A message; the run stops (outputs already written are kept).
-    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String>;
+    /// [`ObserverError`]; the run stops (outputs already written are kept).
+    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError>;
     /// Asked before each window: the valid zone leases as `[drone, zone]` pairs when they
     /// changed since the last call (the shards' geofences let drones into leased zones).
     fn leases_changed(&mut self) -> Option<Vec<[u32; 2]>> {
@@ -183,7 +198,7 @@ pub fn run(
     let end = [Event { time_s: sim_time_s, drone: None, kind: EventKind::RunEnded { reason: failure.end_reason() } }];
     observer
         .on_window(sim_time_s, &state.drones, &end)
-        .map_err(|e| CoordinatorError::Observer(format!("{failure}; then recording the end of the run failed: {e}")))?;
+        .map_err(|source| CoordinatorError::ObserverAfterFailure { failure: Box::new(failure.clone()), source })?;
     Err(CoordinatorError::RunFailed(Box::new(failure)))
 }
 
@@ -200,7 +215,9 @@ fn shard_cause(error: &CoordinatorError) -> Option<(u32, String)> {
             (*shard, format!("it speaks protocol version {version}, expected {PROTOCOL_VERSION}"))
         }
         CoordinatorError::Unexpected { shard, message } => (*shard as u32, format!("unexpected message: {message}")),
-        CoordinatorError::Observer(_) | CoordinatorError::RunFailed(_) => return None,
+        CoordinatorError::Observer(_)
+        | CoordinatorError::ObserverAfterFailure { .. }
+        | CoordinatorError::RunFailed(_) => return None,
     };
     let cause = match cause.char_indices().nth(MAX_CHARS) {
         Some((cut, _)) => format!("{}...", &cause[..cut]),

@@ -15,7 +15,7 @@ use sadesim_evidence::archive::is_object_store;
 use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
 use sadesim_world::{World, WorldInputs};
 use sim_worker::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
-use sim_worker::coordinator::{self, CoordinatorError, RunObserver, ShardLink};
+use sim_worker::coordinator::{self, CoordinatorError, ObserverError, RunObserver, ShardLink};
 use sim_worker::events::{Event, EventKind};
 use sim_worker::mavlink::router::RouterHandle;
 use sim_worker::protocol::{DroneSnapshot, FleetCounts};
@@ -188,7 +188,7 @@ struct Progress<'a> {
 }
 
 impl RunObserver for Progress<'_> {
-    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
+    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
         // Recorded (and flushed) first: a pilot that starts now finds `pilotsReleased` in
         // events.jsonl.
         self.recorder.on_window(time_s, drones, events)?;
@@ -301,6 +301,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         eprintln!("warning: the run's report was not written: {e}");
     }
     let summary = summary?;
+    let report_error = report_error.map(|e| e.to_string());
     Ok(RunReport { out_dir, summary, pilot: record, archive: archived?.map(|a| a.url), report_error })
 }
 

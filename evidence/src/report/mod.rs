@@ -77,25 +77,52 @@ pub fn build(data: &RunData) -> Report {
     Report { html, map_svg, altitude_svg }
 }
 
+/// Why a run folder's report could not be written; every variant names the file.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// A file of the folder is missing (`plan.json`) or malformed (file, line or field).
+    #[error(transparent)]
+    Data(#[from] DataError),
+    #[error("{path}: cannot create: {source}")]
+    Create {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: String,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A plot could not be rasterised (a bug of the report's SVG, not of the run).
+    #[error("{path}: {message}")]
+    Render { path: String, message: String },
+}
+
 /// Builds the report of the run folder `run_dir` into the same folder: `report.html`,
 /// `report/map.svg`, `report/altitude.svg`, `report/map.png`, `report/altitude.png`.
 ///
 /// # Errors
 /// A message naming the file (and line or field) when a file of the folder is malformed
 /// or `plan.json` is missing, or the file that could not be written.
-pub fn write_report(run_dir: &Path) -> Result<ReportFiles, String> {
-    let data = RunData::read(run_dir).map_err(|e| e.to_string())?;
+pub fn write_report(run_dir: &Path) -> Result<ReportFiles, ReportError> {
+    let data = RunData::read(run_dir)?;
     let report = build(&data);
     let images_dir = run_dir.join(IMAGES_DIR);
-    std::fs::create_dir_all(&images_dir).map_err(|e| format!("{}: cannot create: {e}", images_dir.display()))?;
-    let write = |path: PathBuf, bytes: &[u8]| -> Result<PathBuf, String> {
-        std::fs::write(&path, bytes).map_err(|e| format!("{}: cannot write: {e}", path.display()))?;
+    std::fs::create_dir_all(&images_dir)
+        .map_err(|source| ReportError::Create { path: images_dir.display().to_string(), source })?;
+    let write = |path: PathBuf, bytes: &[u8]| -> Result<PathBuf, ReportError> {
+        std::fs::write(&path, bytes)
+            .map_err(|source| ReportError::Write { path: path.display().to_string(), source })?;
         Ok(path)
     };
     let mut images = Vec::new();
     for (name, svg) in [("map", &report.map_svg), ("altitude", &report.altitude_svg)] {
         images.push(write(images_dir.join(format!("{name}.svg")), svg.as_bytes())?);
-        let png = png::render(svg).map_err(|e| format!("{}: {e}", images_dir.join(format!("{name}.png")).display()))?;
+        let path = images_dir.join(format!("{name}.png"));
+        let png =
+            png::render(svg).map_err(|message| ReportError::Render { path: path.display().to_string(), message })?;
         images.push(write(images_dir.join(format!("{name}.png")), &png)?);
     }
     // The page last: a folder with report.html has its plots too.

@@ -43,6 +43,86 @@ pub use kueue::{KUEUE_QUEUE_LABEL, kueue_queue};
 pub use pod::{CONFIG_DIR, CONTROL_FILE, FLEET_PATH, OUT_DIR, PLAN_PATH, RUN_AS_ID};
 pub use sadesim_crds::outcome::control::STOP_ANNOTATION;
 
+/// The role a child plays in the run (DESIGN §3): the value of [`ROLE_LABEL`], the
+/// container name of its pod, and what the controller selects children by.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Role {
+    /// The ConfigMaps with `plan.json` and `fleet.json`.
+    Config,
+    /// The Job that builds the world into the asset cache.
+    Assets,
+    /// Lockstep clock, recorder, airspace authority, end of run (one Pod and its Service).
+    Coordinator,
+    /// One MAVLink router Pod and Service per segment.
+    Router,
+    /// The physics shards (an Indexed Job and its headless Service).
+    Shard,
+    /// The browser 3D view (Deployment and Service).
+    Renderer,
+    /// The user's pilot image (a Job).
+    Pilot,
+}
+
+impl Role {
+    /// Every role, in apply order.
+    pub const ALL: [Role; 7] =
+        [Role::Config, Role::Assets, Role::Coordinator, Role::Router, Role::Shard, Role::Renderer, Role::Pilot];
+
+    /// The label value (`config`, `assets`, `coordinator`, `router`, `shard`, `renderer`, `pilot`).
+    pub const fn label(self) -> &'static str {
+        match self {
+            Role::Config => "config",
+            Role::Assets => "assets",
+            Role::Coordinator => "coordinator",
+            Role::Router => "router",
+            Role::Shard => "shard",
+            Role::Renderer => "renderer",
+            Role::Pilot => "pilot",
+        }
+    }
+
+    /// The role whose label value is `label`; `None` for anything else (an object someone
+    /// labelled by hand).
+    pub fn from_label(label: &str) -> Option<Role> {
+        Role::ALL.into_iter().find(|r| r.label() == label)
+    }
+}
+
+impl std::fmt::Display for Role {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.label())
+    }
+}
+
+/// The kinds of object a run's children are (and the controller lists and deletes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Kind {
+    ConfigMap,
+    Job,
+    Service,
+    Pod,
+    Deployment,
+}
+
+impl Kind {
+    /// The object's `kind`.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Kind::ConfigMap => "ConfigMap",
+            Kind::Job => "Job",
+            Kind::Service => "Service",
+            Kind::Pod => "Pod",
+            Kind::Deployment => "Deployment",
+        }
+    }
+}
+
+impl std::fmt::Display for Kind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// Label with the run's name on every child.
 pub const RUN_LABEL: &str = "sadesim.io/run";
 /// Label with the child's role (`config`, `assets`, `shard`, `coordinator`, `router`,
@@ -116,14 +196,19 @@ pub enum Child {
 
 impl Child {
     /// `kind` of the object.
-    pub fn kind(&self) -> &'static str {
+    pub fn kind(&self) -> Kind {
         match self {
-            Child::ConfigMap(_) => "ConfigMap",
-            Child::Job(_) => "Job",
-            Child::Service(_) => "Service",
-            Child::Pod(_) => "Pod",
-            Child::Deployment(_) => "Deployment",
+            Child::ConfigMap(_) => Kind::ConfigMap,
+            Child::Job(_) => Kind::Job,
+            Child::Service(_) => Kind::Service,
+            Child::Pod(_) => Kind::Pod,
+            Child::Deployment(_) => Kind::Deployment,
         }
+    }
+
+    /// The role the object's [`ROLE_LABEL`] names (every child has one).
+    pub fn role(&self) -> Option<Role> {
+        self.labels().and_then(|l| l.get(ROLE_LABEL)).and_then(|r| Role::from_label(r))
     }
 
     /// `metadata.name` of the object.
@@ -223,12 +308,40 @@ pub fn upload_url<'a>(plan: &'a RunPlan, settings: &'a ClusterSettings) -> Optio
     archive_url(plan, settings).filter(|u| sadesim_evidence::archive::is_object_store(u))
 }
 
-/// Where the run's evidence lands: `<archive>/<namespace>/<run>/<uid>/` (the layout of
-/// `sadesim archive put`), when the run has an object-store archive and a uid.
+/// A run's folder in an archive: `<archive>/<namespace>/<run>/<uid>/`, the layout of
+/// `sadesim archive put` and of the coordinator's upload. The operator adds the pod logs
+/// under `logs/` there.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RunFolder {
+    /// The archive URL without a trailing `/` (`s3://bucket/prefix`, `file:///srv/runs`).
+    pub archive: String,
+    pub namespace: String,
+    pub run: String,
+    pub uid: String,
+}
+
+impl RunFolder {
+    pub fn new(archive: &str, namespace: &str, run: &str, uid: &str) -> Self {
+        Self {
+            archive: archive.trim_end_matches('/').to_string(),
+            namespace: namespace.to_string(),
+            run: run.to_string(),
+            uid: uid.to_string(),
+        }
+    }
+
+    /// The folder's URL, with a trailing `/`.
+    pub fn url(&self) -> String {
+        format!("{}/{}/{}/{}/", self.archive, self.namespace, self.run, self.uid)
+    }
+}
+
+/// Where the run's evidence lands ([`RunFolder::url`]), when the run has an object-store
+/// archive and a uid.
 pub fn archive_location(plan: &RunPlan, settings: &ClusterSettings) -> Option<String> {
     let url = upload_url(plan, settings)?;
     let uid = plan.run.uid.as_deref()?;
-    Some(format!("{}/{}/{}/{uid}/", url.trim_end_matches('/'), plan.run.namespace, plan.run.name))
+    Some(RunFolder::new(url, &plan.run.namespace, &plan.run.name, uid).url())
 }
 
 /// Where the assets of `plan` are cached: `<archive>/assets/<asset cache key>/world/`

@@ -76,39 +76,52 @@ impl Default for OperatorOptions {
 /// No cluster to talk to (no kubeconfig and no in-cluster service account), the API
 /// server unreachable or without the SimulationRun CRD, the metrics address taken, or
 /// leadership lost. Each message says what to fix.
-pub fn run(options: OperatorOptions) -> Result<(), String> {
-    let runtime = tokio::runtime::Builder::new_current_thread()
-        .enable_all()
-        .build()
-        .map_err(|e| format!("failed to start the async runtime: {e}"))?;
+pub fn run(options: OperatorOptions) -> Result<(), OperatorError> {
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_all().build().map_err(OperatorError::Runtime)?;
     runtime.block_on(operate(options))
 }
 
-async fn operate(options: OperatorOptions) -> Result<(), String> {
-    let mut config = Config::infer().await.map_err(|e| {
-        format!(
-            "no Kubernetes cluster to talk to: {e}. `sadesim operator` needs a kubeconfig (KUBECONFIG or ~/.kube/config) or must run in a pod with a service account"
-        )
-    })?;
+/// Why the operator could not start or go on; each message says what to fix.
+#[derive(Debug, thiserror::Error)]
+pub enum OperatorError {
+    #[error("failed to start the async runtime: {0}")]
+    Runtime(#[source] std::io::Error),
+    #[error(
+        "no Kubernetes cluster to talk to: {0}. `sadesim operator` needs a kubeconfig (KUBECONFIG or ~/.kube/config) or must run in a pod with a service account"
+    )]
+    NoCluster(#[source] kube::config::InferConfigError),
+    #[error("failed to build the Kubernetes client: {0}")]
+    Client(#[source] kube::Error),
+    #[error("the Kubernetes API server at {server} did not answer within {seconds} s")]
+    Unreachable { server: String, seconds: u64 },
+    #[error("the SimulationRun CRD is not installed: `sadesim crd | kubectl apply -f -` (or install the Helm chart)")]
+    NoCrd,
+    #[error("cannot list SimulationRuns at the API server {server}: {source}")]
+    List {
+        server: String,
+        #[source]
+        source: kube::Error,
+    },
+    #[error(transparent)]
+    Metrics(#[from] metrics::ListenError),
+    #[error("lost leadership of Lease sadesim-operator: stopped reconciling")]
+    LostLeadership,
+}
+
+async fn operate(options: OperatorOptions) -> Result<(), OperatorError> {
+    let mut config = Config::infer().await.map_err(OperatorError::NoCluster)?;
     config.connect_timeout = Some(CONNECT_TIMEOUT);
     config.read_timeout = Some(Duration::from_secs(295));
     let default_ns = config.default_namespace.clone();
     let server_url = config.cluster_url.to_string();
-    let client = Client::try_from(config).map_err(|e| format!("failed to build the Kubernetes client: {e}"))?;
+    let client = Client::try_from(config).map_err(OperatorError::Client)?;
 
     // Fail fast, with the fix, when the API server or the CRD is missing.
     let runs: Api<SimulationRun> = Api::all(client.clone());
     match tokio::time::timeout(CONNECT_TIMEOUT, runs.list(&ListParams::default().limit(1))).await {
-        Err(_) => {
-            return Err(format!(
-                "the Kubernetes API server at {server_url} did not answer within {} s",
-                CONNECT_TIMEOUT.as_secs()
-            ));
-        }
-        Ok(Err(kube::Error::Api(e))) if e.code == 404 => {
-            return Err("the SimulationRun CRD is not installed: `sadesim crd | kubectl apply -f -` (or install the Helm chart)".into());
-        }
-        Ok(Err(e)) => return Err(format!("cannot list SimulationRuns at the API server {server_url}: {e}")),
+        Err(_) => return Err(OperatorError::Unreachable { server: server_url, seconds: CONNECT_TIMEOUT.as_secs() }),
+        Ok(Err(kube::Error::Api(e))) if e.code == 404 => return Err(OperatorError::NoCrd),
+        Ok(Err(source)) => return Err(OperatorError::List { server: server_url, source }),
         Ok(Ok(_)) => {}
     }
 
@@ -169,7 +182,7 @@ async fn operate(options: OperatorOptions) -> Result<(), String> {
         })
         .await;
     if leadership.is_some_and(|l| !*l.borrow()) {
-        return Err("lost leadership of Lease sadesim-operator: stopped reconciling".into());
+        return Err(OperatorError::LostLeadership);
     }
     let _ = server.await;
     log::info("stopped", &[]);

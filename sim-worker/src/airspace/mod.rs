@@ -19,7 +19,6 @@
 
 pub mod authority;
 pub mod criteria;
-pub mod load;
 pub mod monitor;
 pub mod runtime;
 pub mod service;

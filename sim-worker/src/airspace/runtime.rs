@@ -18,7 +18,7 @@ use super::criteria::{self, RunVerdict};
 use super::monitor::{ComplianceReport, Monitor};
 use super::service::{self, ServiceHandle};
 use super::{AirspaceState, SharedAirspace};
-use crate::coordinator::RunObserver;
+use crate::coordinator::{ObserverError, RunObserver};
 use crate::events::{Event, EventKind};
 use crate::protocol::DroneSnapshot;
 
@@ -183,7 +183,7 @@ impl<'a> WithAirspace<'a> {
 }
 
 impl RunObserver for WithAirspace<'_> {
-    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
+    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
         let raised = self.airspace.on_window(time_s, drones, events);
         if raised.is_empty() {
             return self.inner.on_window(time_s, drones, events);

@@ -19,6 +19,8 @@
 //! connection: the state lock's poison is ignored because the authority changes its state
 //! whole, one request at a time.
 
+pub mod client;
+
 use std::net::SocketAddr;
 use std::sync::{MutexGuard, PoisonError};
 use std::time::Duration;

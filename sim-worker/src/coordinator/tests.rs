@@ -71,7 +71,7 @@ impl ShardLink for Scripted {
 struct Windows(Vec<(f64, Vec<Event>)>);
 
 impl RunObserver for Windows {
-    fn on_window(&mut self, time_s: f64, _drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
+    fn on_window(&mut self, time_s: f64, _drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
         self.0.push((time_s, events.to_vec()));
         Ok(())
     }
@@ -159,14 +159,17 @@ fn a_run_without_failures_still_ends_with_duration() {
 struct Broken;
 
 impl RunObserver for Broken {
-    fn on_window(&mut self, _: f64, _: &[DroneSnapshot], _: &[Event]) -> Result<(), String> {
-        Err("disk full".into())
+    fn on_window(&mut self, _: f64, _: &[DroneSnapshot], _: &[Event]) -> Result<(), ObserverError> {
+        Err(ObserverError::Record(std::io::Error::other("disk full")))
     }
 }
 
 #[test]
 fn an_observer_failure_is_not_blamed_on_a_shard() {
     let (result, sent) = run_two(Then::Answer, 0, &mut Broken);
-    assert!(matches!(&result, Err(CoordinatorError::Observer(m)) if m == "disk full"), "{result:?}");
+    assert!(
+        matches!(&result, Err(CoordinatorError::Observer(ObserverError::Record(e))) if e.to_string() == "disk full"),
+        "{result:?}"
+    );
     assert_eq!(sent.last(), Some(&ToShard::Stop));
 }

@@ -11,7 +11,7 @@ use super::{
     UlogRecorder,
 };
 use crate::airspace::criteria::RunVerdict;
-use crate::coordinator::{RunObserver, RunOutcome};
+use crate::coordinator::{ObserverError, RunObserver, RunOutcome};
 use crate::events::{Event, EventKind};
 use crate::protocol::DroneSnapshot;
 
@@ -134,17 +134,16 @@ impl Recorder {
 }
 
 impl RunObserver for Recorder {
-    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
-        let io = |e: std::io::Error| format!("failed to record: {e}");
+    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
         let mut cost = self.summary.recording_cpu_s;
         let mut lap = Lap::start();
-        self.events.write(events).map_err(io)?;
+        self.events.write(events).map_err(ObserverError::Record)?;
         if let Some(streams) = &mut self.streams {
-            streams.write(time_s, drones.to_vec(), events.to_vec()).map_err(io)?;
+            streams.write(time_s, drones.to_vec(), events.to_vec()).map_err(ObserverError::Record)?;
         }
         let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
         if !final_window && self.rows.due(time_s) {
-            self.csv.write(time_s, drones, &self.plan, &self.frame).map_err(io)?;
+            self.csv.write(time_s, drones, &self.plan, &self.frame).map_err(ObserverError::Record)?;
         }
         // The track's last point is where the drone ended, whatever the rate.
         if self.track_points.due(time_s) || final_window {

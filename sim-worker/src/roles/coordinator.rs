@@ -24,7 +24,7 @@ pub use sadesim_crds::outcome::coordinator::{FailedRole, Report};
 use super::RoleError;
 use super::control::StopRequest;
 use crate::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
-use crate::coordinator::{self, CoordinatorError, LinkError, RunFailure, RunObserver, ShardLink};
+use crate::coordinator::{self, CoordinatorError, LinkError, ObserverError, RunFailure, RunObserver, ShardLink};
 use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION};
 use crate::record::{Recorder, RecorderOptions, RunSummary};
@@ -53,7 +53,7 @@ struct Reporting<'a> {
 }
 
 impl RunObserver for Reporting<'_> {
-    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), String> {
+    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
         self.recorder.on_window(time_s, drones, events)?;
         if time_s >= self.next_report_s {
             self.next_report_s = time_s.floor() + 1.0;

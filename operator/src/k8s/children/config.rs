@@ -11,7 +11,7 @@ use k8s_openapi::api::core::v1::ConfigMap;
 use sadesim_crds::plan::RunPlan;
 
 use super::pod::Context;
-use super::{ASSET_KEY_ANNOTATION, Problem, names};
+use super::{ASSET_KEY_ANNOTATION, Problem, Role, names};
 use sadesim_planner::{Addressing, fleet_file};
 
 /// Most bytes of `data` the API server accepts in one ConfigMap (1 MiB).
@@ -50,7 +50,7 @@ pub(super) fn size_problems(plan: &RunPlan) -> Vec<Problem> {
 }
 
 fn config_map(ctx: &Context, name: String, key: &str, value: String) -> ConfigMap {
-    let mut meta = ctx.meta(name, "config");
+    let mut meta = ctx.meta(name, Role::Config);
     meta.annotations = Some(BTreeMap::from([(ASSET_KEY_ANNOTATION.to_string(), ctx.plan.asset_cache_key.clone())]));
     ConfigMap { metadata: meta, data: Some(BTreeMap::from([(key.to_string(), value)])), ..Default::default() }
 }

@@ -9,7 +9,7 @@ use super::pod::{
     CONFIG_DIR, Context, FLEET_PATH, OUT_DIR, TMP_DIR, config_volume, container_security, empty_dir, env, mount,
     pod_spec, resources,
 };
-use super::{kueue, names};
+use super::{Role, kueue, names};
 
 /// `<run>-pilot`, or `None` when the run has no pilot or its pilot has no image (see
 /// `problems`). Environment, in order: `spec.pilot.env`, `SADESIM_FLEET` (the mounted
@@ -30,7 +30,7 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
     vars.extend(ctx.credential_env());
     let planned = ctx.plan.resources.pilot.unwrap_or(RoleResources { cpu_millis: 500, memory_mib: 512 });
     let container = Container {
-        name: "pilot".into(),
+        name: Role::Pilot.label().into(),
         image: Some(image),
         command: (!pilot.command.is_empty()).then(|| pilot.command.clone()),
         env: Some(vars),
@@ -47,13 +47,13 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
     let mut fleet = config_volume(names::fleet(ctx.name));
     fleet.name = "fleet".into();
     let spec = pod_spec(vec![container], vec![fleet, empty_dir("tmp"), empty_dir("out")], "Never");
-    let mut meta = ctx.meta(names::pilot_job(ctx.name), "pilot");
+    let mut meta = ctx.meta(names::pilot_job(ctx.name), Role::Pilot);
     kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
     Some(Job {
         metadata: meta,
         spec: Some(JobSpec {
             backoff_limit: Some(0),
-            template: PodTemplateSpec { metadata: Some(ctx.template_meta("pilot")), spec: Some(spec) },
+            template: PodTemplateSpec { metadata: Some(ctx.template_meta(Role::Pilot)), spec: Some(spec) },
             ..Default::default()
         }),
         ..Default::default()

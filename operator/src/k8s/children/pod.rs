@@ -14,7 +14,7 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::fleet::Credential;
 use sadesim_crds::plan::{RoleResources, RunPlan};
 
-use super::{ClusterSettings, OWNER_API_VERSION, OWNER_KIND, ROLE_LABEL, RUN_LABEL};
+use super::{ClusterSettings, OWNER_API_VERSION, OWNER_KIND, ROLE_LABEL, RUN_LABEL, Role};
 use sadesim_planner::credential_env_var;
 
 /// Uid and gid every pod runs as (distroless `nonroot`).
@@ -56,20 +56,23 @@ impl<'a> Context<'a> {
     }
 
     /// `sadesim.io/run` and `sadesim.io/role` (and the recommended `app.kubernetes.io/*`).
-    pub fn labels(&self, role: &str) -> BTreeMap<String, String> {
+    pub fn labels(&self, role: Role) -> BTreeMap<String, String> {
         BTreeMap::from([
             (RUN_LABEL.to_string(), self.name.to_string()),
-            (ROLE_LABEL.to_string(), role.to_string()),
+            (ROLE_LABEL.to_string(), role.label().to_string()),
             ("app.kubernetes.io/name".to_string(), "sadesim".to_string()),
             ("app.kubernetes.io/instance".to_string(), self.name.to_string()),
-            ("app.kubernetes.io/component".to_string(), role.to_string()),
+            ("app.kubernetes.io/component".to_string(), role.label().to_string()),
             ("app.kubernetes.io/managed-by".to_string(), "sadesim-operator".to_string()),
         ])
     }
 
     /// The labels a Service or controller selects a role's pods by.
-    pub fn selector(&self, role: &str) -> BTreeMap<String, String> {
-        BTreeMap::from([(RUN_LABEL.to_string(), self.name.to_string()), (ROLE_LABEL.to_string(), role.to_string())])
+    pub fn selector(&self, role: Role) -> BTreeMap<String, String> {
+        BTreeMap::from([
+            (RUN_LABEL.to_string(), self.name.to_string()),
+            (ROLE_LABEL.to_string(), role.label().to_string()),
+        ])
     }
 
     /// The run as controlling owner: deleting the run deletes the child (foreground
@@ -86,7 +89,7 @@ impl<'a> Context<'a> {
     }
 
     /// Metadata of a top-level child.
-    pub fn meta(&self, name: String, role: &str) -> ObjectMeta {
+    pub fn meta(&self, name: String, role: Role) -> ObjectMeta {
         ObjectMeta {
             name: Some(name),
             namespace: Some(self.namespace.to_string()),
@@ -97,7 +100,7 @@ impl<'a> Context<'a> {
     }
 
     /// Metadata of a pod template.
-    pub fn template_meta(&self, role: &str) -> ObjectMeta {
+    pub fn template_meta(&self, role: Role) -> ObjectMeta {
         ObjectMeta { labels: Some(self.labels(role)), ..Default::default() }
     }
 
@@ -232,17 +235,17 @@ pub fn mount(volume: &str, path: &str, read_only: bool) -> VolumeMount {
     VolumeMount { name: volume.into(), mount_path: path.into(), read_only: Some(read_only), ..Default::default() }
 }
 
-/// A worker-image container running `command` with `args`, `plan.json` mounted and
-/// `/tmp` writable.
+/// A worker-image container of `role` (its name) running `command` with `args`,
+/// `plan.json` mounted and `/tmp` writable.
 pub fn worker_container(
     ctx: &Context,
-    name: &str,
+    role: Role,
     command: Vec<String>,
     args: Vec<String>,
     r: RoleResources,
 ) -> Container {
     Container {
-        name: name.into(),
+        name: role.label().into(),
         image: Some(ctx.settings.worker_image.clone()),
         command: Some(command),
         args: if args.is_empty() { None } else { Some(args) },

@@ -19,7 +19,9 @@ use super::pod::{
     CONTROL_DIR, CONTROL_FILE, Context, OUT_DIR, PLAN_PATH, SADESIM, SIM_WORKER, config_volume, empty_dir, mount,
     pod_spec, worker_container,
 };
-use super::{ASSET_KEY_ANNOTATION, SEGMENT_LABEL, STOP_ANNOTATION, asset_cache_location, kueue, names, upload_url};
+use super::{
+    ASSET_KEY_ANNOTATION, Role, SEGMENT_LABEL, STOP_ANNOTATION, asset_cache_location, kueue, names, upload_url,
+};
 
 /// Seconds a stopping coordinator gets to finish the run, write its files and upload them.
 pub const COORDINATOR_GRACE_S: i64 = 600;
@@ -55,7 +57,7 @@ fn tcp_probe(port: &str) -> Probe {
     }
 }
 
-fn template(ctx: &Context, role: &str, spec: k8s_openapi::api::core::v1::PodSpec) -> PodTemplateSpec {
+fn template(ctx: &Context, role: Role, spec: k8s_openapi::api::core::v1::PodSpec) -> PodTemplateSpec {
     PodTemplateSpec { metadata: Some(ctx.template_meta(role)), spec: Some(spec) }
 }
 
@@ -69,10 +71,10 @@ pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
     asset_cache_location(ctx.plan, ctx.settings)?;
     let archive = upload_url(ctx.plan, ctx.settings)?.to_string();
     let args = vec!["assets".into(), "--plan".into(), PLAN_PATH.into(), "--archive".into(), archive];
-    let mut container = worker_container(ctx, "assets", strings(&[SADESIM]), args, ctx.plan.resources.assets);
+    let mut container = worker_container(ctx, Role::Assets, strings(&[SADESIM]), args, ctx.plan.resources.assets);
     container.env_from = ctx.object_store_env();
     let spec = pod_spec(vec![container], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Never");
-    let mut meta = ctx.meta(names::assets_job(ctx.name), "assets");
+    let mut meta = ctx.meta(names::assets_job(ctx.name), Role::Assets);
     meta.annotations = Some(BTreeMap::from([(ASSET_KEY_ANNOTATION.to_string(), ctx.plan.asset_cache_key.clone())]));
     kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
     Some(Job {
@@ -80,7 +82,7 @@ pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
         spec: Some(JobSpec {
             // A second try covers a flaky object store; the world build is deterministic.
             backoff_limit: Some(1),
-            template: template(ctx, "assets", spec),
+            template: template(ctx, Role::Assets, spec),
             ..Default::default()
         }),
         ..Default::default()
@@ -92,9 +94,9 @@ pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
 pub(super) fn airspace_service(ctx: &Context) -> Service {
     let s = ctx.plan.services;
     Service {
-        metadata: ctx.meta(names::airspace_service(ctx.name), "coordinator"),
+        metadata: ctx.meta(names::airspace_service(ctx.name), Role::Coordinator),
         spec: Some(ServiceSpec {
-            selector: Some(ctx.selector("coordinator")),
+            selector: Some(ctx.selector(Role::Coordinator)),
             ports: Some(vec![
                 service_port("shard-link", s.coordinator, "TCP"),
                 service_port("airspace", s.airspace_http, "TCP"),
@@ -143,7 +145,8 @@ fn coordinator_args(ctx: &Context) -> Vec<String> {
 pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
     let s = ctx.plan.services;
     let command = strings(&[SIM_WORKER]);
-    let mut c = worker_container(ctx, "coordinator", command, coordinator_args(ctx), ctx.plan.resources.coordinator);
+    let mut c =
+        worker_container(ctx, Role::Coordinator, command, coordinator_args(ctx), ctx.plan.resources.coordinator);
     let env = c.env.get_or_insert_with(Vec::new);
     if let Some(url) = upload_url(ctx.plan, ctx.settings) {
         env.push(super::pod::env("SADESIM_ARCHIVE_URL", url));
@@ -160,7 +163,7 @@ pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
         vec![config_volume(names::config(ctx.name)), empty_dir("tmp"), empty_dir("out"), annotations_volume("control")];
     let mut spec = pod_spec(vec![c], volumes, "Never");
     spec.termination_grace_period_seconds = Some(COORDINATOR_GRACE_S);
-    let mut metadata = ctx.meta(names::coordinator_pod(ctx.name), "coordinator");
+    let mut metadata = ctx.meta(names::coordinator_pod(ctx.name), Role::Coordinator);
     if let Some(reason) = stop {
         metadata.annotations = Some(BTreeMap::from([(STOP_ANNOTATION.to_string(), reason.to_string())]));
     }
@@ -186,7 +189,7 @@ fn annotations_volume(name: &str) -> Volume {
 }
 
 fn segment_labels(ctx: &Context, segment: u32) -> BTreeMap<String, String> {
-    let mut l = ctx.selector("router");
+    let mut l = ctx.selector(Role::Router);
     l.insert(SEGMENT_LABEL.into(), segment.to_string());
     l
 }
@@ -195,7 +198,7 @@ fn segment_labels(ctx: &Context, segment: u32) -> BTreeMap<String, String> {
 /// plan's ports, the same inside and outside the pod, so the fleet file's URLs and the
 /// status endpoints hold everywhere). The type comes from `--router-service-type`.
 pub(super) fn mavlink_service(ctx: &Context, segment: &RouterSegment) -> Service {
-    let mut meta = ctx.meta(names::mavlink_service(ctx.name, segment.index), "router");
+    let mut meta = ctx.meta(names::mavlink_service(ctx.name, segment.index), Role::Router);
     meta.labels.get_or_insert_with(BTreeMap::new).insert(SEGMENT_LABEL.into(), segment.index.to_string());
     Service {
         metadata: meta,
@@ -226,11 +229,11 @@ pub(super) fn router_pod(ctx: &Context, segment: &RouterSegment) -> Pod {
         "--drone-host".into(),
         names::drone_host_template(ctx.namespace),
     ];
-    let mut c = worker_container(ctx, "router", strings(&[SIM_WORKER]), args, ctx.plan.resources.router);
+    let mut c = worker_container(ctx, Role::Router, strings(&[SIM_WORKER]), args, ctx.plan.resources.router);
     c.ports = Some(vec![port("mavlink-udp", segment.gcs_udp, "UDP"), port("mavlink-tcp", segment.gcs_tcp, "TCP")]);
     c.readiness_probe = Some(tcp_probe("mavlink-tcp"));
     let spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Always");
-    let mut meta = ctx.meta(names::router_pod(ctx.name, segment.index), "router");
+    let mut meta = ctx.meta(names::router_pod(ctx.name, segment.index), Role::Router);
     meta.labels.get_or_insert_with(BTreeMap::new).insert(SEGMENT_LABEL.into(), segment.index.to_string());
     Pod { metadata: meta, spec: Some(spec), ..Default::default() }
 }
@@ -241,10 +244,10 @@ pub(super) fn router_pod(ctx: &Context, segment: &RouterSegment) -> Pod {
 /// Not-ready addresses are published so names resolve as soon as pods have IPs.
 pub(super) fn shard_service(ctx: &Context) -> Service {
     Service {
-        metadata: ctx.meta(names::shard_service(ctx.name), "shard"),
+        metadata: ctx.meta(names::shard_service(ctx.name), Role::Shard),
         spec: Some(ServiceSpec {
             cluster_ip: Some("None".into()),
-            selector: Some(ctx.selector("shard")),
+            selector: Some(ctx.selector(Role::Shard)),
             publish_not_ready_addresses: Some(true),
             ..Default::default()
         }),
@@ -278,10 +281,10 @@ pub(super) fn shard_job(ctx: &Context) -> Job {
         "--mavlink-api-host".into(),
         "none".into(),
     ];
-    let c = worker_container(ctx, "shard", strings(&[SIM_WORKER]), args, shard_resources(ctx));
+    let c = worker_container(ctx, Role::Shard, strings(&[SIM_WORKER]), args, shard_resources(ctx));
     let mut spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Never");
     spec.subdomain = Some(names::shard_service(ctx.name));
-    let mut meta = ctx.meta(names::shard_job(ctx.name), "shard");
+    let mut meta = ctx.meta(names::shard_job(ctx.name), Role::Shard);
     kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
     Job {
         metadata: meta,
@@ -295,7 +298,7 @@ pub(super) fn shard_job(ctx: &Context) -> Job {
                     PodFailurePolicyRule {
                         action: "FailJob".into(),
                         on_exit_codes: Some(PodFailurePolicyOnExitCodesRequirement {
-                            container_name: Some("shard".into()),
+                            container_name: Some(Role::Shard.label().into()),
                             operator: "NotIn".into(),
                             values: vec![0],
                         }),
@@ -311,7 +314,7 @@ pub(super) fn shard_job(ctx: &Context) -> Job {
                     },
                 ],
             }),
-            template: template(ctx, "shard", spec),
+            template: template(ctx, Role::Shard, spec),
             ..Default::default()
         }),
         ..Default::default()
@@ -321,9 +324,9 @@ pub(super) fn shard_job(ctx: &Context) -> Job {
 /// `<run>-renderer` Service.
 pub(super) fn renderer_service(ctx: &Context) -> Service {
     Service {
-        metadata: ctx.meta(names::renderer(ctx.name), "renderer"),
+        metadata: ctx.meta(names::renderer(ctx.name), Role::Renderer),
         spec: Some(ServiceSpec {
-            selector: Some(ctx.selector("renderer")),
+            selector: Some(ctx.selector(Role::Renderer)),
             ports: Some(vec![service_port("http", ctx.plan.services.renderer_http, "TCP")]),
             ..Default::default()
         }),
@@ -338,17 +341,17 @@ pub(super) fn renderer_deployment(ctx: &Context) -> Deployment {
     let args =
         vec!["renderer".into(), "--plan".into(), PLAN_PATH.into(), "--listen".into(), format!("0.0.0.0:{port_no}")];
     let resources = ctx.plan.resources.renderer.unwrap_or(RoleResources { cpu_millis: 1000, memory_mib: 1024 });
-    let mut c = worker_container(ctx, "renderer", strings(&[SIM_WORKER]), args, resources);
+    let mut c = worker_container(ctx, Role::Renderer, strings(&[SIM_WORKER]), args, resources);
     c.ports = Some(vec![port("http", port_no, "TCP")]);
     c.readiness_probe = Some(tcp_probe("http"));
     let spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Always");
     Deployment {
-        metadata: ctx.meta(names::renderer(ctx.name), "renderer"),
+        metadata: ctx.meta(names::renderer(ctx.name), Role::Renderer),
         spec: Some(DeploymentSpec {
             replicas: Some(1),
-            selector: LabelSelector { match_labels: Some(ctx.selector("renderer")), match_expressions: None },
+            selector: LabelSelector { match_labels: Some(ctx.selector(Role::Renderer)), match_expressions: None },
             strategy: Some(DeploymentStrategy { type_: Some("Recreate".into()), rolling_update: None }),
-            template: template(ctx, "renderer", spec),
+            template: template(ctx, Role::Renderer, spec),
             ..Default::default()
         }),
         ..Default::default()

@@ -28,7 +28,7 @@ use sadesim_crds::status::{ArchiveStatus, Endpoints, Phase, ShardStatus, Simulat
 
 use super::observe::{Observed, WorkState};
 use super::queue::Admission;
-use crate::k8s::children::{self, Child, ClusterSettings, ROLE_LABEL, Stage, names};
+use crate::k8s::children::{self, Child, ClusterSettings, Kind, Role, RunFolder, Stage, names};
 
 #[cfg(test)]
 mod tests;
@@ -92,7 +92,7 @@ pub struct Sample {
 pub struct Input<'a> {
     pub run: &'a SimulationRun,
     /// The plan, or why the run does not plan (field paths and what is expected).
-    pub plan: Result<&'a RunPlan, String>,
+    pub plan: Result<&'a RunPlan, &'a sadesim_planner::PlanError>,
     pub settings: &'a ClusterSettings,
     pub observed: &'a Observed,
     /// The queue's answer, computed for runs waiting without Kueue (`None` otherwise).
@@ -105,9 +105,9 @@ pub struct Input<'a> {
 /// Workloads deleted by label selector `sadesim.io/run=<run>[,sadesim.io/role=<role>]`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Delete {
-    /// `Job`, `Pod`, `Deployment` or `Service`.
-    pub kind: &'static str,
-    pub role: Option<&'static str>,
+    pub kind: Kind,
+    /// Every role when `None`.
+    pub role: Option<Role>,
 }
 
 /// A Kubernetes Event about the run.
@@ -128,8 +128,8 @@ pub struct Decision {
     pub apply: Vec<Child>,
     /// Pods whose logs go to `logs/<pod>.log` in the run's archive folder.
     pub archive_logs: Vec<String>,
-    /// The run's archive folder as `(archive URL, namespace, run, uid)`, when it has one.
-    pub archive: Option<(String, String, String, String)>,
+    /// The run's archive folder, when it has an archive.
+    pub archive: Option<RunFolder>,
     pub delete: Vec<Delete>,
     /// The full status (written only when it differs from the current one).
     pub status: SimulationRunStatus,
@@ -229,15 +229,11 @@ pub fn condition<'a>(status: &'a SimulationRunStatus, type_: &str) -> Option<&'a
     status.conditions.iter().find(|c| c.type_ == type_)
 }
 
-fn role_of(child: &Child) -> &str {
-    child.labels().and_then(|l| l.get(ROLE_LABEL)).map_or("", String::as_str)
-}
-
-/// The children of `plan` for `roles` (all when `None`), Jobs without `spec.suspend`.
-fn children_for(input: &Input, plan: &RunPlan, stage: Stage, keep: impl Fn(&str) -> bool) -> Vec<Child> {
+/// The children of `plan` at `stage` whose role `keep` accepts, Jobs without `spec.suspend`.
+fn children_for(input: &Input, plan: &RunPlan, stage: Stage, keep: impl Fn(Role) -> bool) -> Vec<Child> {
     children::children(input.run, plan, input.settings, stage)
         .into_iter()
-        .filter(|c| keep(role_of(c)))
+        .filter(|c| c.role().is_some_and(&keep))
         .map(|c| match c {
             Child::Job(mut job) => {
                 // Kueue owns `suspend`: an applied value would fight its admission.
@@ -307,7 +303,7 @@ pub fn decide(input: &Input) -> Decision {
     let planned = match &input.plan {
         Ok(plan) if fatal.is_empty() => Ok(*plan),
         Ok(_) => Err(fatal.join("; ")),
-        Err(message) => Err(message.clone()),
+        Err(e) => Err(e.to_string()),
     };
     let plan = match (&planned, prev_phase) {
         (Ok(plan), _) => *plan,
@@ -378,23 +374,23 @@ pub fn decide(input: &Input) -> Decision {
     d
 }
 
-/// The archive folder of the run: `(archive URL, namespace, run, uid)`.
-fn archive_folder(input: &Input) -> Option<(String, String, String, String)> {
+/// The archive folder of the run (`spec.archive.url`, else the operator's default).
+fn archive_folder(input: &Input) -> Option<RunFolder> {
     let run = input.run;
-    let url =
-        run.spec.archive.as_ref().map(|a| a.url.clone()).or_else(|| input.settings.default_archive_url.clone())?;
-    Some((
-        url.trim_end_matches('/').to_string(),
-        run.metadata.namespace.clone().unwrap_or_else(|| "default".into()),
-        run.metadata.name.clone().unwrap_or_default(),
-        run.metadata.uid.clone().unwrap_or_else(|| "unknown-uid".into()),
+    let meta = &run.metadata;
+    let url = run.spec.archive.as_ref().map(|a| a.url.as_str()).or(input.settings.default_archive_url.as_deref())?;
+    Some(RunFolder::new(
+        url,
+        meta.namespace.as_deref().unwrap_or("default"),
+        meta.name.as_deref().unwrap_or_default(),
+        meta.uid.as_deref().unwrap_or("unknown-uid"),
     ))
 }
 
 /// The config and assets children (the first stage).
 fn first_stage(input: &Input, plan: &RunPlan) -> Vec<Child> {
     children_for(input, plan, Stage { assets_job: true, pilot: false, stop: None }, |r| {
-        matches!(r, "config" | "assets")
+        matches!(r, Role::Config | Role::Assets)
     })
 }
 
@@ -404,8 +400,8 @@ fn queued(d: &mut Decision, input: &Input, plan: &RunPlan) {
         // Kueue admits through the Jobs' queue-name label: create them and let Kueue hold
         // them (suspended) until the LocalQueue admits the run.
         d.apply = first_stage(input, plan);
-        let has_assets = d.apply.iter().any(|c| c.kind() == "Job" && role_of(c) == "assets");
-        let held = has_assets && (!input.observed.has_job("assets") || input.observed.suspended("assets"));
+        let has_assets = d.apply.iter().any(|c| c.kind() == Kind::Job && c.role() == Some(Role::Assets));
+        let held = has_assets && (!input.observed.has_job(Role::Assets) || input.observed.suspended(Role::Assets));
         let queue = input.run.spec.queue.as_deref().unwrap_or_default();
         if held {
             d.condition(
@@ -448,7 +444,7 @@ fn queued(d: &mut Decision, input: &Input, plan: &RunPlan) {
 fn generating_assets(d: &mut Decision, input: &Input, plan: &RunPlan) {
     let (now, generation) = (input.now, input.run.metadata.generation);
     let apply = first_stage(input, plan);
-    let has_assets_job = apply.iter().any(|c| c.kind() == "Job" && role_of(c) == "assets");
+    let has_assets_job = apply.iter().any(|c| c.kind() == Kind::Job && c.role() == Some(Role::Assets));
     d.apply = apply;
     if !has_assets_job {
         d.condition(
@@ -462,7 +458,7 @@ fn generating_assets(d: &mut Decision, input: &Input, plan: &RunPlan) {
         d.enter(Phase::Starting, "starting the coordinator, routers and shards");
         return;
     }
-    match input.observed.jobs_of("assets").map(|w| w.state.clone()).next() {
+    match input.observed.jobs_of(Role::Assets).map(|w| w.state.clone()).next() {
         Some(WorkState::Succeeded) => {
             d.condition(ct::ASSETS_READY, true, "Built", "the assets Job finished", now, generation);
             d.enter(Phase::Starting, "assets ready; starting the coordinator, routers and shards");
@@ -505,11 +501,11 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
     }
     let running = d.phase() == Phase::Running;
     let stop = if running { pilot_exited(d, input, plan) } else { None };
-    d.apply = children_for(input, plan, Stage { assets_job: false, pilot: running, stop }, |r| r != "assets");
+    d.apply = children_for(input, plan, Stage { assets_job: false, pilot: running, stop }, |r| r != Role::Assets);
     d.status.endpoints = Some(endpoints(plan));
 
     // Kueue may hold the shards' Job even after the assets were admitted.
-    if kueue_mode(input) && observed.suspended("shard") {
+    if kueue_mode(input) && observed.suspended(Role::Shard) {
         let queue = input.run.spec.queue.as_deref().unwrap_or_default();
         d.condition(
             ct::SCHEDULED,
@@ -524,7 +520,7 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
     }
 
     // Progress.
-    let shard_pods: Vec<_> = observed.pods_of("shard").collect();
+    let shard_pods: Vec<_> = observed.pods_of(Role::Shard).collect();
     d.status.shards = plan
         .shards
         .iter()
@@ -681,7 +677,7 @@ fn coordinator_to_stop(input: &Input, status: &SimulationRunStatus, waited_s: i1
     };
     let plan = input.plan.as_ref().ok()?;
     let stage = Stage { assets_job: false, pilot: false, stop: Some(reason) };
-    children_for(input, plan, stage, |r| r == "coordinator").into_iter().find(|c| c.kind() == "Pod")
+    children_for(input, plan, stage, |r| r == Role::Coordinator).into_iter().find(|c| c.kind() == Kind::Pod)
 }
 
 /// One step of Archiving, driven by what still exists: pilot, then (after asking the
@@ -690,16 +686,16 @@ fn coordinator_to_stop(input: &Input, status: &SimulationRunStatus, waited_s: i1
 fn archive_step(d: &mut Decision, input: &Input) {
     let (now, generation) = (input.now, input.run.metadata.generation);
     let observed = input.observed;
-    let pods_of = |role: &str| observed.pods_of(role).map(|p| p.name.clone()).collect::<Vec<_>>();
+    let pods_of = |role: Role| observed.pods_of(role).map(|p| p.name.clone()).collect::<Vec<_>>();
     d.status.endpoints = None;
-    if observed.has_job("pilot") {
-        d.archive_logs = pods_of("pilot");
-        d.delete = vec![Delete { kind: "Job", role: Some("pilot") }];
+    if observed.has_job(Role::Pilot) {
+        d.archive_logs = pods_of(Role::Pilot);
+        d.delete = vec![Delete { kind: Kind::Job, role: Some(Role::Pilot) }];
         d.condition(ct::ARCHIVED, false, "Archiving", "stopping the pilot", now, generation);
         d.requeue_at_most(REQUEUE_ARCHIVING);
         return;
     }
-    if observed.has_job("shard") {
+    if observed.has_job(Role::Shard) {
         if let Some(coordinator) = coordinator_to_stop(input, &d.status, since_s(d, now)) {
             d.apply = vec![coordinator];
             d.condition(
@@ -713,8 +709,8 @@ fn archive_step(d: &mut Decision, input: &Input) {
             d.requeue_at_most(REQUEUE_ARCHIVING);
             return;
         }
-        d.archive_logs = pods_of("shard");
-        d.delete = vec![Delete { kind: "Job", role: Some("shard") }];
+        d.archive_logs = pods_of(Role::Shard);
+        d.delete = vec![Delete { kind: Kind::Job, role: Some(Role::Shard) }];
         d.condition(ct::ARCHIVED, false, "Archiving", "stopping the shards", now, generation);
         d.requeue_at_most(REQUEUE_ARCHIVING);
         return;
@@ -733,15 +729,17 @@ fn archive_step(d: &mut Decision, input: &Input) {
         d.requeue_at_most(Duration::from_secs(5));
         return;
     }
-    d.archive_logs =
-        observed.pods.iter().filter(|p| p.role != "pilot" && p.role != "shard").map(|p| p.name.clone()).collect();
+    let rest = |p: &&super::observe::Workload| !matches!(p.role, Some(Role::Pilot | Role::Shard));
+    d.archive_logs = observed.pods.iter().filter(rest).map(|p| p.name.clone()).collect();
     if children_may_exist(&d.status, observed) {
-        d.delete =
-            ["Job", "Pod", "Deployment", "Service"].into_iter().map(|kind| Delete { kind, role: None }).collect();
+        d.delete = [Kind::Job, Kind::Pod, Kind::Deployment, Kind::Service]
+            .into_iter()
+            .map(|kind| Delete { kind, role: None })
+            .collect();
     }
     match d.archive.clone() {
-        Some((url, ns, run, uid)) => {
-            let folder = format!("{url}/{ns}/{run}/{uid}/");
+        Some(folder) => {
+            let folder = folder.url();
             d.status.archive = Some(ArchiveStatus { url: folder.clone(), files: None, bytes: None });
             d.condition(ct::ARCHIVED, true, "Archived", "pod logs and recordings are in the archive", now, generation);
             d.events.push(Note { warning: false, reason: "Archived".into(), message: format!("evidence in {folder}") });

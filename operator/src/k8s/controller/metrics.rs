@@ -29,6 +29,8 @@ pub struct PhaseLabels {
 pub struct Metrics {
     /// Reconciles started.
     pub reconciles: Counter,
+    /// Runs planned (once per SimulationRun generation: the controller caches plans).
+    pub plans: Counter,
     /// Reconciles that failed, by error kind.
     pub failures: Family<ErrorLabels, Counter>,
     /// Runs known to this operator, by phase.
@@ -44,15 +46,17 @@ impl Default for Metrics {
     fn default() -> Self {
         let mut registry = Registry::with_prefix("sadesim_operator");
         let reconciles = Counter::default();
+        let plans = Counter::default();
         let failures = Family::<ErrorLabels, Counter>::default();
         let runs = Family::<PhaseLabels, Gauge>::default();
         // 1 s .. ~9 h.
         let queue_wait = Histogram::new([1.0, 5.0, 15.0, 60.0, 300.0, 900.0, 3600.0, 4.0 * 3600.0, 9.0 * 3600.0]);
         registry.register("reconciles", "Reconciles of SimulationRuns", reconciles.clone());
+        registry.register("plans", "Runs planned (once per SimulationRun generation)", plans.clone());
         registry.register("reconcile_failures", "Reconciles that failed, by error", failures.clone());
         registry.register("runs", "SimulationRuns by phase", runs.clone());
         registry.register("queue_wait_seconds", "Time from creation to admission", queue_wait.clone());
-        Self { reconciles, failures, runs, queue_wait, phases: Mutex::default(), registry }
+        Self { reconciles, plans, failures, runs, queue_wait, phases: Mutex::default(), registry }
     }
 }
 
@@ -100,9 +104,8 @@ pub async fn serve(
     addr: SocketAddr,
     metrics: Arc<Metrics>,
     shutdown: impl std::future::Future<Output = ()> + Send + 'static,
-) -> Result<tokio::task::JoinHandle<()>, String> {
-    let listener =
-        tokio::net::TcpListener::bind(addr).await.map_err(|e| format!("--metrics-addr {addr}: cannot listen: {e}"))?;
+) -> Result<tokio::task::JoinHandle<()>, ListenError> {
+    let listener = tokio::net::TcpListener::bind(addr).await.map_err(|source| ListenError { addr, source })?;
     Ok(tokio::spawn(async move {
         tokio::pin!(shutdown);
         loop {
@@ -117,6 +120,15 @@ pub async fn serve(
             }
         }
     }))
+}
+
+/// The metrics address cannot be listened on (taken, or not an address of this host).
+#[derive(Debug, thiserror::Error)]
+#[error("--metrics-addr {addr}: cannot listen: {source}")]
+pub struct ListenError {
+    pub addr: SocketAddr,
+    #[source]
+    pub source: std::io::Error,
 }
 
 /// Most bytes of a request head read before answering (probes send about 100).

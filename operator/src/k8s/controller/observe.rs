@@ -5,7 +5,7 @@ use k8s_openapi::api::batch::v1::Job;
 use k8s_openapi::api::core::v1::Pod;
 
 use super::progress::CoordinatorReport;
-use crate::k8s::children::ROLE_LABEL;
+use crate::k8s::children::{Kind, ROLE_LABEL, Role};
 
 /// Label Kubernetes puts on the pods of an Indexed Job: the shard index.
 pub const COMPLETION_INDEX_LABEL: &str = "batch.kubernetes.io/job-completion-index";
@@ -36,11 +36,12 @@ pub enum WorkState {
 /// One observed Job or Pod of the run.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Workload {
-    /// `Job` or `Pod`.
-    pub kind: &'static str,
+    /// [`Kind::Job`] or [`Kind::Pod`].
+    pub kind: Kind,
     pub name: String,
-    /// Value of `sadesim.io/role` (`assets`, `shard`, `coordinator`, `router`, `pilot`, ...).
-    pub role: String,
+    /// The role `sadesim.io/role` names; `None` when the label is missing or names no role
+    /// (an object labelled by hand with the run's label).
+    pub role: Option<Role>,
     pub state: WorkState,
     /// Pods only: the Pod belongs to a Job (its logs are archived with the Job's role).
     pub job_owned: bool,
@@ -75,16 +76,16 @@ impl Observed {
     }
 
     /// The Jobs of `role`.
-    pub fn jobs_of<'a>(&'a self, role: &'a str) -> impl Iterator<Item = &'a Workload> + 'a {
-        self.jobs.iter().filter(move |w| w.role == role)
+    pub fn jobs_of(&self, role: Role) -> impl Iterator<Item = &Workload> + '_ {
+        self.jobs.iter().filter(move |w| w.role == Some(role))
     }
 
     /// The Pods of `role`.
-    pub fn pods_of<'a>(&'a self, role: &'a str) -> impl Iterator<Item = &'a Workload> + 'a {
-        self.pods.iter().filter(move |w| w.role == role)
+    pub fn pods_of(&self, role: Role) -> impl Iterator<Item = &Workload> + '_ {
+        self.pods.iter().filter(move |w| w.role == Some(role))
     }
 
-    /// The first failure of any role: `(role, reason)`. Jobs speak for their pods (a Job
+    /// The first failure of any role: `(role label, reason)`. Jobs speak for their pods (a Job
     /// retries failed pods up to its backoff limit); bare pods speak for themselves.
     ///
     /// Not the pilot Job's end: the pilot is the program under test, and its exit, with
@@ -92,12 +93,15 @@ impl Observed {
     /// ([`Observed::pilot_end`]). A pilot whose image cannot be pulled never ran: that is
     /// a failure (its pod's fatal waiting reason).
     pub fn failure(&self) -> Option<(String, String)> {
-        let jobs = self.jobs.iter().filter(|j| j.role != "pilot");
+        let jobs = self.jobs.iter().filter(|j| j.role != Some(Role::Pilot));
         let bare_pods = self.pods.iter().filter(|p| !p.job_owned);
         let fatal_job_pods =
             self.pods.iter().filter(|p| p.job_owned && matches!(&p.state, WorkState::Failed(r) if is_fatal_waiting(r)));
         jobs.chain(bare_pods).chain(fatal_job_pods).find_map(|w| match &w.state {
-            WorkState::Failed(reason) => Some((w.role.clone(), format!("{} {}: {reason}", w.kind, w.name))),
+            WorkState::Failed(reason) => {
+                let role = w.role.map_or("unlabelled", Role::label);
+                Some((role.to_string(), format!("{} {}: {reason}", w.kind, w.name)))
+            }
             _ => None,
         })
     }
@@ -105,7 +109,7 @@ impl Observed {
     /// How the pilot Job ended, once it has: `Ok(name)` complete, `Err(description)`
     /// failed (its pod exited non-zero, was OOM-killed or evicted).
     pub fn pilot_end(&self) -> Option<Result<String, String>> {
-        self.jobs_of("pilot").find_map(|w| match &w.state {
+        self.jobs_of(Role::Pilot).find_map(|w| match &w.state {
             WorkState::Succeeded => Some(Ok(format!("Job {} complete", w.name))),
             WorkState::Failed(reason) => Some(Err(format!("Job {} failed: {reason}", w.name))),
             _ => None,
@@ -114,16 +118,16 @@ impl Observed {
 
     /// The coordinator pod's state, when it exists.
     pub fn coordinator_state(&self) -> Option<&WorkState> {
-        self.pods_of("coordinator").map(|w| &w.state).next()
+        self.pods_of(Role::Coordinator).map(|w| &w.state).next()
     }
 
     /// Some Job of `role` exists.
-    pub fn has_job(&self, role: &str) -> bool {
+    pub fn has_job(&self, role: Role) -> bool {
         self.jobs_of(role).next().is_some()
     }
 
     /// Some Job of `role` is held by Kueue.
-    pub fn suspended(&self, role: &str) -> bool {
+    pub fn suspended(&self, role: Role) -> bool {
         self.jobs_of(role).any(|w| w.state == WorkState::Suspended)
     }
 }
@@ -132,8 +136,8 @@ fn is_fatal_waiting(reason: &str) -> bool {
     FATAL_WAITING_REASONS.iter().any(|r| reason.starts_with(r))
 }
 
-fn role_of(labels: Option<&std::collections::BTreeMap<String, String>>) -> String {
-    labels.and_then(|l| l.get(ROLE_LABEL)).cloned().unwrap_or_default()
+fn role_of(labels: Option<&std::collections::BTreeMap<String, String>>) -> Option<Role> {
+    labels.and_then(|l| l.get(ROLE_LABEL)).and_then(|r| Role::from_label(r))
 }
 
 /// A Job's state from its conditions (`Failed`/`Complete`), `spec.suspend` and `active`.
@@ -163,7 +167,7 @@ pub fn job_workload(job: &Job) -> Workload {
         WorkState::Pending
     };
     Workload {
-        kind: "Job",
+        kind: Kind::Job,
         name: job.metadata.name.clone().unwrap_or_default(),
         role: role_of(job.metadata.labels.as_ref()),
         state,
@@ -211,7 +215,7 @@ pub fn pod_workload(pod: &Pod) -> Workload {
         .any(|c| c.type_ == "Ready" && c.status == "True");
     let labels = pod.metadata.labels.as_ref();
     Workload {
-        kind: "Pod",
+        kind: Kind::Pod,
         name: pod.metadata.name.clone().unwrap_or_default(),
         role: role_of(labels),
         state,

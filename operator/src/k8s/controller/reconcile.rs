@@ -22,13 +22,14 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 use serde_json::json;
 
-use super::lifecycle::{self, Decision, Delete, FINALIZER, Input, Sample};
+use super::lifecycle::{self, Decision, FINALIZER, Input, Sample};
 use super::metrics::Metrics;
 use super::observe::{Observed, WorkState};
 use super::progress::{self, TAIL_LINES};
 use super::queue::{self, Gang, QueueView, QueuedRun};
-use crate::k8s::children::{Child, ClusterSettings, ROLE_LABEL, RUN_LABEL, names};
-use sadesim_planner as planner;
+use crate::k8s::children::{Child, ClusterSettings, Kind, ROLE_LABEL, RUN_LABEL, Role, RunFolder, names};
+use sadesim_crds::plan::RunPlan;
+use sadesim_planner::{self as planner, PlanError};
 
 /// Field manager of every server-side apply (children and status).
 pub const MANAGER: &str = "sadesim-operator";
@@ -47,8 +48,19 @@ pub enum Error {
         source: kube::Error,
     },
     /// Pod logs could not be written to the run's archive.
-    #[error("failed to archive pod logs: {0}")]
-    Archive(String),
+    #[error("failed to archive pod logs to {folder}: {source}")]
+    Archive {
+        folder: String,
+        #[source]
+        source: sadesim_evidence::archive::ArchiveError,
+    },
+    /// The blocking task that writes the archive panicked or was cancelled.
+    #[error("the task archiving pod logs to {folder} did not finish: {source}")]
+    ArchiveTask {
+        folder: String,
+        #[source]
+        source: tokio::task::JoinError,
+    },
     /// The run has no namespace (SimulationRuns are namespaced; the watch always sets it).
     #[error("run {0} has no namespace")]
     NoNamespace(String),
@@ -59,7 +71,7 @@ impl Error {
     pub fn metric_label(&self) -> &'static str {
         match self {
             Error::Kube { .. } => "kube",
-            Error::Archive(_) => "archive",
+            Error::Archive { .. } | Error::ArchiveTask { .. } => "archive",
             Error::NoNamespace(_) => "no_namespace",
         }
     }
@@ -80,6 +92,8 @@ pub struct Context {
     pub recorder: Recorder,
     /// Last progress sample per run uid (base of the real-time factor).
     pub samples: Mutex<HashMap<String, Sample>>,
+    /// The plan of each run, per uid, for one generation (see [`Context::plan_of`]).
+    plans: Mutex<HashMap<String, CachedPlan>>,
     /// The wall clock (fixed in tests).
     pub clock: Box<dyn Fn() -> Timestamp + Send + Sync>,
 }
@@ -100,12 +114,48 @@ impl Context {
             metrics,
             recorder,
             samples: Mutex::default(),
+            plans: Mutex::default(),
             clock: Box::new(Timestamp::now),
         }
     }
+
+    /// The plan of `run`, planned once per (uid, generation). Planning generates the city
+    /// and places every drone; a run is reconciled every few seconds while it lives, and
+    /// the queue view needs the plans of every run of the namespace that holds resources.
+    /// The plan depends only on the spec (whose every change bumps `metadata.generation`)
+    /// and on name, namespace and uid (fixed for a uid).
+    pub fn plan_of(&self, run: &SimulationRun) -> Arc<Result<RunPlan, PlanError>> {
+        let key = plan_key(run);
+        let generation = run.metadata.generation;
+        let mut plans = self.plans.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(cached) = plans.get(&key).filter(|c| c.generation == generation) {
+            return cached.plan.clone();
+        }
+        self.metrics.plans.inc();
+        let plan = Arc::new(planner::plan(run));
+        plans.insert(key, CachedPlan { generation, plan: plan.clone() });
+        plan
+    }
+
+    /// Forgets the plan of a run that ended (a terminal run is not planned again unless it
+    /// changes).
+    fn forget_plan(&self, run: &SimulationRun) {
+        self.plans.lock().unwrap_or_else(|e| e.into_inner()).remove(&plan_key(run));
+    }
 }
 
-fn selector(run: &str, role: Option<&str>) -> String {
+/// A plan and the generation of the spec it was planned from.
+struct CachedPlan {
+    generation: Option<i64>,
+    plan: Arc<Result<RunPlan, PlanError>>,
+}
+
+/// The uid, or `namespace/name` for a run without one (never from the API server).
+fn plan_key(run: &SimulationRun) -> String {
+    run.uid().unwrap_or_else(|| format!("{}/{}", run.namespace().unwrap_or_default(), run.name_any()))
+}
+
+fn selector(run: &str, role: Option<Role>) -> String {
     match role {
         Some(role) => format!("{RUN_LABEL}={run},{ROLE_LABEL}={role}"),
         None => format!("{RUN_LABEL}={run}"),
@@ -127,12 +177,13 @@ pub async fn reconcile(run: Arc<SimulationRun>, ctx: Arc<Context>) -> Result<Act
     let deleting = run.metadata.deletion_timestamp.is_some();
     let kueue = ctx.settings.kueue && run.spec.queue.is_some();
 
-    let plan = planner::plan(&run).map_err(|e| e.to_string());
+    let planned = ctx.plan_of(&run);
+    let plan = planned.as_ref().as_ref();
     let waiting = matches!(phase, Phase::Pending | Phase::Queued);
     let observe =
         if deleting { !phase.is_terminal() } else { !phase.is_terminal() && (!waiting || kueue || run.spec.abort) };
     let observed = if observe { observe_children(&ctx.client, &ns, &name).await? } else { Observed::default() };
-    let admission = match &plan {
+    let admission = match plan {
         Ok(p) if !deleting && waiting && !kueue && !run.spec.abort => {
             let view = queue_view(&ctx, &ns).await?;
             Some(queue::admit(&name, run.metadata.creation_timestamp.as_ref().map(|t| t.0), Gang::of(p), &view))
@@ -140,15 +191,7 @@ pub async fn reconcile(run: Arc<SimulationRun>, ctx: Arc<Context>) -> Result<Act
         _ => None,
     };
     let last_sample = ctx.samples.lock().unwrap_or_else(|e| e.into_inner()).get(&uid).copied();
-    let input = Input {
-        run: &run,
-        plan: plan.as_ref().map_err(Clone::clone),
-        settings: &ctx.settings,
-        observed: &observed,
-        admission,
-        now,
-        last_sample,
-    };
+    let input = Input { run: &run, plan, settings: &ctx.settings, observed: &observed, admission, now, last_sample };
     let decision = lifecycle::decide(&input);
     execute(&run, &ns, &ctx, decision, now).await
 }
@@ -193,7 +236,9 @@ async fn queue_view(ctx: &Context, ns: &str) -> Result<QueueView, Error> {
                 created: r.metadata.creation_timestamp.as_ref().map(|t| t.0),
                 phase,
                 kueue: ctx.settings.kueue && r.spec.queue.is_some(),
-                gang: (phase == Phase::GeneratingAssets).then(|| planner::plan(r).ok().map(|p| Gang::of(&p))).flatten(),
+                gang: (phase == Phase::GeneratingAssets)
+                    .then(|| ctx.plan_of(r).as_ref().as_ref().ok().map(Gang::of))
+                    .flatten(),
             }
         })
         .collect();
@@ -241,12 +286,7 @@ where
 
 /// Fetches the logs of `pods` and writes them to `logs/<pod>.log` in the run's archive.
 /// Returns `(files, bytes)` of the run folder's manifest afterwards.
-async fn archive_logs(
-    client: &Client,
-    ns: &str,
-    pods: &[String],
-    archive: &(String, String, String, String),
-) -> Result<(u32, u64), Error> {
+async fn archive_logs(client: &Client, ns: &str, pods: &[String], folder: &RunFolder) -> Result<(u32, u64), Error> {
     let api: Api<Pod> = Api::namespaced(client.clone(), ns);
     let mut files = Vec::new();
     for pod in pods {
@@ -257,14 +297,14 @@ async fn archive_logs(
         };
         files.push((format!("{LOGS_PREFIX}{pod}.log"), text.into_bytes()));
     }
-    let (url, namespace, run, uid) = archive.clone();
+    let f = folder.clone();
     let manifest = tokio::task::spawn_blocking(move || {
-        let archive = sadesim_evidence::archive::Archive::open(&url)?;
-        archive.add_files(&namespace, &run, &uid, LOGS_PREFIX, &files)
+        let archive = sadesim_evidence::archive::Archive::open(&f.archive)?;
+        archive.add_files(&f.namespace, &f.run, &f.uid, LOGS_PREFIX, &files)
     })
     .await
-    .map_err(|e| Error::Archive(e.to_string()))?
-    .map_err(|e| Error::Archive(e.to_string()))?;
+    .map_err(|source| Error::ArchiveTask { folder: folder.url(), source })?
+    .map_err(|source| Error::Archive { folder: folder.url(), source })?;
     Ok((manifest.file_count as u32, manifest.total_bytes))
 }
 
@@ -306,12 +346,12 @@ async fn execute(
     // 4. Stop workloads: pilot, then shards, then the rest (by label selector).
     for del in &d.delete {
         let labels = selector(&name, del.role);
-        match *del {
-            Delete { kind: "Job", .. } => delete_collection::<Job>(client, ns, &labels).await?,
-            Delete { kind: "Pod", .. } => delete_collection::<Pod>(client, ns, &labels).await?,
-            Delete { kind: "Deployment", .. } => delete_collection::<Deployment>(client, ns, &labels).await?,
-            Delete { kind: "Service", .. } => delete_collection::<Service>(client, ns, &labels).await?,
-            Delete { kind, .. } => unreachable!("lifecycle deletes Jobs, Pods, Deployments and Services, not {kind}"),
+        match del.kind {
+            Kind::ConfigMap => delete_collection::<ConfigMap>(client, ns, &labels).await?,
+            Kind::Job => delete_collection::<Job>(client, ns, &labels).await?,
+            Kind::Pod => delete_collection::<Pod>(client, ns, &labels).await?,
+            Kind::Deployment => delete_collection::<Deployment>(client, ns, &labels).await?,
+            Kind::Service => delete_collection::<Service>(client, ns, &labels).await?,
         }
     }
     // 5. Status, on the status subresource, only when it changed.
@@ -363,6 +403,9 @@ async fn execute(
             }
             None => {}
         }
+    }
+    if d.phase_is_terminal() || d.remove_finalizer {
+        ctx.forget_plan(run);
     }
     if d.admitted
         && let Some(created) = &run.metadata.creation_timestamp

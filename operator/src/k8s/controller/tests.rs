@@ -101,6 +101,18 @@ fn answer(cluster: &Cluster, seen: &Seen) -> (u16, Vec<u8>) {
 
 /// Runs one reconcile of `cluster.run` against the fake server; returns the requests.
 async fn reconcile_once(cluster: Cluster, settings: ClusterSettings, now: Timestamp) -> (Vec<Seen>, Arc<Metrics>) {
+    let run = cluster.run.clone().unwrap();
+    reconcile_each(cluster, settings, now, vec![run]).await
+}
+
+/// Reconciles each of `runs` in turn with one controller context (as the controller does
+/// when a run changes or is requeued); the fake server answers from `cluster`.
+async fn reconcile_each(
+    cluster: Cluster,
+    settings: ClusterSettings,
+    now: Timestamp,
+    runs: Vec<SimulationRun>,
+) -> (Vec<Seen>, Arc<Metrics>) {
     let (service, mut handle) = mock::pair::<Request<Body>, Response<Body>>();
     let seen = Arc::new(Mutex::new(Vec::new()));
     let server = {
@@ -144,11 +156,12 @@ async fn reconcile_once(cluster: Cluster, settings: ClusterSettings, now: Timest
     let mut ctx = Context::new(client, settings, 0, metrics.clone());
     ctx.clock = Box::new(move || now);
     let ctx = Arc::new(ctx);
-    let run = Arc::new(cluster.run.clone().unwrap());
-    tokio::time::timeout(Duration::from_secs(10), reconcile(run, ctx.clone()))
-        .await
-        .expect("reconcile finished")
-        .expect("reconcile succeeded");
+    for run in runs {
+        tokio::time::timeout(Duration::from_secs(10), reconcile(Arc::new(run), ctx.clone()))
+            .await
+            .expect("reconcile finished")
+            .expect("reconcile succeeded");
+    }
     drop(ctx);
     // Every request was answered: the server ends when the client is gone.
     tokio::time::timeout(Duration::from_secs(1), server).await.expect("mock server ended").unwrap();
@@ -637,6 +650,30 @@ async fn with_kueue_jobs_carry_the_queue_label_and_no_patch_sets_suspend() {
 }
 
 /// A fresh folder under the system temp dir for a file:// archive.
+/// Planning generates the city: a run is planned once per generation of its spec, however
+/// often it is reconciled, also when the queue view needs the plans of the namespace's
+/// other runs.
+#[tokio::test]
+async fn a_run_is_planned_once_per_generation_of_its_spec() {
+    let waiting = new_run();
+    let mut holding = in_phase(new_run(), Phase::GeneratingAssets);
+    holding.metadata.name = Some("other-run".into());
+    holding.metadata.uid = Some("uid-2".into());
+    let cluster = Cluster { run: Some(waiting.clone()), runs: vec![waiting.clone(), holding], ..Default::default() };
+    let mut changed = waiting.clone();
+    changed.metadata.generation = Some(2);
+
+    let (seen, metrics) = reconcile_each(cluster.clone(), s3_settings(), t0(), vec![waiting.clone()]).await;
+    assert!(seen.iter().any(|s| s.is(Method::GET, RUNS)), "the queue view was read: {:?}", paths(&seen));
+    assert_eq!(metrics.plans.get(), 2, "the run and the other run holding resources");
+
+    let (_, metrics) = reconcile_each(cluster.clone(), s3_settings(), t0(), vec![waiting.clone(); 3]).await;
+    assert_eq!(metrics.plans.get(), 2, "three reconciles, one plan each");
+
+    let (_, metrics) = reconcile_each(cluster, s3_settings(), t0(), vec![waiting.clone(), changed, waiting]).await;
+    assert_eq!(metrics.plans.get(), 4, "a new generation is planned again (and so is the old one when it comes back)");
+}
+
 fn tempdir(name: &str) -> std::path::PathBuf {
     let dir = std::env::temp_dir().join(format!("sadesim-controller-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);

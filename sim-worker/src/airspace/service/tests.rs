@@ -1,5 +1,5 @@
 //! The API over real HTTP: the service on 127.0.0.1 port 0, the blocking client of
-//! [`crate::airspace::load`], the Chicago case study's zone and fleet.
+//! [`super::client`], the Chicago case study's zone and fleet.
 
 use std::collections::BTreeSet;
 use std::net::SocketAddr;
@@ -9,8 +9,8 @@ use sadesim_crds::run::SimulationRun;
 use sadesim_crds::zones::Zone;
 use serde_json::{Value, json};
 
+use super::client::{HttpClient, HttpResponse};
 use super::*;
-use crate::airspace::load::{self, HttpClient, HttpResponse};
 use crate::airspace::monitor::test_plan::plan_of;
 
 const DPS: &str = "dps-token-local-only";
@@ -496,19 +496,6 @@ fn binding_a_taken_port_is_an_error() {
     let (service, state) = serve();
     let e = start(state, service.addr).expect_err("the port is taken");
     assert_eq!(e.kind(), std::io::ErrorKind::AddrInUse);
-}
-
-#[test]
-fn a_short_load_run_gets_every_request_answered_as_expected() {
-    let (service, state) = serve();
-    let report = load::run(service.addr, 200.0, 1.0, 4);
-    assert_eq!(report.requests, 200, "{report}");
-    assert_eq!(report.answered, 200, "{report}");
-    assert_eq!(report.errors, 0, "{report}");
-    // The mix: 3 grants, 5 denials, GET /zones and GET /events in every 10 requests.
-    assert_eq!((report.granted, report.denied), (60, 100), "{report}");
-    assert_eq!(state.lock().unwrap().authority.requests.len(), 160);
-    assert!(report.p50_ms <= report.p99_ms && report.p99_ms <= report.max_ms, "{report}");
 }
 
 /// `docs/airspace-api.yaml` documents exactly the routes of [`ROUTES`], and its references

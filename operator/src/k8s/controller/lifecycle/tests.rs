@@ -64,15 +64,20 @@ fn decide_full(
     now: Timestamp,
     last_sample: Option<Sample>,
 ) -> Decision {
-    let plan = sadesim_planner::plan(run).map_err(|e| e.to_string());
-    decide(&Input { run, plan: plan.as_ref().map_err(Clone::clone), settings, observed, admission, now, last_sample })
+    let plan = sadesim_planner::plan(run);
+    decide(&Input { run, plan: plan.as_ref(), settings, observed, admission, now, last_sample })
 }
 
-fn job(role: &str, state: WorkState) -> Workload {
+/// The role labelled `label` (the tests name roles as the cluster's labels do).
+fn role(label: &str) -> Role {
+    Role::from_label(label).unwrap_or_else(|| panic!("{label:?} is not a role"))
+}
+
+fn job(label: &str, state: WorkState) -> Workload {
     Workload {
-        kind: "Job",
-        name: format!("test-run-{role}"),
-        role: role.into(),
+        kind: Kind::Job,
+        name: format!("test-run-{label}"),
+        role: Some(role(label)),
         state,
         job_owned: false,
         ready: false,
@@ -80,8 +85,8 @@ fn job(role: &str, state: WorkState) -> Workload {
     }
 }
 
-fn pod(name: &str, role: &str, state: WorkState, job_owned: bool) -> Workload {
-    Workload { kind: "Pod", name: name.into(), role: role.into(), state, job_owned, ready: true, index: None }
+fn pod(name: &str, label: &str, state: WorkState, job_owned: bool) -> Workload {
+    Workload { kind: Kind::Pod, name: name.into(), role: Some(role(label)), state, job_owned, ready: true, index: None }
 }
 
 /// The workers of a started run: shard Job with one pod, coordinator, one router.
@@ -104,7 +109,7 @@ fn cond<'a>(d: &'a Decision, type_: &str) -> &'a k8s_openapi::apimachinery::pkg:
 }
 
 fn roles(children: &[Child]) -> Vec<String> {
-    children.iter().map(|c| format!("{} {}", c.kind(), role_of(c))).collect()
+    children.iter().map(|c| format!("{} {}", c.kind(), c.role().map_or("unlabelled", Role::label))).collect()
 }
 
 fn reasons(d: &Decision) -> Vec<&str> {
@@ -206,7 +211,7 @@ fn released_pilots_start_running_and_create_the_pilot_job() {
 /// The coordinator Pod among the applied children, with its annotations.
 fn coordinator_stop(d: &Decision) -> Option<String> {
     d.apply.iter().find_map(|c| match c {
-        Child::Pod(p) if role_of(c) == "coordinator" => {
+        Child::Pod(p) if c.role() == Some(Role::Coordinator) => {
             Some(p.metadata.annotations.as_ref()?.get(crate::k8s::children::STOP_ANNOTATION)?.clone())
         }
         _ => None,
@@ -338,8 +343,8 @@ fn archive_to_the_end(mut run: SimulationRun, mut observed: Observed, start: Tim
         for del in &d.delete {
             match del.role {
                 Some(role) => {
-                    observed.jobs.retain(|j| j.role != role);
-                    observed.pods.retain(|p| p.role != role);
+                    observed.jobs.retain(|j| j.role != Some(role));
+                    observed.pods.retain(|p| p.role != Some(role));
                 }
                 None => {
                     observed.jobs.clear();
@@ -356,8 +361,8 @@ fn archive_to_the_end(mut run: SimulationRun, mut observed: Observed, start: Tim
             report.finished = Some(Finished { sim_time_s, real_time_factor: 1.0, end_reason: reason, verdict: None });
         }
         // The coordinator finishes its upload and exits once the shards are gone.
-        if !observed.has_job("shard") {
-            for p in observed.pods.iter_mut().filter(|p| p.role == "coordinator") {
+        if !observed.has_job(Role::Shard) {
+            for p in observed.pods.iter_mut().filter(|p| p.role == Some(Role::Coordinator)) {
                 p.state = WorkState::Succeeded;
             }
         }
@@ -386,12 +391,12 @@ fn a_finished_run_archives_pilot_then_shards_then_the_rest_and_succeeds() {
     assert_eq!(first.status.sim_time_s, Some(120.0));
     assert_eq!(first.status.real_time_factor, Some(3.5));
     assert_eq!(first.archive_logs, ["test-run-pilot-abcde"]);
-    assert_eq!(first.delete, [Delete { kind: "Job", role: Some("pilot") }]);
+    assert_eq!(first.delete, [Delete { kind: Kind::Job, role: Some(Role::Pilot) }]);
     assert!(first.apply.is_empty());
 
     let second = &steps[1];
     assert_eq!(second.archive_logs, ["test-run-shard-0"]);
-    assert_eq!(second.delete, [Delete { kind: "Job", role: Some("shard") }]);
+    assert_eq!(second.delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
 
     let last = steps.last().unwrap();
     assert_eq!(last.status.phase, Some(Phase::Succeeded));
@@ -441,8 +446,8 @@ fn abort_stops_the_pilot_then_the_shards_then_archives() {
     observed.pods.push(pod("test-run-pilot-abcde", "pilot", WorkState::Running, true));
     let steps = archive_to_the_end(run, observed, later(60));
     assert_eq!(cond(&steps[0], ct::RUNNING).reason, outcome::ABORTED);
-    assert_eq!(steps[0].delete, [Delete { kind: "Job", role: Some("pilot") }]);
-    assert_eq!(steps[1].delete, [Delete { kind: "Job", role: Some("shard") }]);
+    assert_eq!(steps[0].delete, [Delete { kind: Kind::Job, role: Some(Role::Pilot) }]);
+    assert_eq!(steps[1].delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
     let last = steps.last().unwrap();
     assert_eq!(last.status.phase, Some(Phase::Aborted));
     assert_eq!(cond(last, ct::ARCHIVED).status, "True");
@@ -456,7 +461,7 @@ fn abort_asks_the_running_coordinator_to_end_the_run_before_the_shards_go() {
     run.spec.abort = true;
     let observed = pilot_observed(WorkState::Running, WorkState::Running);
     let steps = archive_to_the_end(run, observed, later(60));
-    assert_eq!(steps[0].delete, [Delete { kind: "Job", role: Some("pilot") }]);
+    assert_eq!(steps[0].delete, [Delete { kind: Kind::Job, role: Some(Role::Pilot) }]);
     assert_eq!(coordinator_stop(&steps[0]), None, "the pilot stops first");
     assert_eq!(coordinator_stop(&steps[1]).as_deref(), Some(stop_reason::ABORTED));
     assert_eq!(roles(&steps[1].apply), ["Pod coordinator"], "only the coordinator Pod is applied");
@@ -464,7 +469,7 @@ fn abort_asks_the_running_coordinator_to_end_the_run_before_the_shards_go() {
     assert!(cond(&steps[1], ct::ARCHIVED).message.contains("asking the coordinator"));
     // The coordinator answered (the helper's `finished` line): now the shards go.
     assert!(steps[2].apply.is_empty());
-    assert_eq!(steps[2].delete, [Delete { kind: "Job", role: Some("shard") }]);
+    assert_eq!(steps[2].delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
     assert_eq!(steps.last().unwrap().status.phase, Some(Phase::Aborted));
 }
 
@@ -483,7 +488,7 @@ fn a_coordinator_that_does_not_end_the_run_on_request_is_not_waited_for_long() {
     assert!(coordinator_stop(&d).is_some() && d.delete.is_empty());
     let d = decide_with(&run, &observed, None, later(10 + STOP_GRACE_S));
     assert_eq!(coordinator_stop(&d), None);
-    assert_eq!(d.delete, [Delete { kind: "Job", role: Some("shard") }]);
+    assert_eq!(d.delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
 }
 
 #[test]
@@ -494,7 +499,7 @@ fn a_coordinator_still_waiting_for_shards_is_not_asked_to_stop() {
     observed.coordinator = Some(CoordinatorReport::default());
     let d = decide_with(&run, &observed, None, later(10));
     assert_eq!(coordinator_stop(&d), None, "it reads requests only once the run started");
-    assert_eq!(d.delete, [Delete { kind: "Job", role: Some("shard") }]);
+    assert_eq!(d.delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
 }
 
 #[test]

@@ -2,19 +2,21 @@
 //! the CRD's `openAPIV3Schema`, so field names, limits, defaults, rules and descriptions (the
 //! doc comments of the types) cannot drift from what the API server and `sadesim` accept.
 //!
-//! A test compares the checked-in file with [`scenario_reference_markdown`]; regenerate it
-//! with `SADESIM_BLESS=1 cargo test -p sadesim-crds reference`.
+//! A generator, not a contract: it lives beside the contracts crate's tests (nothing ships
+//! it). `checked_in_reference_is_up_to_date` compares the checked-in file with
+//! [`scenario_reference_markdown`]; regenerate it with
+//! `SADESIM_BLESS=1 cargo test -p sadesim-crds --test reference`.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 
 use serde_json::Value;
 
-use crate::airframe::AIRFRAME_PRESETS;
-use crate::document::{API_VERSION, KIND};
-use crate::fleet::MAX_DRONES;
-use crate::validate::{MAX_DURATION_S, MAX_RUN_NAME_LEN};
-use crate::zones::MAX_POLYGON_VERTICES;
+use sadesim_crds::airframe::AIRFRAME_PRESETS;
+use sadesim_crds::document::{API_VERSION, KIND};
+use sadesim_crds::fleet::MAX_DRONES;
+use sadesim_crds::validate::{MAX_DURATION_S, MAX_RUN_NAME_LEN};
+use sadesim_crds::zones::MAX_POLYGON_VERTICES;
 
 /// Fields of type `kube::core::Duration`. The schema cannot tell them apart from free-form
 /// strings (`type: string`, no `format`), so they are listed here; a test checks the list
@@ -30,15 +32,14 @@ const DURATION_FIELDS: &[&str] = &[
 ];
 
 /// Where the generated file lives, relative to the workspace root.
-pub const REFERENCE_PATH: &str = "docs/scenario-reference.md";
+const REFERENCE_PATH: &str = "docs/scenario-reference.md";
 
 /// The command that regenerates [`REFERENCE_PATH`].
-pub const BLESS_COMMAND: &str = "SADESIM_BLESS=1 cargo test -p sadesim-crds reference";
+const BLESS_COMMAND: &str = "SADESIM_BLESS=1 cargo test -p sadesim-crds --test reference";
 
 /// The scenario reference as Markdown. Deterministic: same types, same text.
-#[must_use]
-pub fn scenario_reference_markdown() -> String {
-    let crd = serde_json::to_value(crate::crd::crd()).expect("a CRD always serializes");
+fn scenario_reference_markdown() -> String {
+    let crd = serde_json::to_value(sadesim_crds::crd::crd()).expect("a CRD always serializes");
     let spec = crd
         .pointer("/spec/versions/0/schema/openAPIV3Schema/properties/spec")
         .expect("the CRD has a spec schema")
@@ -71,7 +72,7 @@ fn intro(out: &mut String) {
     out.push_str("# SimulationRun scenario reference\n\n");
     let _ = writeln!(
         out,
-        "<!-- Generated from the Rust types in crds/src by crds/src/reference.rs. Do not edit: \
+        "<!-- Generated from the Rust types in crds/src by crds/tests/reference.rs. Do not edit: \
          change the types' doc comments and regenerate with `{BLESS_COMMAND}`. -->\n"
     );
     out.push_str(
@@ -666,7 +667,7 @@ mod tests {
 
     #[test]
     fn duration_fields_match_the_schema() {
-        let crd = serde_json::to_value(crate::crd::crd()).unwrap();
+        let crd = serde_json::to_value(sadesim_crds::crd::crd()).unwrap();
         let spec = crd.pointer("/spec/versions/0/schema/openAPIV3Schema/properties/spec").unwrap();
         let mut found = BTreeSet::new();
         unconstrained_strings(spec, "spec", &mut found);
@@ -681,8 +682,8 @@ mod tests {
     fn example_scenario_is_valid() {
         let doc = scenario_reference_markdown();
         assert!(doc.contains(EXAMPLE));
-        let run = crate::parse_run(EXAMPLE).expect("the example parses");
-        crate::validate(&run).expect("the example validates");
+        let run = sadesim_crds::parse_run(EXAMPLE).expect("the example parses");
+        sadesim_crds::validate(&run).expect("the example validates");
     }
 
     #[test]
