@@ -18,6 +18,7 @@
 //! - `index`: the uniform grid behind the fast queries.
 //! - `map`: [`World`] and its queries; `stats`: [`WorldStats`] for logs.
 //! - `ground`: the [`Ground`] height query, with [`FlatGround`] for tests.
+//! - [`osm`]: real buildings and open areas from an OpenStreetMap extract (`.osm.pbf` bytes).
 
 mod building;
 mod city;
@@ -26,6 +27,7 @@ mod ground;
 mod index;
 mod inputs;
 mod map;
+pub mod osm;
 mod stats;
 mod terrain;
 

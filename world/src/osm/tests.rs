@@ -1,0 +1,417 @@
+//! The OSM import on small files written here by a minimal PBF encoder (the real Helsinki
+//! extract is checked against pyosmium in `tests/interop/test_osm.py`).
+
+use std::io::Write;
+
+use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
+
+use super::*;
+
+const ORIGIN: GeoPoint = GeoPoint { latitude_deg: 60.17, longitude_deg: 24.95, altitude_msl_m: 10.0 };
+
+fn frame() -> LocalFrame {
+    LocalFrame::new(ORIGIN)
+}
+
+/// `[lat, lon]` of the ENU point `(e, n)`.
+fn at(e: f64, n: f64) -> (f64, f64) {
+    let p = frame().to_geodetic(Enu { east_m: e, north_m: n, up_m: 0.0 });
+    (p.latitude_deg, p.longitude_deg)
+}
+
+// --- a minimal Protocol Buffers / PBF encoder ---------------------------------------------
+
+fn varint(out: &mut Vec<u8>, mut v: u64) {
+    while v >= 0x80 {
+        out.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+fn zz(v: i64) -> u64 {
+    ((v << 1) ^ (v >> 63)) as u64
+}
+
+fn field_varint(out: &mut Vec<u8>, field: u32, v: u64) {
+    varint(out, u64::from(field) << 3);
+    varint(out, v);
+}
+
+fn field_bytes(out: &mut Vec<u8>, field: u32, bytes: &[u8]) {
+    varint(out, (u64::from(field) << 3) | 2);
+    varint(out, bytes.len() as u64);
+    out.extend_from_slice(bytes);
+}
+
+fn field_packed(out: &mut Vec<u8>, field: u32, values: impl IntoIterator<Item = u64>) {
+    let mut body = Vec::new();
+    for v in values {
+        varint(&mut body, v);
+    }
+    field_bytes(out, field, &body);
+}
+
+fn deltas(values: &[i64]) -> Vec<u64> {
+    let mut last = 0;
+    values
+        .iter()
+        .map(|&v| {
+            let d = v - last;
+            last = v;
+            zz(d)
+        })
+        .collect()
+}
+
+type T<'a> = &'a [(&'a str, &'a str)];
+/// A relation member: `(type: 0 node, 1 way, 2 relation, id, role)`.
+type M<'a> = (u64, i64, &'a str);
+
+/// One data block's content.
+#[derive(Default)]
+struct Data<'a> {
+    nodes: Vec<(i64, (f64, f64))>,
+    ways: Vec<(i64, T<'a>, Vec<i64>)>,
+    relations: Vec<(i64, T<'a>, Vec<M<'a>>)>,
+}
+
+impl<'a> Data<'a> {
+    /// A closed way around the ENU rectangle `[e0, e1] x [n0, n1]`, with nodes `first..`.
+    fn rect_way(&mut self, way: i64, first: i64, [e0, n0, e1, n1]: [f64; 4], tags: T<'a>) {
+        for (k, (e, n)) in [(e0, n0), (e1, n0), (e1, n1), (e0, n1)].into_iter().enumerate() {
+            self.nodes.push((first + k as i64, at(e, n)));
+        }
+        self.ways.push((way, tags, vec![first, first + 1, first + 2, first + 3, first]));
+    }
+}
+
+struct Strings(Vec<String>);
+
+impl Strings {
+    fn id(&mut self, s: &str) -> u64 {
+        match self.0.iter().position(|x| x == s) {
+            Some(i) => i as u64,
+            None => {
+                self.0.push(s.to_string());
+                (self.0.len() - 1) as u64
+            }
+        }
+    }
+}
+
+fn primitive_block(data: &Data) -> Vec<u8> {
+    let mut strings = Strings(vec![String::new()]);
+    let mut group = Vec::new();
+    // Dense nodes, granularity 100 nanodegrees.
+    let ids: Vec<i64> = data.nodes.iter().map(|n| n.0).collect();
+    let lats: Vec<i64> = data.nodes.iter().map(|n| (n.1.0 * 1e7).round() as i64).collect();
+    let lons: Vec<i64> = data.nodes.iter().map(|n| (n.1.1 * 1e7).round() as i64).collect();
+    let mut dense = Vec::new();
+    field_packed(&mut dense, 1, deltas(&ids));
+    field_packed(&mut dense, 8, deltas(&lats));
+    field_packed(&mut dense, 9, deltas(&lons));
+    field_bytes(&mut group, 2, &dense);
+    for (id, tags, refs) in &data.ways {
+        let mut w = Vec::new();
+        field_varint(&mut w, 1, *id as u64);
+        field_packed(&mut w, 2, tags.iter().map(|t| strings.id(t.0)).collect::<Vec<_>>());
+        field_packed(&mut w, 3, tags.iter().map(|t| strings.id(t.1)).collect::<Vec<_>>());
+        field_packed(&mut w, 8, deltas(refs));
+        field_bytes(&mut group, 3, &w);
+    }
+    for (id, tags, members) in &data.relations {
+        let mut r = Vec::new();
+        field_varint(&mut r, 1, *id as u64);
+        field_packed(&mut r, 2, tags.iter().map(|t| strings.id(t.0)).collect::<Vec<_>>());
+        field_packed(&mut r, 3, tags.iter().map(|t| strings.id(t.1)).collect::<Vec<_>>());
+        field_packed(&mut r, 8, members.iter().map(|m| strings.id(m.2)).collect::<Vec<_>>());
+        field_packed(&mut r, 9, deltas(&members.iter().map(|m| m.1).collect::<Vec<_>>()));
+        field_packed(&mut r, 10, members.iter().map(|m| m.0).collect::<Vec<_>>());
+        field_bytes(&mut group, 4, &r);
+    }
+    let mut table = Vec::new();
+    for s in &strings.0 {
+        field_bytes(&mut table, 1, s.as_bytes());
+    }
+    let mut block = Vec::new();
+    field_bytes(&mut block, 1, &table);
+    field_bytes(&mut block, 2, &group);
+    block
+}
+
+fn blob(kind: &str, payload: &[u8], zlib: bool) -> Vec<u8> {
+    let mut blob = Vec::new();
+    if zlib {
+        let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+        z.write_all(payload).unwrap();
+        field_varint(&mut blob, 2, payload.len() as u64);
+        field_bytes(&mut blob, 3, &z.finish().unwrap());
+    } else {
+        field_bytes(&mut blob, 1, payload);
+    }
+    let mut header = Vec::new();
+    field_bytes(&mut header, 1, kind.as_bytes());
+    field_varint(&mut header, 3, blob.len() as u64);
+    let mut out = (header.len() as u32).to_be_bytes().to_vec();
+    out.extend(header);
+    out.extend(blob);
+    out
+}
+
+/// A file: header (bbox `[min_lon, min_lat, max_lon, max_lat]`, or the extent's square
+/// plus a margin) and one zlib data block.
+fn file_with(data: &Data, bbox: Option<[f64; 4]>) -> Vec<u8> {
+    let [w, s, e, n] = bbox.unwrap_or_else(|| {
+        let (s, w) = at(-2000.0, -2000.0);
+        let (n, e) = at(2000.0, 2000.0);
+        [w, s, e, n]
+    });
+    let mut header = Vec::new();
+    let mut b = Vec::new();
+    for (f, v) in [(1, w), (2, e), (3, n), (4, s)] {
+        field_varint(&mut b, f, zz((v * 1e9).round() as i64));
+    }
+    field_bytes(&mut header, 1, &b);
+    field_bytes(&mut header, 4, b"OsmSchema-V0.6");
+    field_bytes(&mut header, 4, b"DenseNodes");
+    let mut out = blob("OSMHeader", &header, false);
+    out.extend(blob("OSMData", &primitive_block(data), true));
+    out
+}
+
+fn file(data: &Data) -> Vec<u8> {
+    file_with(data, None)
+}
+
+const EXTENT_M: f64 = 1000.0;
+
+fn read(bytes: &[u8]) -> Result<OsmCity, OsmError> {
+    read_pbf(bytes, &frame(), EXTENT_M)
+}
+
+// --- buildings ------------------------------------------------------------------------------
+
+#[test]
+fn a_building_way_becomes_a_prism_over_its_footprint_with_its_tagged_height() {
+    let mut d = Data::default();
+    d.rect_way(10, 100, [10.0, 20.0, 30.0, 35.0], &[("building", "yes"), ("height", "24.5")]);
+    d.rect_way(11, 200, [100.0, 100.0, 110.0, 110.0], &[("highway", "service")]);
+    let city = read(&file(&d)).unwrap();
+    assert_eq!(city.buildings.len(), 1, "the service road is no building");
+    let b = &city.buildings[0];
+    assert_eq!(b.id, ElementId::Way(10));
+    assert_eq!(b.height_source, HeightSource::Tagged);
+    assert!((b.building.roof_up_m() - 24.5).abs() < 1e-9);
+    assert_eq!(b.building.base_up_m(), 0.0);
+    // 20 m x 15 m, through degrees at 1e-7 deg resolution (~1 cm).
+    assert!((b.building.footprint_area_m2() - 300.0).abs() < 0.5, "{}", b.building.footprint_area_m2());
+    assert!(b.building.footprint_contains(20.0, 27.0) && !b.building.footprint_contains(35.0, 27.0));
+    assert_eq!(city.stats.heights_tagged, 1);
+}
+
+#[test]
+fn heights_follow_the_documented_rules_and_are_counted() {
+    let cases: [(T, f64, f64, HeightSource); 7] = [
+        (&[("building", "yes"), ("building:height", "12 m")], 0.0, 12.0, HeightSource::Tagged),
+        (&[("building", "yes"), ("height", "40'")], 0.0, 12.192, HeightSource::Tagged),
+        (&[("building", "yes"), ("building:levels", "4")], 0.0, 12.0, HeightSource::Levels),
+        (
+            &[("building", "yes"), ("building:levels", "4"), ("roof:levels", "1"), ("roof:height", "2")],
+            0.0,
+            17.0,
+            HeightSource::Levels,
+        ),
+        (&[("building", "yes"), ("height", "20"), ("min_height", "8")], 8.0, 20.0, HeightSource::Tagged),
+        (&[("building", "yes"), ("height", "tall")], 0.0, DEFAULT_HEIGHT_M, HeightSource::Default),
+        (&[("building", "house")], 0.0, DEFAULT_HEIGHT_M, HeightSource::Default),
+    ];
+    let mut d = Data::default();
+    for (i, (tags, ..)) in cases.iter().enumerate() {
+        let e = 50.0 * i as f64;
+        d.rect_way(i as i64 + 1, 100 * (i as i64 + 1), [e, 0.0, e + 20.0, 20.0], tags);
+    }
+    let city = read(&file(&d)).unwrap();
+    assert_eq!(city.buildings.len(), cases.len());
+    for (b, (tags, base, roof, source)) in city.buildings.iter().zip(&cases) {
+        assert!((b.building.base_up_m() - base).abs() < 1e-9, "{tags:?}: base {}", b.building.base_up_m());
+        assert!((b.building.roof_up_m() - roof).abs() < 1e-9, "{tags:?}: roof {}", b.building.roof_up_m());
+        assert_eq!(b.height_source, *source, "{tags:?}");
+    }
+    let s = &city.stats;
+    assert_eq!((s.heights_tagged, s.heights_from_levels, s.heights_defaulted), (3, 2, 2));
+}
+
+#[test]
+fn lengths_parse_in_metres_and_feet() {
+    assert_eq!(parse_length_m("12"), Some(12.0));
+    assert_eq!(parse_length_m(" 12.5 m"), Some(12.5));
+    assert_eq!(parse_length_m("7m"), Some(7.0));
+    assert!((parse_length_m("10 ft").unwrap() - 3.048).abs() < 1e-12);
+    assert!((parse_length_m("40'6\"").unwrap() - (12.192 + 0.1524)).abs() < 1e-9);
+    for bad in ["", "tall", "5;7", "NaN m", "inf"] {
+        assert_eq!(parse_length_m(bad), None, "{bad:?}");
+    }
+}
+
+#[test]
+fn a_multipolygon_building_has_its_courtyard_as_a_hole_and_ways_join_into_rings() {
+    let mut d = Data::default();
+    // Outer 40 x 40 m from two open ways (one reversed), inner 10 x 10 m.
+    let corners = [(0.0, 0.0), (40.0, 0.0), (40.0, 40.0), (0.0, 40.0)];
+    for (k, (e, n)) in corners.into_iter().enumerate() {
+        d.nodes.push((1 + k as i64, at(e, n)));
+    }
+    d.ways.push((101, &[], vec![1, 2, 3]));
+    d.ways.push((102, &[], vec![1, 4, 3]));
+    d.rect_way(103, 10, [15.0, 15.0, 25.0, 25.0], &[]);
+    d.relations.push((
+        7,
+        &[("type", "multipolygon"), ("building", "yes"), ("building:levels", "5")],
+        vec![(1, 101, "outer"), (1, 102, "outer"), (1, 103, "inner")],
+    ));
+    let city = read(&file(&d)).unwrap();
+    assert_eq!(city.buildings.len(), 1);
+    let b = &city.buildings[0];
+    assert_eq!(b.id, ElementId::Relation(7));
+    assert!((b.building.footprint_area_m2() - 1500.0).abs() < 1.0, "{}", b.building.footprint_area_m2());
+    assert!(!b.building.footprint_contains(20.0, 20.0), "the courtyard is open");
+    assert!(b.building.footprint_contains(5.0, 20.0));
+    assert!((b.building.roof_up_m() - 15.0).abs() < 1e-9);
+}
+
+#[test]
+fn buildings_are_clipped_to_the_world_square_and_those_outside_are_dropped() {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [EXTENT_M - 10.0, 0.0, EXTENT_M + 30.0, 20.0], &[("building", "yes")]);
+    d.rect_way(2, 200, [EXTENT_M + 50.0, 0.0, EXTENT_M + 80.0, 20.0], &[("building", "yes")]);
+    d.rect_way(3, 300, [0.0, 0.0, 10.0, 10.0], &[("building", "yes")]);
+    let city = read(&file(&d)).unwrap();
+    assert_eq!(city.buildings.len(), 2, "the building wholly outside is dropped");
+    let cut = &city.buildings[0].building;
+    assert!((cut.footprint_area_m2() - 200.0).abs() < 0.5, "10 m of 40 m inside: {}", cut.footprint_area_m2());
+    assert!(cut.max_corner().x <= EXTENT_M + 1e-6);
+}
+
+#[test]
+fn parks_become_open_areas_with_their_names() {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 10.0, 10.0], &[("building", "yes")]);
+    d.rect_way(2, 200, [100.0, 100.0, 200.0, 180.0], &[("leisure", "park"), ("name", "Esplanadi")]);
+    d.rect_way(3, 300, [300.0, 100.0, 320.0, 120.0], &[("landuse", "grass")]);
+    d.rect_way(4, 400, [400.0, 100.0, 420.0, 120.0], &[("landuse", "industrial")]);
+    let city = read(&file(&d)).unwrap();
+    let kinds: Vec<(&str, Option<&str>)> =
+        city.open_areas.iter().map(|a| (a.kind.as_str(), a.name.as_deref())).collect();
+    assert_eq!(kinds, [("leisure=park", Some("Esplanadi")), ("landuse=grass", None)]);
+    assert!((city.open_areas[0].footprint.area_m2() - 8000.0).abs() < 5.0);
+    assert_eq!(city.stats.open_areas, 2);
+}
+
+#[test]
+fn elements_cut_by_the_extract_are_skipped_and_counted() {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 10.0, 10.0], &[("building", "yes")]);
+    // A way whose nodes are not in the file, and a relation whose member way is not.
+    d.ways.push((2, &[("building", "yes")], vec![900, 901, 902, 900]));
+    d.relations.push((3, &[("type", "multipolygon"), ("building", "yes")], vec![(1, 999, "outer")]));
+    // An open way tagged as a building.
+    d.nodes.push((50, at(30.0, 30.0)));
+    d.nodes.push((51, at(40.0, 30.0)));
+    d.ways.push((4, &[("building", "yes")], vec![50, 51]));
+    let city = read(&file(&d)).unwrap();
+    assert_eq!(city.buildings.len(), 1);
+    assert_eq!((city.stats.skipped_incomplete, city.stats.skipped_open_ways), (2, 1));
+}
+
+// --- refused inputs -------------------------------------------------------------------------
+
+fn one_building() -> Vec<u8> {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 10.0, 10.0], &[("building", "yes")]);
+    file(&d)
+}
+
+fn error(bytes: &[u8]) -> String {
+    read(bytes).expect_err("refused").to_string()
+}
+
+#[test]
+fn broken_files_are_refused_naming_the_byte_and_the_problem() {
+    let good = one_building();
+    assert!(read(&good).is_ok());
+    let cases: Vec<(&str, Vec<u8>, &str)> = vec![
+        ("empty", vec![], "byte 0: empty file"),
+        ("text", b"<?xml version='1.0'?><osm></osm>".to_vec(), "byte 0: not an OSM PBF file"),
+        ("cut in the length", good[..2].to_vec(), "byte 0: truncated"),
+        ("cut in the header", good[..10].to_vec(), "byte 0: truncated: the blob header needs"),
+        ("cut in the data", good[..good.len() - 5].to_vec(), "truncated: the blob needs"),
+        ("trailing garbage", [good.clone(), vec![0, 0, 0]].concat(), "truncated"),
+    ];
+    for (what, bytes, expected) in cases {
+        let e = error(&bytes);
+        assert!(e.contains(expected), "{what}: {e}");
+    }
+    // A flipped byte inside the compressed block: zlib's checksum catches it.
+    let mut flipped = good.clone();
+    let i = flipped.len() - 20;
+    flipped[i] ^= 0x55;
+    let e = error(&flipped);
+    assert!(e.contains("zlib") || e.contains("blob payload byte"), "{e}");
+}
+
+#[test]
+fn a_data_blob_first_or_an_unknown_required_feature_is_refused() {
+    let data = blob("OSMData", &primitive_block(&Data::default()), false);
+    assert!(error(&data).contains("the first blob is \"OSMData\", expected \"OSMHeader\""));
+    let mut header = Vec::new();
+    field_bytes(&mut header, 4, b"HistoricalInformation");
+    let e = error(&blob("OSMHeader", &header, false));
+    assert!(e.contains("requires feature \"HistoricalInformation\""), "{e}");
+}
+
+#[test]
+fn an_extract_that_does_not_cover_the_world_is_refused_with_both_boxes() {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 10.0, 10.0], &[("building", "yes")]);
+    let (s, w) = at(-500.0, -500.0);
+    let (n, e) = at(500.0, 500.0);
+    let e = read_pbf(&file_with(&d, Some([w, s, e, n])), &frame(), EXTENT_M).unwrap_err();
+    assert!(matches!(e, OsmError::NotCovering { .. }), "{e}");
+    assert!(e.to_string().contains("world.extentM 1000 m"), "{e}");
+}
+
+#[test]
+fn a_negative_height_is_refused_naming_the_element_and_tag() {
+    let mut d = Data::default();
+    d.rect_way(42, 100, [0.0, 0.0, 10.0, 10.0], &[("building", "yes"), ("height", "-5")]);
+    assert_eq!(error(&file(&d)), "way 42: tag height=\"-5\": expected a height >= 0");
+}
+
+#[test]
+fn no_building_in_the_extent_is_an_error_not_an_empty_city() {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 10.0, 10.0], &[("leisure", "park")]);
+    assert!(error(&file(&d)).starts_with("no building within world.extentM 1000 m"));
+}
+
+#[test]
+fn arbitrary_bytes_never_panic() {
+    // A cheap deterministic fuzz: every prefix and many byte flips of a valid file.
+    let good = one_building();
+    for n in 0..good.len() {
+        let _ = read(&good[..n]);
+    }
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    for _ in 0..2000 {
+        let mut bytes = good.clone();
+        for _ in 0..3 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let i = (state % bytes.len() as u64) as usize;
+            bytes[i] = (state >> 32) as u8;
+        }
+        let _ = read(&bytes);
+    }
+}
