@@ -18,10 +18,12 @@
 //! - `index`: the uniform grid behind the fast queries.
 //! - `map`: [`World`] and its queries; `stats`: [`WorldStats`] for logs.
 //! - `ground`: the [`Ground`] height query, with [`FlatGround`] for tests.
+//! - [`dem`]: terrain from a GeoTIFF or SRTM elevation model (bytes), sampled at WGS84 positions.
 //! - [`osm`]: real buildings and open areas from an OpenStreetMap extract (`.osm.pbf` bytes).
 
 mod building;
 mod city;
+pub mod dem;
 mod footprint;
 mod ground;
 mod index;
