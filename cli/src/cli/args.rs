@@ -182,6 +182,29 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Read a digital elevation model (GeoTIFF in EPSG:4326 or WGS84 UTM, or an SRTM .hgt
+    /// tile) as SADE-SIM's terrain reads it: check that it covers the square of --extent-m
+    /// around --origin and print the ground there (lowest, highest, at the origin, largest
+    /// slope); --at prints the elevation at given points.
+    ///
+    /// Exits 2 naming the file and the problem when the DEM cannot be read, is not
+    /// georeferenced, uses another CRS, or does not cover the square.
+    Dem {
+        /// The DEM file (`.tif`, `.hgt`).
+        file: PathBuf,
+        /// The world origin as `LAT,LON` in degrees (spec.origin).
+        #[arg(long, value_parser = parse_lat_lon)]
+        origin: (f64, f64),
+        /// Half-width of the square world around the origin, metres (spec.world.extentM).
+        #[arg(long, default_value_t = 2000.0)]
+        extent_m: f64,
+        /// Also print the elevation at `LAT,LON` (repeatable).
+        #[arg(long, value_parser = parse_lat_lon)]
+        at: Vec<(f64, f64)>,
+        /// Print as JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
     /// Run the Kubernetes operator: reconcile SimulationRuns in the cluster of the current
     /// kubeconfig or service account.
     ///
