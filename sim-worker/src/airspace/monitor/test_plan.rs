@@ -1,5 +1,5 @@
-//! Test support: a `RunPlan` planned from a fixture run by the real planner, and zones given
-//! as ENU rectangles.
+//! Test support: a `RunPlan` planned from a fixture run by the real planner, zones given
+//! as ENU rectangles, and drone snapshots.
 
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::LatLon;
@@ -9,6 +9,8 @@ use sadesim_crds::run::SimulationRun;
 use sadesim_crds::zones::{AltitudeReference, Zone, ZoneAltitude, ZonePolicy};
 
 use crate::airspace::volume::ZoneVolume;
+use crate::events::FlightMode;
+use crate::protocol::DroneSnapshot;
 
 /// The plan of `run`, made by the real planner (`sadesim-planner`, as `sadesim run` and the
 /// operator make it): drones `<group>-<k>` in fleet order, MAVLink ids, shards, ports and
@@ -66,4 +68,22 @@ pub(crate) fn rect_zone(name: &str, east: (f64, f64), north: (f64, f64), floor_m
 pub(crate) fn volumes(plan: &RunPlan) -> Vec<ZoneVolume> {
     let frame = LocalFrame::new(plan.spec.origin.geo());
     plan.spec.zones.iter().map(|z| ZoneVolume::new(z, &frame)).collect()
+}
+
+/// An airborne drone at ENU (e, n, up) over ground at `ground_up_m`.
+pub(crate) fn over(index: u32, p: [f64; 3], ground_up_m: f64) -> DroneSnapshot {
+    DroneSnapshot {
+        index,
+        position_enu_m: p,
+        velocity_enu_mps: [0.0; 3],
+        attitude_wxyz: [1.0, 0.0, 0.0, 0.0],
+        height_agl_m: p[2] - ground_up_m,
+        mode: FlightMode::Offboard,
+        armed: true,
+        on_ground: false,
+        crashed: false,
+        battery_remaining: 1.0,
+        position_valid: true,
+        detail: Default::default(),
+    }
 }

@@ -1,7 +1,7 @@
 use sadesim_crds::criteria::Criterion;
 use sadesim_crds::plan::RunPlan;
 
-use super::test_plan::{plan_of, rect_zone, run_with_groups, volumes};
+use super::test_plan::{over, plan_of, rect_zone, run_with_groups, volumes};
 use super::*;
 use crate::events::FlightMode;
 
@@ -18,24 +18,6 @@ fn plan(n: u32, edit: impl FnOnce(&mut sadesim_crds::run::SimulationRun)) -> Run
 /// A harness on `plan(n, edit)`, for a test that needs the plan for nothing else.
 fn harness(n: u32, edit: impl FnOnce(&mut sadesim_crds::run::SimulationRun)) -> Harness {
     Harness::new(&plan(n, edit))
-}
-
-/// An airborne drone at ENU (e, n, up) over ground at `ground_up_m`.
-fn over(index: u32, p: [f64; 3], ground_up_m: f64) -> DroneSnapshot {
-    DroneSnapshot {
-        index,
-        position_enu_m: p,
-        velocity_enu_mps: [0.0; 3],
-        attitude_wxyz: [1.0, 0.0, 0.0, 0.0],
-        height_agl_m: p[2] - ground_up_m,
-        mode: FlightMode::Offboard,
-        armed: true,
-        on_ground: false,
-        crashed: false,
-        battery_remaining: 1.0,
-        position_valid: true,
-        detail: Default::default(),
-    }
 }
 
 /// An airborne drone over flat ground at up 0.
