@@ -108,42 +108,23 @@ fn altitude_panel(
     }
     for z in zones {
         let visited = presences.iter().any(|p| p.zone == z.name);
-        if let Some(min) = z.min_altitude_agl_m {
-            lines.push(RefLine {
-                agl_m: min,
-                always: visited,
-                colour: ZONE_STROKE,
-                dash: "",
-                label: format!("{} lease minimum {:.0} ft ({:.1} m)", z.name, ft(min), min),
-            });
-        }
-        if let Some(max) = z.max_altitude_agl_m {
-            lines.push(RefLine {
-                agl_m: max,
-                always: visited,
-                colour: ZONE_STROKE,
-                dash: "",
-                label: format!("{} lease maximum {:.0} ft", z.name, ft(max)),
-            });
-        }
         let floor = as_agl(z.floor.height_m, z.floor.reference);
-        if floor > 0.0 {
-            lines.push(RefLine {
-                agl_m: floor,
-                always: visited,
-                colour: ZONE_STROKE,
-                dash: "6 4",
-                label: format!("{} floor {:.0} ft", z.name, ft(floor)),
-            });
-        }
         let ceiling = as_agl(z.ceiling.height_m, z.ceiling.reference);
-        lines.push(RefLine {
-            agl_m: ceiling,
+        // (height, dash, label): the lease band (solid), the floor when above ground and the
+        // ceiling (dashed).
+        let zone_lines = [
+            z.min_altitude_agl_m.map(|m| (m, "", format!("{} lease minimum {:.0} ft ({:.1} m)", z.name, ft(m), m))),
+            z.max_altitude_agl_m.map(|m| (m, "", format!("{} lease maximum {:.0} ft", z.name, ft(m)))),
+            Some(floor).filter(|&f| f > 0.0).map(|f| (f, "6 4", format!("{} floor {:.0} ft", z.name, ft(f)))),
+            Some((ceiling, "6 4", format!("{} ceiling {:.0} ft", z.name, ft(ceiling)))),
+        ];
+        lines.extend(zone_lines.into_iter().flatten().map(|(agl_m, dash, label)| RefLine {
+            agl_m,
             always: visited,
             colour: ZONE_STROKE,
-            dash: "6 4",
-            label: format!("{} ceiling {:.0} ft", z.name, ft(ceiling)),
-        });
+            dash,
+            label,
+        }));
     }
     // The panel spans the group's heights and its own limits, and the lines of the zones
     // it entered; the lines of other zones are drawn only when they fall inside (else the
