@@ -66,6 +66,19 @@ pub fn altitude(data: &RunData, styles: &[GroupStyle], zones: &[ZoneShape]) -> S
     out
 }
 
+/// One legend row at (`lx`, `*ly`): a 30 px line in `colour`, `width` wide (`extra`: more
+/// attributes), and its label; `*ly` moves to the next row.
+fn legend_line(out: &mut String, lx: f64, ly: &mut f64, colour: &str, width: &str, extra: &str, label: &str) {
+    let _ = write!(
+        out,
+        r#"<line x1="{lx:.1}" y1="{0:.1}" x2="{1:.1}" y2="{0:.1}" stroke="{colour}" stroke-width="{width}"{extra}/>"#,
+        *ly - 5.0,
+        lx + 30.0,
+    );
+    text(out, lx + 38.0, *ly, 13.0, "start", "", label);
+    *ly += 22.0;
+}
+
 #[allow(clippy::too_many_arguments)]
 fn altitude_panel(
     out: &mut String,
@@ -253,39 +266,15 @@ fn altitude_panel(
     let mut ly = top + 12.0;
     for l in &lines {
         let dash = if l.dash.is_empty() { String::new() } else { format!(r#" stroke-dasharray="{}""#, l.dash) };
-        let _ = write!(
-            out,
-            r#"<line x1="{lx:.1}" y1="{0:.1}" x2="{1:.1}" y2="{0:.1}" stroke="{2}" stroke-width="2"{dash}/>"#,
-            ly - 5.0,
-            lx + 30.0,
-            l.colour
-        );
-        text(out, lx + 38.0, ly, 13.0, "start", "", &l.label);
-        ly += 22.0;
+        legend_line(out, lx, &mut ly, l.colour, "2", &dash, &l.label);
     }
-    let _ = write!(
-        out,
-        r#"<line x1="{lx:.1}" y1="{0:.1}" x2="{1:.1}" y2="{0:.1}" stroke="{2}" stroke-width="1.3"/>"#,
-        ly - 5.0,
-        lx + 30.0,
-        style.colour
-    );
-    text(out, lx + 38.0, ly, 13.0, "start", "", "one line per drone");
-    ly += 22.0;
-    let _ = write!(
-        out,
-        r#"<line x1="{lx:.1}" y1="{0:.1}" x2="{1:.1}" y2="{0:.1}" stroke="{2}" stroke-width="4"/>"#,
-        ly - 5.0,
-        lx + 30.0,
-        darker(style.colour)
-    );
+    legend_line(out, lx, &mut ly, style.colour, "1.3", "", "one line per drone");
     let inside = if presences.is_empty() {
         "inside a zone (never)".to_string()
     } else {
         format!("inside a zone ({} stays)", presences.len())
     };
-    text(out, lx + 38.0, ly, 13.0, "start", "", &inside);
-    ly += 22.0;
+    legend_line(out, lx, &mut ly, &darker(style.colour), "4", "", &inside);
     let violations = data.airspace.as_ref().map_or(0, |a| {
         a.compliance.violations.iter().filter(|v| group_tracks.iter().any(|t| t.drone == v.drone)).count()
     });
