@@ -7,11 +7,9 @@ use std::sync::{Arc, OnceLock};
 
 use resvg::tiny_skia;
 use sadesim_crds::criteria::Criterion;
-use sadesim_crds::fixtures::{HOMES, RunBuilder};
-use sadesim_crds::fleet::{Area, HomePlacement, LatLon, Mission, MissionItem, Role};
-use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
+use sadesim_crds::fixtures::{HOMES, RunBuilder, near_homes, zone};
+use sadesim_crds::fleet::{Area, HomePlacement, Mission, MissionItem, Role};
 use sadesim_crds::run::{Clock, ClockMode};
-use sadesim_crds::zones::{AltitudeReference, Zone, ZoneAltitude, ZonePolicy};
 
 use sadesim_evidence::report::*;
 
@@ -24,12 +22,7 @@ fn scenario() -> sadesim_crds::SimulationRun {
         .with(|r| {
             r.spec.duration = "60s".parse().unwrap();
             r.spec.clock = Some(Clock { mode: ClockMode::AsFastAsPossible, factor: None });
-            let frame = LocalFrame::new(r.spec.origin.geo());
-            let c = frame.to_enu(GeoPoint::new(HOMES.latitude_deg, HOMES.longitude_deg, 181.0));
-            let at = |de: f64, dn: f64| {
-                let g = frame.to_geodetic(Enu::new(c.east_m + de, c.north_m + dn, 0.0));
-                LatLon { latitude_deg: g.latitude_deg, longitude_deg: g.longitude_deg }
-            };
+            let at = near_homes(r.spec.origin.geo());
             let target = at(0.0, 300.0);
             let mut intruders = r.spec.fleet[0].clone();
             intruders.name = "intruders".into();
@@ -55,21 +48,11 @@ fn scenario() -> sadesim_crds::SimulationRun {
             bystander.role = Role::Journalist;
             bystander.homes = HomePlacement::RandomInArea(Area { name: None, center: HOMES, radius_m: 30.0 });
             r.spec.fleet = vec![intruders, bystander];
-            r.spec.zones = vec![Zone {
-                name: "wall".into(),
-                polygon: vec![at(-150.0, 120.0), at(150.0, 120.0), at(150.0, 220.0), at(-150.0, 220.0)],
-                floor: None,
-                ceiling: ZoneAltitude { height_m: 100.0, reference: AltitudeReference::Agl },
-                active_from: None,
-                active_until: None,
-                policy: ZonePolicy {
-                    authorized_operators: vec!["nobody".into()],
-                    capacity: None,
-                    lease_duration: None,
-                    min_altitude_agl_m: Some(60.0),
-                    max_altitude_agl_m: None,
-                },
-            }];
+            let polygon = vec![at(-150.0, 120.0), at(150.0, 120.0), at(150.0, 220.0), at(-150.0, 220.0)];
+            let mut wall = zone("wall", polygon, 100.0);
+            wall.policy.authorized_operators = vec!["nobody".into()];
+            wall.policy.min_altitude_agl_m = Some(60.0);
+            r.spec.zones = vec![wall];
             r.spec.criteria = vec![Criterion::NoUnauthorizedEntries {}, Criterion::NoCrashes {}];
         })
         .build()

@@ -3,6 +3,7 @@
 use kube::core::{Duration, ObjectMeta};
 
 use crate::fleet::{AltitudeLimits, Area, FleetGroup, HomePlacement, LatLon, Mission, MissionItem, Role};
+use crate::geo::{Enu, GeoPoint, LocalFrame};
 use crate::run::{Origin, Pilot, SimulationRun, SimulationRunSpec};
 use crate::zones::{AltitudeReference, Zone, ZoneAltitude, ZonePolicy};
 
@@ -96,26 +97,8 @@ impl RunBuilder {
     pub fn with_zone(mut self, name: &str) -> Self {
         let d = 0.0009; // ~100 m of latitude
         let (la, lo) = (CHICAGO.latitude_deg, CHICAGO.longitude_deg);
-        self.run.spec.zones.push(Zone {
-            name: name.into(),
-            polygon: vec![
-                LatLon { latitude_deg: la - d, longitude_deg: lo - d },
-                LatLon { latitude_deg: la - d, longitude_deg: lo + d },
-                LatLon { latitude_deg: la + d, longitude_deg: lo + d },
-                LatLon { latitude_deg: la + d, longitude_deg: lo - d },
-            ],
-            floor: None,
-            ceiling: ZoneAltitude { height_m: 150.0, reference: AltitudeReference::Agl },
-            active_from: None,
-            active_until: None,
-            policy: ZonePolicy {
-                authorized_operators: vec!["acme".into()],
-                capacity: None,
-                lease_duration: None,
-                min_altitude_agl_m: None,
-                max_altitude_agl_m: None,
-            },
-        });
+        let corner = |dla: f64, dlo: f64| LatLon { latitude_deg: la + dla, longitude_deg: lo + dlo };
+        self.run.spec.zones.push(zone(name, vec![corner(-d, -d), corner(-d, d), corner(d, d), corner(d, -d)], 150.0));
         self
     }
 
@@ -146,5 +129,36 @@ fn group(name: &str, count: u32) -> FleetGroup {
             speed_mps: None,
         }),
         geofence: None,
+    }
+}
+
+/// A zone over `polygon` from the ground to `ceiling_agl_m` AGL, always active, open to
+/// operator `acme`, without lease altitude limits; a test changes what it needs.
+pub fn zone(name: &str, polygon: Vec<LatLon>, ceiling_agl_m: f64) -> Zone {
+    Zone {
+        name: name.into(),
+        polygon,
+        floor: None,
+        ceiling: ZoneAltitude { height_m: ceiling_agl_m, reference: AltitudeReference::Agl },
+        active_from: None,
+        active_until: None,
+        policy: ZonePolicy {
+            authorized_operators: vec!["acme".into()],
+            capacity: None,
+            lease_duration: None,
+            min_altitude_agl_m: None,
+            max_altitude_agl_m: None,
+        },
+    }
+}
+
+/// Ground points near the fixture's homes: `at(east_m, north_m)` is that far from
+/// [`HOMES`] (at 181 m MSL, the fixture origin's ground) in the local frame of `origin`.
+pub fn near_homes(origin: GeoPoint) -> impl Fn(f64, f64) -> LatLon {
+    let frame = LocalFrame::new(origin);
+    let c = frame.to_enu(GeoPoint::new(HOMES.latitude_deg, HOMES.longitude_deg, 181.0));
+    move |east_m, north_m| {
+        let g = frame.to_geodetic(Enu::new(c.east_m + east_m, c.north_m + north_m, 0.0));
+        LatLon { latitude_deg: g.latitude_deg, longitude_deg: g.longitude_deg }
     }
 }

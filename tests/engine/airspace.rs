@@ -9,11 +9,10 @@ use std::sync::atomic::AtomicBool;
 use sadesim::runner::{RunOptions, run_local};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::criteria::Criterion;
-use sadesim_crds::fixtures::{HOMES, RunBuilder};
-use sadesim_crds::fleet::{Area, GeofenceAction, HomePlacement, LatLon};
-use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
+use sadesim_crds::fixtures::{HOMES, RunBuilder, near_homes, zone};
+use sadesim_crds::fleet::{Area, GeofenceAction, HomePlacement};
+use sadesim_crds::geo::GeoPoint;
 use sadesim_crds::run::{Clock, ClockMode};
-use sadesim_crds::zones::{AltitudeReference, Zone, ZoneAltitude, ZonePolicy};
 use sadesim_integration_tests::fly_to_and_land;
 use serde_json::Value;
 
@@ -35,13 +34,10 @@ fn scenario() -> SimulationRun {
         .with(|r| {
             r.spec.duration = "180s".parse().unwrap();
             r.spec.clock = Some(Clock { mode: ClockMode::AsFastAsPossible, factor: None });
-            let frame = LocalFrame::new(r.spec.origin.geo());
-            let c = frame.to_enu(GeoPoint::new(HOMES.latitude_deg, HOMES.longitude_deg, 181.0));
-            let at = |de: f64, dn: f64| {
-                let g = frame.to_geodetic(Enu::new(c.east_m + de, c.north_m + dn, 0.0));
-                LatLon { latitude_deg: g.latitude_deg, longitude_deg: g.longitude_deg }
-            };
-            let target = frame.to_geodetic(Enu::new(c.east_m, c.north_m + 300.0, 0.0));
+            let at = near_homes(r.spec.origin.geo());
+            let north = at(0.0, 300.0);
+            // The waypoint takes latitude and longitude only.
+            let target = GeoPoint::new(north.latitude_deg, north.longitude_deg, 0.0);
             let template = r.spec.fleet[0].clone();
             r.spec.fleet = [
                 ("intruders", None),
@@ -59,26 +55,15 @@ fn scenario() -> SimulationRun {
                 g
             })
             .collect();
-            r.spec.zones = vec![Zone {
-                name: "wall".into(),
-                polygon: vec![
-                    at(-200.0, ZONE_SOUTH_M),
-                    at(200.0, ZONE_SOUTH_M),
-                    at(200.0, ZONE_NORTH_M),
-                    at(-200.0, ZONE_NORTH_M),
-                ],
-                floor: None,
-                ceiling: ZoneAltitude { height_m: 100.0, reference: AltitudeReference::Agl },
-                active_from: None,
-                active_until: None,
-                policy: ZonePolicy {
-                    authorized_operators: vec![],
-                    capacity: None,
-                    lease_duration: None,
-                    min_altitude_agl_m: None,
-                    max_altitude_agl_m: None,
-                },
-            }];
+            let polygon = vec![
+                at(-200.0, ZONE_SOUTH_M),
+                at(200.0, ZONE_SOUTH_M),
+                at(200.0, ZONE_NORTH_M),
+                at(-200.0, ZONE_NORTH_M),
+            ];
+            let mut wall = zone("wall", polygon, 100.0);
+            wall.policy.authorized_operators.clear();
+            r.spec.zones = vec![wall];
             r.spec.criteria = vec![Criterion::NoUnauthorizedEntries {}, Criterion::AltitudeLimitsRespected {}];
         })
         .build()

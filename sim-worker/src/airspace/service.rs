@@ -37,7 +37,7 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 use serde_json::{Value, json};
 
-use super::authority::{AuthorityError, EntryRequest};
+use super::authority::{Authority, AuthorityError, EntryRequest};
 use super::{AirspaceState, SharedAirspace};
 use crate::events::Event;
 
@@ -357,10 +357,19 @@ async fn request_entry(
     if !state.authority.rules.iter().any(|r| r.zone == zone) {
         return Err(AuthorityError::UnknownZone(zone).into());
     }
+    decide(&mut state, |authority, now_s| authority.request(&zone, &token.0, &request, now_s))
+}
+
+/// Asks the authority (`ask`, at the airspace's current time), collects the events it raised
+/// and answers with its decision: the answer of every request that may change the leases.
+fn decide<T: Serialize>(
+    state: &mut AirspaceState,
+    ask: impl FnOnce(&mut Authority, f64) -> Result<T, AuthorityError>,
+) -> Result<Response, ApiError> {
     let now_s = state.time_s;
-    let verdict = state.authority.request(&zone, &token.0, &request, now_s);
+    let decision = ask(&mut state.authority, now_s);
     state.collect_authority_events();
-    Ok(axum::Json(verdict?).into_response())
+    Ok(axum::Json(decision?).into_response())
 }
 
 async fn get_lease(
@@ -379,11 +388,7 @@ async fn renew_lease(
     token: Bearer,
 ) -> Result<Response, ApiError> {
     let id = path_id(path)?;
-    let mut state = lock(&state);
-    let now_s = state.time_s;
-    let lease = state.authority.renew(&id, &token.0, now_s);
-    state.collect_authority_events();
-    Ok(axum::Json(lease?).into_response())
+    decide(&mut lock(&state), |authority, now_s| authority.renew(&id, &token.0, now_s))
 }
 
 async fn release_lease(
@@ -392,11 +397,7 @@ async fn release_lease(
     token: Bearer,
 ) -> Result<Response, ApiError> {
     let id = path_id(path)?;
-    let mut state = lock(&state);
-    let now_s = state.time_s;
-    let lease = state.authority.release(&id, &token.0, now_s);
-    state.collect_authority_events();
-    Ok(axum::Json(lease?).into_response())
+    decide(&mut lock(&state), |authority, now_s| authority.release(&id, &token.0, now_s))
 }
 
 /// `GET /events` query: `since` (exclusive sequence number, default 0) and `limit`.

@@ -66,6 +66,19 @@ pub fn altitude(data: &RunData, styles: &[GroupStyle], zones: &[ZoneShape]) -> S
     out
 }
 
+/// One legend row at (`lx`, `*ly`): a 30 px line in `colour`, `width` wide (`extra`: more
+/// attributes), and its label; `*ly` moves to the next row.
+fn legend_line(out: &mut String, lx: f64, ly: &mut f64, colour: &str, width: &str, extra: &str, label: &str) {
+    let _ = write!(
+        out,
+        r#"<line x1="{lx:.1}" y1="{0:.1}" x2="{1:.1}" y2="{0:.1}" stroke="{colour}" stroke-width="{width}"{extra}/>"#,
+        *ly - 5.0,
+        lx + 30.0,
+    );
+    text(out, lx + 38.0, *ly, 13.0, "start", "", label);
+    *ly += 22.0;
+}
+
 #[allow(clippy::too_many_arguments)]
 fn altitude_panel(
     out: &mut String,
@@ -108,42 +121,23 @@ fn altitude_panel(
     }
     for z in zones {
         let visited = presences.iter().any(|p| p.zone == z.name);
-        if let Some(min) = z.min_altitude_agl_m {
-            lines.push(RefLine {
-                agl_m: min,
-                always: visited,
-                colour: ZONE_STROKE,
-                dash: "",
-                label: format!("{} lease minimum {:.0} ft ({:.1} m)", z.name, ft(min), min),
-            });
-        }
-        if let Some(max) = z.max_altitude_agl_m {
-            lines.push(RefLine {
-                agl_m: max,
-                always: visited,
-                colour: ZONE_STROKE,
-                dash: "",
-                label: format!("{} lease maximum {:.0} ft", z.name, ft(max)),
-            });
-        }
         let floor = as_agl(z.floor.height_m, z.floor.reference);
-        if floor > 0.0 {
-            lines.push(RefLine {
-                agl_m: floor,
-                always: visited,
-                colour: ZONE_STROKE,
-                dash: "6 4",
-                label: format!("{} floor {:.0} ft", z.name, ft(floor)),
-            });
-        }
         let ceiling = as_agl(z.ceiling.height_m, z.ceiling.reference);
-        lines.push(RefLine {
-            agl_m: ceiling,
+        // (height, dash, label): the lease band (solid), the floor when above ground and the
+        // ceiling (dashed).
+        let zone_lines = [
+            z.min_altitude_agl_m.map(|m| (m, "", format!("{} lease minimum {:.0} ft ({:.1} m)", z.name, ft(m), m))),
+            z.max_altitude_agl_m.map(|m| (m, "", format!("{} lease maximum {:.0} ft", z.name, ft(m)))),
+            Some(floor).filter(|&f| f > 0.0).map(|f| (f, "6 4", format!("{} floor {:.0} ft", z.name, ft(f)))),
+            Some((ceiling, "6 4", format!("{} ceiling {:.0} ft", z.name, ft(ceiling)))),
+        ];
+        lines.extend(zone_lines.into_iter().flatten().map(|(agl_m, dash, label)| RefLine {
+            agl_m,
             always: visited,
             colour: ZONE_STROKE,
-            dash: "6 4",
-            label: format!("{} ceiling {:.0} ft", z.name, ft(ceiling)),
-        });
+            dash,
+            label,
+        }));
     }
     // The panel spans the group's heights and its own limits, and the lines of the zones
     // it entered; the lines of other zones are drawn only when they fall inside (else the
@@ -272,39 +266,15 @@ fn altitude_panel(
     let mut ly = top + 12.0;
     for l in &lines {
         let dash = if l.dash.is_empty() { String::new() } else { format!(r#" stroke-dasharray="{}""#, l.dash) };
-        let _ = write!(
-            out,
-            r#"<line x1="{lx:.1}" y1="{0:.1}" x2="{1:.1}" y2="{0:.1}" stroke="{2}" stroke-width="2"{dash}/>"#,
-            ly - 5.0,
-            lx + 30.0,
-            l.colour
-        );
-        text(out, lx + 38.0, ly, 13.0, "start", "", &l.label);
-        ly += 22.0;
+        legend_line(out, lx, &mut ly, l.colour, "2", &dash, &l.label);
     }
-    let _ = write!(
-        out,
-        r#"<line x1="{lx:.1}" y1="{0:.1}" x2="{1:.1}" y2="{0:.1}" stroke="{2}" stroke-width="1.3"/>"#,
-        ly - 5.0,
-        lx + 30.0,
-        style.colour
-    );
-    text(out, lx + 38.0, ly, 13.0, "start", "", "one line per drone");
-    ly += 22.0;
-    let _ = write!(
-        out,
-        r#"<line x1="{lx:.1}" y1="{0:.1}" x2="{1:.1}" y2="{0:.1}" stroke="{2}" stroke-width="4"/>"#,
-        ly - 5.0,
-        lx + 30.0,
-        darker(style.colour)
-    );
+    legend_line(out, lx, &mut ly, style.colour, "1.3", "", "one line per drone");
     let inside = if presences.is_empty() {
         "inside a zone (never)".to_string()
     } else {
         format!("inside a zone ({} stays)", presences.len())
     };
-    text(out, lx + 38.0, ly, 13.0, "start", "", &inside);
-    ly += 22.0;
+    legend_line(out, lx, &mut ly, &darker(style.colour), "4", "", &inside);
     let violations = data.airspace.as_ref().map_or(0, |a| {
         a.compliance.violations.iter().filter(|v| group_tracks.iter().any(|t| t.drone == v.drone)).count()
     });

@@ -328,26 +328,13 @@ fn long_lists_of_names_are_cut_in_summaries() {
 #[test]
 fn the_monitor_s_records_make_the_failure_lines() {
     use crate::airspace::monitor::Monitor;
-    use crate::airspace::monitor::test_plan::volumes;
+    use crate::airspace::monitor::test_plan::{over, volumes};
     use crate::protocol::DroneSnapshot;
 
     let plan = plan(vec![Criterion::NoUnauthorizedEntries {}, Criterion::AltitudeLimitsRespected {}]);
     let mut monitor = Monitor::new(&plan, volumes(&plan));
     let snap = |e: f64, time_s: f64| {
-        let s = DroneSnapshot {
-            index: J0,
-            position_enu_m: [e, 50.0, 40.0],
-            velocity_enu_mps: [10.0, 0.0, 0.0],
-            attitude_wxyz: [1.0, 0.0, 0.0, 0.0],
-            height_agl_m: 40.0,
-            mode: crate::events::FlightMode::Offboard,
-            armed: true,
-            on_ground: false,
-            crashed: false,
-            battery_remaining: 1.0,
-            position_valid: true,
-            detail: Default::default(),
-        };
+        let s = DroneSnapshot { velocity_enu_mps: [10.0, 0.0, 0.0], ..over(J0, [e, 50.0, 40.0], 0.0) };
         (time_s, s)
     };
     for (t, s) in [snap(-5.0, 10.0), snap(5.0, 11.0), snap(50.0, 15.0)] {

@@ -1,14 +1,16 @@
-//! Test support: a `RunPlan` planned from a fixture run by the real planner, and zones given
-//! as ENU rectangles.
+//! Test support: a `RunPlan` planned from a fixture run by the real planner, zones given
+//! as ENU rectangles, and drone snapshots.
 
-use sadesim_crds::fixtures::RunBuilder;
+use sadesim_crds::fixtures::{RunBuilder, zone};
 use sadesim_crds::fleet::LatLon;
 use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::run::SimulationRun;
-use sadesim_crds::zones::{AltitudeReference, Zone, ZoneAltitude, ZonePolicy};
+use sadesim_crds::zones::{AltitudeReference, Zone, ZoneAltitude};
 
 use crate::airspace::volume::ZoneVolume;
+use crate::events::FlightMode;
+use crate::protocol::DroneSnapshot;
 
 /// The plan of `run`, made by the real planner (`sadesim-planner`, as `sadesim run` and the
 /// operator make it): drones `<group>-<k>` in fleet order, MAVLink ids, shards, ports and
@@ -40,25 +42,11 @@ pub(crate) fn rect_zone(name: &str, east: (f64, f64), north: (f64, f64), floor_m
         let g: GeoPoint = frame.to_geodetic(Enu::new(e, n, 0.0));
         LatLon { latitude_deg: g.latitude_deg, longitude_deg: g.longitude_deg }
     };
+    let polygon =
+        vec![corner(east.0, north.0), corner(east.1, north.0), corner(east.1, north.1), corner(east.0, north.1)];
     Zone {
-        name: name.into(),
-        polygon: vec![
-            corner(east.0, north.0),
-            corner(east.1, north.0),
-            corner(east.1, north.1),
-            corner(east.0, north.1),
-        ],
         floor: Some(ZoneAltitude { height_m: floor_m, reference: AltitudeReference::Agl }),
-        ceiling: ZoneAltitude { height_m: ceiling_m, reference: AltitudeReference::Agl },
-        active_from: None,
-        active_until: None,
-        policy: ZonePolicy {
-            authorized_operators: vec!["acme".into()],
-            capacity: None,
-            lease_duration: None,
-            min_altitude_agl_m: None,
-            max_altitude_agl_m: None,
-        },
+        ..zone(name, polygon, ceiling_m)
     }
 }
 
@@ -66,4 +54,22 @@ pub(crate) fn rect_zone(name: &str, east: (f64, f64), north: (f64, f64), floor_m
 pub(crate) fn volumes(plan: &RunPlan) -> Vec<ZoneVolume> {
     let frame = LocalFrame::new(plan.spec.origin.geo());
     plan.spec.zones.iter().map(|z| ZoneVolume::new(z, &frame)).collect()
+}
+
+/// An airborne drone at ENU (e, n, up) over ground at `ground_up_m`.
+pub(crate) fn over(index: u32, p: [f64; 3], ground_up_m: f64) -> DroneSnapshot {
+    DroneSnapshot {
+        index,
+        position_enu_m: p,
+        velocity_enu_mps: [0.0; 3],
+        attitude_wxyz: [1.0, 0.0, 0.0, 0.0],
+        height_agl_m: p[2] - ground_up_m,
+        mode: FlightMode::Offboard,
+        armed: true,
+        on_ground: false,
+        crashed: false,
+        battery_remaining: 1.0,
+        position_valid: true,
+        detail: Default::default(),
+    }
 }

@@ -1,7 +1,7 @@
 use sadesim_crds::criteria::Criterion;
 use sadesim_crds::plan::RunPlan;
 
-use super::test_plan::{plan_of, rect_zone, run_with_groups, volumes};
+use super::test_plan::{over, plan_of, rect_zone, run_with_groups, volumes};
 use super::*;
 use crate::events::FlightMode;
 
@@ -15,22 +15,9 @@ fn plan(n: u32, edit: impl FnOnce(&mut sadesim_crds::run::SimulationRun)) -> Run
     plan_of(run_with_groups(&[("alpha", n)]).with(|r| r.spec.zones.push(tfr())).with(edit).build())
 }
 
-/// An airborne drone at ENU (e, n, up) over ground at `ground_up_m`.
-fn over(index: u32, p: [f64; 3], ground_up_m: f64) -> DroneSnapshot {
-    DroneSnapshot {
-        index,
-        position_enu_m: p,
-        velocity_enu_mps: [0.0; 3],
-        attitude_wxyz: [1.0, 0.0, 0.0, 0.0],
-        height_agl_m: p[2] - ground_up_m,
-        mode: FlightMode::Offboard,
-        armed: true,
-        on_ground: false,
-        crashed: false,
-        battery_remaining: 1.0,
-        position_valid: true,
-        detail: Default::default(),
-    }
+/// A harness on `plan(n, edit)`, for a test that needs the plan for nothing else.
+fn harness(n: u32, edit: impl FnOnce(&mut sadesim_crds::run::SimulationRun)) -> Harness {
+    Harness::new(&plan(n, edit))
 }
 
 /// An airborne drone over flat ground at up 0.
@@ -97,19 +84,32 @@ impl Harness {
     }
 
     /// (time, drone, event name, rule or zone) of every event, times rounded to 0.1 ms.
-    fn log(&self) -> Vec<(f64, u32, String, String)> {
+    fn log(&self) -> Vec<Row> {
         self.events.iter().map(summary).collect()
     }
 }
 
-fn summary(e: &Event) -> (f64, u32, String, String) {
+/// (time, drone, event name, rule or zone): a line of [`Harness::log`].
+type Row = (f64, u32, String, String);
+
+fn summary(e: &Event) -> Row {
     let json = serde_json::to_value(e).unwrap();
     let what = json.get("rule").or_else(|| json.get("zone")).and_then(|v| v.as_str()).unwrap_or("").to_string();
     ((e.time_s * 1e4).round() / 1e4, e.drone.unwrap(), json["event"].as_str().unwrap().to_string(), what)
 }
 
-fn row(t: f64, drone: u32, event: &str, what: &str) -> (f64, u32, String, String) {
+fn row(t: f64, drone: u32, event: &str, what: &str) -> Row {
     (t, drone, event.to_string(), what.to_string())
+}
+
+/// The log of one unauthorized stay of `drone` in `tfr`: in at `entered`, out at `exited`.
+fn unauthorized_stay(drone: u32, entered: f64, exited: f64) -> [Row; 4] {
+    [
+        row(entered, drone, "zoneEntered", "tfr"),
+        row(entered, drone, "violationStarted", "unauthorizedEntry"),
+        row(exited, drone, "violationEnded", "unauthorizedEntry"),
+        row(exited, drone, "zoneExited", "tfr"),
+    ]
 }
 
 fn close(a: f64, b: f64) -> bool {
@@ -132,8 +132,7 @@ fn rule_names_are_the_serde_names() {
 
 #[test]
 fn a_leased_drone_enters_and_leaves_with_interpolated_times_and_no_violation() {
-    let plan = plan(1, |_| {});
-    let mut h = Harness::new(&plan).with(grant(0, 0.0, 100.0));
+    let mut h = harness(1, |_| {}).with(grant(0, 0.0, 100.0));
     h.window(1.00, &[at(0, -4.0, 50.0, 30.0)]);
     // 10 m east in 10 ms: crosses the west edge (east 0) 40 % of the way.
     let raised = h.window(1.01, &[at(0, 6.0, 50.0, 30.0)]);
@@ -162,21 +161,12 @@ fn a_leased_drone_enters_and_leaves_with_interpolated_times_and_no_violation() {
 
 #[test]
 fn entering_without_a_lease_is_an_unauthorized_entry_for_the_whole_stay() {
-    let plan = plan(1, |_| {});
-    let mut h = Harness::new(&plan);
+    let mut h = harness(1, |_| {});
     h.window(1.00, &[at(0, -5.0, 50.0, 40.0)]);
     h.window(1.01, &[at(0, 5.0, 50.0, 30.0)]);
     h.window(1.02, &[at(0, 15.0, 50.0, 25.0)]);
     h.window(1.03, &[at(0, -5.0, 50.0, 25.0)]);
-    assert_eq!(
-        h.log(),
-        [
-            row(1.005, 0, "zoneEntered", "tfr"),
-            row(1.005, 0, "violationStarted", "unauthorizedEntry"),
-            row(1.0275, 0, "violationEnded", "unauthorizedEntry"),
-            row(1.0275, 0, "zoneExited", "tfr"),
-        ]
-    );
+    assert_eq!(h.log(), unauthorized_stay(0, 1.005, 1.0275));
     let EventKind::ZoneEntered { authorized, .. } = h.events[0].kind else { panic!() };
     assert!(!authorized);
     let EventKind::ViolationStarted { zone, limit_m, at: place, .. } = &h.events[1].kind else { panic!() };
@@ -204,15 +194,7 @@ fn a_fast_drone_clipping_a_corner_within_one_window_is_caught() {
     h.window(3.03, &[at(0, 10.0, 105.0, 50.0)]);
     let t_in = 3.01;
     let t_out = 3.02;
-    assert_eq!(
-        h.log(),
-        [
-            row(t_in, 0, "zoneEntered", "tfr"),
-            row(t_in, 0, "violationStarted", "unauthorizedEntry"),
-            row(t_out, 0, "violationEnded", "unauthorizedEntry"),
-            row(t_out, 0, "zoneExited", "tfr"),
-        ]
-    );
+    assert_eq!(h.log(), unauthorized_stay(0, t_in, t_out));
     let p = &h.report().presences[0];
     assert!(close(p.entered_s, t_in) && p.exited_s.is_some_and(|x| close(x, t_out)));
     let EventKind::ZoneExited { at: place, .. } = &h.events[3].kind else { panic!() };
@@ -226,8 +208,8 @@ fn a_fast_drone_clipping_a_corner_within_one_window_is_caught() {
 
 #[test]
 fn an_entry_through_an_agl_ceiling_over_rising_ground_is_placed_on_the_ceiling() {
-    let plan = plan(1, |r| r.spec.zones[0] = rect_zone("tfr", (0.0, 100.0), (0.0, 100.0), 0.0, 50.0));
-    let mut h = Harness::new(&plan).with(grant(0, 0.0, 100.0));
+    let mut h = harness(1, |r| r.spec.zones[0] = rect_zone("tfr", (0.0, 100.0), (0.0, 100.0), 0.0, 50.0))
+        .with(grant(0, 0.0, 100.0));
     // Level flight at up 60 m while the ground rises from 0 to 20 m: 60 -> 40 m AGL; the
     // 50 m AGL ceiling is crossed where the ground is 10 m, halfway.
     h.window(5.00, &[over(0, [40.0, 50.0, 60.0], 0.0)]);
@@ -239,8 +221,7 @@ fn an_entry_through_an_agl_ceiling_over_rising_ground_is_placed_on_the_ceiling()
 
 #[test]
 fn a_lease_granted_mid_stay_ends_the_unauthorized_episode() {
-    let plan = plan(1, |_| {});
-    let mut h = Harness::new(&plan).with(grant(0, 2.0, 100.0));
+    let mut h = harness(1, |_| {}).with(grant(0, 2.0, 100.0));
     h.window(1.00, &[at(0, 50.0, 50.0, 30.0)]);
     h.window(1.50, &[at(0, 50.0, 50.0, 30.0)]);
     h.window(2.00, &[at(0, 50.0, 50.0, 30.0)]);
@@ -259,8 +240,7 @@ fn a_lease_granted_mid_stay_ends_the_unauthorized_episode() {
 
 #[test]
 fn a_lease_expiring_inside_starts_an_unauthorized_episode() {
-    let plan = plan(1, |_| {});
-    let mut h = Harness::new(&plan).with(grant(0, 0.0, 2.0));
+    let mut h = harness(1, |_| {}).with(grant(0, 0.0, 2.0));
     for t in [1.0, 1.99, 2.0, 2.01] {
         h.window(t, &[at(0, 50.0, 50.0, 30.0)]);
     }
@@ -280,8 +260,7 @@ fn a_lease_expiring_inside_starts_an_unauthorized_episode() {
 
 #[test]
 fn a_zone_activating_while_a_drone_is_inside_starts_the_stay_at_the_activation_time() {
-    let plan = plan(1, |r| r.spec.zones[0].active_from = Some("5005ms".parse().unwrap()));
-    let mut h = Harness::new(&plan);
+    let mut h = harness(1, |r| r.spec.zones[0].active_from = Some("5005ms".parse().unwrap()));
     for t in [4.99, 5.0] {
         assert!(h.window(t, &[at(0, 50.0, 50.0, 30.0)]).is_empty(), "inactive zone at {t}");
     }
@@ -291,41 +270,23 @@ fn a_zone_activating_while_a_drone_is_inside_starts_the_stay_at_the_activation_t
 
 #[test]
 fn a_zone_ending_while_a_drone_is_inside_ends_the_stay_at_the_end_time() {
-    let plan = plan(1, |r| r.spec.zones[0].active_until = Some("10005ms".parse().unwrap()));
-    let mut h = Harness::new(&plan);
+    let mut h = harness(1, |r| r.spec.zones[0].active_until = Some("10005ms".parse().unwrap()));
     for t in [9.99, 10.0, 10.01, 10.02] {
         h.window(t, &[at(0, 50.0, 50.0, 30.0)]);
     }
-    assert_eq!(
-        h.log(),
-        [
-            row(9.99, 0, "zoneEntered", "tfr"),
-            row(9.99, 0, "violationStarted", "unauthorizedEntry"),
-            row(10.005, 0, "violationEnded", "unauthorizedEntry"),
-            row(10.005, 0, "zoneExited", "tfr"),
-        ]
-    );
+    assert_eq!(h.log(), unauthorized_stay(0, 9.99, 10.005));
 }
 
 #[test]
 fn landing_inside_ends_the_stay_and_a_drone_on_the_ground_is_not_inside() {
-    let plan = plan(1, |_| {});
-    let mut h = Harness::new(&plan);
+    let mut h = harness(1, |_| {});
     let mut parked = at(0, 50.0, 50.0, 0.0);
     parked.on_ground = true;
     h.window(1.0, std::slice::from_ref(&parked));
     assert!(h.events.is_empty(), "parked inside: {:?}", h.events);
     h.window(1.01, &[at(0, 50.0, 50.0, 0.5)]);
     h.window(1.02, &[parked]);
-    assert_eq!(
-        h.log(),
-        [
-            row(1.0, 0, "zoneEntered", "tfr"),
-            row(1.0, 0, "violationStarted", "unauthorizedEntry"),
-            row(1.02, 0, "violationEnded", "unauthorizedEntry"),
-            row(1.02, 0, "zoneExited", "tfr"),
-        ]
-    );
+    assert_eq!(h.log(), unauthorized_stay(0, 1.0, 1.02));
 }
 
 #[test]
@@ -475,8 +436,7 @@ fn flying_above_the_group_limit_anywhere_is_a_violation_with_the_highest_altitud
 
 #[test]
 fn crashes_are_recorded_once_from_events_and_flags_and_end_the_stay() {
-    let plan = plan(2, |_| {});
-    let mut h = Harness::new(&plan);
+    let mut h = harness(2, |_| {});
     h.window(1.0, &[at(0, 50.0, 50.0, 30.0), at(1, -50.0, 0.0, 30.0)]);
     let crash =
         Event { time_s: 1.004, drone: Some(0), kind: EventKind::Crashed { with: "building".into(), speed_mps: 9.0 } };
@@ -498,8 +458,7 @@ fn crashes_are_recorded_once_from_events_and_flags_and_end_the_stay() {
 
 #[test]
 fn finish_closes_open_stays_and_violations_where_the_drone_was_last_seen() {
-    let plan = plan(2, |r| r.spec.criteria.push(Criterion::MinSeparation { distance_m: 5.0 }));
-    let mut h = Harness::new(&plan);
+    let mut h = harness(2, |r| r.spec.criteria.push(Criterion::MinSeparation { distance_m: 5.0 }));
     h.window(1.0, &[at(0, 50.0, 50.0, 130.0), at(1, 52.0, 50.0, 130.0)]);
     h.window(1.01, &[at(0, 50.0, 50.0, 130.0), at(1, 52.0, 50.0, 131.0)]);
     let open = h.report().violations.iter().filter(|v| v.end_s.is_none()).count();
@@ -557,8 +516,7 @@ fn separation_losses_are_tracked_per_pair_with_the_closest_approach() {
 
 #[test]
 fn without_a_separation_criterion_nothing_is_tracked() {
-    let plan = plan(2, |_| {});
-    let mut h = Harness::new(&plan);
+    let mut h = harness(2, |_| {});
     h.window(1.0, &[at(0, -500.0, 0.0, 50.0), at(1, -500.0, 0.5, 50.0)]);
     assert!(h.events.is_empty() && h.report().closest_approach.is_none());
 }
@@ -632,8 +590,7 @@ fn grid_separation_finds_exactly_the_pairs_brute_force_finds() {
 
 #[test]
 fn events_of_several_drones_come_in_time_order() {
-    let plan = plan(2, |_| {});
-    let mut h = Harness::new(&plan);
+    let mut h = harness(2, |_| {});
     h.window(1.0, &[at(0, -9.0, 50.0, 30.0), at(1, -1.0, 50.0, 30.0)]);
     // Drone 1 crosses the edge 10 % into the window, drone 0 90 % into it.
     let raised = h.window(1.01, &[at(0, 1.0, 50.0, 30.0), at(1, 9.0, 50.0, 30.0)]);
@@ -643,8 +600,7 @@ fn events_of_several_drones_come_in_time_order() {
 
 #[test]
 fn snapshots_of_unknown_drones_are_ignored() {
-    let plan = plan(1, |_| {});
-    let mut h = Harness::new(&plan);
+    let mut h = harness(1, |_| {});
     h.window(1.0, &[at(0, -50.0, 50.0, 30.0), at(7, 50.0, 50.0, 300.0)]);
     assert!(h.events.is_empty());
 }

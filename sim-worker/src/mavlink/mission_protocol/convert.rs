@@ -100,8 +100,20 @@ impl PlanBuilder {
                 let hold_s = if item.param1.is_nan() { 0.0 } else { hold_time(item.param1)? };
                 self.go_to(item, global(item)?, hold_s, ctx)?
             }
-            MavCmd::MAV_CMD_NAV_LOITER_TIME => self.loiter(item, global(item)?, hold_time(item.param1)?, ctx)?,
-            MavCmd::MAV_CMD_NAV_LOITER_UNLIM => self.loiter(item, global(item)?, HOLD_FOREVER_S, ctx)?,
+            // A loiter at a position flies there first; without one it holds where the drone
+            // is (MAVLink: "NaN or INT32_MAX ... to use the component's current latitude").
+            MavCmd::MAV_CMD_NAV_LOITER_TIME | MavCmd::MAV_CMD_NAV_LOITER_UNLIM => {
+                let alt_ref = global(item)?;
+                let hold_s = match item.command {
+                    MavCmd::MAV_CMD_NAV_LOITER_TIME => hold_time(item.param1)?,
+                    _ => HOLD_FOREVER_S,
+                };
+                if position_unset(item) {
+                    MissionItem::Loiter { hold_s }
+                } else {
+                    self.go_to(item, alt_ref, hold_s, ctx)?
+                }
+            }
             MavCmd::MAV_CMD_NAV_TAKEOFF => {
                 let alt_rel_home_m = altitude(item, global(item)?, ctx)?;
                 if alt_rel_home_m <= 0.0 {
@@ -153,18 +165,6 @@ impl PlanBuilder {
         let alt_rel_home_m = altitude(item, alt_ref, ctx)?;
         self.at_en_m = Some(target_en_m);
         Ok(MissionItem::Waypoint { target_en_m, alt_rel_home_m, hold_s })
-    }
-
-    /// A loiter at a position flies there first; without one it holds where the drone is
-    /// (MAVLink: "NaN or INT32_MAX ... to use the component's current latitude").
-    pub(super) fn loiter(
-        &mut self,
-        item: &MISSION_ITEM_INT_DATA,
-        alt_ref: AltRef,
-        hold_s: f64,
-        ctx: &MissionContext,
-    ) -> Result<MissionItem, MavMissionResult> {
-        if position_unset(item) { Ok(MissionItem::Loiter { hold_s }) } else { self.go_to(item, alt_ref, hold_s, ctx) }
     }
 
     pub(super) fn change_speed(&mut self, item: &MISSION_ITEM_INT_DATA) -> Result<MissionItem, MavMissionResult> {

@@ -129,28 +129,68 @@ pub fn time(out: &mut Vec<u8>, ns: u64) {
     out.push(b'}');
 }
 
+/// Appends `"name":`, the key of an object member; `name` is a plain identifier (nothing
+/// to escape).
+pub fn key(out: &mut Vec<u8>, name: &str) {
+    out.push(b'"');
+    out.extend_from_slice(name.as_bytes());
+    out.extend_from_slice(b"\":");
+}
+
+/// Appends `,"name":value` for each member, `value` written by `write`: members that
+/// follow an object's first one.
+pub fn members<T: Copy>(out: &mut Vec<u8>, members: &[(&str, T)], write: impl Fn(&mut Vec<u8>, T)) {
+    for &(name, value) in members {
+        out.push(b',');
+        key(out, name);
+        write(out, value);
+    }
+}
+
+/// Appends `,"name":..` for each member: numbers with `decimals` decimals.
+pub fn numbers(out: &mut Vec<u8>, members: &[(&str, f64)], decimals: usize) {
+    self::members(out, members, |o, v| num(o, v, decimals));
+}
+
+/// Appends `items` between `open` and `close`, separated by commas, each written by `write`.
+fn list<T>(
+    out: &mut Vec<u8>,
+    open: u8,
+    items: impl IntoIterator<Item = T>,
+    close: u8,
+    write: impl Fn(&mut Vec<u8>, T),
+) {
+    out.push(open);
+    for (i, item) in items.into_iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        write(out, item);
+    }
+    out.push(close);
+}
+
+/// Appends `{"name":..,..}`: an object of numbers with `decimals` decimals.
+fn object(out: &mut Vec<u8>, members: &[(&str, f64)], decimals: usize) {
+    list(out, b'{', members, b'}', |o, &(name, v)| {
+        key(o, name);
+        num(o, v, decimals);
+    });
+}
+
+/// Appends `[..]`: an array of numbers with `decimals` decimals.
+pub fn array(out: &mut Vec<u8>, values: impl IntoIterator<Item = f64>, decimals: usize) {
+    list(out, b'[', values, b']', |o, v| num(o, v, decimals));
+}
+
 /// Appends `{"x":..,"y":..,"z":..}`.
 pub fn vector3(out: &mut Vec<u8>, v: [f64; 3], decimals: usize) {
-    out.extend_from_slice(b"{\"x\":");
-    num(out, v[0], decimals);
-    out.extend_from_slice(b",\"y\":");
-    num(out, v[1], decimals);
-    out.extend_from_slice(b",\"z\":");
-    num(out, v[2], decimals);
-    out.push(b'}');
+    object(out, &[("x", v[0]), ("y", v[1]), ("z", v[2])], decimals);
 }
 
 /// Appends a `foxglove.Quaternion` from `(w, x, y, z)`.
 pub fn quaternion(out: &mut Vec<u8>, wxyz: [f64; 4]) {
-    out.extend_from_slice(b"{\"x\":");
-    num(out, wxyz[1], UNIT);
-    out.extend_from_slice(b",\"y\":");
-    num(out, wxyz[2], UNIT);
-    out.extend_from_slice(b",\"z\":");
-    num(out, wxyz[3], UNIT);
-    out.extend_from_slice(b",\"w\":");
-    num(out, wxyz[0], UNIT);
-    out.push(b'}');
+    object(out, &[("x", wxyz[1]), ("y", wxyz[2]), ("z", wxyz[3]), ("w", wxyz[0])], UNIT);
 }
 
 #[cfg(test)]

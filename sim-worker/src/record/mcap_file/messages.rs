@@ -45,6 +45,19 @@ pub fn velocity(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
     protobuf::vector3(out, 4, s.detail.rate_body_rps, protobuf::METRES_BITS);
 }
 
+/// Starts a JSON message: `{"timestamp":..`; the other members follow, each after a comma
+/// ([`member`], [`json::members`]), and `}` closes it.
+fn open(out: &mut Vec<u8>, ns: u64) {
+    out.extend_from_slice(b"{\"timestamp\":");
+    json::time(out, ns);
+}
+
+/// Appends `,"name":`, the key of a member after the timestamp.
+fn member(out: &mut Vec<u8>, name: &str) {
+    out.push(b',');
+    json::key(out, name);
+}
+
 /// `sadesim.Estimate`: the estimator's output and its error against ground truth.
 pub fn estimate(out: &mut Vec<u8>, ns: u64, e: &EstimateDetail, s: &DroneSnapshot) {
     let error = [
@@ -52,112 +65,91 @@ pub fn estimate(out: &mut Vec<u8>, ns: u64, e: &EstimateDetail, s: &DroneSnapsho
         e.position_enu_m[1] - s.position_enu_m[1],
         e.position_enu_m[2] - s.position_enu_m[2],
     ];
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"frame_id\":\"world\",\"position_enu_m\":");
+    open(out, ns);
+    member(out, "frame_id");
+    json::string(out, "world");
+    member(out, "position_enu_m");
     json::vector3(out, e.position_enu_m, METRES);
-    out.extend_from_slice(b",\"velocity_enu_mps\":");
+    member(out, "velocity_enu_mps");
     json::vector3(out, e.velocity_enu_mps, METRES);
-    out.extend_from_slice(b",\"orientation\":");
+    member(out, "orientation");
     json::quaternion(out, e.attitude_wxyz);
-    out.extend_from_slice(b",\"position_error_enu_m\":");
+    member(out, "position_error_enu_m");
     json::vector3(out, error, METRES);
-    out.extend_from_slice(b",\"eph_m\":");
-    json::num(out, e.eph_m, METRES);
-    out.extend_from_slice(b",\"epv_m\":");
-    json::num(out, e.epv_m, METRES);
+    json::numbers(out, &[("eph_m", e.eph_m), ("epv_m", e.epv_m)], METRES);
     out.push(b'}');
 }
 
 /// `sadesim.MotorCommands`: the first `motor_count` commands.
 pub fn motors(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"armed\":");
-    json::boolean(out, s.armed);
-    out.extend_from_slice(b",\"commands\":[");
+    open(out, ns);
+    json::members(out, &[("armed", s.armed)], json::boolean);
+    member(out, "commands");
     let count = usize::from(s.detail.motor_count).min(s.detail.motor_commands.len());
-    for (i, &c) in s.detail.motor_commands[..count].iter().enumerate() {
-        if i > 0 {
-            out.push(b',');
-        }
-        json::num(out, c, COARSE);
-    }
-    out.extend_from_slice(b"]}");
+    json::array(out, s.detail.motor_commands[..count].iter().copied(), COARSE);
+    out.push(b'}');
 }
 
 /// `sadesim.Battery`.
 pub fn battery(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"voltage_v\":");
-    json::num(out, s.detail.battery_voltage_v, COARSE);
-    out.extend_from_slice(b",\"current_a\":");
-    json::num(out, s.detail.battery_current_a, COARSE);
-    out.extend_from_slice(b",\"consumed_mah\":");
-    json::num(out, s.detail.battery_consumed_mah, COARSE);
-    out.extend_from_slice(b",\"remaining\":");
-    json::num(out, s.battery_remaining, COARSE);
+    open(out, ns);
+    let d = &s.detail;
+    json::numbers(
+        out,
+        &[
+            ("voltage_v", d.battery_voltage_v),
+            ("current_a", d.battery_current_a),
+            ("consumed_mah", d.battery_consumed_mah),
+            ("remaining", s.battery_remaining),
+        ],
+        COARSE,
+    );
     out.push(b'}');
 }
 
 /// `sadesim.Status`: flight mode and state flags.
 pub fn status(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"mode\":\"");
-    out.extend_from_slice(s.mode.as_str().as_bytes());
-    out.extend_from_slice(b"\",\"armed\":");
-    json::boolean(out, s.armed);
-    out.extend_from_slice(b",\"on_ground\":");
-    json::boolean(out, s.on_ground);
-    out.extend_from_slice(b",\"crashed\":");
-    json::boolean(out, s.crashed);
-    out.extend_from_slice(b",\"position_valid\":");
-    json::boolean(out, s.position_valid);
-    out.extend_from_slice(b",\"height_agl_m\":");
-    json::num(out, s.height_agl_m, METRES);
+    open(out, ns);
+    member(out, "mode");
+    json::string(out, s.mode.as_str());
+    let flags =
+        [("armed", s.armed), ("on_ground", s.on_ground), ("crashed", s.crashed), ("position_valid", s.position_valid)];
+    json::members(out, &flags, json::boolean);
+    json::numbers(out, &[("height_agl_m", s.height_agl_m)], METRES);
     out.push(b'}');
 }
 
 /// `sadesim.Wind`: the air velocity at the drone.
 pub fn wind(out: &mut Vec<u8>, ns: u64, s: &DroneSnapshot) {
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"frame_id\":\"world\",\"velocity_enu_mps\":");
+    open(out, ns);
+    member(out, "frame_id");
+    json::string(out, "world");
+    member(out, "velocity_enu_mps");
     json::vector3(out, s.detail.wind_enu_mps, METRES);
-    out.extend_from_slice(b",\"speed_mps\":");
-    json::num(out, norm(s.detail.wind_enu_mps), METRES);
+    json::numbers(out, &[("speed_mps", norm(s.detail.wind_enu_mps))], METRES);
     out.push(b'}');
 }
 
 /// `foxglove.LocationFix` at `g` with a diagonal ENU covariance from 1-sigma horizontal and
 /// vertical accuracies (`None`: unknown, covariance type 0).
 pub fn location(out: &mut Vec<u8>, ns: u64, frame: &str, g: GeoPoint, sigma_m: Option<(f64, f64)>) {
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"frame_id\":");
+    open(out, ns);
+    member(out, "frame_id");
     json::string(out, frame);
-    out.extend_from_slice(b",\"latitude\":");
-    json::num(out, g.latitude_deg, DEGREES);
-    out.extend_from_slice(b",\"longitude\":");
-    json::num(out, g.longitude_deg, DEGREES);
-    out.extend_from_slice(b",\"altitude\":");
-    json::num(out, g.altitude_msl_m, METRES);
-    match sigma_m {
+    json::numbers(out, &[("latitude", g.latitude_deg), ("longitude", g.longitude_deg)], DEGREES);
+    json::numbers(out, &[("altitude", g.altitude_msl_m)], METRES);
+    let (covariance, covariance_type) = match sigma_m {
         Some((h, v)) => {
             let (hh, vv) = (h * h, v * v);
-            out.extend_from_slice(b",\"position_covariance\":[");
-            for (i, c) in [hh, 0.0, 0.0, 0.0, hh, 0.0, 0.0, 0.0, vv].into_iter().enumerate() {
-                if i > 0 {
-                    out.push(b',');
-                }
-                json::num(out, c, METRES);
-            }
-            out.extend_from_slice(b"],\"position_covariance_type\":2}");
+            ([hh, 0.0, 0.0, 0.0, hh, 0.0, 0.0, 0.0, vv], 2)
         }
-        None => out.extend_from_slice(b",\"position_covariance\":[0,0,0,0,0,0,0,0,0],\"position_covariance_type\":0}"),
-    }
+        None => ([0.0; 9], 0),
+    };
+    member(out, "position_covariance");
+    json::array(out, covariance, METRES);
+    member(out, "position_covariance_type");
+    json::uint(out, covariance_type);
+    out.push(b'}');
 }
 
 /// The ENU position of a GNSS output.
@@ -183,14 +175,10 @@ pub fn level(kind: &EventKind) -> u8 {
 /// `foxglove.Log` of one event: `message` is the event as in `events.jsonl`, `name` the
 /// drone (or `run` for run-wide events).
 pub fn log(out: &mut Vec<u8>, ns: u64, event: &Event, name: &str) {
-    out.extend_from_slice(b"{\"timestamp\":");
-    json::time(out, ns);
-    out.extend_from_slice(b",\"level\":");
+    open(out, ns);
+    member(out, "level");
     json::uint(out, u64::from(level(&event.kind)));
-    out.extend_from_slice(b",\"message\":");
     let text = serde_json::to_string(event).unwrap_or_else(|e| format!("unserializable event: {e}"));
-    json::string(out, &text);
-    out.extend_from_slice(b",\"name\":");
-    json::string(out, name);
+    json::members(out, &[("message", text.as_str()), ("name", name)], json::string);
     out.extend_from_slice(b",\"file\":\"\",\"line\":0}");
 }
