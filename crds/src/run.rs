@@ -207,21 +207,40 @@ pub struct Clock {
 }
 
 /// Where the world geometry comes from: `procedural` (a seeded city of streets, buildings
-/// and parks around the origin; the only source so far).
+/// and parks around the origin) or `osm` (the buildings and parks of an OpenStreetMap
+/// extract, `world.osm`).
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
 #[serde(rename_all = "camelCase")]
 pub enum WorldSource {
     /// A seeded procedural city (streets, buildings, parks) around the origin.
     #[default]
     Procedural,
+    /// The buildings (footprints with courtyards, tagged or estimated heights) and parks of
+    /// the OpenStreetMap extract `world.osm.file`, on flat ground. Local runs only so far.
+    Osm,
+}
+
+/// The OpenStreetMap extract of `world.source: osm`.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct OsmExtract {
+    /// The `.osm.pbf` file (Geofabrik, BBBike, `osmium extract`): a path, relative to the
+    /// scenario file's folder, or a `file://` URL. It must cover the whole world square.
+    #[schemars(length(min = 1, max = 4096))]
+    pub file: String,
 }
 
 /// The world around the origin.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
+#[x_kube(validation = Rule::new("(has(self.source) && self.source == 'osm') == has(self.osm)").message("world.osm is required with source osm and only allowed with it"))]
+#[x_kube(validation = Rule::new("!(has(self.source) && self.source == 'osm') || (!has(self.city) && !has(self.openAreas))").message("world.city and world.openAreas shape the procedural city: with source osm the map's buildings and parks are the world"))]
 pub struct World {
     #[serde(default)]
     pub source: WorldSource,
+    /// The extract of `source: osm`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub osm: Option<OsmExtract>,
     /// Half-width of the square world centred on the origin, metres (100..50000). Homes,
     /// waypoints and zones must lie inside.
     #[serde(default = "default_extent_m")]
@@ -243,7 +262,13 @@ fn default_extent_m() -> f64 {
 
 impl Default for World {
     fn default() -> Self {
-        Self { source: WorldSource::Procedural, extent_m: DEFAULT_WORLD_EXTENT_M, city: None, open_areas: Vec::new() }
+        Self {
+            source: WorldSource::Procedural,
+            osm: None,
+            extent_m: DEFAULT_WORLD_EXTENT_M,
+            city: None,
+            open_areas: Vec::new(),
+        }
     }
 }
 

@@ -15,7 +15,7 @@ use std::path::Path;
 
 use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::RunPlan;
-use sadesim_world::{World, WorldInputs};
+use sadesim_world::World;
 use serde_json::json;
 
 use crate::archive::{Archive, ArchiveError};
@@ -41,6 +41,8 @@ pub enum AssetsError {
     Archive(#[from] ArchiveError),
     #[error("asset cache: cannot write {path}: {source}")]
     Write { path: String, source: std::io::Error },
+    #[error("asset cache: {0}")]
+    World(#[from] crate::world::WorldReadError),
 }
 
 /// The city's buildings as a GeoJSON FeatureCollection (WGS84 polygons; `heightM` and
@@ -89,7 +91,7 @@ pub fn build_assets(plan: &RunPlan, archive_url: &str, scratch: &Path) -> Result
     {
         return Ok(AssetsOutcome::CacheHit { url });
     }
-    let world = World::generate(&WorldInputs::from_spec(&plan.spec, &[]));
+    let world = crate::world::load_world(&plan.spec)?;
     let frame = LocalFrame::new(plan.spec.origin.geo());
     let dir = scratch.join(&plan.asset_cache_key);
     let write = |name: &str, value: &serde_json::Value| {
@@ -111,6 +113,7 @@ pub fn build_assets(plan: &RunPlan, archive_url: &str, scratch: &Path) -> Result
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sadesim_world::WorldInputs;
 
     fn plan() -> RunPlan {
         let run = sadesim_crds::fixtures::RunBuilder::test().build();

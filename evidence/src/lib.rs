@@ -9,3 +9,4 @@ pub mod assets;
 pub mod finish;
 #[cfg(feature = "report")]
 pub mod report;
+pub mod world;

@@ -16,7 +16,8 @@ use sadesim_crds::random::{Purpose, Rng};
 use sadesim_crds::validate::duration_s;
 use sadesim_crds::zones::AltitudeReference;
 use sadesim_crds::{SimulationRun, ValidationErrors, validate};
-use sadesim_world::{World, WorldInputs};
+use sadesim_world::osm::OsmCity;
+use sadesim_world::{World, WorldError, WorldInputs};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
@@ -42,6 +43,16 @@ pub enum PlanError {
         "spec.fleet[{group}].homes: no home found for drone {drone} outside the zones that reach the ground after {MAX_HOME_DRAWS} draws: enlarge the area or move it away from the zones"
     )]
     NoHome { group: usize, drone: u32 },
+    /// The world cannot be built (`source: osm` without its extract read).
+    #[error(
+        "{0} (`sadesim run` and `sadesim plan` read it; Kubernetes runs do not support world.source osm yet: the operator reads no extracts)"
+    )]
+    World(#[from] WorldError),
+    /// An explicit home inside a building of the map.
+    #[error(
+        "spec.fleet[{group}].homes.explicit[{home}]: inside a building of the map (roof {roof_m:.1} m): move the home to open ground"
+    )]
+    HomeInBuilding { group: usize, home: usize, roof_m: f64 },
 }
 
 /// Draws per drone before random placement gives up.
@@ -56,6 +67,17 @@ pub const MAX_HOME_DRAWS: usize = 1000;
 /// Every drone is in exactly one shard and one segment; system ids are 1..=250 and unique
 /// within a segment; ports are unique; the result depends only on the input.
 pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
+    plan_with(run, None)
+}
+
+/// [`plan`] with the OpenStreetMap extract of `world.source: osm`, read at the I/O edge
+/// (`sadesim_evidence::world::read_extract`): its buildings decide where homes may be, and
+/// its bytes' digest is part of the asset cache key.
+///
+/// # Errors
+/// As [`plan`]; [`PlanError::World`] for `source: osm` without `osm`, and
+/// [`PlanError::HomeInBuilding`] for an explicit home inside a mapped building.
+pub fn plan_with(run: &SimulationRun, osm: Option<&OsmCity>) -> Result<RunPlan, PlanError> {
     validate(run)?;
     let spec = &run.spec;
     let frame = LocalFrame::new(spec.origin.geo());
@@ -67,13 +89,20 @@ pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
     // Random homes must not fall inside buildings: generate the (deterministic, cached)
     // world here and draw homes on open ground. ~30 ms for a 4 km city.
     let world_inputs = WorldInputs::from_spec(spec, &[]);
-    let world = World::generate(&world_inputs);
+    let world = World::build(&world_inputs, osm)?;
     let mut drones = Vec::with_capacity(spec.total_drones() as usize);
     for (group_index, group) in spec.fleet.iter().enumerate() {
         for k in 0..group.count {
             let index = drones.len() as u32;
             let home = home(&frame, group, k, index, seed, &keep_out, &world)
                 .ok_or(PlanError::NoHome { group: group_index, drone: index })?;
+            // The procedural city keeps explicit homes clear; a mapped one cannot move its
+            // buildings.
+            if let Some(b) = world.building_at(home.local.east_m, home.local.north_m)
+                && matches!(group.homes, HomePlacement::Explicit(_))
+            {
+                return Err(PlanError::HomeInBuilding { group: group_index, home: k as usize, roof_m: b.roof_up_m() });
+            }
             drones.push(PlannedDrone {
                 index,
                 name: format!("{}-{k}", group.name),
@@ -129,7 +158,7 @@ pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
         services: service_ports(),
         resources,
     };
-    plan.asset_cache_key = asset_cache_key(&world_inputs, &plan.spec.zones);
+    plan.asset_cache_key = asset_cache_key(&world_inputs, osm.map(|c| c.source_sha256.as_str()), &plan.spec.zones);
     Ok(plan)
 }
 
@@ -208,14 +237,17 @@ fn home(
 /// (origin, world parameters, open areas including parks and the clearance around every
 /// home) and the zones (baked into the assets in the local frame). Not the run seed, the
 /// clock or the pilot: changing those reuses the cached world.
-fn asset_cache_key(world: &WorldInputs, zones: &[sadesim_crds::zones::Zone]) -> String {
+fn asset_cache_key(world: &WorldInputs, extract_sha256: Option<&str>, zones: &[sadesim_crds::zones::Zone]) -> String {
     #[derive(Serialize)]
     struct AssetInputs<'a> {
         format: u32,
         world: WorldInputs,
+        /// The OSM extract's bytes (absent for the procedural city: its keys are unchanged).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        extract_sha256: Option<&'a str>,
         zones: &'a [sadesim_crds::zones::Zone],
     }
-    let inputs = AssetInputs { format: ASSETS_FORMAT_VERSION, world: world.clone(), zones };
+    let inputs = AssetInputs { format: ASSETS_FORMAT_VERSION, world: world.clone(), extract_sha256, zones };
     // serde_json writes struct fields in declaration order and floats with a fixed
     // shortest-round-trip format, so the bytes are canonical for these types.
     let bytes = serde_json::to_vec(&inputs).expect("asset inputs always serialize");

@@ -162,3 +162,90 @@ def test_a_truncated_extract_and_a_too_large_extent_are_one_line_errors(sadesim,
         assert run.returncode == 2, run
         lines = run.stderr.strip().splitlines()
         assert len(lines) == 1 and expected in lines[0], run.stderr
+
+
+def enu_polygon(feature):
+    to_plane = plane(ORIGIN)
+    rings = [[to_plane(lon, lat) for lon, lat in ring] for ring in feature["geometry"]["coordinates"]]
+    return shapely.geometry.Polygon(rings[0], rings[1:])
+
+
+def geodetic(east, north):
+    """ENU (east, north) at the origin's altitude -> (lat, lon), by Newton on `plane`."""
+    to_plane = plane(ORIGIN)
+    lat, lon = ORIGIN
+    for _ in range(6):
+        e, n = to_plane(lon, lat)
+        lat += (north - n) / 111_320.0
+        lon += (east - e) / (111_320.0 * math.cos(math.radians(lat)))
+    return lat, lon
+
+
+def an_approach(features):
+    """A building at least 12 m tall and a home 40 m from its centre with a clear line to
+    its facade: `(building polygon, home (e, n), target (e, n), facade point)`."""
+    polygons = [(f, enu_polygon(f)) for f in features if f["properties"]["feature"] == "building"]
+    for f, b in sorted(polygons, key=lambda fb: -fb[1].area):
+        if f["properties"]["heightM"] < 12 or not b.is_valid:
+            continue
+        c = b.representative_point()
+        for dx, dy in [(-1, 0), (1, 0), (0, -1), (0, 1)]:
+            home = shapely.geometry.Point(c.x + 40 * dx, c.y + 40 * dy)
+            if abs(home.x) > EXTENT_M - 20 or abs(home.y) > EXTENT_M - 20:
+                continue
+            if any(p.distance(home) < 5 for _, p in polygons):
+                continue
+            line = shapely.geometry.LineString([home, c])
+            hits = [p for _, p in polygons if p.intersects(line)]
+            if hits == [b]:
+                facade = line.intersection(b.exterior)
+                nearest = min(getattr(facade, "geoms", [facade]), key=lambda g: g.distance(home))
+                return b, (home.x, home.y), (c.x, c.y), nearest
+    pytest.fail("no building with a clear approach in the extract")
+
+
+def test_a_drone_flying_into_a_mapped_building_crashes_at_its_facade(sadesim, helsinki, tmp_path):
+    _, features = ours(sadesim, helsinki, tmp_path)
+    building, home, target, facade = an_approach(features)
+    home_ll, target_ll = geodetic(*home), geodetic(*target)
+    scenario = {
+        "apiVersion": "sadesim.io/v1alpha1",
+        "kind": "SimulationRun",
+        "metadata": {"name": "helsinki-facade"},
+        "spec": {
+            "origin": {"latitudeDeg": ORIGIN[0], "longitudeDeg": ORIGIN[1], "altitudeMslM": 10},
+            "duration": "60s",
+            "clock": {"mode": "asFastAsPossible"},
+            "world": {"source": "osm", "osm": {"file": str(helsinki)}, "extentM": EXTENT_M},
+            "fleet": [{
+                "name": "probe", "count": 1, "airframe": "x500", "operator": "test",
+                "homes": {"explicit": [{"latitudeDeg": home_ll[0], "longitudeDeg": home_ll[1]}]},
+                "altitude": {"maxAglM": 60},
+                "mission": {"speedMps": 4, "items": [
+                    {"takeoff": {"altitudeAglM": 6}},
+                    {"waypoint": {"latitudeDeg": target_ll[0], "longitudeDeg": target_ll[1], "altitudeAglM": 6}},
+                ]},
+            }],
+        },
+    }
+    path = tmp_path / "facade.yaml"
+    path.write_text(json.dumps(scenario))
+    out = tmp_path / "runs"
+    run = subprocess.run([sadesim, "run", str(path), "--out", str(out), "--quiet", "--no-mavlink"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    folder = next(out.glob("helsinki-facade/*"))
+    events = [json.loads(line) for line in (folder / "events.jsonl").read_text().splitlines()]
+    crashes = [e for e in events if e.get("event") == "crashed"]
+    assert crashes and crashes[0]["with"] == "building", events
+    world = json.loads((folder / "world.json").read_text())
+    assert world["osm"]["buildings"] == world["buildingCount"] == len([f for f in features if f["properties"]["feature"] == "building"])
+    rows = (folder / "trajectory.csv").read_text().splitlines()
+    header = rows[0].split(",")
+    last = dict(zip(header, rows[-1].split(",")))
+    at = shapely.geometry.Point(float(last["east_m"]), float(last["north_m"]))
+    # The drone stops where its body touched the wall the OSM polygon puts there.
+    print(f"crash at {at}, {building.exterior.distance(at):.3f} m from the facade, {at.distance(facade):.3f} m from the entry point")
+    assert not building.contains(at), (at, facade)
+    assert building.exterior.distance(at) < 0.5, (building.exterior.distance(at), at, facade)
+    assert at.distance(facade) < 0.5 + 0.01 * at.distance(shapely.geometry.Point(home)), (at, facade)

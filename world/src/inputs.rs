@@ -80,6 +80,7 @@ impl WorldInputs {
         }
         h.bytes(&[match self.world.source {
             WorldSource::Procedural => 1,
+            WorldSource::Osm => 2,
         }]);
         h.f64(self.world.extent_m);
         let city = self.world.city();

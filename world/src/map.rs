@@ -10,6 +10,7 @@ use super::building::Building;
 use super::city::{self, CityLayout};
 use super::index::{GridIndex, Rect};
 use super::inputs::WorldInputs;
+use super::osm::OsmCity;
 use super::stats::WorldStats;
 use super::terrain::Terrain;
 
@@ -17,6 +18,18 @@ use super::terrain::Terrain;
 /// cost about a millisecond; the lattice is 40 m at a 4 km extent, finer than the relief's
 /// shortest waves (600 m); coarser at huge extents, which is fine for a log line.
 const GROUND_SAMPLES_PER_SIDE: usize = 200;
+
+/// Index cell for mapped cities, metres: about a city block, so a point query looks at a
+/// few dozen footprints at most in a dense centre.
+const OSM_INDEX_CELL_M: f64 = 50.0;
+
+/// Why a world cannot be built.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum WorldError {
+    /// `world.source: osm` needs its extract read first (the world library does no I/O).
+    #[error("world.source osm: the extract world.osm.file must be read before the world is built")]
+    MissingExtract,
+}
 
 /// The world around the run origin: terrain and buildings, in world ENU metres (x east,
 /// y north, z up; z = 0 is the ground at the origin, `spec.origin.altitudeMslM`).
@@ -51,6 +64,10 @@ impl World {
     /// # Assumptions
     /// `inputs.world` passed `sadesim_crds` validation (positive sizes, fraction in 0..1);
     /// out-of-range values are clamped rather than rejected.
+    ///
+    /// # Panics
+    /// When `inputs.world.source` is not `procedural`: such worlds are read from files at
+    /// the I/O edge and built with [`World::build`] (calling this for them is a bug).
     pub fn generate(inputs: &WorldInputs) -> Self {
         let seed = inputs.seed();
         let mut rng = Rng::stream(seed, 0, Purpose::World);
@@ -65,10 +82,43 @@ impl World {
                 let cell_m = city::StreetGrid::new(&city, extent_m).pitch_m;
                 Self::assemble(seed, extent_m, terrain, layout, cell_m, inputs.open_areas.len())
             }
+            WorldSource::Osm => panic!("World::generate builds procedural worlds; use World::build with the extract"),
         }
     }
 
-    /// Builds the index and stats around generated geometry. `cell_m` is the index's cell:
+    /// The world of `inputs`, with the extract `osm` read at the I/O edge for
+    /// `source: osm` (the procedural city needs none).
+    ///
+    /// # Errors
+    /// [`WorldError::MissingExtract`] for `source: osm` without `osm`.
+    pub fn build(inputs: &WorldInputs, osm: Option<&OsmCity>) -> Result<Self, WorldError> {
+        match (inputs.world.source, osm) {
+            (WorldSource::Procedural, _) => Ok(Self::generate(inputs)),
+            (WorldSource::Osm, Some(city)) => Ok(Self::from_osm(inputs, city)),
+            (WorldSource::Osm, None) => Err(WorldError::MissingExtract),
+        }
+    }
+
+    /// The buildings of an OpenStreetMap extract on flat ground (z = 0 everywhere: the
+    /// origin's altitude). Open areas of the inputs (home clearances) remove nothing: real
+    /// buildings stay where the map puts them.
+    pub fn from_osm(inputs: &WorldInputs, city: &OsmCity) -> Self {
+        let extent_m = inputs.world.extent_m.max(0.0);
+        let side_m = 2.0 * extent_m;
+        let layout = CityLayout {
+            buildings: city.buildings.iter().map(|b| b.building.clone()).collect(),
+            block_count: 0,
+            park_count: city.open_areas.len(),
+            // The built fraction is then over the whole square.
+            block_area_m2: side_m * side_m,
+            dropped_for_open_areas: 0,
+        };
+        let mut world = Self::assemble(inputs.seed(), extent_m, Terrain::flat(), layout, OSM_INDEX_CELL_M, 0);
+        world.stats.osm = Some(city.stats.clone());
+        world
+    }
+
+    /// Builds the index and stats around the geometry. `cell_m` is the index's cell:
     /// the street pitch, so each building falls in exactly one cell.
     fn assemble(
         seed: u64,

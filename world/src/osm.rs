@@ -33,7 +33,7 @@ mod pbf;
 mod tests;
 
 use sadesim_crds::geo::LocalFrame;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 pub use assemble::parse_length_m;
 pub use pbf::PbfError;
@@ -96,7 +96,7 @@ pub struct OsmOpenArea {
 }
 
 /// What the import kept and skipped.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct OsmStats {
     /// Building prisms (one per outer ring inside the extent).
@@ -129,6 +129,9 @@ impl OsmStats {
 /// The buildings and open areas of an extract within the world's square.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OsmCity {
+    /// SHA-256 of the extract's bytes, hex: part of the asset cache key (a changed file is a
+    /// new world).
+    pub source_sha256: String,
     pub buildings: Vec<OsmBuilding>,
     pub open_areas: Vec<OsmOpenArea>,
     pub stats: OsmStats,
@@ -170,7 +173,10 @@ pub fn read_pbf(bytes: &[u8], frame: &LocalFrame, extent_m: f64) -> Result<OsmCi
     if !covers {
         return Err(OsmError::NotCovering { have, need, extent_m });
     }
-    assemble::city(&raw, frame, extent_m)
+    let mut city = assemble::city(&raw, frame, extent_m)?;
+    use sha2::Digest as _;
+    city.source_sha256 = sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect();
+    Ok(city)
 }
 
 /// `[min_lon, min_lat, max_lon, max_lat]` of the world square (its corners and edge

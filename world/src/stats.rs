@@ -36,6 +36,10 @@ pub struct WorldStats {
     /// `World::generate`), ENU up metres.
     pub ground_min_up_m: f64,
     pub ground_max_up_m: f64,
+    /// For `world.source: osm`: what the import kept, skipped and how many heights it had
+    /// to default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub osm: Option<crate::osm::OsmStats>,
 }
 
 impl WorldStats {
@@ -72,6 +76,7 @@ impl WorldStats {
             built_area_fraction: if layout.block_area_m2 > 0.0 { footprint_m2 / layout.block_area_m2 } else { 0.0 },
             ground_min_up_m: ground_range_up_m.0,
             ground_max_up_m: ground_range_up_m.1,
+            osm: None,
         }
     }
 }

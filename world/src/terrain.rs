@@ -46,6 +46,13 @@ pub struct Terrain {
 }
 
 impl Terrain {
+    /// Flat ground at z = 0 (a mapped city without a DEM: no invented relief).
+    pub fn flat() -> Self {
+        let wave =
+            Wave { amplitude_m: 0.0, k_east_rad_per_m: 0.0, k_north_rad_per_m: 0.0, phase_rad: 0.0, sin_phase: 0.0 };
+        Self { waves: [wave; WAVES] }
+    }
+
     /// Draws the relief from `rng`: exactly `4 * WAVES` draws, so what is drawn after it does
     /// not depend on the terrain.
     pub fn generate(rng: &mut Rng) -> Self {

@@ -21,13 +21,20 @@ pub(super) fn plan_file(
     if namespace.is_some() {
         run.metadata.namespace = namespace;
     }
-    let plan = match planner::plan(&run) {
+    let extract = match sadesim_evidence::world::read_extract(&run.spec) {
+        Ok(extract) => extract,
+        Err(e) => {
+            writeln!(out, "error: {path}: {e}")?;
+            return Ok(Outcome::Problems);
+        }
+    };
+    let plan = match planner::plan_with(&run, extract.as_ref()) {
         Ok(plan) => plan,
         Err(planner::PlanError::Invalid(errors)) => {
             report_problems(out, &path, &errors)?;
             return Ok(Outcome::Problems);
         }
-        Err(e @ planner::PlanError::NoHome { .. }) => {
+        Err(e) => {
             writeln!(out, "error: {path}: {e}")?;
             return Ok(Outcome::Problems);
         }

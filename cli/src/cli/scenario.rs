@@ -37,7 +37,10 @@ pub(super) fn load_one(file: &Path, out: &mut dyn Write) -> Result<Option<Simula
         return Err(CliError::NotOneRun { path, count: docs.len() });
     }
     match docs.remove(0) {
-        Ok(run) => Ok(Some(run)),
+        Ok(mut run) => {
+            resolve_paths(&mut run, file);
+            Ok(Some(run))
+        }
         Err(e) => {
             writeln!(out, "error: {path}: {e}")?;
             Ok(None)
@@ -55,4 +58,21 @@ pub(super) fn report_problems(
         writeln!(out, "  {e}")?;
     }
     Ok(())
+}
+
+/// Makes `world.osm.file` absolute against the scenario file's folder (as a user expects of
+/// a path written in a scenario kept beside its data), so the plan names the file wherever
+/// its roles run. Stdin scenarios resolve against the working directory.
+fn resolve_paths(run: &mut SimulationRun, scenario: &Path) {
+    let base = match scenario.as_os_str() == "-" {
+        true => std::env::current_dir().unwrap_or_default(),
+        false => scenario.parent().map(Path::to_path_buf).unwrap_or_default(),
+    };
+    if let Some(extract) = run.spec.world.as_mut().and_then(|w| w.osm.as_mut()) {
+        let path = sadesim_evidence::world::extract_path(&extract.file);
+        if path.is_relative() {
+            let absolute = std::path::absolute(base.join(&path)).unwrap_or_else(|_| base.join(&path));
+            extract.file = absolute.display().to_string();
+        }
+    }
 }

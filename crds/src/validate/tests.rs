@@ -228,3 +228,27 @@ fn the_schema_pass_accepts_the_fixture() {
     let doc = serde_json::to_value(&run).unwrap();
     assert_eq!(schema_problems(&doc), Vec::<FieldError>::new());
 }
+
+#[test]
+fn an_osm_world_names_its_extract_and_nothing_of_the_procedural_city() {
+    use crate::run::{City, OsmExtract, World, WorldSource};
+    let osm = |file: &str| World {
+        source: WorldSource::Osm,
+        osm: Some(OsmExtract { file: file.into() }),
+        ..World::default()
+    };
+    assert_eq!(problems_of(|r| r.spec.world = Some(osm("helsinki.osm.pbf"))), Vec::<String>::new());
+    assert_eq!(problems_of(|r| r.spec.world = Some(osm("file:///data/helsinki.osm.pbf"))), Vec::<String>::new());
+    let found = problems_of(|r| r.spec.world = Some(World { osm: None, ..osm("x") }));
+    assert_eq!(found, ["spec.world.osm: is required with source osm: the extract's file"]);
+    let found = problems_of(|r| r.spec.world = Some(World { source: WorldSource::Procedural, ..osm("x") }));
+    assert_eq!(found, ["spec.world.osm: is only allowed with source osm"]);
+    let found = problems_of(|r| r.spec.world = Some(osm("s3://maps/helsinki.osm.pbf")));
+    assert_eq!(found.len(), 1);
+    assert!(found[0].starts_with("spec.world.osm.file: must be a path or a file:// URL"), "{found:?}");
+    let found = problems_of(|r| {
+        r.spec.world = Some(World { city: Some(City::default()), open_areas: vec![], ..osm("x") });
+    });
+    assert_eq!(found.len(), 1);
+    assert!(found[0].starts_with("spec.world.city: shapes the procedural city only"), "{found:?}");
+}

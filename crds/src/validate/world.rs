@@ -3,7 +3,7 @@
 
 use crate::fleet::{Area, LatLon};
 use crate::geo::LocalFrame;
-use crate::run::SimulationRunSpec;
+use crate::run::{SimulationRunSpec, WorldSource};
 
 use super::problems::Problems;
 
@@ -56,6 +56,30 @@ pub(super) fn check_world(spec: &SimulationRunSpec, origin_ok: bool, p: &mut Pro
     let o = &spec.origin;
     let world = spec.world();
     p.range("spec.world.extentM", world.extent_m, 100.0, 50_000.0);
+    match (world.source, &world.osm) {
+        (WorldSource::Osm, None) => p.add("spec.world.osm", "is required with source osm: the extract's file"),
+        (WorldSource::Procedural, Some(_)) => p.add("spec.world.osm", "is only allowed with source osm"),
+        (WorldSource::Osm, Some(osm)) => {
+            if osm.file.trim().is_empty() || osm.file.len() > 4096 {
+                p.add("spec.world.osm.file", "must name the .osm.pbf file (1 to 4096 characters)");
+            } else if osm.file.contains("://") && !osm.file.starts_with("file://") {
+                p.add(
+                    "spec.world.osm.file",
+                    "must be a path or a file:// URL (object-store extracts need the asset bundle, not built yet)",
+                );
+            }
+        }
+        (WorldSource::Procedural, None) => {}
+    }
+    if world.source == WorldSource::Osm {
+        let why = "shapes the procedural city only: with source osm the map's buildings and parks are the world";
+        if world.city.is_some() {
+            p.add("spec.world.city", why);
+        }
+        if !world.open_areas.is_empty() {
+            p.add("spec.world.openAreas", why);
+        }
+    }
     if let Some(city) = &world.city {
         p.range("spec.world.city.blockSizeM", city.block_size_m, 20.0, 1000.0);
         p.range("spec.world.city.streetWidthM", city.street_width_m, 5.0, 200.0);

@@ -13,8 +13,6 @@
 
 use std::path::{Path, PathBuf};
 
-use sadesim_world::{World, WorldInputs};
-
 pub mod data;
 pub mod html;
 pub mod model;
@@ -52,7 +50,8 @@ pub struct Report {
 /// city's would not be.
 fn buildings(data: &RunData) -> Vec<svg::Footprint> {
     let Some(recorded) = &data.world else { return Vec::new() };
-    let world = World::generate(&WorldInputs::from_spec(&data.plan.spec, &[]));
+    // An extract that is gone or changed gives no (or other) buildings: no map footprints.
+    let Ok(world) = crate::world::load_world(&data.plan.spec) else { return Vec::new() };
     if world.stats() != recorded {
         return Vec::new();
     }

@@ -40,6 +40,9 @@ pub enum RoleError {
     /// `--control-file` cannot be read (the message names the flag and the file).
     #[error("{0}")]
     ControlFile(std::io::Error),
+    /// The run's world cannot be read (its extract).
+    #[error(transparent)]
+    World(#[from] sadesim_evidence::world::WorldReadError),
 }
 
 /// Reads a RunPlan written by the planner (`plan.json`).

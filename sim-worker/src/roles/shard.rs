@@ -25,7 +25,6 @@ use crate::coordinator::LinkError;
 use crate::protocol::ToShard;
 use crate::shard::Shard;
 use crate::transport;
-use sadesim_world::{World, WorldInputs};
 
 /// Default of `--connect-timeout`: how long a shard keeps trying to reach a coordinator
 /// that is not up yet (its pod scheduled later, its Service name not yet resolving).
@@ -52,9 +51,9 @@ pub fn run(
     mavlink: Option<&crate::shard::MavlinkOptions>,
     connect_timeout: Duration,
 ) -> Result<(), RoleError> {
-    // The world is deterministic from the plan's inputs, so every shard builds the same
-    // one (the assets role will fetch it from the cache instead).
-    let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
+    // The world is deterministic from the plan's inputs (and the extract's file), so every
+    // shard builds the same one (the assets role will fetch it from the cache instead).
+    let world = Arc::new(sadesim_evidence::world::load_world(&plan.spec)?);
     let mut shard = Shard::new(plan, index, world)?;
     let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
     let stream = connect(coordinator, connect_timeout)?;

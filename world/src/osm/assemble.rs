@@ -153,7 +153,7 @@ pub fn city(raw: &RawOsm, frame: &LocalFrame, extent_m: f64) -> Result<OsmCity, 
     if buildings.is_empty() {
         return Err(OsmError::NoBuildings { extent_m });
     }
-    Ok(OsmCity { buildings, open_areas, stats })
+    Ok(OsmCity { source_sha256: String::new(), buildings, open_areas, stats })
 }
 
 /// The node positions of `refs`, or `None` when a node is missing from the file (the
