@@ -40,7 +40,8 @@ def validator(sadesim):
 
 
 def scenario_docs(repo):
-    paths = sorted(repo.glob("examples/*.yaml")) + sorted(repo.glob("tests/scenarios/valid/*.yaml"))
+    paths = sorted(repo.glob("examples/*.yaml")) + sorted(repo.glob("examples/maps/*.yaml"))
+    paths += sorted(repo.glob("tests/scenarios/valid/*.yaml"))
     for path in paths:
         for doc in yaml.safe_load_all(path.read_text()):
             if doc is None:

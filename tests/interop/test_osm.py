@@ -249,3 +249,33 @@ def test_a_drone_flying_into_a_mapped_building_crashes_at_its_facade(sadesim, he
     assert not building.contains(at), (at, facade)
     assert building.exterior.distance(at) < 0.5, (building.exterior.distance(at), at, facade)
     assert at.distance(facade) < 0.5 + 0.01 * at.distance(shapely.geometry.Point(home)), (at, facade)
+
+
+def test_the_helsinki_example_flies_over_the_mapped_city(sadesim, helsinki, repo, tmp_path):
+    """examples/maps/helsinki.yaml with the extract beside it, as its comments say."""
+    folder = tmp_path / "maps"
+    folder.mkdir()
+    (folder / "helsinki.yaml").write_text((repo / "examples" / "maps" / "helsinki.yaml").read_text())
+    (folder / "Helsinki.osm.pbf").write_bytes(helsinki.read_bytes())
+    out = tmp_path / "runs"
+    run = subprocess.run([sadesim, "run", str(folder / "helsinki.yaml"), "--out", str(out), "-q"],
+                         capture_output=True, text=True, cwd=tmp_path)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "criteria PASSED" in run.stdout, run.stdout
+    result = next(out.glob("helsinki/*"))
+    plan = json.loads((result / "plan.json").read_text())
+    assert plan["spec"]["world"]["osm"]["file"] == str(folder / "Helsinki.osm.pbf"), "resolved next to the scenario"
+    world = json.loads((result / "world.json").read_text())
+    assert world["buildingCount"] > 100 and world["osm"]["heightsDefaulted"] > 0
+    # The report's map draws the mapped polygons, and says how many heights were guessed.
+    map_svg = (result / "report" / "map.svg").read_text()
+    assert map_svg.count('fill-rule="evenodd"') > 50
+    html = (result / "report.html").read_text()
+    assert f"{world['osm']['heightsDefaulted']} defaulted" in html
+    # Homes were drawn in the park, clear of every mapped building.
+    buildings = [enu_polygon(f) for f in ours(sadesim, helsinki, tmp_path)[1] if f["properties"]["feature"] == "building"]
+    for drone in plan["drones"]:
+        # In this module's frame (the example has its own origin).
+        g = drone["home"]["global"]
+        home = shapely.geometry.Point(*plane(ORIGIN)(g["longitudeDeg"], g["latitudeDeg"]))
+        assert all(b.distance(home) > 2.0 for b in buildings), drone["home"]

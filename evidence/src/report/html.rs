@@ -487,15 +487,33 @@ fn metadata(out: &mut String, data: &RunData) {
         })
         .collect();
     row("groups", groups.join("; "));
-    match &data.world {
-        Some(w) => row(
+    match (&data.world, spec.world().osm.as_ref()) {
+        (Some(w), Some(extract)) => {
+            let osm = w.osm.clone().unwrap_or_default();
+            row(
+                "world",
+                format!(
+                    "OpenStreetMap extract {}: {:.0} m half-width, {} buildings (median {:.0} m, tallest {:.0} m; heights {} tagged, {} from building:levels, {} defaulted), {} open areas",
+                    extract.file,
+                    w.extent_m,
+                    w.building_count,
+                    w.median_height_m,
+                    w.max_height_m,
+                    osm.heights_tagged,
+                    osm.heights_from_levels,
+                    osm.heights_defaulted,
+                    w.park_count
+                ),
+            )
+        }
+        (Some(w), None) => row(
             "world",
             format!(
                 "{:.0} m half-width, {} buildings (median {:.0} m, tallest {:.0} m), {} parks, seed {}",
                 w.extent_m, w.building_count, w.median_height_m, w.max_height_m, w.park_count, w.seed
             ),
         ),
-        None => row("world", "not recorded".into()),
+        (None, _) => row("world", "not recorded".into()),
     }
     if let Some(w) = &spec.environment().wind {
         row("wind", format!("{:.1} m/s from {:.0} deg", w.speed_mps, w.direction_from_deg));

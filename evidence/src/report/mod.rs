@@ -59,9 +59,12 @@ fn buildings(data: &RunData) -> Vec<svg::Footprint> {
         .buildings()
         .iter()
         .map(|b| {
-            // The bounding rectangle: the footprint itself for the procedural city's boxes.
-            let [east_min_m, north_min_m, east_max_m, north_max_m] = b.footprint().bounds();
-            svg::Footprint { east_min_m, north_min_m, east_max_m, north_max_m }
+            // The procedural city's boxes are their bounding rectangles; mapped buildings
+            // are drawn as their polygons.
+            let f = b.footprint();
+            let [east_min_m, north_min_m, east_max_m, north_max_m] = f.bounds();
+            let rings = f.axis_rect().is_none().then(|| f.rings().map(<[_]>::to_vec).collect());
+            svg::Footprint { east_min_m, north_min_m, east_max_m, north_max_m, rings }
         })
         .collect()
 }

@@ -10,13 +10,16 @@ use crate::report::model::{self, GroupStyle, ZoneShape, ft};
 /// Building footprints under the tracks.
 const BUILDING_FILL: &str = "#e2e2e2";
 
-/// An axis-aligned building footprint, metres east/north of the origin.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A building footprint, metres east/north of the origin: its bounding rectangle, and its
+/// rings when it is not that rectangle (a mapped building; courtyards as holes).
+#[derive(Clone, Debug, PartialEq)]
 pub struct Footprint {
     pub east_min_m: f64,
     pub north_min_m: f64,
     pub east_max_m: f64,
     pub north_max_m: f64,
+    /// Outer ring then holes, `[east_m, north_m]`; `None` for an axis-aligned rectangle.
+    pub rings: Option<Vec<Vec<[f64; 2]>>>,
 }
 
 /// Maps metres east/north to pixels, with the same scale on both axes.
@@ -181,6 +184,19 @@ fn map_panel(
     if !buildings.is_empty() {
         let _ = write!(out, r#"<g fill="{BUILDING_FILL}">"#);
         for b in buildings.iter().filter(|b| v.sees(b)) {
+            if let Some(rings) = &b.rings {
+                // Even-odd: holes stay open.
+                let mut d = String::new();
+                for ring in rings {
+                    for (k, [e, n]) in ring.iter().enumerate() {
+                        let (x, y) = v.px(*e, *n);
+                        let _ = write!(d, "{}{x:.1},{y:.1}", if k == 0 { "M" } else { "L" });
+                    }
+                    d.push('Z');
+                }
+                let _ = write!(out, r#"<path fill-rule="evenodd" d="{d}"/>"#);
+                continue;
+            }
             let (x0, y0) = v.px(b.east_min_m, b.north_max_m);
             let (x1, y1) = v.px(b.east_max_m, b.north_min_m);
             let _ = write!(
