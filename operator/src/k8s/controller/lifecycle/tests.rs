@@ -170,6 +170,21 @@ fn a_pilot_without_an_image_cannot_run_on_a_cluster() {
 }
 
 #[test]
+fn a_mapped_world_is_refused_on_a_cluster_for_now() {
+    let mut run = new_run();
+    run.spec.world = Some(sadesim_crds::run::World {
+        source: sadesim_crds::run::WorldSource::Osm,
+        osm: Some(sadesim_crds::run::OsmExtract { file: "/data/helsinki.osm.pbf".into() }),
+        ..Default::default()
+    });
+    let d = decide_with(&run, &Observed::default(), Some(Admission::Admitted), t0());
+    assert_eq!(d.status.phase, Some(Phase::Failed));
+    let message = &cond(&d, ct::VALID).message;
+    assert!(message.contains("Kubernetes runs do not support world.source osm yet"), "{message}");
+    assert!(d.apply.is_empty());
+}
+
+#[test]
 fn assets_built_start_the_workers_without_the_pilot() {
     let run = with_phase(pilot_run(), Phase::GeneratingAssets, true);
     let observed = Observed { jobs: vec![job("assets", WorkState::Succeeded)], ..Default::default() };
