@@ -236,3 +236,53 @@ fn random_homes_avoid_ground_zones() {
 fn plan_err(run: &sadesim_crds::SimulationRun) -> String {
     plan(run).unwrap_err().to_string()
 }
+
+/// A mapped city of one 20 x 20 m building centred 50 m north of the origin.
+fn mapped(sha256: &str) -> (SimulationRun, sadesim_world::osm::OsmCity) {
+    use sadesim_world::osm::{ElementId, HeightSource, OsmBuilding, OsmCity, OsmStats};
+    use sadesim_world::{Building, Footprint};
+    let run = RunBuilder::test()
+        .with(|r| {
+            r.spec.world = Some(sadesim_crds::run::World {
+                source: sadesim_crds::run::WorldSource::Osm,
+                osm: Some(sadesim_crds::run::OsmExtract { file: "city.osm.pbf".into() }),
+                ..Default::default()
+            })
+        })
+        .build();
+    let square = Footprint::new(vec![[-10.0, 40.0], [10.0, 40.0], [10.0, 60.0], [-10.0, 60.0]], vec![]).unwrap();
+    let building = OsmBuilding {
+        id: ElementId::Way(1),
+        building: Building::new(square, 0.0, 20.0).unwrap(),
+        height_source: HeightSource::Tagged,
+    };
+    let city = OsmCity {
+        source_sha256: sha256.into(),
+        buildings: vec![building],
+        open_areas: vec![],
+        stats: OsmStats::default(),
+    };
+    (run, city)
+}
+
+#[test]
+fn a_mapped_world_needs_its_extract_and_its_bytes_shape_the_asset_key() {
+    let (run, city) = mapped("aa");
+    let e = plan(&run).unwrap_err();
+    assert!(matches!(e, PlanError::World(_)), "{e}");
+    let a = plan_with(&run, Some(&city)).unwrap();
+    let (_, other) = mapped("bb");
+    let b = plan_with(&run, Some(&other)).unwrap();
+    assert_ne!(a.asset_cache_key, b.asset_cache_key, "a changed extract is a new world");
+    assert_eq!(a.asset_cache_key, plan_with(&run, Some(&city)).unwrap().asset_cache_key);
+}
+
+#[test]
+fn an_explicit_home_inside_a_mapped_building_is_refused_by_name() {
+    let (mut run, city) = mapped("aa");
+    // 50 m north of the origin: inside the building.
+    let inside = LatLon { latitude_deg: CHICAGO.latitude_deg + 50.0 / 111_100.0, longitude_deg: CHICAGO.longitude_deg };
+    run.spec.fleet[0].homes = HomePlacement::Explicit(vec![inside]);
+    let e = plan_with(&run, Some(&city)).unwrap_err().to_string();
+    assert!(e.starts_with("spec.fleet[0].homes.explicit[0]: inside a building of the map (roof 20.0 m)"), "{e}");
+}
