@@ -34,6 +34,8 @@ mod stats;
 mod terrain;
 
 #[cfg(test)]
+mod fuzz;
+#[cfg(test)]
 mod tests;
 
 pub use building::{Building, BuildingError};

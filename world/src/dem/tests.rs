@@ -285,18 +285,10 @@ fn arbitrary_bytes_never_panic() {
     for n in (0..good.len()).step_by(7) {
         let _ = Dem::read(&good[..n], "x.tif");
     }
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    for _ in 0..2000 {
-        let mut bytes = good.clone();
-        for _ in 0..3 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            // Flip bytes of the header and IFD (the end of the file) more than pixel data.
-            let i =
-                if state & 1 == 0 { (state >> 8) as usize % 8 } else { good.len() - 1 - (state >> 8) as usize % 300 };
-            bytes[i] = (state >> 40) as u8;
-        }
+    // Flip bytes of the header and IFD (the end of the file) more than pixel data.
+    let n = good.len();
+    let pick = |r: u64| if r & 1 == 0 { (r >> 8) as usize % 8 } else { n - 1 - (r >> 8) as usize % 300 };
+    for bytes in crate::fuzz::mutations(&good, 2000, 0x9e37_79b9_7f4a_7c15, pick) {
         if let Ok(dem) = Dem::read(&bytes, "x.tif") {
             let _ = dem.elevation_m(60.02, 24.05);
         }

@@ -410,8 +410,13 @@ fn dense_nodes(bytes: &[u8], scale: Scale, out: &mut RawOsm) -> Result<(), Bad> 
     Ok(())
 }
 
-fn way(bytes: &[u8], table: &StringTable, keep: &dyn Fn(&str) -> bool) -> Result<RawWay, Bad> {
-    let (mut id, mut keys, mut vals, mut refs) = (None, Vec::new(), Vec::new(), Vec::new());
+/// `(id, tag key indices, tag value indices)` of a way or relation.
+type Element = (Option<i64>, Vec<u64>, Vec<u64>);
+
+/// The fields ways and relations share (`id` 1, `keys` 2, `vals` 3), and the packed
+/// integer lists `lists` asks for by field number.
+fn element(bytes: &[u8], lists: &mut [(u32, &mut Vec<u64>)]) -> Result<Element, Bad> {
+    let (mut id, mut keys, mut vals) = (None, Vec::new(), Vec::new());
     let mut fields = Fields::new(bytes);
     while let Some((field, value)) = fields.next()? {
         let at = fields.last;
@@ -419,49 +424,48 @@ fn way(bytes: &[u8], table: &StringTable, keep: &dyn Fn(&str) -> bool) -> Result
             (1, Value::Varint(n)) => id = Some(n as i64),
             (2, v) => packed(v, &mut keys, at)?,
             (3, v) => packed(v, &mut vals, at)?,
-            (8, v) => packed(v, &mut refs, at)?,
-            _ => {}
+            (f, v) => {
+                if let Some((_, list)) = lists.iter_mut().find(|(n, _)| *n == f) {
+                    packed(v, list, at)?;
+                }
+            }
         }
     }
+    Ok((id, keys, vals))
+}
+
+/// Delta-coded zigzag values (node refs, member ids) as absolute ids; wrapping, so a
+/// hostile file cannot overflow.
+fn undelta(deltas: &[u64]) -> Vec<i64> {
+    let mut last = 0i64;
+    deltas
+        .iter()
+        .map(|&d| {
+            last = last.wrapping_add(zigzag(d));
+            last
+        })
+        .collect()
+}
+
+fn way(bytes: &[u8], table: &StringTable, keep: &dyn Fn(&str) -> bool) -> Result<RawWay, Bad> {
+    let mut refs = Vec::new();
+    let (id, keys, vals) = element(bytes, &mut [(8, &mut refs)])?;
     let id = id.ok_or_else(|| bad(0, "way without id"))?;
     let tags = table.tags(&keys, &vals, 0, keep).map_err(|e| bad(e.offset, format!("way {id}: {}", e.message)))?;
-    let mut node = 0i64;
-    let refs = refs
-        .into_iter()
-        .map(|d| {
-            node = node.wrapping_add(zigzag(d));
-            node
-        })
-        .collect();
-    Ok(RawWay { id, tags, refs })
+    Ok(RawWay { id, tags, refs: undelta(&refs) })
 }
 
 fn relation(bytes: &[u8], table: &StringTable, keep: &dyn Fn(&str) -> bool) -> Result<RawRelation, Bad> {
-    let (mut id, mut keys, mut vals) = (None, Vec::new(), Vec::new());
     let (mut roles, mut ids, mut types) = (Vec::new(), Vec::new(), Vec::new());
-    let mut fields = Fields::new(bytes);
-    while let Some((field, value)) = fields.next()? {
-        let at = fields.last;
-        match (field, value) {
-            (1, Value::Varint(n)) => id = Some(n as i64),
-            (2, v) => packed(v, &mut keys, at)?,
-            (3, v) => packed(v, &mut vals, at)?,
-            (8, v) => packed(v, &mut roles, at)?,
-            (9, v) => packed(v, &mut ids, at)?,
-            (10, v) => packed(v, &mut types, at)?,
-            _ => {}
-        }
-    }
+    let (id, keys, vals) = element(bytes, &mut [(8, &mut roles), (9, &mut ids), (10, &mut types)])?;
     let id = id.ok_or_else(|| bad(0, "relation without id"))?;
     let named = |e: Bad| bad(e.offset, format!("relation {id}: {}", e.message));
     let tags = table.tags(&keys, &vals, 0, keep).map_err(named)?;
     if roles.len() != ids.len() || types.len() != ids.len() {
         return Err(named(bad(0, format!("{} member ids, {} roles, {} types", ids.len(), roles.len(), types.len()))));
     }
-    let mut member = 0i64;
     let mut members = Vec::with_capacity(ids.len());
-    for i in 0..ids.len() {
-        member = member.wrapping_add(zigzag(ids[i]));
+    for (i, member) in undelta(&ids).into_iter().enumerate() {
         let kind = match types[i] {
             0 => MemberKind::Node,
             1 => MemberKind::Way,

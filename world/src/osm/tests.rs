@@ -402,16 +402,7 @@ fn arbitrary_bytes_never_panic() {
     for n in 0..good.len() {
         let _ = read(&good[..n]);
     }
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    for _ in 0..2000 {
-        let mut bytes = good.clone();
-        for _ in 0..3 {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let i = (state % bytes.len() as u64) as usize;
-            bytes[i] = (state >> 32) as u8;
-        }
+    for bytes in crate::fuzz::mutations(&good, 2000, 0x2545_f491_4f6c_dd1d, |r| r as usize) {
         let _ = read(&bytes);
     }
 }
