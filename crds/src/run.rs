@@ -230,6 +230,26 @@ pub struct OsmExtract {
     pub file: String,
 }
 
+/// The ground of the world.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct TerrainSpec {
+    /// A digital elevation model: a GeoTIFF (EPSG:4326 or WGS84 UTM) or an SRTM `.hgt` tile,
+    /// elevations in metres above mean sea level. It replaces the procedural relief;
+    /// buildings stand on it and every AGL height (homes, altitude limits, zones, the
+    /// monitor, criteria) is above it. It must cover the whole world square.
+    pub dem: DemFile,
+}
+
+/// A DEM file.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct DemFile {
+    /// A path, relative to the scenario file's folder, or a `file://` URL.
+    #[schemars(length(min = 1, max = 4096))]
+    pub file: String,
+}
+
 /// The world around the origin.
 #[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
@@ -241,6 +261,10 @@ pub struct World {
     /// The extract of `source: osm`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub osm: Option<OsmExtract>,
+    /// The ground from a DEM instead of the procedural relief (or the flat ground of a
+    /// mapped city). Local runs only so far.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub terrain: Option<TerrainSpec>,
     /// Half-width of the square world centred on the origin, metres (100..50000). Homes,
     /// waypoints and zones must lie inside.
     #[serde(default = "default_extent_m")]
@@ -265,6 +289,7 @@ impl Default for World {
         Self {
             source: WorldSource::Procedural,
             osm: None,
+            terrain: None,
             extent_m: DEFAULT_WORLD_EXTENT_M,
             city: None,
             open_areas: Vec::new(),

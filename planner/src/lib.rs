@@ -16,8 +16,7 @@ use sadesim_crds::random::{Purpose, Rng};
 use sadesim_crds::validate::duration_s;
 use sadesim_crds::zones::AltitudeReference;
 use sadesim_crds::{SimulationRun, ValidationErrors, validate};
-use sadesim_world::osm::OsmCity;
-use sadesim_world::{World, WorldError, WorldInputs};
+use sadesim_world::{World, WorldData, WorldError, WorldInputs};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 
@@ -45,7 +44,7 @@ pub enum PlanError {
     NoHome { group: usize, drone: u32 },
     /// The world cannot be built (`source: osm` without its extract read).
     #[error(
-        "{0} (`sadesim run` and `sadesim plan` read it; Kubernetes runs do not support world.source osm yet: the operator reads no extracts)"
+        "{0} (`sadesim run` and `sadesim plan` read it; Kubernetes runs do not support world.source osm or world.terrain yet: the operator reads no map or DEM files)"
     )]
     World(#[from] WorldError),
     /// An explicit home inside a building of the map.
@@ -67,17 +66,19 @@ pub const MAX_HOME_DRAWS: usize = 1000;
 /// Every drone is in exactly one shard and one segment; system ids are 1..=250 and unique
 /// within a segment; ports are unique; the result depends only on the input.
 pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
-    plan_with(run, None)
+    plan_with(run, &WorldData::default())
 }
 
-/// [`plan`] with the OpenStreetMap extract of `world.source: osm`, read at the I/O edge
-/// (`sadesim_evidence::world::read_extract`): its buildings decide where homes may be, and
-/// its bytes' digest is part of the asset cache key.
+/// [`plan`] with the files the world names (the OpenStreetMap extract of `world.source:
+/// osm`, the DEM of `world.terrain.dem`), read at the I/O edge
+/// (`sadesim_evidence::world::read_data`): they decide where homes may be and at what
+/// ground height, and their bytes' digests are part of the asset cache key.
 ///
 /// # Errors
-/// As [`plan`]; [`PlanError::World`] for `source: osm` without `osm`, and
+/// As [`plan`]; [`PlanError::World`] when a file the world names is not in `data` (or
+/// the DEM does not cover the world), and
 /// [`PlanError::HomeInBuilding`] for an explicit home inside a mapped building.
-pub fn plan_with(run: &SimulationRun, osm: Option<&OsmCity>) -> Result<RunPlan, PlanError> {
+pub fn plan_with(run: &SimulationRun, data: &WorldData) -> Result<RunPlan, PlanError> {
     validate(run)?;
     let spec = &run.spec;
     let frame = LocalFrame::new(spec.origin.geo());
@@ -89,7 +90,7 @@ pub fn plan_with(run: &SimulationRun, osm: Option<&OsmCity>) -> Result<RunPlan, 
     // Random homes must not fall inside buildings: generate the (deterministic, cached)
     // world here and draw homes on open ground. ~30 ms for a 4 km city.
     let world_inputs = WorldInputs::from_spec(spec, &[]);
-    let world = World::build(&world_inputs, osm)?;
+    let world = World::build(&world_inputs, data)?;
     let mut drones = Vec::with_capacity(spec.total_drones() as usize);
     for (group_index, group) in spec.fleet.iter().enumerate() {
         for k in 0..group.count {
@@ -158,7 +159,8 @@ pub fn plan_with(run: &SimulationRun, osm: Option<&OsmCity>) -> Result<RunPlan, 
         services: service_ports(),
         resources,
     };
-    plan.asset_cache_key = asset_cache_key(&world_inputs, osm.map(|c| c.source_sha256.as_str()), &plan.spec.zones);
+    let digests = [data.osm.as_ref().map(|c| c.source_sha256.as_str()), data.dem.as_ref().map(|d| d.source_sha256())];
+    plan.asset_cache_key = asset_cache_key(&world_inputs, digests, &plan.spec.zones);
     Ok(plan)
 }
 
@@ -237,17 +239,23 @@ fn home(
 /// (origin, world parameters, open areas including parks and the clearance around every
 /// home) and the zones (baked into the assets in the local frame). Not the run seed, the
 /// clock or the pilot: changing those reuses the cached world.
-fn asset_cache_key(world: &WorldInputs, extract_sha256: Option<&str>, zones: &[sadesim_crds::zones::Zone]) -> String {
+fn asset_cache_key(
+    world: &WorldInputs,
+    [extract_sha256, dem_sha256]: [Option<&str>; 2],
+    zones: &[sadesim_crds::zones::Zone],
+) -> String {
     #[derive(Serialize)]
     struct AssetInputs<'a> {
         format: u32,
         world: WorldInputs,
-        /// The OSM extract's bytes (absent for the procedural city: its keys are unchanged).
+        /// The files' bytes (absent for the procedural city: its keys are unchanged).
         #[serde(skip_serializing_if = "Option::is_none")]
         extract_sha256: Option<&'a str>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        dem_sha256: Option<&'a str>,
         zones: &'a [sadesim_crds::zones::Zone],
     }
-    let inputs = AssetInputs { format: ASSETS_FORMAT_VERSION, world: world.clone(), extract_sha256, zones };
+    let inputs = AssetInputs { format: ASSETS_FORMAT_VERSION, world: world.clone(), extract_sha256, dem_sha256, zones };
     // serde_json writes struct fields in declaration order and floats with a fixed
     // shortest-round-trip format, so the bytes are canonical for these types.
     let bytes = serde_json::to_vec(&inputs).expect("asset inputs always serialize");

@@ -238,7 +238,7 @@ fn plan_err(run: &sadesim_crds::SimulationRun) -> String {
 }
 
 /// A mapped city of one 20 x 20 m building centred 50 m north of the origin.
-fn mapped(sha256: &str) -> (SimulationRun, sadesim_world::osm::OsmCity) {
+fn mapped(sha256: &str) -> (SimulationRun, sadesim_world::WorldData) {
     use sadesim_world::osm::{ElementId, HeightSource, OsmBuilding, OsmCity, OsmStats};
     use sadesim_world::{Building, Footprint};
     let run = RunBuilder::test()
@@ -262,7 +262,7 @@ fn mapped(sha256: &str) -> (SimulationRun, sadesim_world::osm::OsmCity) {
         open_areas: vec![],
         stats: OsmStats::default(),
     };
-    (run, city)
+    (run, sadesim_world::WorldData { osm: Some(city), dem: None })
 }
 
 #[test]
@@ -270,11 +270,11 @@ fn a_mapped_world_needs_its_extract_and_its_bytes_shape_the_asset_key() {
     let (run, city) = mapped("aa");
     let e = plan(&run).unwrap_err();
     assert!(matches!(e, PlanError::World(_)), "{e}");
-    let a = plan_with(&run, Some(&city)).unwrap();
+    let a = plan_with(&run, &city).unwrap();
     let (_, other) = mapped("bb");
-    let b = plan_with(&run, Some(&other)).unwrap();
+    let b = plan_with(&run, &other).unwrap();
     assert_ne!(a.asset_cache_key, b.asset_cache_key, "a changed extract is a new world");
-    assert_eq!(a.asset_cache_key, plan_with(&run, Some(&city)).unwrap().asset_cache_key);
+    assert_eq!(a.asset_cache_key, plan_with(&run, &city).unwrap().asset_cache_key);
 }
 
 #[test]
@@ -283,6 +283,6 @@ fn an_explicit_home_inside_a_mapped_building_is_refused_by_name() {
     // 50 m north of the origin: inside the building.
     let inside = LatLon { latitude_deg: CHICAGO.latitude_deg + 50.0 / 111_100.0, longitude_deg: CHICAGO.longitude_deg };
     run.spec.fleet[0].homes = HomePlacement::Explicit(vec![inside]);
-    let e = plan_with(&run, Some(&city)).unwrap_err().to_string();
+    let e = plan_with(&run, &city).unwrap_err().to_string();
     assert!(e.starts_with("spec.fleet[0].homes.explicit[0]: inside a building of the map (roof 20.0 m)"), "{e}");
 }

@@ -2,6 +2,7 @@
 (Debian's `gdal-bin`, installed by tests/install-tools.sh), checked against GDAL's own readers: `gdallocationinfo` for the
 values, `gdaltransform` (PROJ) for the UTM projection.
 """
+import csv
 import json
 import math
 import subprocess
@@ -112,3 +113,55 @@ def test_broken_dems_are_one_line_errors(sadesim, tmp_path):
         assert run.returncode == 2, run
         lines = run.stderr.strip().splitlines()
         assert len(lines) == 1 and expected in lines[0], run.stderr
+
+
+def test_a_run_over_a_dem_slope_takes_off_and_flies_above_the_ground_there(sadesim, tmp_path):
+    """world.terrain.dem: homes stand on the DEM's ground, AGL altitudes are above it, and the
+    altitude limits are judged over it (a 5 % slope rising east)."""
+    slope_per_deg = 0.05 * 55_600.0  # 5 % east, metres per degree of longitude at 60.17 N
+
+    def ground(lon, lat):
+        return 15.0 + slope_per_deg * (lon - ORIGIN[1])
+
+    asc = tmp_path / "slope.asc"
+    ascii_grid(asc, ground, west=24.92, south=60.16, cell=0.0005, cols=80, rows=40)
+    tif = tmp_path / "slope.tif"
+    gdal("gdal_translate", "-q", "-a_srs", "EPSG:4326", "-ot", "Float32", str(asc), str(tif))
+    east_home, west_home = (ORIGIN[0], ORIGIN[1] + 0.0054), (ORIGIN[0], ORIGIN[1] - 0.0054)  # ~300 m
+    scenario = {
+        "apiVersion": "sadesim.io/v1alpha1",
+        "kind": "SimulationRun",
+        "metadata": {"name": "slope"},
+        "spec": {
+            "origin": {"latitudeDeg": ORIGIN[0], "longitudeDeg": ORIGIN[1], "altitudeMslM": 15},
+            "duration": "40s",
+            "clock": {"mode": "asFastAsPossible"},
+            "world": {"extentM": 500, "terrain": {"dem": {"file": "slope.tif"}}},
+            "fleet": [{
+                "name": "hover", "count": 2, "airframe": "x500", "operator": "test",
+                "homes": {"explicit": [{"latitudeDeg": lat, "longitudeDeg": lon} for lat, lon in (east_home, west_home)]},
+                "altitude": {"maxAglM": 25},
+                "mission": {"speedMps": 5, "items": [{"takeoff": {"altitudeAglM": 20}}, {"loiter": {"holdS": 15}}]},
+            }],
+            "criteria": [{"altitudeLimitsRespected": {}}, {"noCrashes": {}}],
+        },
+    }
+    path = tmp_path / "slope.yaml"
+    path.write_text(json.dumps(scenario))
+    run = subprocess.run([sadesim, "run", str(path), "--out", str(tmp_path / "runs"), "-q", "--no-mavlink"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "criteria PASSED" in run.stdout, run.stdout
+    folder = next((tmp_path / "runs").glob("slope/*"))
+    plan = json.loads((folder / "plan.json").read_text())
+    for drone, (lat, lon) in zip(plan["drones"], (east_home, west_home)):
+        assert drone["home"]["global"]["altitudeMslM"] == pytest.approx(ground(lon, lat), abs=0.2), drone["home"]
+    rows = list(csv.DictReader((folder / "trajectory.csv").open()))
+    for drone, (lat, lon) in enumerate((east_home, west_home)):
+        hovering = [r for r in rows if int(r["drone"]) == drone and 25.0 <= float(r["time_s"]) <= 30.0]
+        assert hovering
+        for r in hovering:
+            assert float(r["height_agl_m"]) == pytest.approx(20.0, abs=1.0), r
+            assert float(r["altitude_msl_m"]) == pytest.approx(ground(lon, lat) + 20.0, abs=1.2), r
+    world = json.loads((folder / "world.json").read_text())
+    assert world["groundMaxUpM"] - world["groundMinUpM"] > 40, "the slope spans the world square"

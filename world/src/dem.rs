@@ -67,6 +67,8 @@ pub struct Dem {
     /// `j` is at `(x0 + i dx, y0 - j dy)`.
     geo: [f64; 4],
     crs: Crs,
+    /// SHA-256 of the file's bytes, hex (part of the asset cache key).
+    source_sha256: String,
 }
 
 impl Dem {
@@ -93,7 +95,7 @@ impl Dem {
                 }
             }
         }
-        Ok(Self { width, height, values, geo, crs })
+        Ok(Self { width, height, values, geo, crs, source_sha256: String::new() })
     }
 
     /// Reads a DEM: a GeoTIFF (by its magic bytes) or an SRTM tile (by a name like
@@ -102,25 +104,32 @@ impl Dem {
     /// # Errors
     /// [`DemError`]: not a TIFF or `.hgt`, an unsupported layout or CRS, no georeferencing.
     pub fn read(bytes: &[u8], file_name: &str) -> Result<Self, DemError> {
-        if bytes.starts_with(b"II") || bytes.starts_with(b"MM") {
-            return tiff::read(bytes);
-        }
         let base = file_name.rsplit(['/', '\\']).next().unwrap_or(file_name);
-        if base.to_ascii_lowercase().ends_with(".hgt") {
-            return Self::read_hgt(bytes, base);
-        }
-        Err(DemError::Malformed(format!(
-            "{base}: neither a GeoTIFF (no TIFF header) nor an SRTM tile named like N60E024.hgt"
-        )))
+        let mut dem = if bytes.starts_with(b"II") || bytes.starts_with(b"MM") {
+            tiff::read(bytes)?
+        } else if base.to_ascii_lowercase().ends_with(".hgt") {
+            Self::read_hgt(bytes, base)?
+        } else {
+            return Err(DemError::Malformed(format!(
+                "{base}: neither a GeoTIFF (no TIFF header) nor an SRTM tile named like N60E024.hgt"
+            )));
+        };
+        use sha2::Digest as _;
+        dem.source_sha256 = sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect();
+        Ok(dem)
+    }
+
+    /// SHA-256 of the file's bytes, hex.
+    pub fn source_sha256(&self) -> &str {
+        &self.source_sha256
     }
 
     /// Reads an SRTM tile: 1201 x 1201 (3 arc-seconds) or 3601 x 3601 (1 arc-second)
     /// big-endian 16-bit metres, -32768 for voids; `name` (`N60E024.hgt`) gives its
     /// south-west corner.
     ///
-    /// # Errors
-    /// A name that is not `[NS]dd[EW]ddd.hgt`, or a size that is neither grid.
-    pub fn read_hgt(bytes: &[u8], name: &str) -> Result<Self, DemError> {
+    /// Errors: a name that is not `[NS]dd[EW]ddd.hgt`, or a size that is neither grid.
+    fn read_hgt(bytes: &[u8], name: &str) -> Result<Self, DemError> {
         let upper = name.to_ascii_uppercase();
         let parse = || -> Option<(f64, f64)> {
             let b = upper.as_bytes();

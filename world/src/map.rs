@@ -8,11 +8,14 @@ use std::fmt;
 
 use super::building::Building;
 use super::city::{self, CityLayout};
+use super::dem::{Dem, DemError};
 use super::index::{GridIndex, Rect};
 use super::inputs::WorldInputs;
 use super::osm::OsmCity;
 use super::stats::WorldStats;
+use super::terrain::GroundGrid;
 use super::terrain::Terrain;
+use sadesim_crds::geo::{Enu, LocalFrame};
 
 /// Ground lattice intervals per side for [`WorldStats`]' ground range: 201 x 201 samples
 /// cost about a millisecond; the lattice is 40 m at a 4 km extent, finer than the relief's
@@ -24,11 +27,56 @@ const GROUND_SAMPLES_PER_SIDE: usize = 200;
 const OSM_INDEX_CELL_M: f64 = 50.0;
 
 /// Why a world cannot be built.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum WorldError {
     /// `world.source: osm` needs its extract read first (the world library does no I/O).
     #[error("world.source osm: the extract world.osm.file must be read before the world is built")]
     MissingExtract,
+    /// `world.terrain.dem` needs its file read first.
+    #[error("world.terrain.dem: the DEM file must be read before the world is built")]
+    MissingDem,
+    #[error("world.terrain.dem: {0}")]
+    Dem(#[from] DemError),
+}
+
+/// What a world is built from besides its inputs: the files it names, read at the I/O
+/// edge.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WorldData {
+    /// The extract of `world.source: osm`.
+    pub osm: Option<OsmCity>,
+    /// The DEM of `world.terrain.dem`.
+    pub dem: Option<Dem>,
+}
+
+/// Largest ground grid resampled from a DEM, samples per side.
+const MAX_GROUND_SAMPLES: usize = 1025;
+/// Finest ground grid spacing, metres (SRTM 1" is ~30 m; national lidar DEMs 1-2 m).
+const MIN_GROUND_CELL_M: f64 = 2.0;
+
+/// The DEM as the world's ground: elevations minus the origin's altitude (z = 0 is
+/// `origin.altitudeMslM`), resampled on a grid over the world square.
+fn dem_terrain(inputs: &WorldInputs, dem: &Dem) -> Result<Terrain, DemError> {
+    let frame = LocalFrame::new(inputs.origin);
+    let extent_m = inputs.world.extent_m.max(1.0);
+    dem.check_covers(&frame, extent_m)?;
+    let n = ((2.0 * extent_m / MIN_GROUND_CELL_M) as usize + 1).clamp(2, MAX_GROUND_SAMPLES);
+    let origin_alt = inputs.origin.altitude_msl_m;
+    let mut missing = None;
+    let grid = GroundGrid::sample(extent_m, n, |e, north| {
+        let p = frame.to_geodetic(Enu { east_m: e, north_m: north, up_m: 0.0 });
+        match dem.elevation_m(p.latitude_deg, p.longitude_deg) {
+            Some(z) => z - origin_alt,
+            None => {
+                missing.get_or_insert((p.latitude_deg, p.longitude_deg));
+                0.0
+            }
+        }
+    });
+    if let Some((latitude_deg, longitude_deg)) = missing {
+        return Err(DemError::NotCovering { extent_m, latitude_deg, longitude_deg, what: "a no-data value" });
+    }
+    Ok(Terrain::from_grid(grid))
 }
 
 /// The world around the run origin: terrain and buildings, in world ENU metres (x east,
@@ -58,62 +106,84 @@ pub struct World {
 }
 
 impl World {
-    /// Generates the world for `inputs`. O(blocks + lots + open areas); a 4 km-extent city
-    /// with default parameters (~23 000 buildings) takes ~30 ms in a release build.
+    /// Generates the procedural world for `inputs`. O(blocks + lots + open areas); a
+    /// 4 km-extent city with default parameters (~23 000 buildings) takes ~30 ms in a
+    /// release build.
     ///
     /// # Assumptions
     /// `inputs.world` passed `sadesim_crds` validation (positive sizes, fraction in 0..1);
     /// out-of-range values are clamped rather than rejected.
     ///
     /// # Panics
-    /// When `inputs.world.source` is not `procedural`: such worlds are read from files at
-    /// the I/O edge and built with [`World::build`] (calling this for them is a bug).
+    /// When the world needs files (`source: osm`, `terrain.dem`): those are read at the I/O
+    /// edge and built with [`World::build`] (calling this for them is a bug).
     pub fn generate(inputs: &WorldInputs) -> Self {
+        assert!(
+            inputs.world.source == WorldSource::Procedural && inputs.world.terrain.is_none(),
+            "World::generate builds procedural worlds without a DEM; use World::build with the files' data"
+        );
+        Self::procedural(inputs, None)
+    }
+
+    fn procedural(inputs: &WorldInputs, dem: Option<Terrain>) -> Self {
         let seed = inputs.seed();
         let mut rng = Rng::stream(seed, 0, Purpose::World);
         let extent_m = inputs.world.extent_m.max(0.0);
-        match inputs.world.source {
-            WorldSource::Procedural => {
-                // Terrain first: it draws a fixed number of values, so the city's draws do
-                // not depend on it.
-                let terrain = Terrain::generate(&mut rng);
-                let city = inputs.world.city();
-                let layout = city::generate(&city, extent_m, &inputs.open_areas, &terrain, &mut rng);
-                let cell_m = city::StreetGrid::new(&city, extent_m).pitch_m;
-                Self::assemble(seed, extent_m, terrain, layout, cell_m, inputs.open_areas.len())
-            }
-            WorldSource::Osm => panic!("World::generate builds procedural worlds; use World::build with the extract"),
-        }
+        // Terrain first: it draws a fixed number of values, so the city's draws do not
+        // depend on it (nor on whether a DEM replaces it).
+        let relief = Terrain::generate(&mut rng);
+        let terrain = dem.unwrap_or(relief);
+        let city = inputs.world.city();
+        let layout = city::generate(&city, extent_m, &inputs.open_areas, &terrain, &mut rng);
+        let cell_m = city::StreetGrid::new(&city, extent_m).pitch_m;
+        Self::assemble(seed, extent_m, terrain, layout, cell_m, inputs.open_areas.len())
     }
 
-    /// The world of `inputs`, with the extract `osm` read at the I/O edge for
-    /// `source: osm` (the procedural city needs none).
+    /// The world of `inputs` with the files' `data` read at the I/O edge: the extract of
+    /// `source: osm`, the DEM of `terrain.dem` (the procedural city needs neither).
     ///
     /// # Errors
-    /// [`WorldError::MissingExtract`] for `source: osm` without `osm`.
-    pub fn build(inputs: &WorldInputs, osm: Option<&OsmCity>) -> Result<Self, WorldError> {
-        match (inputs.world.source, osm) {
-            (WorldSource::Procedural, _) => Ok(Self::generate(inputs)),
-            (WorldSource::Osm, Some(city)) => Ok(Self::from_osm(inputs, city)),
+    /// [`WorldError::MissingExtract`] / [`WorldError::MissingDem`] when a file the inputs
+    /// name was not read; [`WorldError::Dem`] when the DEM has no elevation somewhere in
+    /// the world square.
+    pub fn build(inputs: &WorldInputs, data: &WorldData) -> Result<Self, WorldError> {
+        let dem = match (&inputs.world.terrain, &data.dem) {
+            (None, _) => None,
+            (Some(_), None) => return Err(WorldError::MissingDem),
+            (Some(_), Some(dem)) => Some(dem_terrain(inputs, dem)?),
+        };
+        match (inputs.world.source, &data.osm) {
+            (WorldSource::Procedural, _) => Ok(Self::procedural(inputs, dem)),
+            (WorldSource::Osm, Some(city)) => Ok(Self::from_osm(inputs, city, dem.unwrap_or_else(Terrain::flat))),
             (WorldSource::Osm, None) => Err(WorldError::MissingExtract),
         }
     }
 
-    /// The buildings of an OpenStreetMap extract on flat ground (z = 0 everywhere: the
-    /// origin's altitude). Open areas of the inputs (home clearances) remove nothing: real
-    /// buildings stay where the map puts them.
-    pub fn from_osm(inputs: &WorldInputs, city: &OsmCity) -> Self {
+    /// The buildings of an OpenStreetMap extract, each standing on `terrain` at its
+    /// footprint's centre (flat ground without a DEM: no invented relief). Open areas of the
+    /// inputs (home clearances) remove nothing: real buildings stay where the map puts them.
+    fn from_osm(inputs: &WorldInputs, city: &OsmCity, terrain: Terrain) -> Self {
         let extent_m = inputs.world.extent_m.max(0.0);
         let side_m = 2.0 * extent_m;
+        let buildings = city
+            .buildings
+            .iter()
+            .map(|b| {
+                let b = &b.building;
+                let [e, n] = b.footprint().bounds_center();
+                let base_up_m = terrain.up_m(e, n) + b.base_up_m();
+                Building::new(b.footprint().clone(), base_up_m, b.height_m()).unwrap_or_else(|_| b.clone())
+            })
+            .collect();
         let layout = CityLayout {
-            buildings: city.buildings.iter().map(|b| b.building.clone()).collect(),
+            buildings,
             block_count: 0,
             park_count: city.open_areas.len(),
             // The built fraction is then over the whole square.
             block_area_m2: side_m * side_m,
             dropped_for_open_areas: 0,
         };
-        let mut world = Self::assemble(inputs.seed(), extent_m, Terrain::flat(), layout, OSM_INDEX_CELL_M, 0);
+        let mut world = Self::assemble(inputs.seed(), extent_m, terrain, layout, OSM_INDEX_CELL_M, 0);
         world.stats.osm = Some(city.stats.clone());
         world
     }

@@ -39,10 +39,54 @@ struct Wave {
     sin_phase: f64,
 }
 
-/// The seeded ground relief. See the module docs for the formula and its bounds.
+/// The ground: the seeded relief (see the module docs for the formula and its bounds), or
+/// a grid resampled from a digital elevation model.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Terrain {
     waves: [Wave; WAVES],
+    /// When set, the ground is this grid (the waves are then flat).
+    grid: Option<GroundGrid>,
+}
+
+/// Ground heights on a square ENU grid (from a DEM), bilinear between samples, held at the
+/// edge value outside.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GroundGrid {
+    /// East and north of sample (0, 0), metres.
+    east0_m: f64,
+    north0_m: f64,
+    cell_m: f64,
+    n: usize,
+    /// Row-major from the south-west, `up` metres above the origin's altitude.
+    up_m: Vec<f64>,
+}
+
+impl GroundGrid {
+    /// Samples `up(east, north)` on an `n x n` grid from `(-half, -half)` to `(half, half)`.
+    pub fn sample(half_m: f64, n: usize, mut up: impl FnMut(f64, f64) -> f64) -> Self {
+        let n = n.max(2);
+        let cell_m = 2.0 * half_m / (n - 1) as f64;
+        let mut values = Vec::with_capacity(n * n);
+        for j in 0..n {
+            for i in 0..n {
+                values.push(up(-half_m + i as f64 * cell_m, -half_m + j as f64 * cell_m));
+            }
+        }
+        Self { east0_m: -half_m, north0_m: -half_m, cell_m, n, up_m: values }
+    }
+
+    fn up_m(&self, east_m: f64, north_m: f64) -> f64 {
+        let last = (self.n - 1) as f64;
+        let fi = ((east_m - self.east0_m) / self.cell_m).clamp(0.0, last);
+        let fj = ((north_m - self.north0_m) / self.cell_m).clamp(0.0, last);
+        let (i, j) = ((fi as usize).min(self.n - 2), (fj as usize).min(self.n - 2));
+        let (u, v) = (fi - i as f64, fj - j as f64);
+        let at = |i: usize, j: usize| self.up_m[j * self.n + i];
+        (1.0 - u) * (1.0 - v) * at(i, j)
+            + u * (1.0 - v) * at(i + 1, j)
+            + (1.0 - u) * v * at(i, j + 1)
+            + u * v * at(i + 1, j + 1)
+    }
 }
 
 impl Terrain {
@@ -50,7 +94,12 @@ impl Terrain {
     pub fn flat() -> Self {
         let wave =
             Wave { amplitude_m: 0.0, k_east_rad_per_m: 0.0, k_north_rad_per_m: 0.0, phase_rad: 0.0, sin_phase: 0.0 };
-        Self { waves: [wave; WAVES] }
+        Self { waves: [wave; WAVES], grid: None }
+    }
+
+    /// The ground of a DEM, resampled on `grid`.
+    pub fn from_grid(grid: GroundGrid) -> Self {
+        Self { grid: Some(grid), ..Self::flat() }
     }
 
     /// Draws the relief from `rng`: exactly `4 * WAVES` draws, so what is drawn after it does
@@ -71,12 +120,15 @@ impl Terrain {
                 sin_phase: phase_rad.sin(),
             }
         });
-        Self { waves }
+        Self { waves, grid: None }
     }
 
     /// Ground height above the origin's ground (ENU up), metres, at a horizontal position.
     /// Defined everywhere, also outside the world's extent.
     pub fn up_m(&self, east_m: f64, north_m: f64) -> f64 {
+        if let Some(grid) = &self.grid {
+            return grid.up_m(east_m, north_m);
+        }
         self.waves
             .iter()
             .map(|w| {
@@ -88,11 +140,29 @@ impl Terrain {
 
     /// Upper bound of `|up_m|` anywhere, metres.
     pub fn max_abs_up_m(&self) -> f64 {
+        if let Some(grid) = &self.grid {
+            return grid.up_m.iter().fold(0.0, |m, v| m.max(v.abs()));
+        }
         self.waves.iter().map(|w| w.amplitude_m * (1.0 + w.sin_phase.abs())).sum()
     }
 
     /// Upper bound of the ground slope `|grad h|` anywhere (metres per metre).
     pub fn max_slope(&self) -> f64 {
+        if let Some(g) = &self.grid {
+            let mut slope: f64 = 0.0;
+            for j in 0..g.n {
+                for i in 0..g.n {
+                    let h = g.up_m[j * g.n + i];
+                    if i + 1 < g.n {
+                        slope = slope.max((g.up_m[j * g.n + i + 1] - h).abs() / g.cell_m);
+                    }
+                    if j + 1 < g.n {
+                        slope = slope.max((g.up_m[(j + 1) * g.n + i] - h).abs() / g.cell_m);
+                    }
+                }
+            }
+            return slope;
+        }
         self.waves.iter().map(|w| w.amplitude_m * w.k_east_rad_per_m.hypot(w.k_north_rad_per_m)).sum()
     }
 }

@@ -13,7 +13,14 @@ use super::*;
 fn inputs(extent_m: f64, city: Option<City>, open_areas: Vec<OpenArea>) -> WorldInputs {
     WorldInputs {
         origin: GeoPoint::new(CHICAGO.latitude_deg, CHICAGO.longitude_deg, 181.0),
-        world: WorldSpec { source: WorldSource::Procedural, osm: None, extent_m, city, open_areas: Vec::new() },
+        world: WorldSpec {
+            source: WorldSource::Procedural,
+            osm: None,
+            terrain: None,
+            extent_m,
+            city,
+            open_areas: Vec::new(),
+        },
         open_areas,
     }
 }

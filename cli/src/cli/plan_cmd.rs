@@ -21,14 +21,14 @@ pub(super) fn plan_file(
     if namespace.is_some() {
         run.metadata.namespace = namespace;
     }
-    let extract = match sadesim_evidence::world::read_extract(&run.spec) {
-        Ok(extract) => extract,
+    let world_data = match sadesim_evidence::world::read_data(&run.spec) {
+        Ok(data) => data,
         Err(e) => {
             writeln!(out, "error: {path}: {e}")?;
             return Ok(Outcome::Problems);
         }
     };
-    let plan = match planner::plan_with(&run, extract.as_ref()) {
+    let plan = match planner::plan_with(&run, &world_data) {
         Ok(plan) => plan,
         Err(planner::PlanError::Invalid(errors)) => {
             report_problems(out, &path, &errors)?;

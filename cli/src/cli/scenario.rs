@@ -60,7 +60,7 @@ pub(super) fn report_problems(
     Ok(())
 }
 
-/// Makes `world.osm.file` absolute against the scenario file's folder (as a user expects of
+/// Makes `world.osm.file` and `world.terrain.dem.file` absolute against the scenario file's folder (as a user expects of
 /// a path written in a scenario kept beside its data), so the plan names the file wherever
 /// its roles run. Stdin scenarios resolve against the working directory.
 fn resolve_paths(run: &mut SimulationRun, scenario: &Path) {
@@ -68,11 +68,14 @@ fn resolve_paths(run: &mut SimulationRun, scenario: &Path) {
         true => std::env::current_dir().unwrap_or_default(),
         false => scenario.parent().map(Path::to_path_buf).unwrap_or_default(),
     };
-    if let Some(extract) = run.spec.world.as_mut().and_then(|w| w.osm.as_mut()) {
-        let path = sadesim_evidence::world::extract_path(&extract.file);
+    let Some(world) = run.spec.world.as_mut() else { return };
+    let files =
+        world.osm.as_mut().map(|o| &mut o.file).into_iter().chain(world.terrain.as_mut().map(|t| &mut t.dem.file));
+    for file in files {
+        let path = sadesim_evidence::world::file_path(file);
         if path.is_relative() {
             let absolute = std::path::absolute(base.join(&path)).unwrap_or_else(|_| base.join(&path));
-            extract.file = absolute.display().to_string();
+            *file = absolute.display().to_string();
         }
     }
 }

@@ -238,8 +238,8 @@ fn show_progress(bar: &ProgressBar, time_s: f64, duration_s: f64, started: std::
 /// See [`RunError`]. When the coordinator fails mid-run, the files written so far stay in
 /// the output folder.
 pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool>) -> Result<RunReport, RunError> {
-    let extract = sadesim_evidence::world::read_extract(&run.spec)?;
-    let plan = planner::plan_with(run, extract.as_ref())?;
+    let world_data = sadesim_evidence::world::read_data(&run.spec)?;
+    let plan = planner::plan_with(run, &world_data)?;
     check_supported(&plan, options)?;
     let base = out_root(&plan, options).join(&plan.run.name);
     let stamp = utc_stamp(SystemTime::now());
@@ -266,7 +266,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     fleet.airspace_url = format!("http://{airspace_addr}");
     write_json(&out_dir, pilot::FLEET_FILE, &fleet)?;
 
-    let world = Arc::new(World::build(&WorldInputs::from_spec(&plan.spec, &[]), extract.as_ref())?);
+    let world = Arc::new(World::build(&WorldInputs::from_spec(&plan.spec, &[]), &world_data)?);
     write_json(&out_dir, "world.json", world.stats())?;
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));

@@ -71,6 +71,17 @@ pub(super) fn check_world(spec: &SimulationRunSpec, origin_ok: bool, p: &mut Pro
         }
         (WorldSource::Procedural, None) => {}
     }
+    if let Some(terrain) = &world.terrain {
+        let file = &terrain.dem.file;
+        if file.trim().is_empty() || file.len() > 4096 {
+            p.add("spec.world.terrain.dem.file", "must name the DEM file (1 to 4096 characters)");
+        } else if file.contains("://") && !file.starts_with("file://") {
+            p.add(
+                "spec.world.terrain.dem.file",
+                "must be a path or a file:// URL (object-store DEMs need the asset bundle, not built yet)",
+            );
+        }
+    }
     if world.source == WorldSource::Osm {
         let why = "shapes the procedural city only: with source osm the map's buildings and parks are the world";
         if world.city.is_some() {

@@ -180,7 +180,7 @@ fn a_mapped_world_is_refused_on_a_cluster_for_now() {
     let d = decide_with(&run, &Observed::default(), Some(Admission::Admitted), t0());
     assert_eq!(d.status.phase, Some(Phase::Failed));
     let message = &cond(&d, ct::VALID).message;
-    assert!(message.contains("Kubernetes runs do not support world.source osm yet"), "{message}");
+    assert!(message.contains("Kubernetes runs do not support world.source osm or world.terrain yet"), "{message}");
     assert!(d.apply.is_empty());
 }
 
