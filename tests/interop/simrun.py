@@ -70,6 +70,33 @@ def scenario(name: str, drones: int = 1, clock: dict | None = None, duration: st
     }
 
 
+def scripted_run(name: str, origin: tuple, altitude_msl_m: float, world: dict, group: dict, duration: str,
+                 criteria: list | None = None) -> dict:
+    """A SimulationRun of one scripted `group` (it has a `mission`) at `origin` (lat, lon),
+    flown as fast as possible: no pilot, no MAVLink needed."""
+    spec = {
+        "origin": {"latitudeDeg": origin[0], "longitudeDeg": origin[1], "altitudeMslM": altitude_msl_m},
+        "duration": duration,
+        "clock": {"mode": "asFastAsPossible"},
+        "world": world,
+        "fleet": [{"airframe": "x500", "operator": "interop-tests", **group}],
+    }
+    if criteria:
+        spec["criteria"] = criteria
+    return {"apiVersion": "sadesim.io/v1alpha1", "kind": "SimulationRun", "metadata": {"name": name}, "spec": spec}
+
+
+def run_scripted(sadesim: str, doc: dict, folder: pathlib.Path) -> tuple[subprocess.CompletedProcess, pathlib.Path | None]:
+    """Writes `doc` to `folder` and runs it with `sadesim run --no-mavlink -q` into
+    `folder/runs`; returns the process and the run folder (None when none was made)."""
+    path = folder / f"{doc['metadata']['name']}.yaml"
+    path.write_text(json.dumps(doc))
+    out = folder / "runs"
+    run = subprocess.run([sadesim, "run", str(path), "--out", str(out), "-q", "--no-mavlink"],
+                         capture_output=True, text=True)
+    return run, next(out.glob(f"{doc['metadata']['name']}/*"), None)
+
+
 def pymavlink_url(url: str) -> str:
     """A fleet-file URL (MAVSDK syntax, `udpout://127.0.0.1:24600`) in pymavlink's syntax
     (`udpout:127.0.0.1:24600`)."""

@@ -8,6 +8,7 @@ import math
 import subprocess
 
 import pytest
+from simrun import run_scripted, scripted_run
 
 ORIGIN = (60.17, 24.94)
 # The ASCII grid's lower-left corner and cell size, degrees: 0.08 deg x 0.04 deg.
@@ -128,31 +129,15 @@ def test_a_run_over_a_dem_slope_takes_off_and_flies_above_the_ground_there(sades
     tif = tmp_path / "slope.tif"
     gdal("gdal_translate", "-q", "-a_srs", "EPSG:4326", "-ot", "Float32", str(asc), str(tif))
     east_home, west_home = (ORIGIN[0], ORIGIN[1] + 0.0054), (ORIGIN[0], ORIGIN[1] - 0.0054)  # ~300 m
-    scenario = {
-        "apiVersion": "sadesim.io/v1alpha1",
-        "kind": "SimulationRun",
-        "metadata": {"name": "slope"},
-        "spec": {
-            "origin": {"latitudeDeg": ORIGIN[0], "longitudeDeg": ORIGIN[1], "altitudeMslM": 15},
-            "duration": "40s",
-            "clock": {"mode": "asFastAsPossible"},
-            "world": {"extentM": 500, "terrain": {"dem": {"file": "slope.tif"}}},
-            "fleet": [{
-                "name": "hover", "count": 2, "airframe": "x500", "operator": "test",
-                "homes": {"explicit": [{"latitudeDeg": lat, "longitudeDeg": lon} for lat, lon in (east_home, west_home)]},
-                "altitude": {"maxAglM": 25},
-                "mission": {"speedMps": 5, "items": [{"takeoff": {"altitudeAglM": 20}}, {"loiter": {"holdS": 15}}]},
-            }],
-            "criteria": [{"altitudeLimitsRespected": {}}, {"noCrashes": {}}],
-        },
-    }
-    path = tmp_path / "slope.yaml"
-    path.write_text(json.dumps(scenario))
-    run = subprocess.run([sadesim, "run", str(path), "--out", str(tmp_path / "runs"), "-q", "--no-mavlink"],
-                         capture_output=True, text=True)
+    doc = scripted_run("slope", ORIGIN, 15, {"extentM": 500, "terrain": {"dem": {"file": "slope.tif"}}}, {
+        "name": "hover", "count": 2,
+        "homes": {"explicit": [{"latitudeDeg": lat, "longitudeDeg": lon} for lat, lon in (east_home, west_home)]},
+        "altitude": {"maxAglM": 25},
+        "mission": {"speedMps": 5, "items": [{"takeoff": {"altitudeAglM": 20}}, {"loiter": {"holdS": 15}}]},
+    }, "40s", criteria=[{"altitudeLimitsRespected": {}}, {"noCrashes": {}}])
+    run, folder = run_scripted(sadesim, doc, tmp_path)
     assert run.returncode == 0, run.stdout + run.stderr
     assert "criteria PASSED" in run.stdout, run.stdout
-    folder = next((tmp_path / "runs").glob("slope/*"))
     plan = json.loads((folder / "plan.json").read_text())
     for drone, (lat, lon) in zip(plan["drones"], (east_home, west_home)):
         assert drone["home"]["global"]["altitudeMslM"] == pytest.approx(ground(lon, lat), abs=0.2), drone["home"]

