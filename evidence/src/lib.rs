@@ -7,6 +7,7 @@ pub mod archive;
 pub mod assets;
 #[cfg(feature = "report")]
 pub mod finish;
+pub mod gltf;
 #[cfg(feature = "report")]
 pub mod report;
 pub mod world;

@@ -264,3 +264,34 @@ def test_the_helsinki_example_flies_over_the_mapped_city(sadesim, helsinki, repo
         g = drone["home"]["global"]
         home = shapely.geometry.Point(*plane(ORIGIN)(g["longitudeDeg"], g["latitudeDeg"]))
         assert all(b.distance(home) > 2.0 for b in buildings), drone["home"]
+
+
+VALIDATE_GLTF = """
+const fs = require('fs');
+const validator = require(process.argv[2]);
+validator.validateBytes(new Uint8Array(fs.readFileSync(process.argv[3])), {maxIssues: 100})
+  .then((report) => console.log(JSON.stringify(report)))
+  .catch((e) => { console.error(String(e)); process.exit(2); });
+"""
+
+
+def test_the_world_as_gltf_passes_the_khronos_validator(sadesim, helsinki, repo, tmp_path):
+    validator = repo / ".tools" / "npm" / "node_modules" / "gltf-validator"
+    assert validator.exists(), "run tests/install-tools.sh"
+    glb = tmp_path / "helsinki.glb"
+    run = subprocess.run([sadesim, "osm", str(helsinki), "--origin", f"{ORIGIN[0]},{ORIGIN[1]}", "--extent-m",
+                          str(EXTENT_M), "--glb", str(glb), "--json"], check=True, capture_output=True, text=True)
+    summary = json.loads(run.stdout)
+    script = tmp_path / "validate.js"
+    script.write_text(VALIDATE_GLTF)
+    checked = subprocess.run(["node", str(script), str(validator), str(glb)], check=True, capture_output=True, text=True)
+    report = json.loads(checked.stdout)
+    assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, report["issues"]
+    info = report["info"]
+    assert info["version"] == "2.0" and info["drawCallCount"] == 2, info
+    # The buildings' accessor spans the square and reaches the tallest roof (y is up).
+    data = glb.read_bytes()
+    doc = json.loads(data[20:20 + int.from_bytes(data[12:16], "little")])
+    buildings = doc["accessors"][0]
+    assert buildings["max"][1] == pytest.approx(summary["roofM"]["max"], abs=1e-3)
+    assert buildings["min"][0] >= -EXTENT_M - 1e-3 and buildings["max"][0] <= EXTENT_M + 1e-3

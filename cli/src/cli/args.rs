@@ -178,6 +178,10 @@ pub enum Command {
         /// Write the buildings and open areas as a GeoJSON FeatureCollection here.
         #[arg(long)]
         geojson: Option<PathBuf>,
+        /// Write the world (buildings on flat ground) as glTF 2.0 binary (.glb) here, for
+        /// Blender, three.js or any glTF viewer (x east, y up, z south, metres).
+        #[arg(long)]
+        glb: Option<PathBuf>,
         /// Print the statistics as JSON instead of text.
         #[arg(long)]
         json: bool,

@@ -9,12 +9,19 @@ use sadesim_world::osm::{self, DEFAULT_HEIGHT_M, ElementId, OsmCity};
 use serde_json::{Value, json};
 
 use super::{CliError, Outcome};
+use sadesim_world::{World, WorldData, WorldInputs};
+
+/// Files `sadesim osm` writes besides its summary.
+pub(super) struct Targets<'a> {
+    pub geojson: Option<&'a Path>,
+    pub glb: Option<&'a Path>,
+}
 
 pub(super) fn osm_file(
     file: &Path,
     (latitude_deg, longitude_deg): (f64, f64),
     extent_m: f64,
-    geojson: Option<&Path>,
+    targets: Targets,
     as_json: bool,
     out: &mut dyn Write,
 ) -> Result<Outcome, CliError> {
@@ -22,10 +29,24 @@ pub(super) fn osm_file(
     let bytes = std::fs::read(file).map_err(|source| CliError::Read { path: path.clone(), source })?;
     let frame = LocalFrame::new(GeoPoint::new(latitude_deg, longitude_deg, 0.0));
     let city = osm::read_pbf(&bytes, &frame, extent_m).map_err(|e| CliError::Failed(format!("{path}: {e}")))?;
-    if let Some(target) = geojson {
+    let write = |target: &Path, bytes: &[u8]| {
+        std::fs::write(target, bytes).map_err(|e| CliError::Failed(format!("{}: cannot write: {e}", target.display())))
+    };
+    if let Some(target) = targets.geojson {
         let text = serde_json::to_string(&feature_collection(&city, &frame)).map_err(std::io::Error::from)?;
-        std::fs::write(target, text + "\n")
-            .map_err(|e| CliError::Failed(format!("{}: cannot write: {e}", target.display())))?;
+        write(target, (text + "\n").as_bytes())?;
+    }
+    if let Some(target) = targets.glb {
+        let spec = sadesim_crds::run::World {
+            source: sadesim_crds::run::WorldSource::Osm,
+            osm: Some(sadesim_crds::run::OsmExtract { file: path.clone() }),
+            extent_m,
+            ..Default::default()
+        };
+        let inputs = WorldInputs { origin: frame.origin(), world: spec, open_areas: Vec::new() };
+        let data = WorldData { osm: Some(city.clone()), dem: None };
+        let world = World::build(&inputs, &data).map_err(|e| CliError::Failed(format!("{path}: {e}")))?;
+        write(target, &sadesim_evidence::gltf::world_glb(&world, frame.origin()))?;
     }
     let area_m2: f64 = city.buildings.iter().map(|b| b.building.footprint_area_m2()).sum();
     let mut roofs: Vec<f64> = city.buildings.iter().map(|b| b.building.roof_up_m()).collect();
@@ -64,7 +85,7 @@ pub(super) fn osm_file(
             "  skipped: {} cut by the extract, {} unclosed area ways, {} invalid polygons",
             s.skipped_incomplete, s.skipped_open_ways, s.skipped_invalid
         )?;
-        if let Some(target) = geojson {
+        for target in [targets.geojson, targets.glb].into_iter().flatten() {
             writeln!(out, "  wrote {}", target.display())?;
         }
     }
