@@ -18,7 +18,6 @@ use sadesim_crds::zones::AltitudeReference;
 use sadesim_crds::{SimulationRun, ValidationErrors, validate};
 use sadesim_world::{World, WorldData, WorldError, WorldInputs};
 use serde::Serialize;
-use sha2::{Digest, Sha256};
 
 pub use fleet_file::{Addressing, credential_env_var, fleet_file, zones_geojson};
 pub use ports::{
@@ -258,9 +257,7 @@ fn asset_cache_key(
     let inputs = AssetInputs { format: ASSETS_FORMAT_VERSION, world: world.clone(), extract_sha256, dem_sha256, zones };
     // serde_json writes struct fields in declaration order and floats with a fixed
     // shortest-round-trip format, so the bytes are canonical for these types.
-    let bytes = serde_json::to_vec(&inputs).expect("asset inputs always serialize");
-    let digest = Sha256::digest(&bytes);
-    digest.iter().map(|b| format!("{b:02x}")).collect()
+    sadesim_world::sha256_hex(&serde_json::to_vec(&inputs).expect("asset inputs always serialize"))
 }
 
 #[cfg(test)]

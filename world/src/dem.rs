@@ -114,8 +114,7 @@ impl Dem {
                 "{base}: neither a GeoTIFF (no TIFF header) nor an SRTM tile named like N60E024.hgt"
             )));
         };
-        use sha2::Digest as _;
-        dem.source_sha256 = sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect();
+        dem.source_sha256 = crate::sha256_hex(bytes);
         Ok(dem)
     }
 

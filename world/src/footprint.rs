@@ -302,7 +302,7 @@ fn classify(ring: &[Point2], p: Point2) -> Side {
     if odd { Side::Odd } else { Side::Even }
 }
 
-fn ring_contains(ring: &[Point2], p: Point2) -> bool {
+pub(crate) fn ring_contains(ring: &[Point2], p: Point2) -> bool {
     !matches!(classify(ring, p), Side::Even)
 }
 
@@ -311,7 +311,7 @@ fn cross(u: Point2, v: Point2) -> f64 {
 }
 
 /// Signed shoelace area, square metres: positive for a counter-clockwise ring.
-fn shoelace_m2(ring: &[Point2]) -> f64 {
+pub(crate) fn shoelace_m2(ring: &[Point2]) -> f64 {
     let n = ring.len();
     0.5 * (0..n).map(|i| cross(ring[i], ring[(i + 1) % n])).sum::<f64>()
 }

@@ -174,8 +174,7 @@ pub fn read_pbf(bytes: &[u8], frame: &LocalFrame, extent_m: f64) -> Result<OsmCi
         return Err(OsmError::NotCovering { have, need, extent_m });
     }
     let mut city = assemble::city(&raw, frame, extent_m)?;
-    use sha2::Digest as _;
-    city.source_sha256 = sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect();
+    city.source_sha256 = crate::sha256_hex(bytes);
     Ok(city)
 }
 

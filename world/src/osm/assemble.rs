@@ -9,7 +9,7 @@ use super::pbf::{MemberKind, RawOsm, RawRelation, RawWay, Tags};
 use super::{DEFAULT_HEIGHT_M, STOREY_HEIGHT_M};
 use super::{ElementId, HeightSource, OsmBuilding, OsmCity, OsmError, OsmOpenArea, OsmStats};
 use crate::building::Building;
-use crate::footprint::{Footprint, Point2};
+use crate::footprint::{Footprint, Point2, ring_contains, shoelace_m2};
 
 /// Tag keys the assembly reads (the reader drops every other tag).
 pub fn is_read_tag(key: &str) -> bool {
@@ -17,7 +17,6 @@ pub fn is_read_tag(key: &str) -> bool {
         key,
         "type"
             | "building"
-            | "building:part"
             | "height"
             | "building:height"
             | "min_height"
@@ -185,7 +184,7 @@ fn multipolygon(relation: &RawRelation, ways: &HashMap<i64, &RawWay>, raw: &RawO
     let mut polygons: Vec<Polygon> = outers.into_iter().map(|outer| Polygon { outer, holes: Vec::new() }).collect();
     for inner in inners {
         // The first outer ring holding the inner ring's first vertex.
-        if let Some(p) = polygons.iter_mut().find(|p| ring_contains_deg(&p.outer, inner[0])) {
+        if let Some(p) = polygons.iter_mut().find(|p| ring_contains(&p.outer, inner[0])) {
             p.holes.push(inner);
         }
     }
@@ -214,23 +213,9 @@ fn join_rings(ways: &[&[i64]]) -> Option<Vec<Vec<i64>>> {
     Some(rings)
 }
 
-/// Even-odd point in ring, in degrees (inner-ring assignment only).
-fn ring_contains_deg(ring: &[[f64; 2]], p: [f64; 2]) -> bool {
-    let mut inside = false;
-    let n = ring.len();
-    for i in 0..n {
-        let (a, b) = (ring[i], ring[(i + 1) % n]);
-        if (a[0] > p[0]) != (b[0] > p[0]) && p[1] < a[1] + (p[0] - a[0]) / (b[0] - a[0]) * (b[1] - a[1]) {
-            inside = !inside;
-        }
-    }
-    inside
-}
-
-/// Absolute shoelace area of a ring, m².
+/// Absolute area of a ring, m² (shoelace).
 fn ring_area(ring: &[Point2]) -> f64 {
-    let n = ring.len();
-    (0..n).map(|i| ring[i][0] * ring[(i + 1) % n][1] - ring[(i + 1) % n][0] * ring[i][1]).sum::<f64>().abs() * 0.5
+    shoelace_m2(ring).abs()
 }
 
 /// Sutherland–Hodgman clipping of a ring to the square `[-h, h]²` (convex clip window: the
