@@ -178,12 +178,7 @@ impl Dem {
 
     /// Elevation at a WGS84 position, metres; `None` outside the grid or next to no-data.
     pub fn elevation_m(&self, latitude_deg: f64, longitude_deg: f64) -> Option<f64> {
-        let (x, y) = match self.crs {
-            Crs::Geographic => (longitude_deg, latitude_deg),
-            Crs::Utm { zone, north } => utm_forward(latitude_deg, longitude_deg, zone, north),
-        };
-        let [x0, y0, dx, dy] = self.geo;
-        let (fi, fj) = ((x - x0) / dx, (y0 - y) / dy);
+        let (fi, fj) = self.pixel(latitude_deg, longitude_deg);
         // Within a millionth of a pixel of the last row or column counts as on it.
         const SNAP: f64 = 1e-6;
         let (w, h) = ((self.width - 1) as f64, (self.height - 1) as f64);
@@ -231,13 +226,18 @@ impl Dem {
         Ok(())
     }
 
-    fn inside(&self, latitude_deg: f64, longitude_deg: f64) -> bool {
+    /// Fractional `(column, row)` of a WGS84 position in the grid of values.
+    fn pixel(&self, latitude_deg: f64, longitude_deg: f64) -> (f64, f64) {
         let (x, y) = match self.crs {
             Crs::Geographic => (longitude_deg, latitude_deg),
             Crs::Utm { zone, north } => utm_forward(latitude_deg, longitude_deg, zone, north),
         };
         let [x0, y0, dx, dy] = self.geo;
-        let (fi, fj) = ((x - x0) / dx, (y0 - y) / dy);
+        ((x - x0) / dx, (y0 - y) / dy)
+    }
+
+    fn inside(&self, latitude_deg: f64, longitude_deg: f64) -> bool {
+        let (fi, fj) = self.pixel(latitude_deg, longitude_deg);
         fi >= 0.0 && fj >= 0.0 && fi <= (self.width - 1) as f64 && fj <= (self.height - 1) as f64
     }
 }
