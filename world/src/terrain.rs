@@ -43,9 +43,17 @@ struct Wave {
 /// a grid resampled from a digital elevation model.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Terrain {
-    waves: [Wave; WAVES],
-    /// When set, the ground is this grid (the waves are then flat).
-    grid: Option<GroundGrid>,
+    relief: Relief,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+enum Relief {
+    /// z = 0 everywhere.
+    Flat,
+    /// The seeded plane waves.
+    Waves([Wave; WAVES]),
+    /// A DEM resampled on a grid.
+    Grid(GroundGrid),
 }
 
 /// Ground heights on a square ENU grid (from a DEM), bilinear between samples, held at the
@@ -87,19 +95,39 @@ impl GroundGrid {
             + (1.0 - u) * v * at(i, j + 1)
             + u * v * at(i + 1, j + 1)
     }
+
+    fn max_abs_up_m(&self) -> f64 {
+        self.up_m.iter().fold(0.0, |m, v| m.max(v.abs()))
+    }
+
+    /// Largest slope between neighbouring samples (bilinear patches slope no more).
+    fn max_slope(&self) -> f64 {
+        let n = self.n;
+        let at = |i: usize, j: usize| self.up_m[j * n + i];
+        let mut slope: f64 = 0.0;
+        for j in 0..n {
+            for i in 0..n {
+                if i + 1 < n {
+                    slope = slope.max((at(i + 1, j) - at(i, j)).abs() / self.cell_m);
+                }
+                if j + 1 < n {
+                    slope = slope.max((at(i, j + 1) - at(i, j)).abs() / self.cell_m);
+                }
+            }
+        }
+        slope
+    }
 }
 
 impl Terrain {
     /// Flat ground at z = 0 (a mapped city without a DEM: no invented relief).
     pub fn flat() -> Self {
-        let wave =
-            Wave { amplitude_m: 0.0, k_east_rad_per_m: 0.0, k_north_rad_per_m: 0.0, phase_rad: 0.0, sin_phase: 0.0 };
-        Self { waves: [wave; WAVES], grid: None }
+        Self { relief: Relief::Flat }
     }
 
     /// The ground of a DEM, resampled on `grid`.
     pub fn from_grid(grid: GroundGrid) -> Self {
-        Self { grid: Some(grid), ..Self::flat() }
+        Self { relief: Relief::Grid(grid) }
     }
 
     /// Draws the relief from `rng`: exactly `4 * WAVES` draws, so what is drawn after it does
@@ -120,50 +148,43 @@ impl Terrain {
                 sin_phase: phase_rad.sin(),
             }
         });
-        Self { waves, grid: None }
+        Self { relief: Relief::Waves(waves) }
     }
 
     /// Ground height above the origin's ground (ENU up), metres, at a horizontal position.
     /// Defined everywhere, also outside the world's extent.
     pub fn up_m(&self, east_m: f64, north_m: f64) -> f64 {
-        if let Some(grid) = &self.grid {
-            return grid.up_m(east_m, north_m);
+        match &self.relief {
+            Relief::Flat => 0.0,
+            Relief::Waves(waves) => waves
+                .iter()
+                .map(|w| {
+                    let arg = w.k_east_rad_per_m * east_m + w.k_north_rad_per_m * north_m + w.phase_rad;
+                    w.amplitude_m * (arg.sin() - w.sin_phase)
+                })
+                .sum(),
+            Relief::Grid(grid) => grid.up_m(east_m, north_m),
         }
-        self.waves
-            .iter()
-            .map(|w| {
-                let arg = w.k_east_rad_per_m * east_m + w.k_north_rad_per_m * north_m + w.phase_rad;
-                w.amplitude_m * (arg.sin() - w.sin_phase)
-            })
-            .sum()
     }
 
     /// Upper bound of `|up_m|` anywhere, metres.
     pub fn max_abs_up_m(&self) -> f64 {
-        if let Some(grid) = &self.grid {
-            return grid.up_m.iter().fold(0.0, |m, v| m.max(v.abs()));
+        match &self.relief {
+            Relief::Flat => 0.0,
+            Relief::Waves(waves) => waves.iter().map(|w| w.amplitude_m * (1.0 + w.sin_phase.abs())).sum(),
+            Relief::Grid(grid) => grid.max_abs_up_m(),
         }
-        self.waves.iter().map(|w| w.amplitude_m * (1.0 + w.sin_phase.abs())).sum()
     }
 
     /// Upper bound of the ground slope `|grad h|` anywhere (metres per metre).
     pub fn max_slope(&self) -> f64 {
-        if let Some(g) = &self.grid {
-            let mut slope: f64 = 0.0;
-            for j in 0..g.n {
-                for i in 0..g.n {
-                    let h = g.up_m[j * g.n + i];
-                    if i + 1 < g.n {
-                        slope = slope.max((g.up_m[j * g.n + i + 1] - h).abs() / g.cell_m);
-                    }
-                    if j + 1 < g.n {
-                        slope = slope.max((g.up_m[(j + 1) * g.n + i] - h).abs() / g.cell_m);
-                    }
-                }
+        match &self.relief {
+            Relief::Flat => 0.0,
+            Relief::Waves(waves) => {
+                waves.iter().map(|w| w.amplitude_m * w.k_east_rad_per_m.hypot(w.k_north_rad_per_m)).sum()
             }
-            return slope;
+            Relief::Grid(grid) => grid.max_slope(),
         }
-        self.waves.iter().map(|w| w.amplitude_m * w.k_east_rad_per_m.hypot(w.k_north_rad_per_m)).sum()
     }
 }
 
