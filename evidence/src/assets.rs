@@ -15,7 +15,7 @@ use std::path::Path;
 
 use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::RunPlan;
-use sadesim_world::World;
+use sadesim_world::{Footprint, World};
 use serde_json::json;
 
 use crate::archive::{Archive, ArchiveError};
@@ -55,18 +55,9 @@ pub fn buildings_geojson(world: &World, frame: &LocalFrame) -> serde_json::Value
         .buildings()
         .iter()
         .map(|b| {
-            let corner = |v: &[f64; 2]| {
-                let p = frame.to_geodetic(Enu { east_m: v[0], north_m: v[1], up_m: b.base_up_m() });
-                // 1e-7 deg (~1 cm) is all a footprint needs; it keeps the file small.
-                let round = |x: f64| (x * 1e7).round() / 1e7;
-                json!([round(p.longitude_deg), round(p.latitude_deg)])
-            };
-            // GeoJSON rings are closed; the outer one counter-clockwise, holes clockwise.
-            let rings: Vec<Vec<_>> =
-                b.footprint().rings().map(|ring| ring.iter().chain(&ring[..1]).map(corner).collect()).collect();
             json!({
                 "type": "Feature",
-                "geometry": {"type": "Polygon", "coordinates": rings},
+                "geometry": footprint_polygon(b.footprint(), frame, b.base_up_m()),
                 "properties": {
                     "heightM": (b.height_m() * 100.0).round() / 100.0,
                     "baseAltitudeMslM": ((origin_alt + b.base_up_m()) * 100.0).round() / 100.0,
@@ -75,6 +66,21 @@ pub fn buildings_geojson(world: &World, frame: &LocalFrame) -> serde_json::Value
         })
         .collect();
     json!({"type": "FeatureCollection", "features": features})
+}
+
+/// A footprint as a GeoJSON Polygon geometry (RFC 7946): WGS84 `[lon, lat]` of its vertices
+/// at `up_m` above the origin; rings closed, the outer one counter-clockwise, holes
+/// clockwise (the footprint's own orientations). Not rounded: rounding to 1e-7 deg (~1 cm)
+/// makes some mapped footprints invalid (vertices a few millimetres apart after clipping
+/// collapse onto each other), which GIS tools then refuse.
+pub fn footprint_polygon(footprint: &Footprint, frame: &LocalFrame, up_m: f64) -> serde_json::Value {
+    let corner = |v: &[f64; 2]| {
+        let p = frame.to_geodetic(Enu { east_m: v[0], north_m: v[1], up_m });
+        json!([p.longitude_deg, p.latitude_deg])
+    };
+    let rings: Vec<Vec<_>> =
+        footprint.rings().map(|ring| ring.iter().chain(&ring[..1]).map(corner).collect()).collect();
+    json!({"type": "Polygon", "coordinates": rings})
 }
 
 /// Builds the assets of `plan` into the archive at `archive_url` unless a verified entry

@@ -3,13 +3,13 @@
 use std::io::Write;
 use std::path::Path;
 
-use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
-use sadesim_world::Footprint;
+use sadesim_crds::geo::{GeoPoint, LocalFrame};
+use sadesim_evidence::assets::footprint_polygon;
 use sadesim_world::osm::{self, DEFAULT_HEIGHT_M, ElementId, OsmCity};
+use sadesim_world::{World, WorldData, WorldInputs};
 use serde_json::{Value, json};
 
 use super::{CliError, Outcome};
-use sadesim_world::{World, WorldData, WorldInputs};
 
 /// Files `sadesim osm` writes besides its summary.
 pub(super) struct Targets<'a> {
@@ -92,15 +92,15 @@ pub(super) fn osm_file(
     Ok(Outcome::Success)
 }
 
-/// The city as an RFC 7946 FeatureCollection: WGS84 `[lon, lat]`, exterior rings
-/// counter-clockwise and holes clockwise, rings closed.
+/// The city as an RFC 7946 FeatureCollection (geometries as in the asset cache's
+/// `buildings.geojson`).
 fn feature_collection(city: &OsmCity, frame: &LocalFrame) -> Value {
     let mut features = Vec::new();
     for b in &city.buildings {
         let (kind, id) = element(b.id);
         features.push(json!({
             "type": "Feature",
-            "geometry": polygon(b.building.footprint(), frame),
+            "geometry": footprint_polygon(b.building.footprint(), frame, 0.0),
             "properties": {
                 "feature": "building",
                 "osmType": kind,
@@ -116,7 +116,7 @@ fn feature_collection(city: &OsmCity, frame: &LocalFrame) -> Value {
         let (kind, id) = element(a.id);
         features.push(json!({
             "type": "Feature",
-            "geometry": polygon(&a.footprint, frame),
+            "geometry": footprint_polygon(&a.footprint, frame, 0.0),
             "properties": {
                 "feature": "openArea",
                 "osmType": kind,
@@ -135,29 +135,4 @@ fn element(id: ElementId) -> (&'static str, i64) {
         ElementId::Way(id) => ("way", id),
         ElementId::Relation(id) => ("relation", id),
     }
-}
-
-fn polygon(footprint: &Footprint, frame: &LocalFrame) -> Value {
-    let ring = |points: &[[f64; 2]], clockwise: bool| -> Value {
-        let mut coords: Vec<Value> = points
-            .iter()
-            .map(|p| {
-                let g = frame.to_geodetic(Enu { east_m: p[0], north_m: p[1], up_m: 0.0 });
-                json!([g.longitude_deg, g.latitude_deg])
-            })
-            .collect();
-        if is_clockwise(points) != clockwise {
-            coords.reverse();
-        }
-        coords.push(coords[0].clone());
-        Value::Array(coords)
-    };
-    let mut rings = vec![ring(footprint.outer(), false)];
-    rings.extend(footprint.holes().iter().map(|h| ring(h, true)));
-    json!({"type": "Polygon", "coordinates": rings})
-}
-
-fn is_clockwise(ring: &[[f64; 2]]) -> bool {
-    let n = ring.len();
-    (0..n).map(|i| ring[i][0] * ring[(i + 1) % n][1] - ring[(i + 1) % n][0] * ring[i][1]).sum::<f64>() < 0.0
 }
