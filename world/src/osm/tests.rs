@@ -100,6 +100,15 @@ impl Strings {
     }
 }
 
+/// The fields ways and relations share: id 1, tag keys 2, tag values 3.
+fn element(id: i64, tags: T, strings: &mut Strings) -> Vec<u8> {
+    let mut e = Vec::new();
+    field_varint(&mut e, 1, id as u64);
+    field_packed(&mut e, 2, tags.iter().map(|t| strings.id(t.0)).collect::<Vec<_>>());
+    field_packed(&mut e, 3, tags.iter().map(|t| strings.id(t.1)).collect::<Vec<_>>());
+    e
+}
+
 fn primitive_block(data: &Data) -> Vec<u8> {
     let mut strings = Strings(vec![String::new()]);
     let mut group = Vec::new();
@@ -113,18 +122,12 @@ fn primitive_block(data: &Data) -> Vec<u8> {
     field_packed(&mut dense, 9, deltas(&lons));
     field_bytes(&mut group, 2, &dense);
     for (id, tags, refs) in &data.ways {
-        let mut w = Vec::new();
-        field_varint(&mut w, 1, *id as u64);
-        field_packed(&mut w, 2, tags.iter().map(|t| strings.id(t.0)).collect::<Vec<_>>());
-        field_packed(&mut w, 3, tags.iter().map(|t| strings.id(t.1)).collect::<Vec<_>>());
+        let mut w = element(*id, tags, &mut strings);
         field_packed(&mut w, 8, deltas(refs));
         field_bytes(&mut group, 3, &w);
     }
     for (id, tags, members) in &data.relations {
-        let mut r = Vec::new();
-        field_varint(&mut r, 1, *id as u64);
-        field_packed(&mut r, 2, tags.iter().map(|t| strings.id(t.0)).collect::<Vec<_>>());
-        field_packed(&mut r, 3, tags.iter().map(|t| strings.id(t.1)).collect::<Vec<_>>());
+        let mut r = element(*id, tags, &mut strings);
         field_packed(&mut r, 8, members.iter().map(|m| strings.id(m.2)).collect::<Vec<_>>());
         field_packed(&mut r, 9, deltas(&members.iter().map(|m| m.1).collect::<Vec<_>>()));
         field_packed(&mut r, 10, members.iter().map(|m| m.0).collect::<Vec<_>>());
