@@ -1,8 +1,7 @@
 //! A run's world, read at the I/O edge: the OpenStreetMap extract of `world.source: osm`
 //! (`world.osm.file`) and the DEM of `world.terrain.dem.file`, read and handed to the pure
-//! world library and planner. Every role
-//! that needs the world (runner, shards, assets, report) builds it through here, so all
-//! build the same one.
+//! world library and planner. Every role that needs the world (runner, shards, assets,
+//! report) builds it through here, so all build the same one.
 
 use std::path::PathBuf;
 
@@ -40,9 +39,9 @@ pub enum WorldReadError {
     World(#[from] WorldError),
 }
 
-/// The file of `world.osm.file` or `world.terrain.dem.file`: a path, or a `file://` URL's path. Relative paths are
-/// relative to the working directory (`sadesim` makes them absolute against the scenario's
-/// folder when it loads the scenario).
+/// The file of `world.osm.file` or `world.terrain.dem.file`: a path, or a `file://` URL's
+/// path. Relative paths are relative to the working directory (`sadesim` makes them
+/// absolute against the scenario's folder when it loads the scenario).
 pub fn file_path(file: &str) -> PathBuf {
     PathBuf::from(file.strip_prefix("file://").unwrap_or(file))
 }

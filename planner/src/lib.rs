@@ -78,6 +78,15 @@ pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
 /// the DEM does not cover the world), and
 /// [`PlanError::HomeInBuilding`] for an explicit home inside a mapped building.
 pub fn plan_with(run: &SimulationRun, data: &WorldData) -> Result<RunPlan, PlanError> {
+    plan_and_world(run, data).map(|(plan, _)| plan)
+}
+
+/// [`plan_with`], also returning the world it built, for callers that go on to simulate in
+/// it (the local runner): the world is built once, not again after planning.
+///
+/// # Errors
+/// As [`plan_with`].
+pub fn plan_and_world(run: &SimulationRun, data: &WorldData) -> Result<(RunPlan, World), PlanError> {
     validate(run)?;
     let spec = &run.spec;
     let frame = LocalFrame::new(spec.origin.geo());
@@ -160,7 +169,7 @@ pub fn plan_with(run: &SimulationRun, data: &WorldData) -> Result<RunPlan, PlanE
     };
     let digests = [data.osm.as_ref().map(|c| c.source_sha256.as_str()), data.dem.as_ref().map(|d| d.source_sha256())];
     plan.asset_cache_key = asset_cache_key(&world_inputs, digests, &plan.spec.zones);
-    Ok(plan)
+    Ok((plan, world))
 }
 
 /// Contiguous `(first, count)` ranges of at most `size` covering `0..total`.

@@ -13,7 +13,7 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
 use sadesim_evidence::archive::is_object_store;
 use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
-use sadesim_world::{World, WorldInputs};
+use sadesim_world::World;
 use sim_worker::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use sim_worker::coordinator::{self, CoordinatorError, ObserverError, RunObserver, ShardLink};
 use sim_worker::events::{Event, EventKind};
@@ -80,8 +80,6 @@ pub enum RunError {
     Plan(#[from] PlanError),
     #[error(transparent)]
     World(#[from] sadesim_evidence::world::WorldReadError),
-    #[error(transparent)]
-    WorldBuild(#[from] sadesim_world::WorldError),
     /// The scenario asks for something this build cannot do yet.
     #[error("not supported yet: {0}")]
     NotSupported(String),
@@ -239,7 +237,7 @@ fn show_progress(bar: &ProgressBar, time_s: f64, duration_s: f64, started: std::
 /// the output folder.
 pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool>) -> Result<RunReport, RunError> {
     let world_data = sadesim_evidence::world::read_data(&run.spec)?;
-    let plan = planner::plan_with(run, &world_data)?;
+    let (plan, world) = planner::plan_and_world(run, &world_data)?;
     check_supported(&plan, options)?;
     let base = out_root(&plan, options).join(&plan.run.name);
     let stamp = utc_stamp(SystemTime::now());
@@ -266,7 +264,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     fleet.airspace_url = format!("http://{airspace_addr}");
     write_json(&out_dir, pilot::FLEET_FILE, &fleet)?;
 
-    let world = Arc::new(World::build(&WorldInputs::from_spec(&plan.spec, &[]), &world_data)?);
+    let world = Arc::new(world);
     write_json(&out_dir, "world.json", world.stats())?;
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));
