@@ -32,7 +32,25 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
     match cli.command {
         Command::Validate { files } => validate_files(&files, out),
         Command::Plan { file, json, fleet, namespace } => plan_file(&file, json, fleet, namespace, out),
-        Command::Run { file, out: out_root, quiet, processes, clock, no_pilot, no_mavlink } => {
+        Command::Run {
+            file,
+            out: out_root,
+            quiet,
+            processes,
+            clock,
+            no_pilot,
+            no_mavlink,
+            asset_cache,
+            no_asset_cache,
+        } => {
+            let asset_cache = match (asset_cache, no_asset_cache) {
+                (_, true) => None,
+                (Some(url), false) => Some(url),
+                (None, false) => Some(
+                    sadesim_evidence::assets::local_cache_url(&|k| std::env::var(k).ok())
+                        .map_err(|e| CliError::Failed(e.to_string()))?,
+                ),
+            };
             let options = crate::runner::RunOptions {
                 out_root,
                 progress: !quiet,
@@ -41,6 +59,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 scenario: (file.as_os_str() != "-").then(|| file.clone()),
                 start_pilot: !no_pilot,
                 mavlink: !no_mavlink,
+                asset_cache,
             };
             run_file(&file, options, clock, out)
         }
@@ -90,12 +109,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             let scratch = std::env::temp_dir().join(format!("sadesim-assets-{}", std::process::id()));
             let outcome = sadesim_evidence::assets::build_assets(&plan, &archive, &scratch);
             let _ = std::fs::remove_dir_all(&scratch);
-            match outcome.map_err(|e| CliError::Failed(e.to_string()))? {
-                sadesim_evidence::assets::AssetsOutcome::CacheHit { url } => writeln!(out, "asset cache hit: {url}")?,
-                sadesim_evidence::assets::AssetsOutcome::Built { url, buildings } => {
-                    writeln!(out, "assets built: {buildings} buildings -> {url}")?;
-                }
-            }
+            writeln!(out, "{}", outcome.map_err(|e| CliError::Failed(e.to_string()))?)?;
             Ok(Outcome::Success)
         }
         Command::Osm { file, origin, extent_m, geojson, glb, json } => {

@@ -1,19 +1,25 @@
-//! `sadesim assets`: builds a run's world assets once into the archive's asset cache, where
-//! renderers, reports and people load the city from.
+//! The asset bundle: a run's world built once, content-addressed, and loaded by every role
+//! that needs it (the runner, shards, the coordinator's report, renderers) instead of
+//! re-reading the map and the DEM or regenerating the city.
 //!
-//! The physics roles do not wait for these files: the procedural city is generated from
-//! the plan in tens of milliseconds by every shard, bit for bit the same, so the cache
-//! holds what is expensive to *re*-derive outside the simulator (the city as GeoJSON for
-//! map tools, its statistics). Sources that are costly to build (OSM extracts, DEMs) will
-//! plug in here; their roles will then read the cache.
+//! An entry is `<cache>/assets/<asset cache key>/world/`: the key is the SHA-256 of every
+//! world parameter and of the bytes of the files the world is read from (the planner's
+//! `asset_cache_key`), so a changed extract or DEM is a new entry, and a changed seed or
+//! pilot reuses the old one. The cache is an archive URL: on a cluster the run's object
+//! store (the `<run>-assets` Job fills it), locally a folder under the user cache directory
+//! ([`local_cache_url`]). An entry holds
+//! - `world.bin`: the world itself (`sadesim_world::bundle`), what the roles load;
+//! - `world.json`: its statistics; `buildings.geojson`: the footprints (WGS84) for map
+//!   tools; `world.glb`: buildings and ground as glTF 2.0 for renderers and 3D viewers;
+//! - `manifest.json`: every file's size and SHA-256, written last.
 //!
-//! Layout: `<archive>/assets/<asset cache key>/world/` with `world.json`,
-//! `buildings.geojson`, `world.glb` (glTF 2.0: buildings and ground) and `manifest.json` (checksums, written last) — a cache entry is
-//! complete exactly when `sadesim archive verify <archive>/assets/<key>/world` passes.
+//! An entry is used only when it verifies (`sadesim archive verify` passes on it): a
+//! missing, partial or damaged entry is a miss and is rebuilt, and a role loading
+//! `world.bin` checks it against the manifest first.
 
 use std::path::Path;
 
-use sadesim_crds::geo::{Enu, LocalFrame};
+use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
 use sadesim_crds::plan::RunPlan;
 use sadesim_world::{Footprint, World};
 use serde_json::json;
@@ -26,14 +32,43 @@ pub const ASSETS_NAMESPACE: &str = "assets";
 pub const WORLD_FOLDER: &str = "world";
 /// The city (buildings and ground) as glTF 2.0 binary in a cache entry.
 pub const WORLD_GLB: &str = "world.glb";
+/// The world itself (`sadesim_world::bundle`) in a cache entry.
+pub const WORLD_BIN: &str = "world.bin";
+/// Environment variable naming the local asset cache folder (default: `sadesim` under the
+/// user cache directory).
+pub const CACHE_DIR_ENV: &str = "SADESIM_CACHE_DIR";
 
 /// What [`build_assets`] did.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum AssetsOutcome {
     /// The cache already held a complete, verified entry for the key.
     CacheHit { url: String },
-    /// The assets were built and uploaded.
-    Built { url: String, buildings: usize },
+    /// The assets were built and uploaded; `replaced` says what was wrong with an entry
+    /// that was there (partial, damaged) and is now rebuilt.
+    Built { url: String, buildings: usize, replaced: Option<String> },
+}
+
+impl AssetsOutcome {
+    /// The entry's URL.
+    pub fn url(&self) -> &str {
+        match self {
+            AssetsOutcome::CacheHit { url } | AssetsOutcome::Built { url, .. } => url,
+        }
+    }
+}
+
+impl std::fmt::Display for AssetsOutcome {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            AssetsOutcome::CacheHit { url } => write!(f, "asset cache hit: {url}"),
+            AssetsOutcome::Built { url, buildings, replaced: None } => {
+                write!(f, "assets built: {buildings} buildings -> {url}")
+            }
+            AssetsOutcome::Built { url, buildings, replaced: Some(why) } => {
+                write!(f, "assets rebuilt ({why}): {buildings} buildings -> {url}")
+            }
+        }
+    }
 }
 
 /// Errors of [`build_assets`].
@@ -45,6 +80,50 @@ pub enum AssetsError {
     Write { path: String, source: std::io::Error },
     #[error("asset cache: {0}")]
     World(#[from] crate::world::WorldReadError),
+    #[error("asset bundle {url}: {source}")]
+    Bundle {
+        url: String,
+        #[source]
+        source: sadesim_world::bundle::BundleError,
+    },
+    #[error("asset cache: no cache folder: set {CACHE_DIR_ENV}, XDG_CACHE_HOME or HOME")]
+    NoCacheDir,
+}
+
+/// The local asset cache as an archive URL: `$SADESIM_CACHE_DIR`, else
+/// `$XDG_CACHE_HOME/sadesim`, else `$HOME/.cache/sadesim` (the XDG base directory rules).
+///
+/// # Errors
+/// [`AssetsError::NoCacheDir`] when none of the three is set.
+pub fn local_cache_url(env: &dyn Fn(&str) -> Option<String>) -> Result<String, AssetsError> {
+    let set = |k: &str| env(k).filter(|v| !v.is_empty());
+    let dir = set(CACHE_DIR_ENV)
+        .map(std::path::PathBuf::from)
+        .or_else(|| set("XDG_CACHE_HOME").map(|d| Path::new(&d).join("sadesim")))
+        .or_else(|| set("HOME").map(|h| Path::new(&h).join(".cache").join("sadesim")))
+        .ok_or(AssetsError::NoCacheDir)?;
+    let dir = if dir.is_absolute() { dir } else { std::env::current_dir().unwrap_or_default().join(dir) };
+    Ok(format!("file://{}", dir.display()))
+}
+
+/// The entry of `key` in the cache at `cache_url`: relative folder and URL.
+fn entry_of(archive: &Archive, key: &str) -> (String, String) {
+    let entry = format!("{ASSETS_NAMESPACE}/{key}/{WORLD_FOLDER}");
+    let url = format!("{}/{entry}/", archive.url().trim_end_matches('/'));
+    (entry, url)
+}
+
+/// Loads the world of the bundle at `entry_url` (`<cache>/assets/<key>/world/`, as
+/// [`AssetsOutcome::url`] or the operator's `asset_cache_location` give it): `world.bin`,
+/// checked against the entry's manifest, then decoded.
+///
+/// # Errors
+/// The entry cannot be opened or read, has no manifest (partial), its `world.bin` does not
+/// match the manifest, or does not decode as a world of this build's format.
+pub fn load_bundle(entry_url: &str) -> Result<World, AssetsError> {
+    let archive = Archive::open(entry_url)?;
+    let bytes = archive.read_checked("", WORLD_BIN)?;
+    World::from_bytes(&bytes).map_err(|source| AssetsError::Bundle { url: format!("{entry_url}{WORLD_BIN}"), source })
 }
 
 /// The city's buildings as a GeoJSON FeatureCollection (WGS84 polygons; `heightM` and
@@ -84,41 +163,88 @@ pub fn footprint_polygon(footprint: &Footprint, frame: &LocalFrame, up_m: f64) -
 }
 
 /// Builds the assets of `plan` into the archive at `archive_url` unless a verified entry
-/// for the plan's asset cache key is there already.
+/// for the plan's asset cache key is there already (the `<run>-assets` Job).
 ///
 /// # Errors
-/// Archive errors (open, verify listing, upload) and local write errors, each naming the
-/// URL or file.
+/// Archive errors (open, verify listing, upload), the world's files (unreadable, not a map
+/// or DEM) and local write errors, each naming the URL or file.
 pub fn build_assets(plan: &RunPlan, archive_url: &str, scratch: &Path) -> Result<AssetsOutcome, AssetsError> {
     let archive = Archive::open(archive_url)?;
-    let entry = format!("{ASSETS_NAMESPACE}/{}/{WORLD_FOLDER}", plan.asset_cache_key);
-    let url = format!("{}/{entry}/", archive.url().trim_end_matches('/'));
-    // A missing or incomplete entry is a miss; only a complete, matching one is a hit.
-    if let Ok(report) = archive.verify(&entry)
-        && report.passed()
-    {
-        return Ok(AssetsOutcome::CacheHit { url });
-    }
+    let (entry, url) = entry_of(&archive, &plan.asset_cache_key);
+    let replaced = match stale_entry(&archive, &entry) {
+        None => return Ok(AssetsOutcome::CacheHit { url }),
+        Some(why) => why,
+    };
     let world = crate::world::load_world(&plan.spec)?;
-    let frame = LocalFrame::new(plan.spec.origin.geo());
-    let dir = scratch.join(&plan.asset_cache_key);
-    let write = |name: &str, value: &serde_json::Value| {
+    store_bundle(&archive, &plan.asset_cache_key, plan.spec.origin.geo(), &world, scratch)?;
+    Ok(AssetsOutcome::Built { url, buildings: world.buildings().len(), replaced })
+}
+
+/// The world of asset cache key `key` (the planner's `asset_key`; `origin` is the run's)
+/// from the cache at `cache_url`: loaded from a verified entry, else made with `build` and
+/// stored. What the local runner does before every run.
+///
+/// # Errors
+/// As [`build_assets`] and [`load_bundle`]; a bundle that verifies but does not decode
+/// (written by another format version under the same key) is rebuilt, not an error.
+pub fn ensure_bundle(
+    key: &str,
+    origin: GeoPoint,
+    cache_url: &str,
+    scratch: &Path,
+    build: impl FnOnce() -> Result<World, AssetsError>,
+) -> Result<(AssetsOutcome, World), AssetsError> {
+    let archive = Archive::open(cache_url)?;
+    let (entry, url) = entry_of(&archive, key);
+    let mut replaced = stale_entry(&archive, &entry);
+    if replaced.is_none() {
+        match load_bundle(&url) {
+            Ok(world) => return Ok((AssetsOutcome::CacheHit { url }, world)),
+            Err(e) => replaced = Some(Some(e.to_string())),
+        }
+    }
+    let world = build()?;
+    store_bundle(&archive, key, origin, &world, scratch)?;
+    let buildings = world.buildings().len();
+    Ok((AssetsOutcome::Built { url, buildings, replaced: replaced.flatten() }, world))
+}
+
+/// `None` when the entry verifies (a hit); else `Some(what was wrong)`, `Some(None)` for an
+/// entry that is simply not there.
+fn stale_entry(archive: &Archive, entry: &str) -> Option<Option<String>> {
+    match archive.verify(entry) {
+        Ok(report) if report.passed() => None,
+        Ok(report) => Some(Some(report.problems.iter().map(|p| format!("{p}")).collect::<Vec<_>>().join("; "))),
+        Err(ArchiveError::NotFound { .. }) => Some(None),
+        Err(e) => Some(Some(e.to_string())),
+    }
+}
+
+/// Writes the bundle's files for `world` under `scratch` and uploads them as the entry of
+/// `key` (manifest last).
+fn store_bundle(
+    archive: &Archive,
+    key: &str,
+    origin: GeoPoint,
+    world: &World,
+    scratch: &Path,
+) -> Result<(), AssetsError> {
+    let frame = LocalFrame::new(origin);
+    let dir = scratch.join(key);
+    let write = |name: &str, bytes: &[u8]| {
         let path = dir.join(name);
         std::fs::create_dir_all(&dir)
-            .and_then(|()| std::fs::write(&path, serde_json::to_vec(value).map_err(std::io::Error::other)?))
+            .and_then(|()| std::fs::write(&path, bytes))
             .map_err(|source| AssetsError::Write { path: path.display().to_string(), source })
     };
-    write(
-        "world.json",
-        &serde_json::to_value(world.stats())
-            .map_err(|e| AssetsError::Write { path: "world.json".into(), source: std::io::Error::other(e) })?,
-    )?;
-    write("buildings.geojson", &buildings_geojson(&world, &frame))?;
-    let glb = dir.join(WORLD_GLB);
-    std::fs::write(&glb, crate::gltf::world_glb(&world, plan.spec.origin.geo()))
-        .map_err(|source| AssetsError::Write { path: glb.display().to_string(), source })?;
-    archive.upload_run(&dir, ASSETS_NAMESPACE, &plan.asset_cache_key, WORLD_FOLDER)?;
-    Ok(AssetsOutcome::Built { url, buildings: world.buildings().len() })
+    let json = |value: &serde_json::Value| serde_json::to_vec(value).expect("JSON values always serialize");
+    write(WORLD_BIN, &world.to_bytes())?;
+    write("world.json", &json(&serde_json::to_value(world.stats()).expect("stats always serialize")))?;
+    write("buildings.geojson", &json(&buildings_geojson(world, &frame)))?;
+    write(WORLD_GLB, &crate::gltf::world_glb(world, origin))?;
+    archive.upload_run(&dir, ASSETS_NAMESPACE, key, WORLD_FOLDER)?;
+    let _ = std::fs::remove_dir_all(&dir);
+    Ok(())
 }
 
 #[cfg(test)]
@@ -138,7 +264,9 @@ mod tests {
         let archive = format!("file://{}", tmp.join("archive").display());
         let plan = plan();
         let first = build_assets(&plan, &archive, &tmp.join("scratch1")).expect("builds");
-        let AssetsOutcome::Built { url, buildings } = &first else { panic!("expected a build, got {first:?}") };
+        let AssetsOutcome::Built { url, buildings, replaced: None } = &first else {
+            panic!("expected a build, got {first:?}")
+        };
         assert!(url.ends_with(&format!("/assets/{}/world/", plan.asset_cache_key)), "{url}");
         let entry = tmp.join("archive").join("assets").join(&plan.asset_cache_key).join("world");
         let geo: serde_json::Value =
@@ -155,8 +283,73 @@ mod tests {
         // A damaged entry no longer verifies: it is rebuilt, not trusted.
         std::fs::write(entry.join("world.json"), b"{}").expect("damage");
         let third = build_assets(&plan, &archive, &tmp.join("scratch3")).expect("rebuilds");
-        assert!(matches!(third, AssetsOutcome::Built { .. }), "{third:?}");
+        let AssetsOutcome::Built { replaced: Some(why), .. } = &third else {
+            panic!("expected a rebuild, got {third:?}")
+        };
+        assert!(why.contains("world.json"), "says which file was damaged: {why}");
+        assert!(archive_verifies(&entry), "the rebuilt entry verifies");
         let _ = std::fs::remove_dir_all(&tmp);
+    }
+
+    fn archive_verifies(entry: &Path) -> bool {
+        let url = format!("file://{}", entry.display());
+        Archive::open(&url).and_then(|a| a.verify("")).is_ok_and(|r| r.passed())
+    }
+
+    #[test]
+    fn the_runner_loads_a_verified_bundle_and_rebuilds_one_with_a_flipped_byte() {
+        let tmp = std::env::temp_dir().join(format!("sadesim-bundle-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&tmp);
+        let cache = format!("file://{}", tmp.join("cache").display());
+        let plan = plan();
+        let generated = World::generate(&WorldInputs::from_spec(&plan.spec, &[]));
+        let builds = std::cell::Cell::new(0);
+        let build = || {
+            builds.set(builds.get() + 1);
+            Ok(generated.clone())
+        };
+        let (first, _) = ensure_bundle(&plan.asset_cache_key, plan.spec.origin.geo(), &cache, &tmp.join("s1"), build)
+            .expect("builds");
+        assert!(matches!(first, AssetsOutcome::Built { replaced: None, .. }), "{first:?}");
+        let (second, loaded) =
+            ensure_bundle(&plan.asset_cache_key, plan.spec.origin.geo(), &cache, &tmp.join("s2"), build).expect("hits");
+        assert!(matches!(second, AssetsOutcome::CacheHit { .. }), "{second:?}");
+        assert_eq!(builds.get(), 1, "a hit does not build the world");
+        assert!(loaded == generated, "the loaded world is the built one, bit for bit");
+
+        // One flipped byte in world.bin: the entry no longer verifies; loading it directly
+        // is refused, and the runner rebuilds it.
+        let bin =
+            tmp.join("cache").join(ASSETS_NAMESPACE).join(&plan.asset_cache_key).join(WORLD_FOLDER).join(WORLD_BIN);
+        let mut bytes = std::fs::read(&bin).expect("world.bin");
+        let middle = bytes.len() / 2;
+        bytes[middle] ^= 0x01;
+        std::fs::write(&bin, bytes).expect("flip");
+        let err = load_bundle(first.url()).expect_err("a damaged world.bin is refused").to_string();
+        assert!(err.contains("world.bin: does not match the manifest"), "{err}");
+        let (third, rebuilt) =
+            ensure_bundle(&plan.asset_cache_key, plan.spec.origin.geo(), &cache, &tmp.join("s3"), build)
+                .expect("rebuilds");
+        let AssetsOutcome::Built { replaced: Some(why), .. } = &third else {
+            panic!("expected a rebuild, got {third:?}")
+        };
+        assert!(why.contains("world.bin"), "{why}");
+        assert_eq!(builds.get(), 2);
+        assert!(rebuilt == generated);
+        assert!(load_bundle(third.url()).is_ok_and(|w| w == generated), "the rebuilt entry loads");
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+
+    #[test]
+    fn the_local_cache_follows_the_xdg_rules() {
+        let env = |pairs: &'static [(&'static str, &'static str)]| {
+            move |k: &str| pairs.iter().find(|(n, _)| *n == k).map(|(_, v)| v.to_string())
+        };
+        let url = |pairs| local_cache_url(&env(pairs)).map_err(|e| e.to_string());
+        assert_eq!(url(&[("HOME", "/home/u")]), Ok("file:///home/u/.cache/sadesim".into()));
+        assert_eq!(url(&[("HOME", "/home/u"), ("XDG_CACHE_HOME", "/c")]), Ok("file:///c/sadesim".into()));
+        assert_eq!(url(&[("XDG_CACHE_HOME", "/c"), (CACHE_DIR_ENV, "/mine")]), Ok("file:///mine".into()));
+        assert!(url(&[]).is_err_and(|e| e.contains(CACHE_DIR_ENV)));
     }
 
     #[test]

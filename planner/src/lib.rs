@@ -26,9 +26,11 @@ pub use ports::{
 
 /// Namespace used for local runs and for documents without one.
 pub const DEFAULT_NAMESPACE: &str = "default";
-/// Bumped when the world generator changes what it builds from the same inputs, so old
-/// cached assets are not reused.
-pub const ASSETS_FORMAT_VERSION: u32 = 1;
+/// Bumped when the world generator changes what it builds from the same inputs, or the
+/// bundle's layout changes, so old cached assets are not reused. 2: the bundle carries the
+/// world itself (`world.bin`, whose own format is `sadesim_world::bundle::FORMAT_VERSION`,
+/// part of the key too).
+pub const ASSETS_FORMAT_VERSION: u32 = 2;
 
 /// Why a run could not be planned.
 #[derive(Debug, thiserror::Error)]
@@ -88,6 +90,33 @@ pub fn plan_with(run: &SimulationRun, data: &WorldData) -> Result<RunPlan, PlanE
 /// As [`plan_with`].
 pub fn plan_and_world(run: &SimulationRun, data: &WorldData) -> Result<(RunPlan, World), PlanError> {
     validate(run)?;
+    let world = World::build(&WorldInputs::from_spec(&run.spec, &[]), data)?;
+    let plan = plan_in(run, data, &world)?;
+    Ok((plan, world))
+}
+
+/// The asset cache key of the run's world (the plan's `asset_cache_key`), without building
+/// the world: what the local runner looks the world up by before it plans.
+///
+/// # Errors
+/// [`PlanError::Invalid`] when the run does not validate.
+pub fn asset_key(run: &SimulationRun, data: &WorldData) -> Result<String, PlanError> {
+    validate(run)?;
+    Ok(key_of(run, data))
+}
+
+fn key_of(run: &SimulationRun, data: &WorldData) -> String {
+    let digests = [data.osm.as_ref().map(|c| c.source_sha256.as_str()), data.dem.as_ref().map(|d| d.source_sha256())];
+    asset_cache_key(&WorldInputs::from_spec(&run.spec, &[]), digests, &run.spec.zones)
+}
+
+/// [`plan_with`] in a world already built (or loaded from the asset bundle of
+/// [`asset_key`]): homes are drawn on its open ground and checked against its buildings.
+///
+/// # Errors
+/// As [`plan_with`].
+pub fn plan_in(run: &SimulationRun, data: &WorldData, world: &World) -> Result<RunPlan, PlanError> {
+    validate(run)?;
     let spec = &run.spec;
     let frame = LocalFrame::new(spec.origin.geo());
     let seed = spec.seed();
@@ -95,15 +124,13 @@ pub fn plan_and_world(run: &SimulationRun, data: &WorldData) -> Result<(RunPlan,
     let per_shard = sharding.drones_per_shard;
 
     let keep_out = ground_zones(spec, &frame);
-    // Random homes must not fall inside buildings: generate the (deterministic, cached)
-    // world here and draw homes on open ground. ~30 ms for a 4 km city.
-    let world_inputs = WorldInputs::from_spec(spec, &[]);
-    let world = World::build(&world_inputs, data)?;
+    // Random homes must not fall inside buildings: they are drawn on the world's open
+    // ground.
     let mut drones = Vec::with_capacity(spec.total_drones() as usize);
     for (group_index, group) in spec.fleet.iter().enumerate() {
         for k in 0..group.count {
             let index = drones.len() as u32;
-            let home = home(&frame, group, k, index, seed, &keep_out, &world)
+            let home = home(&frame, group, k, index, seed, &keep_out, world)
                 .ok_or(PlanError::NoHome { group: group_index, drone: index })?;
             // The procedural city keeps explicit homes clear; a mapped one cannot move its
             // buildings.
@@ -167,9 +194,8 @@ pub fn plan_and_world(run: &SimulationRun, data: &WorldData) -> Result<(RunPlan,
         services: service_ports(),
         resources,
     };
-    let digests = [data.osm.as_ref().map(|c| c.source_sha256.as_str()), data.dem.as_ref().map(|d| d.source_sha256())];
-    plan.asset_cache_key = asset_cache_key(&world_inputs, digests, &plan.spec.zones);
-    Ok((plan, world))
+    plan.asset_cache_key = key_of(run, data);
+    Ok(plan)
 }
 
 /// Contiguous `(first, count)` ranges of at most `size` covering `0..total`.
@@ -255,6 +281,7 @@ fn asset_cache_key(
     #[derive(Serialize)]
     struct AssetInputs<'a> {
         format: u32,
+        world_format: u32,
         world: WorldInputs,
         /// The files' bytes (absent for the procedural city: its keys are unchanged).
         #[serde(skip_serializing_if = "Option::is_none")]
@@ -263,7 +290,14 @@ fn asset_cache_key(
         dem_sha256: Option<&'a str>,
         zones: &'a [sadesim_crds::zones::Zone],
     }
-    let inputs = AssetInputs { format: ASSETS_FORMAT_VERSION, world: world.clone(), extract_sha256, dem_sha256, zones };
+    let inputs = AssetInputs {
+        format: ASSETS_FORMAT_VERSION,
+        world_format: sadesim_world::bundle::FORMAT_VERSION,
+        world: world.clone(),
+        extract_sha256,
+        dem_sha256,
+        zones,
+    };
     // serde_json writes struct fields in declaration order and floats with a fixed
     // shortest-round-trip format, so the bytes are canonical for these types.
     sadesim_world::sha256_hex(&serde_json::to_vec(&inputs).expect("asset inputs always serialize"))

@@ -47,6 +47,11 @@ enum Role {
         /// host); each attempt is bounded, so a wrong address fails within this time.
         #[arg(long, value_name = "SECONDS", default_value_t = roles::shard::CONNECT_TIMEOUT.as_secs_f64(), value_parser = seconds)]
         connect_timeout: f64,
+        /// The world's asset bundle, `<cache>/assets/<key>/world/` (file://, s3://, gs://,
+        /// az://): its checked `world.bin` is loaded instead of building the world from the
+        /// plan and the files it names. Without it the shard builds the world itself.
+        #[arg(long, value_name = "URL")]
+        assets: Option<String>,
     },
     /// Accept every shard, run the lockstep clock, record the run into --out.
     Coordinator {
@@ -121,7 +126,16 @@ fn seconds(text: &str) -> Result<f64, String> {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.role {
-        Role::Shard { plan, shard, coordinator, mavlink_bind, mavlink_api_host, no_mavlink, connect_timeout } => {
+        Role::Shard {
+            plan,
+            shard,
+            coordinator,
+            mavlink_bind,
+            mavlink_api_host,
+            no_mavlink,
+            connect_timeout,
+            assets,
+        } => {
             // Ctrl-C in a terminal reaches every process of the group. A shard stops when
             // the coordinator says so (or its connection closes), so the coordinator can
             // finish the run and write its files first.
@@ -139,8 +153,10 @@ fn main() -> ExitCode {
                     ..sim_worker::shard::MavlinkOptions::local()
                 });
                 let timeout = Duration::from_secs_f64(connect_timeout);
-                roles::read_plan(&plan)
-                    .and_then(|plan| roles::shard::run(&plan, shard, &coordinator, mavlink.as_ref(), timeout))
+                roles::read_plan(&plan).and_then(|plan| {
+                    let world = roles::shard::world(&plan, assets.as_deref())?;
+                    roles::shard::run(&plan, world, shard, &coordinator, mavlink.as_ref(), timeout)
+                })
             })
         }
         Role::Coordinator {

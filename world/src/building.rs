@@ -6,7 +6,7 @@
 //! walls, a flat base and a flat roof; closed (a point on a face is inside).
 
 use nalgebra::Vector3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::footprint::{AxisRect, Footprint};
@@ -26,7 +26,7 @@ pub enum BuildingError {
 ///
 /// The roof altitude is `base_up_m + height_m` ([`Building::roof_up_m`]), computed the same
 /// way for every query, so the top face is one value.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Building {
     footprint: Footprint,
     base_up_m: f64,

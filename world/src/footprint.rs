@@ -12,7 +12,7 @@
 //! - The footprint is **closed**: a point on an edge belongs to it. Inside is decided by the
 //!   even-odd rule over all rings, so a point in a hole is outside.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use thiserror::Error;
 
 use super::index::Rect;
@@ -42,7 +42,7 @@ pub enum FootprintError {
 /// An axis-aligned rectangle given by its centre and half sides, metres (the procedural
 /// city's footprints). Kept exactly as given so queries and colliders built from it are
 /// bit-for-bit those of the original boxes.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AxisRect {
     /// Centre, metres east of the origin.
     pub center_east_m: f64,
@@ -61,7 +61,7 @@ pub struct AxisRect {
 /// Rings are simple (no self-intersections) and holes do not overlap each other; this is
 /// not checked (it costs O(n^2)). Queries stay defined on other input (even-odd rule) but
 /// the convex decomposition then no longer covers exactly the even-odd area.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Footprint {
     outer: Vec<Point2>,
     holes: Vec<Vec<Point2>>,

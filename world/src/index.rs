@@ -8,6 +8,7 @@
 //! built in two O(n) passes; items keep ascending order inside a cell.
 
 use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
 
 use super::building::clip_segment;
 
@@ -15,7 +16,7 @@ use super::building::clip_segment;
 pub type Rect = [f64; 4];
 
 /// Uniform-grid index of items given by their bounding rectangles (item `k` is `rects[k]`).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GridIndex {
     cell_m: f64,
     /// Grid coordinates of cell 0 of the stored block of cells.
@@ -70,6 +71,18 @@ impl GridIndex {
         grid.starts = starts;
         grid.items = items;
         grid
+    }
+
+    /// Whether the offsets and entries fit together and name items below `items` (for a
+    /// decoded index: queries on it then stay in bounds).
+    pub fn is_consistent(&self, items: usize) -> bool {
+        let cells = self.nx.checked_mul(self.ny).and_then(|c| c.checked_add(1));
+        cells == Some(self.starts.len())
+            && self.starts.first() == Some(&0)
+            && self.starts.windows(2).all(|w| w[0] <= w[1])
+            && self.starts.last().is_some_and(|&n| n as usize == self.items.len())
+            && self.items.iter().all(|&k| (k as usize) < items)
+            && self.cell_m > 0.0
     }
 
     /// Items whose rectangle may contain the point (all that do, plus others).

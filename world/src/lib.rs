@@ -19,9 +19,11 @@
 //! - `map`: [`World`] and its queries; `stats`: [`WorldStats`] for logs.
 //! - `ground`: the [`Ground`] height query, with [`FlatGround`] for tests.
 //! - [`dem`]: terrain from a GeoTIFF or SRTM elevation model (bytes), sampled at WGS84 positions.
+//! - [`bundle`]: the world as bytes, saved once in the asset bundle and loaded by every role.
 //! - [`osm`]: real buildings and open areas from an OpenStreetMap extract (`.osm.pbf` bytes).
 
 mod building;
+pub mod bundle;
 mod city;
 pub mod dem;
 mod footprint;

@@ -4,6 +4,7 @@
 use nalgebra::Vector3;
 use sadesim_crds::random::{Purpose, Rng};
 use sadesim_crds::run::WorldSource;
+use serde::{Deserialize, Serialize};
 use std::fmt;
 
 use super::building::Building;
@@ -92,7 +93,7 @@ fn dem_terrain(inputs: &WorldInputs, dem: &Dem) -> Result<Terrain, DemError> {
 /// `sin`, `exp` and `ln` come from the platform's math library, whose last-bit rounding may
 /// differ between platforms: generate the world once (the `assets` role) and share it rather
 /// than regenerating it on machines of different kinds.
-#[derive(Clone)]
+#[derive(Clone, PartialEq, Serialize, Deserialize)]
 pub struct World {
     extent_m: f64,
     seed: u64,
@@ -294,6 +295,20 @@ fn ground_range(terrain: &Terrain, extent_m: f64) -> (f64, f64) {
         }
     }
     range
+}
+
+impl World {
+    /// That a decoded world can be queried without panicking (see [`crate::bundle`]).
+    pub(crate) fn check(&self) -> Result<(), crate::bundle::BundleError> {
+        use crate::bundle::BundleError::Inconsistent;
+        if !self.index.is_consistent(self.buildings.len()) {
+            return Err(Inconsistent("the building index names buildings that are not there"));
+        }
+        if !self.terrain.is_consistent() {
+            return Err(Inconsistent("the ground grid does not hold n x n samples"));
+        }
+        Ok(())
+    }
 }
 
 impl fmt::Debug for World {

@@ -37,8 +37,9 @@ pub struct WorldStats {
     pub ground_min_up_m: f64,
     pub ground_max_up_m: f64,
     /// For `world.source: osm`: what the import kept, skipped and how many heights it had
-    /// to default.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    /// to default. `null` for the procedural city (written, not skipped: the world bundle's
+    /// binary encoding is not self-describing, so every field is always there).
+    #[serde(default)]
     pub osm: Option<crate::osm::OsmStats>,
 }
 

@@ -20,6 +20,7 @@
 //! boxes standing on the ground at their centre (a 40 m footprint's corner sits < 1 m off).
 
 use sadesim_crds::random::Rng;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::TAU;
 
 /// Number of plane waves in the relief.
@@ -30,7 +31,7 @@ const MIN_AMPLITUDE_M: f64 = 0.5;
 const MAX_AMPLITUDE_M: f64 = 1.0;
 
 /// One plane wave: `a (sin(kx east + ky north + phi) - sin(phi))`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 struct Wave {
     amplitude_m: f64,
     k_east_rad_per_m: f64,
@@ -41,12 +42,12 @@ struct Wave {
 
 /// The ground: the seeded relief (see the module docs for the formula and its bounds), or
 /// a grid resampled from a digital elevation model.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Terrain {
     relief: Relief,
 }
 
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 enum Relief {
     /// z = 0 everywhere.
     Flat,
@@ -58,7 +59,7 @@ enum Relief {
 
 /// Ground heights on a square ENU grid (from a DEM), bilinear between samples, held at the
 /// edge value outside.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GroundGrid {
     /// East and north of sample (0, 0), metres.
     east0_m: f64,
@@ -128,6 +129,14 @@ impl Terrain {
     /// The ground of a DEM, resampled on `grid`.
     pub fn from_grid(grid: GroundGrid) -> Self {
         Self { relief: Relief::Grid(grid) }
+    }
+
+    /// Whether a decoded grid has its `n x n` samples (n >= 2) and a positive cell.
+    pub(crate) fn is_consistent(&self) -> bool {
+        match &self.relief {
+            Relief::Flat | Relief::Waves(_) => true,
+            Relief::Grid(g) => g.n >= 2 && g.n.checked_mul(g.n) == Some(g.up_m.len()) && g.cell_m > 0.0,
+        }
     }
 
     /// Draws the relief from `rng`: exactly `4 * WAVES` draws, so what is drawn after it does

@@ -116,6 +116,15 @@ pub enum Command {
         /// are then refused).
         #[arg(long)]
         no_mavlink: bool,
+        /// The asset cache to load the world's bundle from and store it in: an archive URL
+        /// (file://, s3://, gs://, az://). Default: `$SADESIM_CACHE_DIR`, else
+        /// `$XDG_CACHE_HOME/sadesim`, else `~/.cache/sadesim`.
+        #[arg(long, value_name = "URL", conflicts_with = "no_asset_cache")]
+        asset_cache: Option<String>,
+        /// Build the world in memory and store no bundle (each `--processes` shard then
+        /// builds it again).
+        #[arg(long)]
+        no_asset_cache: bool,
     },
     /// Run archives: list, verify, download and upload run folders with their
     /// manifest.json (sizes and SHA-256 of every file).

@@ -54,6 +54,9 @@ pub(super) fn run_file(
                 let log = report.out_dir.join(&p.log);
                 writeln!(out, "  pilot: {}; log: {}", p.describe(), log.display())?;
             }
+            if let Some(assets) = &report.assets {
+                writeln!(out, "  world: {assets}")?;
+            }
             writeln!(out, "  output: {}", report.out_dir.display())?;
             match &report.report_error {
                 None => writeln!(

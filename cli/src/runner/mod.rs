@@ -12,6 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
 use sadesim_evidence::archive::is_object_store;
+use sadesim_evidence::assets::{AssetsError, AssetsOutcome, ensure_bundle};
 use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
 use sadesim_world::World;
 use sim_worker::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
@@ -57,6 +58,12 @@ pub struct RunOptions {
     /// runs of scripted missions that need no ports). Groups without a `mission` are flown
     /// over MAVLink, so they are refused without it. The shards read this option.
     pub mavlink: bool,
+    /// The asset cache (an archive URL; `sadesim run` uses the user cache folder,
+    /// `sadesim_evidence::assets::local_cache_url`): the world is loaded from the bundle of
+    /// its key when one verifies there, else built and stored there, and `--processes`
+    /// shards load it from there. `None` (`--no-asset-cache`): built in memory, stored
+    /// nowhere, and every shard process builds it again.
+    pub asset_cache: Option<String>,
 }
 
 impl Default for RunOptions {
@@ -69,6 +76,7 @@ impl Default for RunOptions {
             scenario: None,
             start_pilot: true,
             mavlink: true,
+            asset_cache: None,
         }
     }
 }
@@ -80,6 +88,8 @@ pub enum RunError {
     Plan(#[from] PlanError),
     #[error(transparent)]
     World(#[from] sadesim_evidence::world::WorldReadError),
+    #[error(transparent)]
+    Assets(#[from] sadesim_evidence::assets::AssetsError),
     /// The scenario asks for something this build cannot do yet.
     #[error("not supported yet: {0}")]
     NotSupported(String),
@@ -119,6 +129,35 @@ pub struct RunReport {
     /// Why `report.html` could not be written (also printed as a warning and kept in
     /// `report-error.txt`); `None` when the report was written.
     pub report_error: Option<String>,
+    /// Whether the world came from the asset cache or was built into it (`None` without
+    /// a cache).
+    pub assets: Option<AssetsOutcome>,
+}
+
+/// The run's world: from the asset cache when `options.asset_cache` is set (a verified
+/// bundle of the run's key is loaded; else the world is built and stored), else built.
+fn run_world(
+    run: &SimulationRun,
+    data: &sadesim_world::WorldData,
+    options: &RunOptions,
+) -> Result<(Option<AssetsOutcome>, World), RunError> {
+    let build = || World::build(&sadesim_world::WorldInputs::from_spec(&run.spec, &[]), data);
+    let Some(cache) = &options.asset_cache else {
+        return Ok((None, build().map_err(PlanError::from)?));
+    };
+    let key = planner::asset_key(run, data)?;
+    let spinner = if options.progress { ProgressBar::new_spinner() } else { ProgressBar::hidden() };
+    spinner.set_message(format!("world assets {}: looking in {cache}", &key[..12]));
+    spinner.enable_steady_tick(Duration::from_millis(120));
+    let scratch = std::env::temp_dir().join(format!("sadesim-assets-{}", std::process::id()));
+    let outcome = ensure_bundle(&key, run.spec.origin.geo(), cache, &scratch, || {
+        spinner.set_message(format!("world assets {}: building", &key[..12]));
+        build().map_err(|e| AssetsError::World(e.into()))
+    });
+    spinner.finish_and_clear();
+    let _ = std::fs::remove_dir_all(&scratch);
+    let (outcome, world) = outcome?;
+    Ok((Some(outcome), world))
 }
 
 /// Refuses what the local runner cannot do (yet, or with these options), naming the field.
@@ -237,7 +276,8 @@ fn show_progress(bar: &ProgressBar, time_s: f64, duration_s: f64, started: std::
 /// the output folder.
 pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool>) -> Result<RunReport, RunError> {
     let world_data = sadesim_evidence::world::read_data(&run.spec)?;
-    let (plan, world) = planner::plan_and_world(run, &world_data)?;
+    let (assets, world) = run_world(run, &world_data, options)?;
+    let plan = planner::plan_in(run, &world_data, &world)?;
     check_supported(&plan, options)?;
     let base = out_root(&plan, options).join(&plan.run.name);
     let stamp = utc_stamp(SystemTime::now());
@@ -280,6 +320,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             &stop,
             supervisor.as_mut(),
             airspace_addr,
+            assets.as_ref().map(AssetsOutcome::url),
         )
     } else {
         run_threads(&plan, world, options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
@@ -305,7 +346,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     }
     let summary = summary?;
     let report_error = report_error.map(|e| e.to_string());
-    Ok(RunReport { out_dir, summary, pilot: record, archive: archived?.map(|a| a.url), report_error })
+    Ok(RunReport { out_dir, summary, pilot: record, archive: archived?.map(|a| a.url), report_error, assets })
 }
 
 /// Serves the airspace API on 127.0.0.1 at the planned port, or on a free port when that is

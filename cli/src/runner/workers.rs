@@ -73,6 +73,7 @@ pub(super) fn run(
     stop: &AtomicBool,
     mut pilot: Option<&mut Supervisor>,
     airspace: std::net::SocketAddr,
+    assets: Option<&str>,
 ) -> Result<RunSummary, RunError> {
     let worker = worker_binary(worker)?;
     let plan_path = out_dir.join(sadesim_crds::outcome::run_folder::PLAN);
@@ -119,9 +120,16 @@ pub(super) fn run(
     };
     let mut shards = Vec::new();
     for shard in &plan.shards {
-        let extra: &[&str] =
-            if mavlink { &["--coordinator", &address] } else { &["--coordinator", &address, "--no-mavlink"] };
-        shards.push(start("shard", "--shard", shard.index, extra)?);
+        let mut extra = vec!["--coordinator", &address];
+        if !mavlink {
+            extra.push("--no-mavlink");
+        }
+        // The bundle the runner loaded or built: the shards load it rather than build the
+        // world again.
+        if let Some(url) = assets {
+            extra.extend(["--assets", url]);
+        }
+        shards.push(start("shard", "--shard", shard.index, &extra)?);
     }
     if mavlink {
         for segment in &plan.segments {

@@ -102,6 +102,47 @@ impl Archive {
         self.check(run, Some(dir))
     }
 
+    /// One file of the folder `run` (as in [`Archive::verify`]), read whole and checked
+    /// against the folder's manifest: what a role loads before trusting it (the world
+    /// bundle's `world.bin`), without re-reading the folder's other files.
+    ///
+    /// # Errors
+    /// [`ArchiveError::Incomplete`] without a manifest, [`ArchiveError::BadManifest`] when
+    /// it does not list `file`, [`ArchiveError::Corrupt`] when the bytes do not match it,
+    /// [`ArchiveError::Download`] naming the object that cannot be read.
+    pub fn read_checked(&self, run: &str, file: &str) -> Result<Vec<u8>, ArchiveError> {
+        let run = run.trim_matches('/');
+        let url = self.url_of(run);
+        let folder = child_path(&self.prefix, run);
+        let get = |name: &str| {
+            let object_url = format!("{url}/{name}");
+            self.runtime.block_on(async { self.store.get(&child_path(&folder, name)).await?.bytes().await }).map_err(
+                |source| match source {
+                    object_store::Error::NotFound { .. } if name == MANIFEST_FILE => {
+                        ArchiveError::Incomplete { url: url.clone() }
+                    }
+                    source => ArchiveError::Download { url: object_url, source: Box::new(source) },
+                },
+            )
+        };
+        let manifest = Manifest::parse(&get(MANIFEST_FILE)?, &url)?;
+        let entry = manifest
+            .files
+            .iter()
+            .find(|f| f.path == file)
+            .ok_or_else(|| ArchiveError::BadManifest { url: url.clone(), reason: format!("lists no {file}") })?;
+        let bytes = get(file)?;
+        let sha256 = hex(&Sha256::digest(&bytes));
+        if bytes.len() as u64 != entry.size || sha256 != entry.sha256 {
+            return Err(ArchiveError::Corrupt {
+                url: format!("{url}/{file}"),
+                expected: format!("{} bytes, sha256 {}", entry.size, entry.sha256),
+                actual: format!("{} bytes, sha256 {sha256}", bytes.len()),
+            });
+        }
+        Ok(bytes.to_vec())
+    }
+
     fn check(&self, run: &str, dir: Option<&FsPath>) -> Result<VerifyReport, ArchiveError> {
         let run = run.trim_matches('/');
         let url = self.url_of(run);

@@ -41,6 +41,9 @@ pub enum ArchiveError {
     /// The run has files but no `manifest.json`: its upload did not finish.
     #[error("{url}: incomplete run: no {MANIFEST_FILE} (written last, so the upload did not finish)")]
     Incomplete { url: String },
+    /// A file does not match its manifest entry (damaged or partly written).
+    #[error("{url}: does not match the manifest: expected {expected}, found {actual}")]
+    Corrupt { url: String, expected: String, actual: String },
     /// `manifest.json` exists but cannot be used.
     #[error("{url}/{MANIFEST_FILE}: {reason}")]
     BadManifest { url: String, reason: String },

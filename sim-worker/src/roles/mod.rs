@@ -43,6 +43,9 @@ pub enum RoleError {
     /// The run's world cannot be read (its extract).
     #[error(transparent)]
     World(#[from] sadesim_evidence::world::WorldReadError),
+    /// `--assets` names a bundle that cannot be loaded (missing, damaged, another format).
+    #[error(transparent)]
+    Assets(#[from] sadesim_evidence::assets::AssetsError),
 }
 
 /// Reads a RunPlan written by the planner (`plan.json`).

@@ -269,7 +269,7 @@ fn shard_resources(ctx: &Context) -> RoleResources {
 /// them), so any failed or disrupted shard fails the Job at once, and with it the run.
 pub(super) fn shard_job(ctx: &Context) -> Job {
     let count = i32::try_from(ctx.plan.shards.len()).expect("at most 10000 shards");
-    let args = vec![
+    let mut args: Vec<String> = vec![
         "shard".into(),
         "--plan".into(),
         PLAN_PATH.into(),
@@ -281,7 +281,16 @@ pub(super) fn shard_job(ctx: &Context) -> Job {
         "--mavlink-api-host".into(),
         "none".into(),
     ];
-    let c = worker_container(ctx, Role::Shard, strings(&[SIM_WORKER]), args, shard_resources(ctx));
+    // With an object-store cache the assets Job has stored the world's bundle: every shard
+    // loads it (checked against its manifest) instead of building the world itself.
+    let assets = asset_cache_location(ctx.plan, ctx.settings);
+    if let Some(url) = &assets {
+        args.extend(["--assets".into(), url.clone()]);
+    }
+    let mut c = worker_container(ctx, Role::Shard, strings(&[SIM_WORKER]), args, shard_resources(ctx));
+    if assets.is_some() {
+        c.env_from = ctx.object_store_env();
+    }
     let mut spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Never");
     spec.subdomain = Some(names::shard_service(ctx.name));
     let mut meta = ctx.meta(names::shard_job(ctx.name), Role::Shard);
