@@ -556,3 +556,19 @@ fn the_coordinator_pod_runs_the_coordinator_role_on_the_planned_ports() {
     let flags: Vec<&str> = args.iter().filter(|a| a.starts_with("--")).map(String::as_str).collect();
     assert_eq!(flags, ["--plan", "--listen", "--airspace-bind", "--out", "--control-file", "--finish-run"]);
 }
+
+#[test]
+fn shards_load_the_world_bundle_the_assets_job_stores_when_there_is_an_object_store() {
+    let run = piloted(3);
+    let plan = planned(&run);
+    let shard = container(&children(&run, &plan, &s3(), Stage::ALL), "test-run-shard");
+    let args = shard.args.clone().unwrap_or_default();
+    let at = args.iter().position(|a| a == "--assets").expect("--assets on the shard");
+    let expected = asset_cache_location(&plan, &s3()).expect("an object store");
+    assert_eq!(args[at + 1], expected);
+    assert!(expected.ends_with(&format!("/assets/{}/world/", plan.asset_cache_key)), "{expected}");
+    assert!(shard.env_from.is_some(), "the shard reads the bundle with the object-store credentials");
+    // Without an object store there is no assets Job and each shard builds the world.
+    let local = container(&children(&run, &plan, &ClusterSettings::default(), Stage::ALL), "test-run-shard");
+    assert!(!local.args.unwrap_or_default().iter().any(|a| a == "--assets"));
+}
