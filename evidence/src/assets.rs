@@ -162,27 +162,22 @@ pub fn footprint_polygon(footprint: &Footprint, frame: &LocalFrame, up_m: f64) -
     json!({"type": "Polygon", "coordinates": rings})
 }
 
-/// Builds the assets of `plan` into the archive at `archive_url` unless a verified entry
-/// for the plan's asset cache key is there already (the `<run>-assets` Job).
+/// Builds the assets of `plan` into the archive at `archive_url` unless an entry for the
+/// plan's asset cache key is there that verifies and loads ([`ensure_bundle`]; the
+/// `<run>-assets` Job).
 ///
 /// # Errors
 /// Archive errors (open, verify listing, upload), the world's files (unreadable, not a map
 /// or DEM) and local write errors, each naming the URL or file.
 pub fn build_assets(plan: &RunPlan, archive_url: &str, scratch: &Path) -> Result<AssetsOutcome, AssetsError> {
-    let archive = Archive::open(archive_url)?;
-    let (entry, url) = entry_of(&archive, &plan.asset_cache_key);
-    let replaced = match stale_entry(&archive, &entry) {
-        None => return Ok(AssetsOutcome::CacheHit { url }),
-        Some(why) => why,
-    };
-    let world = crate::world::load_world(&plan.spec)?;
-    store_bundle(&archive, &plan.asset_cache_key, plan.spec.origin.geo(), &world, scratch)?;
-    Ok(AssetsOutcome::Built { url, buildings: world.buildings().len(), replaced })
+    let key = &plan.asset_cache_key;
+    let build = || Ok(crate::world::load_world(&plan.spec)?);
+    ensure_bundle(key, plan.spec.origin.geo(), archive_url, scratch, build).map(|(outcome, _)| outcome)
 }
 
 /// The world of asset cache key `key` (the planner's `asset_key`; `origin` is the run's)
 /// from the cache at `cache_url`: loaded from a verified entry, else made with `build` and
-/// stored. What the local runner does before every run.
+/// stored. What the local runner does before every run, and the `<run>-assets` Job.
 ///
 /// # Errors
 /// As [`build_assets`] and [`load_bundle`]; a bundle that verifies but does not decode
@@ -196,27 +191,36 @@ pub fn ensure_bundle(
 ) -> Result<(AssetsOutcome, World), AssetsError> {
     let archive = Archive::open(cache_url)?;
     let (entry, url) = entry_of(&archive, key);
-    let mut replaced = stale_entry(&archive, &entry);
-    if replaced.is_none() {
-        match load_bundle(&url) {
+    let replaced = match entry_state(&archive, &entry) {
+        EntryState::Missing => None,
+        EntryState::Damaged(why) => Some(why),
+        EntryState::Verified => match load_bundle(&url) {
             Ok(world) => return Ok((AssetsOutcome::CacheHit { url }, world)),
-            Err(e) => replaced = Some(Some(e.to_string())),
-        }
-    }
+            Err(e) => Some(e.to_string()),
+        },
+    };
     let world = build()?;
     store_bundle(&archive, key, origin, &world, scratch)?;
     let buildings = world.buildings().len();
-    Ok((AssetsOutcome::Built { url, buildings, replaced: replaced.flatten() }, world))
+    Ok((AssetsOutcome::Built { url, buildings, replaced }, world))
 }
 
-/// `None` when the entry verifies (a hit); else `Some(what was wrong)`, `Some(None)` for an
-/// entry that is simply not there.
-fn stale_entry(archive: &Archive, entry: &str) -> Option<Option<String>> {
+/// What a cache entry is before it is used.
+enum EntryState {
+    /// It verifies against its manifest.
+    Verified,
+    /// Nothing is there.
+    Missing,
+    /// Partial or damaged: what is wrong.
+    Damaged(String),
+}
+
+fn entry_state(archive: &Archive, entry: &str) -> EntryState {
     match archive.verify(entry) {
-        Ok(report) if report.passed() => None,
-        Ok(report) => Some(Some(report.problems.iter().map(|p| format!("{p}")).collect::<Vec<_>>().join("; "))),
-        Err(ArchiveError::NotFound { .. }) => Some(None),
-        Err(e) => Some(Some(e.to_string())),
+        Ok(report) if report.passed() => EntryState::Verified,
+        Ok(report) => EntryState::Damaged(report.problems.iter().map(|p| p.to_string()).collect::<Vec<_>>().join("; ")),
+        Err(ArchiveError::NotFound { .. }) => EntryState::Missing,
+        Err(e) => EntryState::Damaged(e.to_string()),
     }
 }
 
