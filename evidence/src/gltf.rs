@@ -1,5 +1,6 @@
 //! The world as glTF 2.0 binary (`.glb`) for renderers and 3D tools: one mesh of the
-//! buildings (walls and roofs) and one of the ground over the world square.
+//! buildings (walls and roofs) and one of the ground over the world square, both from
+//! `sadesim_world::mesh`.
 //!
 //! Frame: glTF is right-handed, Y up, metres; world ENU maps as `x = east`, `y = up`,
 //! `z = -north` (a rotation, so windings are kept). The node
@@ -9,56 +10,23 @@
 
 use sadesim_crds::geo::GeoPoint;
 use sadesim_world::World;
+use sadesim_world::mesh::{self, TriangleMesh};
 use serde_json::json;
 
-/// Ground mesh samples per side.
-const GROUND_SAMPLES: usize = 65;
-
-/// Vertex positions and triangle indices of one mesh.
-#[derive(Default)]
-struct Mesh {
+/// A mesh in glTF's frame: `f32` positions `(x, y, z) = (e, u, -n)` (a rotation of ENU, so
+/// the mesh's outward windings stay outward) and flat indices.
+struct GltfMesh {
     positions: Vec<[f32; 3]>,
     indices: Vec<u32>,
 }
 
-impl Mesh {
-    /// Adds ENU point `(e, n, u)`; returns its index.
-    fn vertex(&mut self, e: f64, n: f64, u: f64) -> u32 {
-        self.positions.push([e as f32, u as f32, -n as f32]);
-        (self.positions.len() - 1) as u32
+impl GltfMesh {
+    fn of(mesh: &TriangleMesh) -> Self {
+        let positions = mesh.positions_enu_m.iter().map(|&[e, n, u]| [e as f32, u as f32, -n as f32]).collect();
+        Self { positions, indices: mesh.triangles.iter().flatten().copied().collect() }
     }
 
-    /// A convex polygon at height `u` facing up (or down), fan-triangulated. `ring` is
-    /// counter-clockwise seen from above.
-    fn cap(&mut self, ring: &[[f64; 2]], u: f64, up: bool) {
-        let first = self.positions.len() as u32;
-        for p in ring {
-            self.vertex(p[0], p[1], u);
-        }
-        for k in 1..ring.len().saturating_sub(1) as u32 {
-            // (e, n, u) -> (x, y, z) = (e, u, -n) is a rotation: counter-clockwise from
-            // above in ENU stays counter-clockwise from +y.
-            if up {
-                self.indices.extend([first, first + k, first + k + 1]);
-            } else {
-                self.indices.extend([first, first + k + 1, first + k]);
-            }
-        }
-    }
-
-    /// One wall quad from `a` to `b` between heights `lo` and `hi`, facing right of a->b
-    /// (outwards for a counter-clockwise outer ring, inwards into a courtyard for a
-    /// clockwise hole).
-    fn wall(&mut self, a: [f64; 2], b: [f64; 2], lo: f64, hi: f64) {
-        let i = [
-            self.vertex(a[0], a[1], lo),
-            self.vertex(b[0], b[1], lo),
-            self.vertex(b[0], b[1], hi),
-            self.vertex(a[0], a[1], hi),
-        ];
-        self.indices.extend([i[0], i[1], i[2], i[0], i[2], i[3]]);
-    }
-
+    /// Per-axis minimum and maximum (glTF requires them on position accessors).
     fn bounds(&self) -> ([f32; 3], [f32; 3]) {
         self.positions.iter().fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
             (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
@@ -66,46 +34,12 @@ impl Mesh {
     }
 }
 
-fn buildings_mesh(world: &World) -> Mesh {
-    let mut mesh = Mesh::default();
-    for b in world.buildings() {
-        let (lo, hi) = (b.base_up_m(), b.roof_up_m());
-        let f = b.footprint();
-        for piece in f.convex_pieces() {
-            mesh.cap(&piece, hi, true);
-            mesh.cap(&piece, lo, false);
-        }
-        for (a, c) in f.edges() {
-            mesh.wall(a, c, lo, hi);
-        }
-    }
-    mesh
-}
-
-fn ground_mesh(world: &World) -> Mesh {
-    let mut mesh = Mesh::default();
-    let half = world.extent_m();
-    let n = GROUND_SAMPLES;
-    let step = 2.0 * half / (n - 1) as f64;
-    for j in 0..n {
-        for i in 0..n {
-            let (e, north) = (-half + i as f64 * step, -half + j as f64 * step);
-            mesh.vertex(e, north, world.ground_up_m(e, north));
-        }
-    }
-    for j in 0..n - 1 {
-        for i in 0..n - 1 {
-            let at = |i: usize, j: usize| (j * n + i) as u32;
-            // Counter-clockwise from above, as in `cap`.
-            mesh.indices.extend([at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    mesh
-}
-
 /// The world as a `.glb` file: buildings and ground, origin in `extras`.
 pub fn world_glb(world: &World, origin: GeoPoint) -> Vec<u8> {
-    let meshes = [("buildings", buildings_mesh(world)), ("ground", ground_mesh(world))];
+    let meshes = [
+        ("buildings", GltfMesh::of(&mesh::buildings_mesh(world))),
+        ("ground", GltfMesh::of(&mesh::ground_mesh(world, mesh::GROUND_SAMPLES))),
+    ];
     let mut bin: Vec<u8> = Vec::new();
     let (mut views, mut accessors, mut gltf_meshes, mut nodes) = (vec![], vec![], vec![], vec![]);
     for (name, mesh) in meshes.iter().filter(|(_, m)| !m.indices.is_empty()) {

@@ -20,6 +20,7 @@
 //! - `ground`: the [`Ground`] height query, with [`FlatGround`] for tests.
 //! - [`dem`]: terrain from a GeoTIFF or SRTM elevation model (bytes), sampled at WGS84 positions.
 //! - [`bundle`]: the world as bytes, saved once in the asset bundle and loaded by every role.
+//! - [`mesh`]: the world as triangle meshes (buildings, ground) for glTF, recordings, renderers.
 //! - [`osm`]: real buildings and open areas from an OpenStreetMap extract (`.osm.pbf` bytes).
 
 mod building;
@@ -31,6 +32,7 @@ mod ground;
 mod index;
 mod inputs;
 mod map;
+pub mod mesh;
 pub mod osm;
 mod stats;
 mod terrain;

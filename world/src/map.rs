@@ -189,6 +189,20 @@ impl World {
         world
     }
 
+    /// A world of exactly `buildings` on flat ground (tests of the consumers of buildings).
+    #[cfg(test)]
+    pub(crate) fn of_buildings(extent_m: f64, buildings: Vec<Building>) -> Self {
+        let side_m = 2.0 * extent_m;
+        let layout = CityLayout {
+            buildings,
+            block_count: 0,
+            park_count: 0,
+            block_area_m2: side_m * side_m,
+            dropped_for_open_areas: 0,
+        };
+        Self::assemble(0, extent_m, Terrain::flat(), layout, OSM_INDEX_CELL_M, 0)
+    }
+
     /// Builds the index and stats around the geometry. `cell_m` is the index's cell:
     /// the street pitch, so each building falls in exactly one cell.
     fn assemble(
