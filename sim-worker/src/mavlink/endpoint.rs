@@ -230,6 +230,9 @@ impl EndpointPoll {
     }
 }
 
+/// How many ports [`Endpoint::open`] tries when asked for any port (port 0).
+const ANY_PORT_ATTEMPTS: u32 = 16;
+
 /// One drone's sockets.
 #[derive(Debug)]
 pub struct Endpoint {
@@ -256,9 +259,27 @@ pub struct Endpoint {
 impl Endpoint {
     /// Binds UDP and TCP on `config.bind_ip:config.port`, and the API link's socket.
     ///
+    /// Port 0 asks for any free port: the kernel picks a free UDP port, and the same number
+    /// may be taken over TCP (by another program's connection); then another pick is
+    /// tried, up to [`ANY_PORT_ATTEMPTS`] times.
+    ///
     /// # Errors
     /// When a socket cannot be bound (the message names the system and address).
     pub fn open(config: EndpointConfig) -> Result<Self, EndpointError> {
+        let mut attempt = 1;
+        loop {
+            match Self::open_once(config.clone()) {
+                Err(e)
+                    if config.port == 0 && e.source.kind() == ErrorKind::AddrInUse && attempt < ANY_PORT_ATTEMPTS =>
+                {
+                    attempt += 1;
+                }
+                result => return result,
+            }
+        }
+    }
+
+    fn open_once(config: EndpointConfig) -> Result<Self, EndpointError> {
         let mut address = SocketAddr::new(config.bind_ip, config.port);
         let err = |address: SocketAddr| {
             move |source: std::io::Error| {
