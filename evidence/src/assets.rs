@@ -109,8 +109,13 @@ pub fn local_cache_url(env: &dyn Fn(&str) -> Option<String>) -> Result<String, A
 /// The entry of `key` in the cache at `cache_url`: relative folder and URL.
 fn entry_of(archive: &Archive, key: &str) -> (String, String) {
     let entry = format!("{ASSETS_NAMESPACE}/{key}/{WORLD_FOLDER}");
-    let url = format!("{}/{entry}/", archive.url().trim_end_matches('/'));
-    (entry, url)
+    (entry, entry_url(archive.url(), key))
+}
+
+/// The URL of the bundle of asset cache key `key` in the cache at `cache_url`:
+/// `<cache>/assets/<key>/world/`, what [`load_bundle`] and `--assets` take.
+pub fn entry_url(cache_url: &str, key: &str) -> String {
+    format!("{}/{ASSETS_NAMESPACE}/{key}/{WORLD_FOLDER}/", cache_url.trim_end_matches('/'))
 }
 
 /// Loads the world of the bundle at `entry_url` (`<cache>/assets/<key>/world/`, as

@@ -34,15 +34,22 @@ pub struct Finished {
     pub archived: Result<Option<Uploaded>, ArchiveError>,
 }
 
-/// Finishes the run folder `run_dir`: writes the report (a failure is recorded in
+/// Finishes the run folder `run_dir`: writes the report (its map drawn over `world`, the
+/// run's; `None` looks it up as `report::write_report` does; a failure is recorded in
 /// `report-error.txt`), writes `manifest.json`, then, with `upload_to` (an archive URL:
 /// object store or `file://`), uploads the folder to `<upload_to>/<namespace>/<run>/<uid>/`,
 /// manifest last. `progress` shows a progress bar for the upload.
 ///
 /// Without `upload_to` the folder itself is the archive (a local run whose `spec.archive`
 /// is a folder, or no archive at all).
-pub fn finish_run(run_dir: &Path, address: RunAddress<'_>, upload_to: Option<&str>, progress: bool) -> Finished {
-    let report_error = crate::report::write_report(run_dir).err();
+pub fn finish_run(
+    run_dir: &Path,
+    address: RunAddress<'_>,
+    upload_to: Option<&str>,
+    progress: bool,
+    world: Option<&sadesim_world::World>,
+) -> Finished {
+    let report_error = crate::report::write_report_in(run_dir, world).err();
     if let Some(e) = &report_error {
         // Best effort: the folder may be unwritable, and the message is returned anyway.
         let _ = std::fs::write(run_dir.join(run_folder::REPORT_ERROR), format!("{e}\n"));
@@ -90,7 +97,7 @@ mod tests {
         let (root, run_dir) = unreportable_run("report-error");
         let archive_url = file_url(&root.join("archive"));
 
-        let done = finish_run(&run_dir, ADDRESS, Some(&archive_url), false);
+        let done = finish_run(&run_dir, ADDRESS, Some(&archive_url), false, None);
 
         let error = done.report_error.expect("no plan.json: no report").to_string();
         assert!(error.contains(run_folder::PLAN), "{error}");
@@ -111,7 +118,7 @@ mod tests {
     #[test]
     fn without_an_archive_the_folder_gets_its_manifest_only() {
         let (root, run_dir) = unreportable_run("local");
-        let done = finish_run(&run_dir, ADDRESS, None, false);
+        let done = finish_run(&run_dir, ADDRESS, None, false, None);
         assert!(done.archived.expect("manifest written").is_none());
         assert!(verify(run_dir.to_str().unwrap()).unwrap().passed());
         std::fs::remove_dir_all(&root).unwrap();
@@ -122,7 +129,7 @@ mod tests {
     #[test]
     fn an_archive_that_cannot_be_opened_is_named() {
         let (root, run_dir) = unreportable_run("bad-url");
-        let done = finish_run(&run_dir, ADDRESS, Some("ftp://nowhere/runs"), false);
+        let done = finish_run(&run_dir, ADDRESS, Some("ftp://nowhere/runs"), false, None);
         let err = done.archived.expect_err("ftp is not an archive");
         assert!(err.to_string().contains("ftp://nowhere/runs"), "{err}");
         assert!(verify(run_dir.to_str().unwrap()).unwrap().passed());

@@ -95,6 +95,10 @@ enum Role {
         /// the run folder to, at `<url>/<namespace>/<run>/<uid>/` (names from the plan).
         #[arg(long, env = "SADESIM_ARCHIVE_URL", value_name = "URL", requires = "finish_run")]
         archive_url: Option<String>,
+        /// The world's asset bundle, as for `shard --assets`: the city drawn in
+        /// `recording.mcap` and the report is loaded from it instead of built.
+        #[arg(long, env = "SADESIM_ASSETS_URL", value_name = "URL")]
+        assets: Option<String>,
     },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
@@ -154,7 +158,7 @@ fn main() -> ExitCode {
                 });
                 let timeout = Duration::from_secs_f64(connect_timeout);
                 roles::read_plan(&plan).and_then(|plan| {
-                    let world = roles::shard::world(&plan, assets.as_deref())?;
+                    let world = roles::world(&plan, assets.as_deref())?;
                     roles::shard::run(&plan, world, shard, &coordinator, mavlink.as_ref(), timeout)
                 })
             })
@@ -169,6 +173,7 @@ fn main() -> ExitCode {
             control_file,
             finish_run,
             archive_url,
+            assets,
         } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
@@ -187,8 +192,9 @@ fn main() -> ExitCode {
                 None => Ok(()),
             };
             let plan_file = plan;
-            let plan = match watched.and_then(|()| roles::read_plan(&plan_file)) {
-                Ok(plan) => plan,
+            let read = watched.and_then(|()| roles::read_plan(&plan_file));
+            let (plan, world) = match read.and_then(|plan| roles::world(&plan, assets.as_deref()).map(|w| (plan, w))) {
+                Ok(read) => read,
                 Err(e) => return failure(&e),
             };
             let ran = std::fs::create_dir_all(&out).map_err(roles::RoleError::from).and_then(|()| {
@@ -197,11 +203,12 @@ fn main() -> ExitCode {
                 let positive = |s: f64| (s > 0.0).then(|| Duration::from_secs_f64(s));
                 let timeouts =
                     roles::coordinator::Timeouts { connect: positive(connect_timeout), shard: positive(shard_timeout) };
-                roles::coordinator::run(&plan, listen.as_str(), airspace, &out, &stop, timeouts, requests).map(|_| ())
+                let ends = roles::coordinator::Ends { stop: &stop, timeouts, requests };
+                roles::coordinator::run(&plan, &world, listen.as_str(), airspace, &out, ends).map(|_| ())
             });
             // Whatever the run's end: the folder's files are evidence of a failed run too.
             let archived = !finish_run
-                || roles::coordinator::finish(&plan_file, &plan, &out, archive_url.as_deref()).archived.is_ok();
+                || roles::coordinator::finish(&plan_file, &plan, &world, &out, archive_url.as_deref()).archived.is_ok();
             return match ran {
                 Err(e) => failure(&e),
                 Ok(()) if !archived => ExitCode::from(UPLOAD_FAILED_EXIT),

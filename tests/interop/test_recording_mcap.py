@@ -136,7 +136,11 @@ def run_to_end(sadesim: str, tmp: pathlib.Path, doc: dict) -> pathlib.Path:
     path = tmp / "scenario.yaml"
     path.write_text(yaml.safe_dump(doc))
     out = tmp / "runs"
-    subprocess.run([sadesim, "run", str(path), "--no-mavlink", "--quiet", "--out", str(out)], check=True, timeout=600)
+    cache = f"file://{tmp / 'asset-cache'}"
+    subprocess.run(
+        [sadesim, "run", str(path), "--no-mavlink", "--quiet", "--out", str(out), "--asset-cache", cache],
+        check=True, timeout=600,
+    )
     (folder,) = out.glob("*/*/")
     return folder
 
@@ -195,6 +199,7 @@ def test_schemas_are_foxglove_well_known_ones(finished_run):
     assert by_topic["/drones/pair-0/gnss"] == "foxglove.LocationFix"
     assert by_topic["/drones/pair-0/location"] == "foxglove.LocationFix"
     assert by_topic["/zones"] == "foxglove.SceneUpdate"
+    assert by_topic["/world"] == "foxglove.SceneUpdate"
     assert by_topic["/events"] == "foxglove.Log"
 
 
@@ -280,6 +285,7 @@ def test_counts_per_stream_are_duration_times_rate(finished_run):
         if topic == "/tf":
             assert sorted(t["child_frame_id"] for t in msg["transforms"]) == ["drone/pair-0", "drone/pair-1"]
     assert counts["/zones"] == 1
+    assert counts["/world"] == 1
     events = (folder / "events.jsonl").read_text().splitlines()
     assert counts["/events"] == len(events)
 
@@ -290,7 +296,7 @@ def test_timestamps_are_monotonic_and_match_the_messages(finished_run):
     for topic, _, _, publish_time, msg in messages:
         if topic == "/tf":
             assert all(stamp_ns(t) == publish_time for t in msg["transforms"])
-        elif topic != "/zones":
+        elif topic not in ("/zones", "/world"):
             assert stamp_ns(msg) == publish_time, topic
 
 
@@ -327,12 +333,51 @@ def test_zones_and_events(finished_run):
     (scene,) = [msg for topic, _, _, _, msg in messages if topic == "/zones"]
     (entity,) = scene["entities"]
     assert entity["id"] == "zone/museum" and entity["frame_id"] == "world"
-    ups = {round(p["z"], 3) for line in entity["lines"] for p in line["points"]}
-    assert ups == {0.0, 60.0}
+    # From the ground to 60 m above it (AGL), at every corner: the vertical edges are
+    # pairs (floor, ceiling) over the terrain there.
+    verticals = entity["lines"][2]["points"]
+    assert len(verticals) == 8
+    for floor, ceiling in zip(verticals[::2], verticals[1::2]):
+        assert (floor["x"], floor["y"]) == (ceiling["x"], ceiling["y"])
+        assert abs(ceiling["z"] - floor["z"] - 60.0) <= 0.011, (floor, ceiling)
     logs = [msg for topic, _, _, _, msg in messages if topic == "/events"]
     expected = [json.loads(line) for line in (folder / "events.jsonl").read_text().splitlines()]
     assert [json.loads(m["message"]) for m in logs] == expected
     assert {m["level"] for m in logs} <= {2, 3, 4}
+
+
+def test_the_city_is_drawn_as_a_scene_of_the_bundle_buildings_and_ground(finished_run):
+    """`/world`: the run's buildings and ground as Foxglove triangle lists, consistent with
+    the world's footprints in the asset bundle (`buildings.geojson`)."""
+    folder, _, messages = finished_run
+    (scene,) = [msg for topic, _, log_time, _, msg in messages if topic == "/world" and log_time == 0]
+    entities = {e["id"]: e for e in scene["entities"]}
+    assert set(entities) == {"world/buildings", "world/ground"}
+    plan = json.loads((folder / "plan.json").read_text())
+    bundle = folder.parent.parent.parent / "asset-cache" / "assets" / plan["assetCacheKey"] / "world"
+    geojson = json.loads((bundle / "buildings.geojson").read_text())["features"]
+    world = json.loads((folder / "world.json").read_text())
+    assert len(geojson) == world["buildingCount"] > 100
+
+    buildings = entities["world/buildings"]
+    assert {"key": "buildings", "value": str(len(geojson))} in buildings["metadata"]
+    (solid,) = buildings["triangles"]
+    points, indices = solid["points"], solid["indices"]
+    assert len(indices) % 3 == 0 and max(indices) < len(points)
+    # Two wall triangles per footprint edge (holes included) and the roof and base caps.
+    edges = sum(len(ring) - 1 for f in geojson for ring in f["geometry"]["coordinates"])
+    walls = 2 * edges
+    assert len(indices) // 3 > walls
+    origin_msl = plan["spec"]["origin"]["altitudeMslM"]
+    roofs = [f["properties"]["baseAltitudeMslM"] + f["properties"]["heightM"] - origin_msl for f in geojson]
+    top = max(p["z"] for p in points)
+    assert abs(top - max(roofs)) <= 0.02, (top, max(roofs))
+
+    (ground,) = entities["world/ground"]["triangles"]
+    extent = plan["spec"]["world"].get("extentM", 2000)
+    xs = [p["x"] for p in ground["points"]]
+    assert (min(xs), max(xs)) == (-extent, extent)
+    assert len(ground["indices"]) == 3 * 2 * 64 * 64
 
 
 def test_rates_and_compression_come_from_the_spec(sadesim, tmp_path):

@@ -323,7 +323,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             assets.as_ref().map(AssetsOutcome::url),
         )
     } else {
-        run_threads(&plan, world, options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
+        run_threads(&plan, world.clone(), options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
     bar.finish_and_clear();
     // The run is over, whatever its end: stop a pilot still running and record it.
@@ -340,7 +340,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     let uid = out_dir.file_name().and_then(|n| n.to_str()).unwrap_or_default().to_string();
     let address = RunAddress { namespace: &plan.run.namespace, run: &plan.run.name, uid: &uid };
     let upload_to = plan.spec.archive.as_ref().map(|a| a.url.as_str()).filter(|url| is_object_store(url));
-    let Finished { report_error, archived } = finish_run(&out_dir, address, upload_to, options.progress);
+    let Finished { report_error, archived } = finish_run(&out_dir, address, upload_to, options.progress, Some(&world));
     if let Some(e) = &report_error {
         eprintln!("warning: the run's report was not written: {e}");
     }
@@ -417,7 +417,7 @@ fn run_threads(
         threads.push(handle);
     }
     let output_err = |source| RunError::Output { path: out_dir.display().to_string(), source };
-    let mut recorder = Recorder::create(out_dir, plan, RecorderOptions::default()).map_err(output_err)?;
+    let mut recorder = Recorder::create(out_dir, plan, &world, RecorderOptions::default()).map_err(output_err)?;
     let mut progress = Progress {
         recorder: &mut recorder,
         bar: bar.clone(),

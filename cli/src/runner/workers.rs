@@ -86,6 +86,7 @@ pub(super) fn run(
             .arg(out_dir)
             .arg("--airspace-bind")
             .arg(airspace.to_string())
+            .args(assets.iter().flat_map(|url| ["--assets", url]))
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(log_file(out_dir, "coordinator.log")?),

@@ -13,6 +13,8 @@
 
 use std::path::{Path, PathBuf};
 
+use sadesim_world::World;
+
 pub mod data;
 pub mod html;
 pub mod model;
@@ -44,14 +46,33 @@ pub struct Report {
     pub altitude_svg: String,
 }
 
-/// Building footprints for the map: the world regenerated from the plan, only when it is
-/// the world the run had (`world.json`'s statistics match; the generator is deterministic
-/// in its inputs). Otherwise none: a map without buildings is right, one with another
-/// city's would not be.
-fn buildings(data: &RunData) -> Vec<svg::Footprint> {
+/// The run's world when the caller does not have it (`sadesim report` on a folder): the
+/// bundle of the plan's asset cache key in the local asset cache, else built from the plan
+/// and the files it names; `None` when neither works (a map without buildings).
+fn find_world(plan: &sadesim_crds::plan::RunPlan) -> Option<World> {
+    let cache = crate::assets::local_cache_url(&|k| std::env::var(k).ok()).ok();
+    let cached =
+        cache.and_then(|url| crate::assets::load_bundle(&crate::assets::entry_url(&url, &plan.asset_cache_key)).ok());
+    // An extract that is gone gives no world: no map footprints.
+    cached.or_else(|| crate::world::load_world(&plan.spec).ok())
+}
+
+/// Building footprints for the map, only when `world` is the world the run had
+/// (`world.json`'s statistics match). Otherwise none: a map without buildings is right, one
+/// with another city's would not be.
+fn buildings(data: &RunData, world: Option<&World>) -> Vec<svg::Footprint> {
     let Some(recorded) = &data.world else { return Vec::new() };
-    // An extract that is gone or changed gives no (or other) buildings: no map footprints.
-    let Ok(world) = crate::world::load_world(&data.plan.spec) else { return Vec::new() };
+    let found;
+    let world = match world {
+        Some(world) => world,
+        None => match find_world(&data.plan) {
+            Some(world) => {
+                found = world;
+                &found
+            }
+            None => return Vec::new(),
+        },
+    };
     if world.stats() != recorded {
         return Vec::new();
     }
@@ -69,11 +90,12 @@ fn buildings(data: &RunData) -> Vec<svg::Footprint> {
         .collect()
 }
 
-/// Builds the report of already-read run data (pure but for the world regeneration).
-pub fn build(data: &RunData) -> Report {
+/// Builds the report of already-read run data in the run's `world` (pure when given; else
+/// the world is looked up as [`write_report`] says).
+pub fn build(data: &RunData, world: Option<&World>) -> Report {
     let styles = model::group_styles(&data.plan);
     let zones = model::zone_shapes(&data.plan);
-    let map_svg = svg::map(data, &styles, &zones, &buildings(data));
+    let map_svg = svg::map(data, &styles, &zones, &buildings(data, world));
     let altitude_svg = svg::altitude(data, &styles, &zones);
     let html = html::page(data, &styles, &zones, &map_svg, &altitude_svg);
     Report { html, map_svg, altitude_svg }
@@ -105,12 +127,25 @@ pub enum ReportError {
 /// Builds the report of the run folder `run_dir` into the same folder: `report.html`,
 /// `report/map.svg`, `report/altitude.svg`, `report/map.png`, `report/altitude.png`.
 ///
+/// The map draws the buildings of the run's world: loaded from the local asset cache (the
+/// plan's asset cache key), else built from the plan and its files; none when neither is
+/// the world the run had. [`write_report_in`] takes the world from a caller that has it.
+///
 /// # Errors
 /// A message naming the file (and line or field) when a file of the folder is malformed
 /// or `plan.json` is missing, or the file that could not be written.
 pub fn write_report(run_dir: &Path) -> Result<ReportFiles, ReportError> {
+    write_report_in(run_dir, None)
+}
+
+/// [`write_report`] with the run's world when the caller has it (the runner and the
+/// coordinator flew in it); `None` looks it up.
+///
+/// # Errors
+/// As [`write_report`].
+pub fn write_report_in(run_dir: &Path, world: Option<&World>) -> Result<ReportFiles, ReportError> {
     let data = RunData::read(run_dir)?;
-    let report = build(&data);
+    let report = build(&data, world);
     let images_dir = run_dir.join(IMAGES_DIR);
     std::fs::create_dir_all(&images_dir)
         .map_err(|source| ReportError::Create { path: images_dir.display().to_string(), source })?;

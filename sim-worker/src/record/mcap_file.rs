@@ -20,6 +20,7 @@
 //! | `/drones/<name>/wind` | sadesim.Wind | `world` | status |
 //! | `/drones/<name>/location` | foxglove.LocationFix (ground truth) | `drone/<name>` | status |
 //! | `/drones/<name>/gnss` | foxglove.LocationFix (receiver) | `drone/<name>` | each new 3D fix |
+//! | `/world` | foxglove.SceneUpdate (buildings, ground) | `world` | once, at 0 |
 //! | `/zones` | foxglove.SceneUpdate | `world` | once, at 0 |
 //! | `/events` | foxglove.Log | | each event |
 //!
@@ -52,6 +53,7 @@ use std::path::Path;
 use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::run::{Compression, RecordingRates};
+use sadesim_world::World;
 
 use self::writer::{ChunkCompression, McapWriter};
 use crate::events::{Event, EventKind};
@@ -68,8 +70,8 @@ pub const CHUNK_BYTES: usize = 1 << 20;
 /// gnss); MCAP channel ids are 16-bit, which bounds the fleet one file can record.
 const CHANNELS_PER_DRONE: usize = 9;
 
-/// Most drones one `recording.mcap` holds (65 535 channel ids, 3 run-wide channels).
-pub const MAX_DRONES: usize = (u16::MAX as usize - 3) / CHANNELS_PER_DRONE;
+/// Most drones one `recording.mcap` holds (65 535 channel ids, 4 run-wide channels).
+pub const MAX_DRONES: usize = (u16::MAX as usize - 4) / CHANNELS_PER_DRONE;
 
 /// zstd level: 1 is the fastest standard level. On a real recording it compresses 7.7x at
 /// about 700 MB/s here; level 3 compresses less well on this data (7.3x) at 25 % more CPU,
@@ -154,13 +156,14 @@ fn ns(time_s: f64) -> u64 {
 
 impl McapRecorder {
     /// Creates `dir/recording.mcap` and writes the header, schemas, channels and the static
-    /// scene (zones) of `plan`, at the rates of `plan.spec.recording()`.
+    /// scene (the city of `world`, the zones of `plan`), at the rates of
+    /// `plan.spec.recording()`.
     ///
     /// # Errors
     /// I/O errors; an `Unsupported` error for fleets over [`MAX_DRONES`].
-    pub fn create(dir: &Path, plan: &RunPlan) -> std::io::Result<Self> {
+    pub fn create(dir: &Path, plan: &RunPlan, world: &World) -> std::io::Result<Self> {
         let recording = plan.spec.recording();
-        Self::create_with(dir, plan, recording.compression, recording.rates)
+        Self::create_with(dir, plan, world, recording.compression, recording.rates)
     }
 
     /// [`Self::create`] with explicit compression and rates.
@@ -170,6 +173,7 @@ impl McapRecorder {
     pub fn create_with(
         dir: &Path,
         plan: &RunPlan,
+        world: &World,
         compression: Compression,
         rates: RecordingRates,
     ) -> std::io::Result<Self> {
@@ -203,6 +207,7 @@ impl McapRecorder {
             let id = writer.add_channel(schema_id, topic, encoding)?;
             Ok(Channel { id, sequence: 0 })
         };
+        let mut city = channel(&mut writer, "/world", schemas::SCENE_UPDATE_NAME)?;
         let zones = channel(&mut writer, "/zones", schemas::SCENE_UPDATE_NAME)?;
         let events = channel(&mut writer, "/events", schemas::LOG_NAME)?;
         let tf = channel(&mut writer, "/tf", schemas::FRAME_TRANSFORMS_NAME)?;
@@ -226,9 +231,11 @@ impl McapRecorder {
         }
         let mut out = Output { writer };
         let mut zones = zones;
-        let scene = scene::zones_update(plan);
+        let scene = scene::world_update(world);
+        out.write(&mut city, 0, 0, |b| b.extend_from_slice(&scene))?;
+        let scene = scene::zones_update(plan, world);
         out.write(&mut zones, 0, 0, |b| b.extend_from_slice(scene.as_bytes()))?;
-        // The first chunk (schemas, channels, zones) is on disk before the run starts.
+        // The first chunks (schemas, channels, city, zones) are on disk before the run starts.
         out.writer.flush()?;
         Ok(Self {
             out,

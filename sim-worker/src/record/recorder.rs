@@ -4,6 +4,7 @@ use std::path::{Path, PathBuf};
 
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
+use sadesim_world::World;
 
 use super::cost::Lap;
 use super::{
@@ -54,11 +55,12 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Creates the files in `dir` (which must exist).
+    /// Creates the files in `dir` (which must exist); `world` is the run's (drawn in
+    /// `recording.mcap`).
     ///
     /// # Errors
     /// When a file cannot be created.
-    pub fn create(dir: &Path, plan: &RunPlan, options: RecorderOptions) -> std::io::Result<Self> {
+    pub fn create(dir: &Path, plan: &RunPlan, world: &World, options: RecorderOptions) -> std::io::Result<Self> {
         let summary = RunSummary {
             run: plan.run.name.clone(),
             drones: plan.drones.len() as u32,
@@ -76,7 +78,7 @@ impl Recorder {
             ..Default::default()
         };
         let recording = plan.spec.recording();
-        let mcap = if recording.mcap { Some(McapRecorder::create(dir, plan)?) } else { None };
+        let mcap = if recording.mcap { Some(McapRecorder::create(dir, plan, world)?) } else { None };
         let ulog = if recording.ulog { Some(UlogRecorder::create(dir, plan)?) } else { None };
         let streams = if mcap.is_some() || ulog.is_some() { Some(StreamWriter::start(mcap, ulog)?) } else { None };
         Ok(Self {
@@ -169,13 +171,13 @@ mod tests {
     use sadesim_crds::run::Recording;
 
     use super::*;
-    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
+    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups, world_of};
     use crate::record::test_dir::TempDir;
 
     /// Three simulated seconds of 4 drones climbing, recorded with `recording`; the summary.
     fn record(dir: &TempDir, recording: Recording) -> RunSummary {
         let plan = plan_of(run_with_groups(&[("a", 4)]).with(|r| r.spec.recording = Some(recording)).build());
-        let mut recorder = Recorder::create(&dir.0, &plan, RecorderOptions::default()).unwrap();
+        let mut recorder = Recorder::create(&dir.0, &plan, &world_of(&plan), RecorderOptions::default()).unwrap();
         for w in 1..=300u32 {
             let t = f64::from(w) * 0.01;
             let drones: Vec<DroneSnapshot> =

@@ -171,7 +171,7 @@ fn write_all(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
+    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups, world_of};
     use crate::record::test_dir::TempDir;
     use crate::record::{MCAP_FILE, ULOG_DIR};
 
@@ -195,8 +195,10 @@ mod tests {
     fn the_thread_writes_the_same_bytes_as_the_writers_themselves() {
         let plan = plan_of(run_with_groups(&[("a", 3)]).build());
         let direct = TempDir::new("streams-direct");
-        let (mut mcap, mut ulog) =
-            (McapRecorder::create(&direct.0, &plan).unwrap(), UlogRecorder::create(&direct.0, &plan).unwrap());
+        let (mut mcap, mut ulog) = (
+            McapRecorder::create(&direct.0, &plan, &world_of(&plan)).unwrap(),
+            UlogRecorder::create(&direct.0, &plan).unwrap(),
+        );
         for (t, drones) in windows() {
             mcap.write_window(t, &drones, &[]).unwrap();
             ulog.write_window(t, &drones, &[]).unwrap();
@@ -205,7 +207,7 @@ mod tests {
         ulog.finish().unwrap();
 
         let threaded = TempDir::new("streams-threaded");
-        let mcap = McapRecorder::create(&threaded.0, &plan).unwrap();
+        let mcap = McapRecorder::create(&threaded.0, &plan, &world_of(&plan)).unwrap();
         let ulog = UlogRecorder::create(&threaded.0, &plan).unwrap();
         let mut writer = StreamWriter::start(Some(mcap), Some(ulog)).unwrap();
         for (t, drones) in windows() {
@@ -228,7 +230,8 @@ mod tests {
     fn dropping_the_writer_keeps_every_window_and_completes_the_files() {
         let plan = plan_of(run_with_groups(&[("a", 3)]).build());
         let dir = TempDir::new("streams-dropped");
-        let mut writer = StreamWriter::start(Some(McapRecorder::create(&dir.0, &plan).unwrap()), None).unwrap();
+        let mut writer =
+            StreamWriter::start(Some(McapRecorder::create(&dir.0, &plan, &world_of(&plan)).unwrap()), None).unwrap();
         let sent = BATCH_WINDOWS * 3 + 7; // the last 7 are still pending
         for (t, drones) in windows().take(sent) {
             writer.write(t, drones, Vec::new()).unwrap();

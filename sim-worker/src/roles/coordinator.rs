@@ -18,6 +18,7 @@ use std::time::{Duration, Instant};
 use sadesim_crds::outcome::run_folder;
 use sadesim_crds::plan::RunPlan;
 use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
+use sadesim_world::World;
 
 pub use sadesim_crds::outcome::coordinator::{FailedRole, Report};
 
@@ -80,12 +81,21 @@ pub struct Timeouts {
     pub shard: Option<Duration>,
 }
 
+/// What ends the run or the wait for shards: Ctrl-C/SIGTERM (`stop`), the timeouts, and
+/// stop requests (the Pod's annotation, stdin).
+#[derive(Debug)]
+pub struct Ends<'a> {
+    pub stop: &'a AtomicBool,
+    pub timeouts: Timeouts,
+    pub requests: StopRequest,
+}
+
 /// The end of the coordinator pod (`--finish-run`), after [`run`] whatever its outcome:
 /// `plan.json` (the bytes of `plan_file`) into `out_dir` so the folder has the files of a
 /// local run, then [`finish_run`]: report, manifest, and the upload to
 /// `<upload_to>/<namespace>/<run>/<uid>/` (the plan's run; the folder name as uid for a run
 /// without one). Problems go to stderr and into the returned [`Finished`].
-pub fn finish(plan_file: &Path, plan: &RunPlan, out_dir: &Path, upload_to: Option<&str>) -> Finished {
+pub fn finish(plan_file: &Path, plan: &RunPlan, world: &World, out_dir: &Path, upload_to: Option<&str>) -> Finished {
     let copy = out_dir.join(run_folder::PLAN);
     let same = |a: &Path, b: &Path| matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b);
     if !same(plan_file, &copy)
@@ -97,7 +107,7 @@ pub fn finish(plan_file: &Path, plan: &RunPlan, out_dir: &Path, upload_to: Optio
     let folder_name = out_dir.file_name().and_then(|n| n.to_str()).unwrap_or_default();
     let uid = plan.run.uid.as_deref().unwrap_or(folder_name);
     let address = RunAddress { namespace: &plan.run.namespace, run: &plan.run.name, uid };
-    let finished = finish_run(out_dir, address, upload_to, false);
+    let finished = finish_run(out_dir, address, upload_to, false, Some(world));
     if let Some(e) = &finished.report_error {
         eprintln!("warning: the run's report was not written (the run's other files are kept): {e}");
     }
@@ -109,25 +119,24 @@ pub fn finish(plan_file: &Path, plan: &RunPlan, out_dir: &Path, upload_to: Optio
     finished
 }
 
-/// Accepts the plan's shards on `listen`, runs the run, records into `out_dir`. Shards
-/// that have not connected after `timeouts.connect`, or `stop` while waiting for them,
-/// end the role before the run starts; a shard that sends nothing for `timeouts.shard`
-/// during the run fails it. A request in `requests` ends the run after the current window
-/// with its reason.
+/// Accepts the plan's shards on `listen`, runs the run, records into `out_dir` (the city
+/// drawn in the recording is `world`). Shards that have not connected after
+/// `ends.timeouts.connect`, or `ends.stop` while waiting for them, end the role before the
+/// run starts; a shard that sends nothing for `ends.timeouts.shard` during the run fails
+/// it. A request in `ends.requests` ends the run after the current window with its reason.
 ///
 /// # Errors
 /// Network, protocol, shard and recording failures; each is also reported as a
 /// [`Report::Failed`] line.
 pub fn run(
     plan: &RunPlan,
+    world: &World,
     listen: impl ToSocketAddrs,
     airspace_bind: SocketAddr,
     out_dir: &Path,
-    stop: &AtomicBool,
-    timeouts: Timeouts,
-    requests: StopRequest,
+    ends: Ends<'_>,
 ) -> Result<RunSummary, RoleError> {
-    let result = serve(plan, listen, airspace_bind, out_dir, stop, timeouts, requests);
+    let result = serve(plan, world, listen, airspace_bind, out_dir, ends);
     match &result {
         // Reported with the shard's details and the summary by `finish_failed`.
         Err(RoleError::Coordinator(CoordinatorError::RunFailed(_))) | Ok(_) => {}
@@ -144,13 +153,13 @@ pub fn run(
 
 fn serve(
     plan: &RunPlan,
+    world: &World,
     listen: impl ToSocketAddrs,
     airspace_bind: SocketAddr,
     out_dir: &Path,
-    stop: &AtomicBool,
-    timeouts: Timeouts,
-    requests: StopRequest,
+    ends: Ends<'_>,
 ) -> Result<RunSummary, RoleError> {
+    let Ends { stop, timeouts, requests } = ends;
     // The airspace API is up before any shard connects, so it answers as soon as pilots
     // are released. Credentials from Secrets arrive as SADESIM_CREDENTIAL_<GROUP>.
     let mut airspace = Airspace::new(plan, &|key| std::env::var(key).ok());
@@ -187,7 +196,7 @@ fn serve(
     }
     let mut links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
     let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
-    let mut recorder = Recorder::create(out_dir, plan, RecorderOptions::default()).map_err(record_err)?;
+    let mut recorder = Recorder::create(out_dir, plan, world, RecorderOptions::default()).map_err(record_err)?;
     let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: requests };
     let result = coordinator::run(plan, &mut links, &mut WithAirspace::new(&mut airspace, &mut observer), stop);
     drop(links); // close every shard connection now: the survivors exit without waiting for us
@@ -353,7 +362,7 @@ mod tests {
     use super::*;
     use std::sync::Arc;
 
-    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
+    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups, world_of};
     use crate::record::test_dir::TempDir;
 
     /// The coordinator of a 4-drone plan in 2 shards on free ports of 127.0.0.1.
@@ -364,8 +373,15 @@ mod tests {
         let started = Instant::now();
         let timeouts = Timeouts { connect, shard: None };
         let any = SocketAddr::from(([127, 0, 0, 1], 0));
-        let error =
-            run(&plan, "127.0.0.1:0", any, &dir.0, stop, timeouts, StopRequest::new()).expect_err("no shard connects");
+        let error = run(
+            &plan,
+            &world_of(&plan),
+            "127.0.0.1:0",
+            any,
+            &dir.0,
+            Ends { stop, timeouts, requests: StopRequest::new() },
+        )
+        .expect_err("no shard connects");
         (error, started.elapsed())
     }
 
@@ -399,7 +415,7 @@ mod tests {
         let dir = TempDir::new("close-failed-run");
         let plan = plan_of(run_with_groups(&[("a", 2)]).build());
         let airspace = Airspace::new(&plan, &|_| None);
-        let mut recorder = Recorder::create(&dir.0, &plan, RecorderOptions::default()).unwrap();
+        let mut recorder = Recorder::create(&dir.0, &plan, &world_of(&plan), RecorderOptions::default()).unwrap();
         for w in 1..=50u32 {
             let t = f64::from(w) * 0.01;
             let drones: Vec<DroneSnapshot> =

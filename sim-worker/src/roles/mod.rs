@@ -7,8 +7,10 @@ pub mod router;
 pub mod shard;
 
 use std::path::Path;
+use std::sync::Arc;
 
 use sadesim_crds::plan::{PLAN_FORMAT_VERSION, RunPlan};
+use sadesim_world::World;
 
 /// Why a role could not start.
 #[derive(Debug, thiserror::Error)]
@@ -46,6 +48,28 @@ pub enum RoleError {
     /// `--assets` names a bundle that cannot be loaded (missing, damaged, another format).
     #[error(transparent)]
     Assets(#[from] sadesim_evidence::assets::AssetsError),
+}
+
+/// The run's world, for every role that needs it (shards fly in it, the coordinator
+/// records it and draws it in the report, the assets role stores it): loaded from the asset
+/// bundle at `assets` (`world.bin`, checked against the bundle's manifest), else built from
+/// the plan and the files it names (deterministic, so every role builds the same one; a
+/// cluster run without an object-store cache does this).
+///
+/// # Errors
+/// The bundle cannot be loaded, or the world's files cannot be read.
+pub fn world(plan: &RunPlan, assets: Option<&str>) -> Result<Arc<World>, RoleError> {
+    let world = match assets {
+        Some(url) => sadesim_evidence::assets::load_bundle(url)?,
+        None => sadesim_evidence::world::load_world(&plan.spec)?,
+    };
+    // On stderr (the role's log): where the world came from.
+    let from = assets.map_or_else(
+        || "built from the plan (no --assets)".to_string(),
+        |u| format!("loaded from the asset bundle {u}"),
+    );
+    eprintln!("world: {} buildings, {from}", world.buildings().len());
+    Ok(Arc::new(world))
 }
 
 /// Reads a RunPlan written by the planner (`plan.json`).

@@ -39,26 +39,6 @@ const ATTEMPT_TIMEOUT: Duration = Duration::from_secs(5);
 /// Pause between attempts (a refused connection fails at once).
 const RETRY_PAUSE: Duration = Duration::from_millis(200);
 
-/// The world a shard flies in: loaded from the asset bundle at `assets` (checked against
-/// its manifest), else built from the plan and the files it names (deterministic, so every
-/// shard builds the same one; a cluster run without an object-store cache does this).
-///
-/// # Errors
-/// The bundle cannot be loaded, or the world's files cannot be read.
-pub fn world(plan: &RunPlan, assets: Option<&str>) -> Result<Arc<World>, RoleError> {
-    let world = match assets {
-        Some(url) => sadesim_evidence::assets::load_bundle(url)?,
-        None => sadesim_evidence::world::load_world(&plan.spec)?,
-    };
-    // On stderr (the role's log): where the world came from.
-    let from = assets.map_or_else(
-        || "built from the plan (no --assets)".to_string(),
-        |u| format!("loaded from the asset bundle {u}"),
-    );
-    eprintln!("world: {} buildings, {from}", world.buildings().len());
-    Ok(Arc::new(world))
-}
-
 /// Runs shard `index` of `plan` in `world` against the coordinator at `coordinator`
 /// (host:port), trying to reach it for up to `connect_timeout`.
 ///

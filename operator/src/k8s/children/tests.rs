@@ -398,6 +398,8 @@ fn the_coordinator_uploads_its_run_folder_with_values_from_the_environment() {
     let env: Vec<(String, Option<String>)> = c.env.clone().unwrap().into_iter().map(|e| (e.name, e.value)).collect();
     assert!(env.contains(&("SADESIM_ARCHIVE_URL".into(), Some("s3://sadesim-runs/team-a".into()))), "{env:?}");
     assert!(env.contains(&("SADESIM_RUN_UID".into(), Some(UID.into()))));
+    let assets = asset_cache_location(&plan, &s3());
+    assert!(env.contains(&("SADESIM_ASSETS_URL".into(), assets)), "the coordinator loads the world bundle: {env:?}");
     assert_eq!(c.env_from.unwrap()[0].secret_ref.as_ref().unwrap().name, "sadesim-object-store");
     assert_eq!(c.command.as_deref(), Some(&[super::pod::SIM_WORKER.to_string()][..]), "one program, no shell");
     let args = c.args.unwrap();

@@ -151,6 +151,11 @@ pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
     if let Some(url) = upload_url(ctx.plan, ctx.settings) {
         env.push(super::pod::env("SADESIM_ARCHIVE_URL", url));
     }
+    // With an object-store asset cache the coordinator loads the world's bundle, as the
+    // shards do, for the city it draws in the recording and the report.
+    if let Some(url) = asset_cache_location(ctx.plan, ctx.settings) {
+        env.push(super::pod::env("SADESIM_ASSETS_URL", url));
+    }
     // The authority checks the bearer credentials the pilot presents.
     env.extend(ctx.credential_env());
     c.env_from = ctx.object_store_env();

@@ -25,6 +25,12 @@ pub(crate) fn plan_of(run: SimulationRun) -> RunPlan {
     }
 }
 
+/// The procedural world of `plan` (fixture runs fly over the generated city), as the
+/// runner builds it.
+pub(crate) fn world_of(plan: &RunPlan) -> sadesim_world::World {
+    sadesim_world::World::generate(&sadesim_world::WorldInputs::from_spec(&plan.spec, &[]))
+}
+
 /// A run over the fixture origin with the given groups (name, count), no zones.
 pub(crate) fn run_with_groups(groups: &[(&str, u32)]) -> RunBuilder {
     let mut b = RunBuilder::test().with(|r| r.spec.fleet.clear());

@@ -1,15 +1,22 @@
-//! The zones as a `foxglove.SceneUpdate`: one entity per zone in `world`, a prism drawn as
-//! outlines (floor and ceiling loops, vertical edges), translucent walls and a label.
+//! The static scene as `foxglove.SceneUpdate`s, in frame `world` (ENU metres):
+//! - `/world`: the city, one entity `world/buildings` (every building as a closed solid) and
+//!   one `world/ground` (the terrain over the world square), as triangle lists from
+//!   `sadesim_world::mesh`, so Foxglove's 3D panel shows the drones among the buildings;
+//! - `/zones`: one entity per zone, a prism drawn as outlines (floor and ceiling loops,
+//!   vertical edges), translucent walls and a label. AGL floors and ceilings follow the
+//!   ground under each corner (as the compliance monitor judges them).
 //!
-//! # Caveats
-//! AGL floors and ceilings are drawn over level ground at the origin's height (ENU up 0):
-//! the recorder has no terrain. The compliance monitor itself uses the real terrain.
+//! The city's coordinates are written to 1 cm: it is drawn, not measured, and the JSON
+//! text is about half as long.
 
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::zones::{AltitudeReference, ZoneAltitude};
+use sadesim_world::World;
+use sadesim_world::mesh::{self, TriangleMesh};
 use serde_json::{Value, json};
 
+use super::json;
 use crate::airspace::volume::ZoneVolume;
 
 fn point(e: f64, n: f64, u: f64) -> Value {
@@ -28,8 +35,62 @@ fn altitude_text(a: ZoneAltitude) -> String {
     format!("{} m {reference}", a.height_m)
 }
 
-/// The `/zones` message at time 0: every zone of `plan`.
-pub fn zones_update(plan: &RunPlan) -> String {
+/// Decimals of the city's coordinates, metres: 1 cm.
+const CITY_DECIMALS: usize = 2;
+
+/// The `/world` message at time 0: the buildings and the ground of `world`. Written with
+/// the streams' JSON writer (no `serde_json::Value` tree): the default procedural city has
+/// some 300 000 vertices, which a value tree takes a second to build and write.
+pub fn world_update(world: &World) -> Vec<u8> {
+    let buildings = mesh::buildings_mesh(world);
+    let ground = mesh::ground_mesh(world, mesh::GROUND_SAMPLES);
+    let mut out = Vec::with_capacity(40 * (buildings.positions_enu_m.len() + ground.positions_enu_m.len()));
+    out.extend_from_slice(br#"{"deletions":[],"entities":["#);
+    if !buildings.is_empty() {
+        let count = world.buildings().len().to_string();
+        entity(&mut out, "world/buildings", &buildings, [0.62, 0.64, 0.68], &[("buildings", &count)]);
+        out.push(b',');
+    }
+    entity(&mut out, "world/ground", &ground, [0.45, 0.52, 0.40], &[]);
+    out.extend_from_slice(b"]}");
+    out
+}
+
+/// Appends one `foxglove.SceneEntity` at time 0 in frame `world` holding `mesh` as one
+/// opaque triangle list of colour `rgb`.
+fn entity(out: &mut Vec<u8>, id: &str, mesh: &TriangleMesh, rgb: [f64; 3], metadata: &[(&str, &str)]) {
+    let head = json!({
+        "timestamp": {"sec": 0, "nsec": 0}, "frame_id": "world", "id": id,
+        "lifetime": {"sec": 0, "nsec": 0}, "frame_locked": false,
+        "metadata": metadata.iter().map(|(k, v)| json!({"key": k, "value": v})).collect::<Vec<_>>(),
+        "arrows": [], "cubes": [], "spheres": [], "cylinders": [], "lines": [], "texts": [], "models": [],
+    })
+    .to_string();
+    // The object without its closing brace, then the triangles member.
+    out.extend_from_slice(&head.as_bytes()[..head.len() - 1]);
+    out.extend_from_slice(b",\"triangles\":[{\"pose\":");
+    out.extend_from_slice(identity_pose().to_string().as_bytes());
+    out.extend_from_slice(b",\"points\":[");
+    for (i, &p) in mesh.positions_enu_m.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        json::vector3(out, p, CITY_DECIMALS);
+    }
+    out.extend_from_slice(b"],\"color\":");
+    out.extend_from_slice(json!({"r": rgb[0], "g": rgb[1], "b": rgb[2], "a": 1.0}).to_string().as_bytes());
+    out.extend_from_slice(b",\"colors\":[],\"indices\":[");
+    for (i, &v) in mesh.triangles.iter().flatten().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        json::uint(out, u64::from(v));
+    }
+    out.extend_from_slice(b"]}]}");
+}
+
+/// The `/zones` message at time 0: every zone of `plan`, AGL limits over `world`'s ground.
+pub fn zones_update(plan: &RunPlan, world: &World) -> String {
     let frame = LocalFrame::new(plan.spec.origin.geo());
     let time = json!({"sec": 0, "nsec": 0});
     let entities: Vec<Value> = plan
@@ -38,26 +99,35 @@ pub fn zones_update(plan: &RunPlan) -> String {
         .iter()
         .map(|zone| {
             let v = ZoneVolume::new(zone, &frame);
-            let (floor, ceiling) = v.vertical_limits_up_m(0.0);
-            let n = v.polygon.len();
-            let bottom: Vec<Value> = v.polygon.iter().map(|&(e, no)| point(e, no, floor)).collect();
-            let top: Vec<Value> = v.polygon.iter().map(|&(e, no)| point(e, no, ceiling)).collect();
+            // Floor and ceiling at each corner, over the ground there.
+            let limits: Vec<(f64, f64, f64, f64)> = v
+                .polygon
+                .iter()
+                .map(|&(e, no)| {
+                    let (floor, ceiling) = v.vertical_limits_up_m(world.ground_up_m(e, no));
+                    (e, no, floor, ceiling)
+                })
+                .collect();
+            let n = limits.len();
+            let bottom: Vec<Value> = limits.iter().map(|&(e, no, floor, _)| point(e, no, floor)).collect();
+            let top: Vec<Value> = limits.iter().map(|&(e, no, _, ceiling)| point(e, no, ceiling)).collect();
             let verticals: Vec<Value> =
-                v.polygon.iter().flat_map(|&(e, no)| [point(e, no, floor), point(e, no, ceiling)]).collect();
+                limits.iter().flat_map(|&(e, no, floor, ceiling)| [point(e, no, floor), point(e, no, ceiling)]).collect();
             // Two triangles per wall: (a_floor, b_floor, b_ceiling), (a_floor, b_ceiling, a_ceiling).
             let walls: Vec<Value> = (0..n)
                 .flat_map(|i| {
-                    let (a, b) = (v.polygon[i], v.polygon[(i + 1) % n]);
+                    let (a, b) = (limits[i], limits[(i + 1) % n]);
                     [
-                        point(a.0, a.1, floor),
-                        point(b.0, b.1, floor),
-                        point(b.0, b.1, ceiling),
-                        point(a.0, a.1, floor),
-                        point(b.0, b.1, ceiling),
-                        point(a.0, a.1, ceiling),
+                        point(a.0, a.1, a.2),
+                        point(b.0, b.1, b.2),
+                        point(b.0, b.1, b.3),
+                        point(a.0, a.1, a.2),
+                        point(b.0, b.1, b.3),
+                        point(a.0, a.1, a.3),
                     ]
                 })
                 .collect();
+            let label_up_m = limits.iter().map(|l| l.3).fold(f64::NEG_INFINITY, f64::max);
             let (sum_e, sum_n) = v.polygon.iter().fold((0.0, 0.0), |(se, sn), &(e, no)| (se + e, sn + no));
             let centre = (sum_e / n.max(1) as f64, sum_n / n.max(1) as f64);
             let edge = json!({"r": 0.9, "g": 0.2, "b": 0.1, "a": 1.0});
@@ -84,7 +154,7 @@ pub fn zones_update(plan: &RunPlan) -> String {
                 "lines": [line(1, bottom), line(1, top), line(2, verticals)],
                 "triangles": [{"pose": identity_pose(), "points": walls, "color": fill, "colors": [], "indices": []}],
                 "texts": [{
-                    "pose": {"position": point(centre.0, centre.1, ceiling), "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                    "pose": {"position": point(centre.0, centre.1, label_up_m), "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
                     "billboard": true, "font_size": 14.0, "scale_invariant": true, "color": edge,
                     "text": zone.name,
                 }],

@@ -8,7 +8,7 @@ use sadesim_crds::run::{Compression, RecordingRates};
 use serde_json::Value;
 
 use super::{CHUNK_BYTES, MCAP_FILE, McapRecorder};
-use crate::airspace::monitor::test_plan::{plan_of, rect_zone, run_with_groups};
+use crate::airspace::monitor::test_plan::{plan_of, rect_zone, run_with_groups, world_of};
 use crate::events::{Event, EventKind, FlightMode};
 use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail};
 
@@ -78,7 +78,7 @@ fn snapshot(index: u32, t: f64) -> DroneSnapshot {
 /// Runs `seconds` of windows through a recorder (plus the final run-ended window) and
 /// returns the file's bytes.
 fn record(dir: &TempDir, plan: &RunPlan, seconds: f64, compression: Compression, rates: RecordingRates) -> Vec<u8> {
-    let mut recorder = McapRecorder::create_with(&dir.0, plan, compression, rates).unwrap();
+    let mut recorder = McapRecorder::create_with(&dir.0, plan, &world_of(plan), compression, rates).unwrap();
     let windows = (seconds / WINDOW_S).round() as u32;
     for w in 1..=windows {
         let t = f64::from(w) * WINDOW_S;
@@ -179,7 +179,36 @@ fn counts_per_stream_are_duration_times_rate() {
     }
     assert_eq!(counts["/tf"], 300, "one message for all drones at 100 Hz");
     assert_eq!(counts["/zones"], 1);
+    assert_eq!(counts["/world"], 1);
     assert_eq!(counts["/events"], 3, "run started, failsafe, run ended");
+}
+
+#[test]
+fn the_city_is_one_scene_of_the_world_buildings_and_ground() {
+    let dir = TempDir::new("city");
+    let plan = plan(1);
+    let world = world_of(&plan);
+    let messages = read_all(&record(&dir, &plan, 0.1, Compression::Zstd, RecordingRates::default()));
+    let scene = &messages.iter().find(|m| m.topic == "/world").expect("a /world message").json;
+    let entity = |id: &str| {
+        scene["entities"].as_array().unwrap().iter().find(|e| e["id"] == id).unwrap_or_else(|| panic!("{id}")).clone()
+    };
+    let buildings = entity("world/buildings");
+    assert_eq!(buildings["frame_id"], "world");
+    assert_eq!(buildings["metadata"][0]["value"], world.buildings().len().to_string());
+    let mesh = sadesim_world::mesh::buildings_mesh(&world);
+    let solid = &buildings["triangles"][0];
+    assert_eq!(solid["points"].as_array().unwrap().len(), mesh.positions_enu_m.len());
+    assert_eq!(solid["indices"].as_array().unwrap().len(), 3 * mesh.triangles.len());
+    // The tallest roof, to the centimetre.
+    let top = solid["points"].as_array().unwrap().iter().map(|p| p["z"].as_f64().unwrap()).fold(f64::MIN, f64::max);
+    let tallest = world.buildings().iter().map(|b| b.roof_up_m()).fold(f64::MIN, f64::max);
+    assert!((top - tallest).abs() <= 0.005, "{top} vs {tallest}");
+    let ground = &entity("world/ground")["triangles"][0];
+    let corner = &ground["points"][0];
+    let e = world.extent_m();
+    assert_eq!((corner["x"].as_f64(), corner["y"].as_f64()), (Some(-e), Some(-e)));
+    assert!((corner["z"].as_f64().unwrap() - world.ground_up_m(-e, -e)).abs() <= 0.005);
 }
 
 #[test]
@@ -279,7 +308,7 @@ fn log_times_are_monotonic_per_channel_and_timestamps_match() {
         last.insert(&m.topic, m.log_time);
         assert!(m.publish_time <= m.log_time, "{}", m.topic);
         let stamped: Vec<&Value> = match m.topic.as_str() {
-            "/zones" => Vec::new(),
+            "/zones" | "/world" => Vec::new(),
             "/tf" => m.json["transforms"].as_array().unwrap().iter().map(|t| &t["timestamp"]).collect(),
             _ => vec![&m.json["timestamp"]],
         };
@@ -288,7 +317,7 @@ fn log_times_are_monotonic_per_channel_and_timestamps_match() {
             assert_eq!(t, m.publish_time, "{}", m.topic);
         }
     }
-    assert_eq!(last.len(), 3 + 2 * 9, "every channel has messages");
+    assert_eq!(last.len(), 4 + 2 * 9, "every channel has messages");
 }
 
 #[test]
@@ -390,7 +419,9 @@ fn values_equal_the_snapshots() {
 fn an_unfinished_file_reads_up_to_its_last_chunk() {
     let dir = TempDir::new("killed");
     let plan = plan(20);
-    let mut recorder = McapRecorder::create_with(&dir.0, &plan, Compression::Zstd, RecordingRates::default()).unwrap();
+    let mut recorder =
+        McapRecorder::create_with(&dir.0, &plan, &world_of(&plan), Compression::Zstd, RecordingRates::default())
+            .unwrap();
     let path = dir.0.join(MCAP_FILE);
     // Write until the file has grown three times (the first chunk with schemas, channels
     // and zones, then two chunks of messages), then copy it as a killed process would
@@ -445,7 +476,8 @@ fn recording_cost() {
         let windows: Vec<Vec<DroneSnapshot>> =
             (1..=200).map(|w| (0..100).map(|i| snapshot(i, f64::from(w) * WINDOW_S)).collect()).collect();
         let started = std::time::Instant::now();
-        let mut recorder = McapRecorder::create_with(&dir.0, &plan, compression, RecordingRates::default()).unwrap();
+        let mut recorder =
+            McapRecorder::create_with(&dir.0, &plan, &world_of(&plan), compression, RecordingRates::default()).unwrap();
         for w in 1..=2000u32 {
             let t = f64::from(w) * WINDOW_S;
             recorder.write_window(t, &windows[(w % 200) as usize], &[]).unwrap();
