@@ -3,6 +3,7 @@
 
 mod archive_cmd;
 mod args;
+mod assets_cmd;
 mod dem_cmd;
 mod osm_cmd;
 mod outcome;
@@ -13,7 +14,7 @@ mod validate_cmd;
 
 use std::io::Write;
 
-pub use args::{ArchiveCommand, Cli, Command};
+pub use args::{ArchiveCommand, AssetsCommand, Cli, Command};
 pub use outcome::{CliError, Outcome};
 pub use plan_cmd::summary;
 pub use scenario::read_scenario;
@@ -101,16 +102,12 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             }
             Ok(Outcome::Success)
         }
-        Command::Assets { plan, archive } => {
-            let bytes =
-                std::fs::read(&plan).map_err(|source| CliError::Read { path: plan.display().to_string(), source })?;
-            let plan: sadesim_crds::plan::RunPlan = serde_json::from_slice(&bytes)
-                .map_err(|e| CliError::Failed(format!("{}: not a RunPlan: {e}", plan.display())))?;
-            let scratch = std::env::temp_dir().join(format!("sadesim-assets-{}", std::process::id()));
-            let outcome = sadesim_evidence::assets::build_assets(&plan, &archive, &scratch);
-            let _ = std::fs::remove_dir_all(&scratch);
-            writeln!(out, "{}", outcome.map_err(|e| CliError::Failed(e.to_string()))?)?;
-            Ok(Outcome::Success)
+        Command::Assets { command: AssetsCommand::Build { file, asset_cache, quiet } } => {
+            assets_cmd::build(&file, asset_cache, quiet, out)
+        }
+        Command::Assets { command: AssetsCommand::Show { file, png, svg, asset_cache, no_asset_cache, quiet } } => {
+            let cache = if no_asset_cache { assets_cmd::Cache::Off } else { assets_cmd::Cache::At(asset_cache) };
+            assets_cmd::show(&file, &png, svg.as_deref(), cache, quiet, out)
         }
         Command::Osm { file, origin, extent_m, geojson, glb, json } => {
             let targets = osm_cmd::Targets { geojson: geojson.as_deref(), glb: glb.as_deref() };

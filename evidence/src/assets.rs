@@ -38,38 +38,8 @@ pub const WORLD_BIN: &str = "world.bin";
 /// user cache directory).
 pub const CACHE_DIR_ENV: &str = "SADESIM_CACHE_DIR";
 
-/// What [`build_assets`] did.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub enum AssetsOutcome {
-    /// The cache already held a complete, verified entry for the key.
-    CacheHit { url: String },
-    /// The assets were built and uploaded; `replaced` says what was wrong with an entry
-    /// that was there (partial, damaged) and is now rebuilt.
-    Built { url: String, buildings: usize, replaced: Option<String> },
-}
-
-impl AssetsOutcome {
-    /// The entry's URL.
-    pub fn url(&self) -> &str {
-        match self {
-            AssetsOutcome::CacheHit { url } | AssetsOutcome::Built { url, .. } => url,
-        }
-    }
-}
-
-impl std::fmt::Display for AssetsOutcome {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            AssetsOutcome::CacheHit { url } => write!(f, "asset cache hit: {url}"),
-            AssetsOutcome::Built { url, buildings, replaced: None } => {
-                write!(f, "assets built: {buildings} buildings -> {url}")
-            }
-            AssetsOutcome::Built { url, buildings, replaced: Some(why) } => {
-                write!(f, "assets rebuilt ({why}): {buildings} buildings -> {url}")
-            }
-        }
-    }
-}
+/// What [`build_assets`] and [`ensure_bundle`] did (the contract the operator reads).
+pub use sadesim_crds::outcome::assets::AssetsOutcome;
 
 /// Errors of [`build_assets`].
 #[derive(Debug, thiserror::Error)]

@@ -100,6 +100,21 @@ enum Role {
         #[arg(long, env = "SADESIM_ASSETS_URL", value_name = "URL")]
         assets: Option<String>,
     },
+    /// Build the run's world into the asset cache `<archive>/assets/<asset cache key>/world/`
+    /// (world.bin, world.glb, buildings.geojson, world.json, manifest.json), or exit at once
+    /// when a verified entry is there. Prints the outcome as one JSON line.
+    Assets {
+        /// RunPlan JSON written by the planner.
+        #[arg(long)]
+        plan: PathBuf,
+        /// The archive holding the cache (s3://, gs://, az:// or file://).
+        #[arg(long, value_name = "URL")]
+        archive: String,
+        /// Also write the outcome line to this file (the Job's termination message,
+        /// `/dev/termination-log`, which the operator reads).
+        #[arg(long, value_name = "FILE")]
+        report_file: Option<PathBuf>,
+    },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
     Router {
@@ -215,6 +230,8 @@ fn main() -> ExitCode {
                 Ok(()) => ExitCode::SUCCESS,
             };
         }
+        Role::Assets { plan, archive, report_file } => roles::read_plan(&plan)
+            .and_then(|plan| roles::assets::run(&plan, &archive, report_file.as_deref()).map(|_| ())),
         Role::Router { plan, segment, bind, drone_host } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();

@@ -7,6 +7,7 @@ import os
 import pathlib
 import re
 import subprocess
+from xml.etree import ElementTree
 
 import osmium
 from test_osm import VALIDATE_GLTF, helsinki  # noqa: F401  (the fixture)
@@ -109,3 +110,43 @@ def test_the_bundles_gltf_passes_the_khronos_validator(sadesim, helsinki, repo, 
     assert report["issues"]["numErrors"] == 0 and report["issues"]["numWarnings"] == 0, report["issues"]
     stats = json.loads((entry / "world.json").read_text())
     assert stats["osm"]["buildings"] == stats["buildingCount"] > 50
+
+
+def test_assets_build_then_show_preview_the_mapped_world(sadesim, helsinki, tmp_path):  # noqa: F811
+    """`sadesim assets build` fills the cache once (a second build is a hit that rewrites
+    nothing); `sadesim assets show` draws that world: a PNG of the documented size and an
+    SVG with every building, the named parks libosmium finds in the extract, and the homes."""
+    doc = mission(helsinki)
+    path = tmp_path / "bundle.yaml"
+    path.write_text(json.dumps(doc))
+    cache = f"file://{tmp_path / 'cache'}"
+    build = lambda: subprocess.run([sadesim, "assets", "build", str(path), "--asset-cache", cache, "-q"],  # noqa: E731
+                                   capture_output=True, text=True)
+    first = build()
+    assert first.returncode == 0, first.stdout + first.stderr
+    built = re.search(r"assets built: (\d+) buildings -> file://(\S+)", first.stdout)
+    assert built, first.stdout
+    entry = pathlib.Path(built.group(2))
+    stamp = {p.name: p.stat().st_mtime_ns for p in entry.iterdir()}
+    second = build()
+    assert f"asset cache hit: file://{entry}" in second.stdout, second.stdout
+    assert {p.name: p.stat().st_mtime_ns for p in entry.iterdir()} == stamp
+
+    png, svg = tmp_path / "world.png", tmp_path / "world.svg"
+    shown = subprocess.run([sadesim, "assets", "show", str(path), "--asset-cache", cache, "--png", str(png),
+                            "--svg", str(svg), "-q"], capture_output=True, text=True)
+    assert shown.returncode == 0, shown.stdout + shown.stderr
+    assert "asset cache hit" in shown.stdout, shown.stdout
+    head = png.read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n" and int.from_bytes(head[16:20], "big") == 1400
+    picture = svg.read_text()
+    tree = ElementTree.fromstring(picture)
+    ns = "{http://www.w3.org/2000/svg}"
+    drawn = lambda cls, tag: sum(len(g.findall(f"{ns}{tag}")) for g in tree.iter(f"{ns}g") if g.get("class") == cls)  # noqa: E731
+    assert drawn("buildings", "path") == int(built.group(1))
+    assert drawn("open-spaces", "path") >= 1
+    assert len([c for c in tree.iter(f"{ns}circle") if c.get("class") == "home"]) == doc["spec"]["fleet"][0]["count"]
+    parks = {dict(a.tags).get("name") for a in osmium.FileProcessor(str(helsinki)).with_areas()
+             .with_filter(osmium.filter.EntityFilter(osmium.osm.AREA))
+             if dict(a.tags).get("leisure") == "park"}
+    assert "Esplanadinpuisto" in parks and ">Esplanadinpuisto<" in picture

@@ -47,7 +47,7 @@ pub use city::{MIN_HEIGHT_M, PARK_FRACTION};
 pub use footprint::{AxisRect, Footprint, FootprintError, Point2};
 pub use ground::{FlatGround, Ground};
 pub use inputs::{EXPLICIT_HOME_CLEARANCE_M, OpenArea, WorldInputs};
-pub use map::{World, WorldData, WorldError};
+pub use map::{OpenSpace, World, WorldData, WorldError};
 pub use stats::WorldStats;
 pub use terrain::Terrain;
 

@@ -27,6 +27,17 @@ const GROUND_SAMPLES_PER_SIDE: usize = 200;
 /// few dozen footprints at most in a dense centre.
 const OSM_INDEX_CELL_M: f64 = 50.0;
 
+/// An open space of a mapped world: a park, garden or lawn as the map draws it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct OpenSpace {
+    /// The tag that made it open, e.g. `leisure=park`.
+    pub kind: String,
+    /// Its `name`, when tagged.
+    pub name: Option<String>,
+    /// Its outline, world ENU metres.
+    pub footprint: crate::footprint::Footprint,
+}
+
 /// Why a world cannot be built.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum WorldError {
@@ -97,6 +108,9 @@ fn dem_terrain(inputs: &WorldInputs, dem: &Dem) -> Result<Terrain, DemError> {
 pub struct World {
     extent_m: f64,
     seed: u64,
+    /// Mapped open spaces (parks, grass) of an OpenStreetMap world, for maps and previews;
+    /// empty for the procedural city (its parks are blocks without buildings).
+    open_spaces: Vec<OpenSpace>,
     terrain: Terrain,
     buildings: Vec<Building>,
     index: GridIndex,
@@ -186,6 +200,11 @@ impl World {
         };
         let mut world = Self::assemble(inputs.seed(), extent_m, terrain, layout, OSM_INDEX_CELL_M, 0);
         world.stats.osm = Some(city.stats.clone());
+        world.open_spaces = city
+            .open_areas
+            .iter()
+            .map(|a| OpenSpace { kind: a.kind.clone(), name: a.name.clone(), footprint: a.footprint.clone() })
+            .collect();
         world
     }
 
@@ -221,7 +240,22 @@ impl World {
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), b| (lo.min(b.base_up_m()), hi.max(b.roof_up_m())));
         let ground = ground_range(&terrain, extent_m);
         let stats = WorldStats::new(seed, extent_m, &layout, open_area_count, ground);
-        Self { extent_m, seed, terrain, buildings: layout.buildings, index, z_band_up_m, stats }
+        Self {
+            extent_m,
+            seed,
+            open_spaces: Vec::new(),
+            terrain,
+            buildings: layout.buildings,
+            index,
+            z_band_up_m,
+            stats,
+        }
+    }
+
+    /// The mapped open spaces (parks, grass) of an OpenStreetMap world; none for the
+    /// procedural city.
+    pub fn open_spaces(&self) -> &[OpenSpace] {
+        &self.open_spaces
     }
 
     /// Half-width of the square world centred on the origin, metres.

@@ -156,16 +156,16 @@ pub enum Command {
         #[arg(long)]
         namespace: Option<String>,
     },
-    /// Build a run's world assets (city footprints as GeoJSON, world statistics) into the
-    /// archive's asset cache `<archive>/assets/<cache key>/world/`, unless a verified entry
-    /// is there. The operator runs this as the `<run>-assets` Job.
+    /// A scenario's world assets: build them into the asset cache, or preview the world.
+    ///
+    /// The world (buildings, ground, open spaces) is built once per asset cache key (a
+    /// hash of the world's parameters and its files' bytes) into
+    /// `<cache>/assets/<key>/world/`: world.bin (what the roles load), world.glb (glTF 2.0),
+    /// buildings.geojson, world.json and manifest.json. `sadesim run` and every shard then
+    /// load it instead of building it again.
     Assets {
-        /// RunPlan JSON (`sadesim plan FILE --json`).
-        #[arg(long)]
-        plan: PathBuf,
-        /// Archive URL holding the cache (s3://, gs://, az:// or file://).
-        #[arg(long)]
-        archive: String,
+        #[command(subcommand)]
+        command: AssetsCommand,
     },
     /// Read an OpenStreetMap extract (.osm.pbf) as SADE-SIM's world reads it: the buildings
     /// (footprints with courtyards, heights from `height`, `building:levels`, ... or a
@@ -224,6 +224,45 @@ pub enum Command {
     /// Logs JSON lines to stderr; stops cleanly on SIGTERM. The Lease for leader election is
     /// `sadesim-operator` in POD_NAMESPACE, held as POD_NAME.
     Operator(sadesim_operator::OperatorArgs),
+}
+
+/// `sadesim assets ...`
+#[derive(Debug, Subcommand)]
+pub enum AssetsCommand {
+    /// Build the scenario's world into the asset cache, or say it is there already (a
+    /// verified entry of the same key); a damaged or partial entry is rebuilt.
+    Build {
+        /// Scenario file with exactly one run.
+        file: PathBuf,
+        /// The asset cache: an archive URL (file://, s3://, gs://, az://). Default:
+        /// `$SADESIM_CACHE_DIR`, else `$XDG_CACHE_HOME/sadesim`, else `~/.cache/sadesim`.
+        #[arg(long, value_name = "URL")]
+        asset_cache: Option<String>,
+        /// No progress spinner.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Draw the scenario's world from above as a PNG: buildings coloured by height, open
+    /// spaces, the ground's relief, the zones and every drone's home, before anyone flies.
+    Show {
+        /// Scenario file with exactly one run.
+        file: PathBuf,
+        /// Where to write the picture.
+        #[arg(long, default_value = "world-preview.png")]
+        png: PathBuf,
+        /// Also write the picture as SVG here.
+        #[arg(long)]
+        svg: Option<PathBuf>,
+        /// The asset cache to load the world from (and store it in), as for `build`.
+        #[arg(long, value_name = "URL", conflicts_with = "no_asset_cache")]
+        asset_cache: Option<String>,
+        /// Build the world in memory and store nothing.
+        #[arg(long)]
+        no_asset_cache: bool,
+        /// No progress spinner.
+        #[arg(long, short)]
+        quiet: bool,
+    },
 }
 
 /// `sadesim archive ...`

@@ -134,19 +134,26 @@ pub struct RunReport {
     pub assets: Option<AssetsOutcome>,
 }
 
-/// The run's world: from the asset cache when `options.asset_cache` is set (a verified
-/// bundle of the run's key is loaded; else the world is built and stored), else built.
-fn run_world(
+/// The run's world: from the asset cache `cache` when set (a verified bundle of the run's
+/// key is loaded; else the world is built and stored there), else built in memory. The
+/// world's files are already read into `data`. With `progress`, a spinner says what it is
+/// doing (looking in the cache, building, storing).
+///
+/// # Errors
+/// The world cannot be built from `data` (a DEM not covering the square), or the cache
+/// cannot be read or written.
+pub fn run_world(
     run: &SimulationRun,
     data: &sadesim_world::WorldData,
-    options: &RunOptions,
+    cache: Option<&str>,
+    progress: bool,
 ) -> Result<(Option<AssetsOutcome>, World), RunError> {
     let build = || World::build(&sadesim_world::WorldInputs::from_spec(&run.spec, &[]), data);
-    let Some(cache) = &options.asset_cache else {
+    let Some(cache) = cache else {
         return Ok((None, build().map_err(PlanError::from)?));
     };
     let key = planner::asset_key(run, data)?;
-    let spinner = if options.progress { ProgressBar::new_spinner() } else { ProgressBar::hidden() };
+    let spinner = if progress { ProgressBar::new_spinner() } else { ProgressBar::hidden() };
     spinner.set_message(format!("world assets {}: looking in {cache}", &key[..12]));
     spinner.enable_steady_tick(Duration::from_millis(120));
     let scratch = std::env::temp_dir().join(format!("sadesim-assets-{}", std::process::id()));
@@ -276,7 +283,7 @@ fn show_progress(bar: &ProgressBar, time_s: f64, duration_s: f64, started: std::
 /// the output folder.
 pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool>) -> Result<RunReport, RunError> {
     let world_data = sadesim_evidence::world::read_data(&run.spec)?;
-    let (assets, world) = run_world(run, &world_data, options)?;
+    let (assets, world) = run_world(run, &world_data, options.asset_cache.as_deref(), options.progress)?;
     let plan = planner::plan_in(run, &world_data, &world)?;
     check_supported(&plan, options)?;
     let base = out_root(&plan, options).join(&plan.run.name);

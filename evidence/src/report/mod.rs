@@ -19,6 +19,7 @@ pub mod data;
 pub mod html;
 pub mod model;
 pub mod png;
+pub mod preview;
 pub mod svg;
 
 #[cfg(test)]

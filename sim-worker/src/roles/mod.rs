@@ -1,6 +1,7 @@
 //! Runtime roles as process entry points (`sim-worker <role>`): the same code the local
 //! runner uses in-process, behind TCP.
 
+pub mod assets;
 pub mod control;
 pub mod coordinator;
 pub mod router;

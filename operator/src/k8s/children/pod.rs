@@ -261,5 +261,3 @@ pub fn worker_container(
 
 /// The `sim-worker` binary in the worker image.
 pub const SIM_WORKER: &str = "/usr/local/bin/sim-worker";
-/// The `sadesim` binary in the worker image (archive upload).
-pub const SADESIM: &str = "/usr/local/bin/sadesim";

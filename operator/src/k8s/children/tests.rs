@@ -559,6 +559,24 @@ fn the_coordinator_pod_runs_the_coordinator_role_on_the_planned_ports() {
     assert_eq!(flags, ["--plan", "--listen", "--airspace-bind", "--out", "--control-file", "--finish-run"]);
 }
 
+/// The assets Job runs the `sim-worker assets` role, which writes its outcome (cache hit or
+/// built) to the container's termination message, where the operator reads it.
+#[test]
+fn the_assets_job_runs_the_assets_role_and_reports_in_its_termination_message() {
+    let run = piloted(3);
+    let plan = planned(&run);
+    let c = container(&children(&run, &plan, &s3(), Stage::ALL), "test-run-assets");
+    assert_eq!(c.command.as_deref(), Some(&[super::pod::SIM_WORKER.to_string()][..]));
+    let args = c.args.unwrap();
+    let value = |flag: &str| args.iter().position(|a| a == flag).map(|i| args[i + 1].clone());
+    assert_eq!(args[0], "assets");
+    assert_eq!(value("--plan").as_deref(), Some("/etc/sadesim/plan.json"));
+    assert_eq!(value("--archive").as_deref(), Some("s3://sadesim-runs/team-a"));
+    assert_eq!(value("--report-file"), c.termination_message_path);
+    assert_eq!(c.termination_message_path.as_deref(), Some("/dev/termination-log"));
+    assert_eq!(c.env_from.unwrap()[0].secret_ref.as_ref().unwrap().name, "sadesim-object-store");
+}
+
 #[test]
 fn shards_load_the_world_bundle_the_assets_job_stores_when_there_is_an_object_store() {
     let run = piloted(3);

@@ -16,8 +16,8 @@ use k8s_openapi::apimachinery::pkg::util::intstr::IntOrString;
 use sadesim_crds::plan::{RoleResources, RouterSegment};
 
 use super::pod::{
-    CONTROL_DIR, CONTROL_FILE, Context, OUT_DIR, PLAN_PATH, SADESIM, SIM_WORKER, config_volume, empty_dir, mount,
-    pod_spec, worker_container,
+    CONTROL_DIR, CONTROL_FILE, Context, OUT_DIR, PLAN_PATH, SIM_WORKER, config_volume, empty_dir, mount, pod_spec,
+    worker_container,
 };
 use super::{
     ASSET_KEY_ANNOTATION, Role, SEGMENT_LABEL, STOP_ANNOTATION, asset_cache_location, kueue, names, upload_url,
@@ -61,18 +61,31 @@ fn template(ctx: &Context, role: Role, spec: k8s_openapi::api::core::v1::PodSpec
     PodTemplateSpec { metadata: Some(ctx.template_meta(role)), spec: Some(spec) }
 }
 
+/// Where a container writes its termination message (Kubernetes' default path).
+pub const TERMINATION_LOG: &str = "/dev/termination-log";
+
 /// `<run>-assets`: builds the world into the asset cache. `None` without an object-store
 /// archive (there is no cache to fill; every shard builds the world itself).
 ///
-/// Runs `sadesim assets --plan P --archive URL`, which fills
-/// `<archive>/assets/<asset cache key>/world/` (see `crate::assets`) or exits at once on a
-/// verified cache hit.
+/// Runs `sim-worker assets --plan P --archive URL --report-file /dev/termination-log`,
+/// which fills `<archive>/assets/<asset cache key>/world/` (see `sadesim_evidence::assets`)
+/// or exits at once on a verified cache hit, and says which in its termination message
+/// (read back by [`crate::k8s::controller`] into the `AssetsReady` condition).
 pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
     asset_cache_location(ctx.plan, ctx.settings)?;
     let archive = upload_url(ctx.plan, ctx.settings)?.to_string();
-    let args = vec!["assets".into(), "--plan".into(), PLAN_PATH.into(), "--archive".into(), archive];
-    let mut container = worker_container(ctx, Role::Assets, strings(&[SADESIM]), args, ctx.plan.resources.assets);
+    let args = vec![
+        "assets".into(),
+        "--plan".into(),
+        PLAN_PATH.into(),
+        "--archive".into(),
+        archive,
+        "--report-file".into(),
+        TERMINATION_LOG.into(),
+    ];
+    let mut container = worker_container(ctx, Role::Assets, strings(&[SIM_WORKER]), args, ctx.plan.resources.assets);
     container.env_from = ctx.object_store_env();
+    container.termination_message_path = Some(TERMINATION_LOG.into());
     let spec = pod_spec(vec![container], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Never");
     let mut meta = ctx.meta(names::assets_job(ctx.name), Role::Assets);
     meta.annotations = Some(BTreeMap::from([(ASSET_KEY_ANNOTATION.to_string(), ctx.plan.asset_cache_key.clone())]));

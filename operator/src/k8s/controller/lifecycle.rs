@@ -22,6 +22,7 @@ use std::time::Duration;
 use k8s_openapi::apimachinery::pkg::apis::meta::v1::{Condition, Time};
 use k8s_openapi::jiff::Timestamp;
 use sadesim_crds::SimulationRun;
+use sadesim_crds::outcome::assets::AssetsOutcome;
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::run::PilotExit;
 use sadesim_crds::status::{ArchiveStatus, Endpoints, Phase, ShardStatus, SimulationRunStatus, condition_types as ct};
@@ -460,7 +461,17 @@ fn generating_assets(d: &mut Decision, input: &Input, plan: &RunPlan) {
     }
     match input.observed.jobs_of(Role::Assets).map(|w| w.state.clone()).next() {
         Some(WorkState::Succeeded) => {
-            d.condition(ct::ASSETS_READY, true, "Built", "the assets Job finished", now, generation);
+            // The role's outcome line (its pod's termination message): hit or built.
+            let outcome = input
+                .observed
+                .pods_of(Role::Assets)
+                .filter_map(|p| p.message.as_deref())
+                .find_map(|m| serde_json::from_str::<AssetsOutcome>(m.trim()).ok());
+            let (reason, message) = match &outcome {
+                Some(o) => (o.reason(), o.to_string()),
+                None => ("Built", "the assets Job finished".to_string()),
+            };
+            d.condition(ct::ASSETS_READY, true, reason, message, now, generation);
             d.enter(Phase::Starting, "assets ready; starting the coordinator, routers and shards");
         }
         Some(WorkState::Failed(reason)) => {

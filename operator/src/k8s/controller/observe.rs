@@ -49,6 +49,9 @@ pub struct Workload {
     pub ready: bool,
     /// Pods of an Indexed Job: the completion index (the shard index for shards).
     pub index: Option<u32>,
+    /// Pods only: the termination message of a container that exited (the assets role
+    /// writes its outcome there).
+    pub message: Option<String>,
 }
 
 /// Everything observed about a run's children and the coordinator's reports.
@@ -174,6 +177,7 @@ pub fn job_workload(job: &Job) -> Workload {
         job_owned: false,
         ready: false,
         index: None,
+        message: None,
     }
 }
 
@@ -222,5 +226,9 @@ pub fn pod_workload(pod: &Pod) -> Workload {
         job_owned: pod.metadata.owner_references.iter().flatten().any(|o| o.kind == "Job"),
         ready,
         index: labels.and_then(|l| l.get(COMPLETION_INDEX_LABEL)).and_then(|v| v.parse().ok()),
+        message: containers
+            .iter()
+            .find_map(|c| c.state.as_ref()?.terminated.as_ref()?.message.clone())
+            .filter(|m| !m.is_empty()),
     }
 }

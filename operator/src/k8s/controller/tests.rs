@@ -9,7 +9,9 @@ use std::time::Duration;
 
 use http::{Method, Request, Response};
 use k8s_openapi::api::batch::v1::{Job, JobCondition, JobStatus};
-use k8s_openapi::api::core::v1::{Pod, PodStatus, ResourceQuota, ResourceQuotaStatus};
+use k8s_openapi::api::core::v1::{
+    ContainerState, ContainerStateTerminated, ContainerStatus, Pod, PodStatus, ResourceQuota, ResourceQuotaStatus,
+};
 use k8s_openapi::apimachinery::pkg::api::resource::Quantity;
 use k8s_openapi::apimachinery::pkg::apis::meta::v1::{Condition, OwnerReference, Time};
 use k8s_openapi::jiff::{SignedDuration, Timestamp};
@@ -390,7 +392,28 @@ async fn a_run_waiting_in_queue_creates_nothing() {
 #[tokio::test]
 async fn assets_ready_moves_to_starting_and_applies_the_workers() {
     let run = in_phase(new_run(), Phase::GeneratingAssets);
-    let cluster = Cluster { run: Some(run), jobs: vec![job("assets", Some("Complete"), 0)], ..Default::default() };
+    // The assets pod's container ended with the role's outcome line as its termination
+    // message (a cache hit).
+    let mut assets = pod("test-run-assets-4kq9z", "assets", "Succeeded", true);
+    let hit = r#"{"outcome":"cacheHit","url":"s3://sadesim-runs/team-a/assets/k/world/"}"#;
+    assets.status.as_mut().unwrap().container_statuses = Some(vec![ContainerStatus {
+        name: "assets".into(),
+        state: Some(ContainerState {
+            terminated: Some(ContainerStateTerminated {
+                exit_code: 0,
+                message: Some(hit.into()),
+                ..Default::default()
+            }),
+            ..Default::default()
+        }),
+        ..Default::default()
+    }]);
+    let cluster = Cluster {
+        run: Some(run),
+        jobs: vec![job("assets", Some("Complete"), 0)],
+        pods: vec![assets],
+        ..Default::default()
+    };
     let (seen, _) = reconcile_once(cluster, s3_settings(), t0()).await;
     let lists: Vec<&Seen> = seen.iter().filter(|s| s.method == Method::GET).collect();
     assert_eq!(lists[0].path, format!("/apis/batch/v1/namespaces/{NS}/jobs"));
@@ -403,7 +426,9 @@ async fn assets_ready_moves_to_starting_and_applies_the_workers() {
     assert!(!targets.contains(&"test-run-pilot".to_string()), "{targets:?}");
     let status = the_status_write(&seen);
     assert_eq!(status.phase, Some(Phase::Starting));
-    assert_eq!(condition(&status, ct::ASSETS_READY).status, "True");
+    let ready = condition(&status, ct::ASSETS_READY);
+    assert_eq!((ready.status.as_str(), ready.reason.as_str()), ("True", "CacheHit"));
+    assert_eq!(ready.message, "asset cache hit: s3://sadesim-runs/team-a/assets/k/world/");
     assert_eq!(event_reasons(&seen), ["Starting"]);
 }
 

@@ -82,11 +82,21 @@ fn job(label: &str, state: WorkState) -> Workload {
         job_owned: false,
         ready: false,
         index: None,
+        message: None,
     }
 }
 
 fn pod(name: &str, label: &str, state: WorkState, job_owned: bool) -> Workload {
-    Workload { kind: Kind::Pod, name: name.into(), role: Some(role(label)), state, job_owned, ready: true, index: None }
+    Workload {
+        kind: Kind::Pod,
+        name: name.into(),
+        role: Some(role(label)),
+        state,
+        job_owned,
+        ready: true,
+        index: None,
+        message: None,
+    }
 }
 
 /// The workers of a started run: shard Job with one pod, coordinator, one router.
@@ -196,6 +206,31 @@ fn assets_built_start_the_workers_without_the_pilot() {
     assert!(applied.contains(&"Job shard".to_string()), "{applied:?}");
     assert!(!applied.iter().any(|r| r.ends_with("pilot") || r.ends_with("assets")), "{applied:?}");
     assert_eq!(cond(&d, ct::RUNNING).reason, "Starting");
+}
+
+/// The assets role says in its termination message whether the bundle was in the cache:
+/// the condition's reason is `CacheHit` or `Built`, with the role's words as its message.
+#[test]
+fn the_assets_ready_condition_says_cache_hit_or_built() {
+    let run = with_phase(pilot_run(), Phase::GeneratingAssets, true);
+    let url = "s3://sadesim-runs/team-a/assets/k/world/";
+    let outcome_of = |message: &str| {
+        let mut assets = pod("test-run-assets-x7k2p", "assets", WorkState::Succeeded, true);
+        assets.message = Some(message.into());
+        let observed =
+            Observed { jobs: vec![job("assets", WorkState::Succeeded)], pods: vec![assets], ..Default::default() };
+        let d = decide_with(&run, &observed, None, t0());
+        assert_eq!(d.status.phase, Some(Phase::Starting));
+        let c = cond(&d, ct::ASSETS_READY);
+        (c.status.clone(), c.reason.clone(), c.message.clone())
+    };
+    let hit = outcome_of(&format!(r#"{{"outcome":"cacheHit","url":"{url}"}}"#));
+    assert_eq!(hit, ("True".into(), "CacheHit".into(), format!("asset cache hit: {url}")));
+    let built = outcome_of(&format!(r#"{{"outcome":"built","url":"{url}","buildings":225}}"#));
+    assert_eq!(built, ("True".into(), "Built".into(), format!("assets built: 225 buildings -> {url}")));
+    // An older worker image that wrote no outcome: built, in general words.
+    let unknown = outcome_of("some log line");
+    assert_eq!((unknown.1.as_str(), unknown.2.as_str()), ("Built", "the assets Job finished"));
 }
 
 #[test]

@@ -1,0 +1,59 @@
+//! `sim-worker assets`: the run's world built once into the asset cache (the `<run>-assets`
+//! Job on Kubernetes), or found there: a verified entry of the plan's asset cache key is a
+//! hit and nothing is built.
+//!
+//! The outcome is one JSON line ([`AssetsOutcome`]) on stdout and, with `--report-file`, in
+//! that file: the Job sets it to the container's termination message
+//! (`/dev/termination-log`), which the operator reads into the `AssetsReady` condition
+//! (`CacheHit` or `Built`) without reading the logs.
+
+use std::path::Path;
+
+use sadesim_crds::outcome::assets::AssetsOutcome;
+use sadesim_crds::plan::RunPlan;
+
+use super::RoleError;
+
+/// Builds (or finds) the bundle of `plan` in the cache at `archive_url`, prints the
+/// outcome and writes it to `report_file`.
+///
+/// # Errors
+/// The cache cannot be opened or written, the world's files cannot be read, or the report
+/// file cannot be written.
+pub fn run(plan: &RunPlan, archive_url: &str, report_file: Option<&Path>) -> Result<AssetsOutcome, RoleError> {
+    let scratch = std::env::temp_dir().join(format!("sadesim-assets-{}", std::process::id()));
+    let outcome = sadesim_evidence::assets::build_assets(plan, archive_url, &scratch);
+    let _ = std::fs::remove_dir_all(&scratch);
+    let outcome = outcome?;
+    let line = serde_json::to_string(&outcome).expect("an outcome always serializes");
+    println!("{line}");
+    // On stderr (the role's log) in words.
+    eprintln!("{outcome}");
+    if let Some(path) = report_file {
+        std::fs::write(path, &line).map_err(|source| RoleError::Record { path: path.display().to_string(), source })?;
+    }
+    Ok(outcome)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
+    use crate::record::test_dir::TempDir;
+
+    #[test]
+    fn builds_once_then_reports_a_cache_hit_in_the_report_file() {
+        let dir = TempDir::new("assets-role");
+        let plan = plan_of(run_with_groups(&[("a", 1)]).build());
+        let archive = format!("file://{}", dir.0.join("archive").display());
+        let report = dir.0.join("termination-log");
+        let first = run(&plan, &archive, Some(&report)).expect("builds");
+        assert!(matches!(first, AssetsOutcome::Built { replaced: None, .. }), "{first:?}");
+        let written: AssetsOutcome = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        assert_eq!(written, first);
+        let second = run(&plan, &archive, Some(&report)).expect("hits");
+        assert_eq!(second, AssetsOutcome::CacheHit { url: first.url().to_string() });
+        let written: AssetsOutcome = serde_json::from_slice(&std::fs::read(&report).unwrap()).unwrap();
+        assert_eq!(written.reason(), "CacheHit");
+    }
+}
