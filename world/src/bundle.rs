@@ -17,7 +17,7 @@ use super::map::World;
 /// First bytes of every encoded world.
 pub const MAGIC: &[u8; 8] = b"SADEWRLD";
 /// Bumped whenever [`World`]'s fields (or any type inside it) change.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 
 /// Why bytes are not a world this build can load.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -115,6 +115,7 @@ mod tests {
                 id: ElementId::Way(k as i64 + 1),
                 building: Building::new(f, 0.0, h).expect("a building"),
                 height_source: HeightSource::Tagged,
+                part: false,
             })
             .collect();
         let city = OsmCity { source_sha256: "00".into(), buildings, open_areas: vec![], stats: Default::default() };
