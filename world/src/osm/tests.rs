@@ -165,6 +165,11 @@ fn blob(kind: &str, payload: &[u8], zlib: bool) -> Vec<u8> {
 /// A file: header (bbox `[min_lon, min_lat, max_lon, max_lat]`, or the extent's square
 /// plus a margin) and one zlib data block.
 fn file_with(data: &Data, bbox: Option<[f64; 4]>) -> Vec<u8> {
+    encode(data, bbox, true)
+}
+
+/// [`file_with`], the data block zlib-compressed or raw.
+fn encode(data: &Data, bbox: Option<[f64; 4]>, zlib: bool) -> Vec<u8> {
     let [w, s, e, n] = bbox.unwrap_or_else(|| {
         let (s, w) = at(-2000.0, -2000.0);
         let (n, e) = at(2000.0, 2000.0);
@@ -179,12 +184,18 @@ fn file_with(data: &Data, bbox: Option<[f64; 4]>) -> Vec<u8> {
     field_bytes(&mut header, 4, b"OsmSchema-V0.6");
     field_bytes(&mut header, 4, b"DenseNodes");
     let mut out = blob("OSMHeader", &header, false);
-    out.extend(blob("OSMData", &primitive_block(data), true));
+    out.extend(blob("OSMData", &primitive_block(data), zlib));
     out
 }
 
 fn file(data: &Data) -> Vec<u8> {
     file_with(data, None)
+}
+
+/// [`file`] with the data block stored raw instead of zlib-compressed (so a fuzzer's
+/// mutations reach the block's fields instead of zlib's checksum).
+fn file_raw(data: &Data) -> Vec<u8> {
+    encode(data, None, false)
 }
 
 const EXTENT_M: f64 = 1000.0;
@@ -541,6 +552,40 @@ fn a_city_left_empty_by_incomplete_elements_names_the_first_and_what_is_missing(
     assert!(error(&file(&d)).ends_with(
         "; 1 area of the file skipped as incomplete, the first relation 3: member way 999 is not in the file"
     ));
+}
+
+#[test]
+fn the_fuzz_seeds_are_valid_extracts() {
+    // The seed corpus of fuzz/fuzz_targets/pbf.rs (same origin and extent): buildings with
+    // each height rule, a courtyard multipolygon, parts, a park; zlib and raw data blocks.
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 20.0, 10.0], &[("building", "yes"), ("height", "24.5")]);
+    d.rect_way(2, 200, [30.0, 0.0, 50.0, 20.0], &[("building", "yes"), ("building:levels", "4"), ("roof:height", "2")]);
+    d.rect_way(3, 300, [60.0, 0.0, 100.0, 20.0], &[("building", "church")]);
+    d.rect_way(4, 400, [60.0, 0.0, 80.0, 20.0], &[("building:part", "yes"), ("height", "30"), ("min_height", "5")]);
+    d.rect_way(5, 500, [100.0, 100.0, 200.0, 180.0], &[("leisure", "park"), ("name", "Esplanadi")]);
+    let corners = [(0.0, 50.0), (40.0, 50.0), (40.0, 90.0), (0.0, 90.0)];
+    for (k, (e, n)) in corners.into_iter().enumerate() {
+        d.nodes.push((600 + k as i64, at(e, n)));
+    }
+    d.ways.push((6, &[], vec![600, 601, 602]));
+    d.ways.push((7, &[], vec![600, 603, 602]));
+    d.rect_way(8, 700, [15.0, 65.0, 25.0, 75.0], &[]);
+    d.relations.push((
+        9,
+        &[("type", "multipolygon"), ("building", "yes"), ("building:min_level", "1"), ("height", "12 m")],
+        vec![(1, 6, "outer"), (1, 7, "outer"), (1, 8, "inner")],
+    ));
+    let mut one = Data::default();
+    one.rect_way(1, 100, [0.0, 0.0, 10.0, 10.0], &[("building", "yes")]);
+    let seeds = [("city-raw.osm.pbf", file_raw(&d)), ("city.osm.pbf", file(&d)), ("one-raw.osm.pbf", file_raw(&one))];
+    for (name, bytes) in &seeds {
+        let city = read(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(!city.buildings.is_empty() && (city.stats.parts == 0 || city.stats.outlines_replaced_by_parts == 1));
+    }
+    let (raw, zlib) = (read(&seeds[0].1).unwrap(), read(&seeds[1].1).unwrap());
+    assert_eq!((raw.buildings, raw.stats), (zlib.buildings, zlib.stats), "raw or zlib: the same city");
+    crate::fuzz::write_seeds("pbf", &seeds);
 }
 
 #[test]
