@@ -280,6 +280,19 @@ fn broken_or_unsupported_dems_are_refused_with_what_to_do() {
 }
 
 #[test]
+fn sizes_given_as_huge_floats_are_refused_not_overflowed() {
+    // Found by fuzz/fuzz_targets/dem.rs: ImageWidth as a FLOAT of 1e30 saturated to
+    // usize::MAX, and width x height overflowed. Tags are sorted: entry 0 is ImageWidth.
+    let mut bytes = plane_tiff().write();
+    let at = u32::from_le_bytes(bytes[4..8].try_into().unwrap()) as usize + 2;
+    assert_eq!(u16::from_le_bytes(bytes[at..at + 2].try_into().unwrap()), 256);
+    bytes[at + 2..at + 4].copy_from_slice(&11u16.to_le_bytes());
+    bytes[at + 8..at + 12].copy_from_slice(&1e30f32.to_bits().to_le_bytes());
+    let e = Dem::read(&bytes, "x.tif").unwrap_err().to_string();
+    assert!(e.contains("18446744073709551615 x 50 pixels (expected 1 to 25000000 pixels)"), "{e}");
+}
+
+#[test]
 fn the_fuzz_seeds_are_valid_dems() {
     // The seed corpus of fuzz/fuzz_targets/dem.rs: small grids (a fuzzer mutates every byte
     // of a small file more often) in each layout the reader reads. The target takes the
