@@ -84,7 +84,8 @@ impl GridIndex {
     /// overflow).
     pub fn is_consistent(&self, items: usize) -> bool {
         let cells = self.nx.checked_mul(self.ny).and_then(|c| c.checked_add(1));
-        let within = |origin: i64, n: usize| origin.abs() <= MAX_COORD && (n as u64) <= MAX_COORD as u64;
+        let within =
+            |origin: i64, n: usize| (-MAX_COORD..=MAX_COORD).contains(&origin) && (n as u64) <= MAX_COORD as u64;
         cells == Some(self.starts.len())
             && (self.nx == 0) == (self.ny == 0)
             && within(self.i0, self.nx)
@@ -278,9 +279,10 @@ mod tests {
         // What a fuzzed world.bin decoded to: grid origins near the ends of i64 (queries
         // subtracted them and overflowed), an axis of 0 cells beside one of usize::MAX.
         let far = GridIndex { i0: i64::MIN + 3, ..good.clone() };
+        let farthest = GridIndex { j0: i64::MIN, ..good.clone() };
         let flat = GridIndex { nx: usize::MAX, ny: 0, starts: vec![0], items: vec![], ..good.clone() };
         let tiny = GridIndex { cell_m: f64::INFINITY, ..good.clone() };
-        for (what, index) in [("far", far), ("flat", flat), ("infinite cells", tiny)] {
+        for (what, index) in [("far", far), ("farthest", farthest), ("flat", flat), ("infinite cells", tiny)] {
             assert!(!index.is_consistent(1), "{what}");
         }
     }
