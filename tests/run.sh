@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite: the README's test command, and what CI runs (.ci/run).
 # Installs missing tools first (tests/install-tools.sh), then: formatting, lints, Rust
-# tests (cargo nextest), Python interop tests (pytest), Helm chart lint and template.
+# tests (cargo nextest), Python interop tests (pytest), bounded fuzzing of the file readers
+# (tests/fuzz.sh), Helm chart lint and template.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -23,6 +24,9 @@ echo "==> helm lint / template"
 
 echo "==> Python interop tests"
 .venv/bin/python -m pytest -q tests/interop
+
+echo "==> fuzzing the file readers (cargo-fuzz, ${SADESIM_FUZZ_SECONDS:-60} s per target)"
+bash tests/fuzz.sh
 
 echo "==> Rust tests"
 cargo nextest run --workspace --locked --no-fail-fast

@@ -255,6 +255,7 @@ fn mapped(sha256: &str) -> (SimulationRun, sadesim_world::WorldData) {
         id: ElementId::Way(1),
         building: Building::new(square, 0.0, 20.0).unwrap(),
         height_source: HeightSource::Tagged,
+        part: false,
     };
     let city = OsmCity {
         source_sha256: sha256.into(),

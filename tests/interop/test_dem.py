@@ -89,33 +89,6 @@ def test_a_utm_geotiff_is_projected_as_proj_does(sadesim, tmp_path):
         assert point["elevationM"] == pytest.approx(plane(e, n), abs=1e-3), line
 
 
-def test_broken_dems_are_one_line_errors(sadesim, tmp_path):
-    asc = tmp_path / "dem.asc"
-    ascii_grid(asc, surface)
-    plain = tmp_path / "plain.tif"
-    gdal("gdal_translate", "-q", str(asc), str(plain))  # no CRS
-    mercator = tmp_path / "mercator.tif"
-    gdal("gdalwarp", "-q", "-s_srs", "EPSG:4326", "-t_srs", "EPSG:3857", str(asc), str(mercator))
-    lzw = tmp_path / "lzw.tif"
-    gdal("gdal_translate", "-q", "-a_srs", "EPSG:4326", "-co", "COMPRESS=LZW", str(asc), str(lzw))
-    good = tmp_path / "good.tif"
-    gdal("gdal_translate", "-q", "-a_srs", "EPSG:4326", str(asc), str(good))
-    cut = tmp_path / "cut.tif"
-    cut.write_bytes(good.read_bytes()[:4000])
-    for dem, extent, expected in [
-        (plain, 1000, "no georeferencing"),
-        (mercator, 1000, "EPSG:3857"),
-        (lzw, 1000, "LZW compression"),
-        (cut, 1000, "truncated"),
-        (good, 3000, "does not cover world.extentM 3000 m"),
-    ]:
-        run = subprocess.run([sadesim, "dem", str(dem), "--origin", f"{ORIGIN[0]},{ORIGIN[1]}", "--extent-m", str(extent)],
-                             capture_output=True, text=True)
-        assert run.returncode == 2, run
-        lines = run.stderr.strip().splitlines()
-        assert len(lines) == 1 and expected in lines[0], run.stderr
-
-
 def test_a_run_over_a_dem_slope_takes_off_and_flies_above_the_ground_there(sadesim, tmp_path):
     """world.terrain.dem: homes stand on the DEM's ground, AGL altitudes are above it, and the
     altitude limits are judged over it (a 5 % slope rising east)."""

@@ -98,13 +98,18 @@ mod tests {
 
     /// A mapped world on a DEM: one courtyard building and one plain one.
     fn mapped() -> World {
+        mapped_in(300.0, true)
+    }
+
+    /// [`mapped`] in a square of half-width `extent_m`, on the DEM or on flat ground.
+    fn mapped_in(extent_m: f64, on_dem: bool) -> World {
         let mut run = RunBuilder::test().build();
         run.spec.origin.latitude_deg = CHICAGO.latitude_deg;
         run.spec.origin.longitude_deg = CHICAGO.longitude_deg;
         let world = run.spec.world.get_or_insert_with(Default::default);
         world.source = WorldSource::Osm;
-        world.extent_m = 300.0;
-        world.terrain = Some(TerrainSpec { dem: sadesim_crds::run::DemFile { file: "N41W088.hgt".into() } });
+        world.extent_m = extent_m;
+        world.terrain = on_dem.then(|| TerrainSpec { dem: sadesim_crds::run::DemFile { file: "N41W088.hgt".into() } });
         let square = |c: f64, h: f64| vec![[c - h, c - h], [c + h, c - h], [c + h, c + h], [c - h, c + h]];
         let courtyard = Footprint::new(square(0.0, 40.0), vec![square(0.0, 10.0)]).expect("a footprint");
         let plain = Footprint::new(vec![[100.0, 100.0], [130.0, 100.0], [115.0, 140.0]], vec![]).expect("a triangle");
@@ -115,10 +120,11 @@ mod tests {
                 id: ElementId::Way(k as i64 + 1),
                 building: Building::new(f, 0.0, h).expect("a building"),
                 height_source: HeightSource::Tagged,
+                part: false,
             })
             .collect();
         let city = OsmCity { source_sha256: "00".into(), buildings, open_areas: vec![], stats: Default::default() };
-        let data = WorldData { osm: Some(city), dem: Some(slope_dem()) };
+        let data = WorldData { osm: Some(city), dem: on_dem.then(slope_dem) };
         World::build(&WorldInputs::from_spec(&run.spec, &[]), &data).expect("the mapped world builds")
     }
 
@@ -155,6 +161,29 @@ mod tests {
         let mut longer = bytes.clone();
         longer.extend_from_slice(b"xx");
         assert_eq!(err(&longer), "world data: 2 bytes after the end of the world");
+    }
+
+    #[test]
+    fn the_fuzz_seeds_are_small_worlds_that_load() {
+        // The seed corpus of fuzz/fuzz_targets/bundle.rs: a procedural city, a mapped one on
+        // flat ground and one on a DEM, each in a small square (a small file).
+        let mut run = RunBuilder::test().build();
+        let world = run.spec.world.get_or_insert_with(Default::default);
+        world.extent_m = 150.0;
+        world.open_areas.clear();
+        let procedural = World::generate(&WorldInputs::from_spec(&run.spec, &[]));
+        let seeds = [
+            ("procedural.bin", procedural.to_bytes()),
+            ("mapped-flat.bin", mapped_in(140.0, false).to_bytes()),
+            // The DEM's ground grid is resampled every 2 m: 31 x 31 samples here.
+            ("mapped-dem.bin", mapped_in(30.0, true).to_bytes()),
+        ];
+        for (name, bytes) in &seeds {
+            let world = World::from_bytes(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert!(!world.buildings().is_empty(), "{name}");
+            assert!(bytes.len() < 20_000, "{name}: {} bytes", bytes.len());
+        }
+        crate::fuzz::write_seeds("bundle", &seeds);
     }
 
     #[test]

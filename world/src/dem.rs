@@ -38,7 +38,8 @@ impl std::fmt::Display for Crs {
     }
 }
 
-/// Why a DEM cannot be the world's terrain. The caller adds the file's name.
+/// Why a DEM cannot be the world's terrain. The caller adds the file's name (the messages
+/// do not repeat it).
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum DemError {
     #[error("not a readable DEM: {0}")]
@@ -110,9 +111,9 @@ impl Dem {
         } else if base.to_ascii_lowercase().ends_with(".hgt") {
             Self::read_hgt(bytes, base)?
         } else {
-            return Err(DemError::Malformed(format!(
-                "{base}: neither a GeoTIFF (no TIFF header) nor an SRTM tile named like N60E024.hgt"
-            )));
+            return Err(DemError::Malformed(
+                "neither a GeoTIFF (no TIFF header) nor an SRTM tile named like N60E024.hgt".into(),
+            ));
         };
         dem.source_sha256 = crate::sha256_hex(bytes);
         Ok(dem)
@@ -147,16 +148,16 @@ impl Dem {
             Some((lat, lon))
         };
         let (lat, lon) = parse().ok_or_else(|| {
-            DemError::NotGeoreferenced(format!(
-                "{name}: an SRTM tile is named by its south-west corner, e.g. N60E024.hgt"
-            ))
+            DemError::NotGeoreferenced(
+                "an SRTM tile is named by its south-west corner, e.g. N60E024.hgt, and this name gives none".into(),
+            )
         })?;
         let side = match bytes.len() {
             n if n == 1201 * 1201 * 2 => 1201,
             n if n == 3601 * 3601 * 2 => 3601,
             n => {
                 return Err(DemError::Malformed(format!(
-                    "{name}: {n} bytes; an SRTM tile has {} (3 arc-seconds) or {} (1 arc-second)",
+                    "{n} bytes; an SRTM tile has {} (3 arc-seconds) or {} (1 arc-second)",
                     1201 * 1201 * 2,
                     3601 * 3601 * 2
                 )));

@@ -15,6 +15,11 @@ use super::building::clip_segment;
 /// A horizontal bounding rectangle, ENU metres: `[min_east, min_north, max_east, max_north]`.
 pub type Rect = [f64; 4];
 
+/// Largest grid coordinate (cell index from the origin, either sign) of a consistent index:
+/// 2^40 cells of a metre are 10^12 m, far beyond any world, and coordinate sums stay far
+/// from `i64` overflow.
+const MAX_COORD: i64 = 1 << 40;
+
 /// Uniform-grid index of items given by their bounding rectangles (item `k` is `rects[k]`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct GridIndex {
@@ -73,21 +78,29 @@ impl GridIndex {
         grid
     }
 
-    /// Whether the offsets and entries fit together and name items below `items` (for a
-    /// decoded index: queries on it then stay in bounds).
+    /// Whether the offsets and entries fit together and name items below `items`, and the
+    /// block of cells is empty or lies within [`MAX_COORD`] of the origin (for a decoded
+    /// index: queries on it then stay in bounds and their integer arithmetic cannot
+    /// overflow).
     pub fn is_consistent(&self, items: usize) -> bool {
         let cells = self.nx.checked_mul(self.ny).and_then(|c| c.checked_add(1));
+        let within =
+            |origin: i64, n: usize| (-MAX_COORD..=MAX_COORD).contains(&origin) && (n as u64) <= MAX_COORD as u64;
         cells == Some(self.starts.len())
+            && (self.nx == 0) == (self.ny == 0)
+            && within(self.i0, self.nx)
+            && within(self.j0, self.ny)
             && self.starts.first() == Some(&0)
             && self.starts.windows(2).all(|w| w[0] <= w[1])
             && self.starts.last().is_some_and(|&n| n as usize == self.items.len())
             && self.items.iter().all(|&k| (k as usize) < items)
             && self.cell_m > 0.0
+            && self.cell_m.is_finite()
     }
 
     /// Items whose rectangle may contain the point (all that do, plus others).
     pub fn at(&self, east_m: f64, north_m: f64) -> &[u32] {
-        match self.cell_index(self.coord(east_m) - self.i0, self.coord(north_m) - self.j0) {
+        match self.cell_index(self.coord(east_m).saturating_sub(self.i0), self.coord(north_m).saturating_sub(self.j0)) {
             Some(c) => self.cell(c),
             None => &[],
         }
@@ -96,8 +109,9 @@ impl GridIndex {
     /// Items whose rectangle may touch `rect`. An item spanning several cells is yielded
     /// once per cell.
     pub fn in_rect(&self, rect: &Rect) -> impl Iterator<Item = u32> + '_ {
-        let (i_lo, i_hi) = self.clamp_range(self.coord(rect[0]) - self.i0, self.coord(rect[2]) - self.i0, self.nx);
-        let (j_lo, j_hi) = self.clamp_range(self.coord(rect[1]) - self.j0, self.coord(rect[3]) - self.j0, self.ny);
+        let rel = |v_m: f64, origin: i64| self.coord(v_m).saturating_sub(origin);
+        let (i_lo, i_hi) = self.clamp_range(rel(rect[0], self.i0), rel(rect[2], self.i0), self.nx);
+        let (j_lo, j_hi) = self.clamp_range(rel(rect[1], self.j0), rel(rect[3], self.j0), self.ny);
         (j_lo..j_hi).flat_map(move |j| (i_lo..i_hi).flat_map(move |i| self.cell(j * self.nx + i).iter().copied()))
     }
 
@@ -131,8 +145,8 @@ impl GridIndex {
         let (t_lo, t_hi) = clip_segment(a, &d, &lo, &hi)?;
 
         let start = a + d * t_lo;
-        let mut i = (self.coord(start.x) - self.i0).clamp(0, self.nx as i64 - 1);
-        let mut j = (self.coord(start.y) - self.j0).clamp(0, self.ny as i64 - 1);
+        let mut i = self.coord(start.x).saturating_sub(self.i0).clamp(0, self.nx as i64 - 1);
+        let mut j = self.coord(start.y).saturating_sub(self.j0).clamp(0, self.ny as i64 - 1);
         let (step_i, step_j) = (step(d.x), step(d.y));
         // Parameter at which the segment leaves the current column / row. Recomputed from
         // the boundary each time (not accumulated) so rounding does not drift.
@@ -171,7 +185,8 @@ impl GridIndex {
     }
 
     /// Grid coordinate of a position along one axis (the same rounding for items and queries,
-    /// so a point on an item's edge finds the item).
+    /// so a point on an item's edge finds the item). Saturates at the `i64` range for huge or
+    /// infinite positions (NaN gives 0): callers subtract with saturation.
     fn coord(&self, v_m: f64) -> i64 {
         (v_m / self.cell_m).floor() as i64
     }
@@ -187,7 +202,7 @@ impl GridIndex {
 
     /// Half-open range of stored cells covering grid coordinates `lo..=hi`.
     fn clamp_range(&self, lo: i64, hi: i64, n: usize) -> (usize, usize) {
-        (lo.clamp(0, n as i64) as usize, (hi + 1).clamp(0, n as i64) as usize)
+        (lo.clamp(0, n as i64) as usize, hi.saturating_add(1).clamp(0, n as i64) as usize)
     }
 
     fn for_cells_in(&self, r: &Rect, mut f: impl FnMut(usize)) {
@@ -244,5 +259,31 @@ mod tests {
         assert_eq!(hit(east, west, 0.0, 10.0), Some((0, 0.24)));
         assert_eq!(hit(west, east, 20.0, 30.0), None, "above the height band");
         assert_eq!(hit(west, Vector3::new(20.0, 0.0, 5.0), 0.0, 10.0), None, "stops short");
+    }
+
+    #[test]
+    fn queries_far_outside_or_not_finite_find_nothing_and_never_overflow() {
+        let grid = GridIndex::new(10.0, &[[-25.0, -25.0, 15.0, 8.0]]);
+        for v in [f64::INFINITY, f64::NEG_INFINITY, f64::NAN, 1e300, -1e300, f64::MAX] {
+            assert!(grid.at(v, 3.0).is_empty() || v.is_nan(), "{v}");
+            assert!(grid.at(3.0, v).is_empty() || v.is_nan(), "{v}");
+            let _ = grid.in_rect(&[v, v, f64::INFINITY, f64::INFINITY]).count();
+            let _ = grid.in_rect(&[f64::NEG_INFINITY, -1.0, v, 1.0]).count();
+        }
+    }
+
+    #[test]
+    fn a_decoded_index_far_from_the_origin_or_with_an_empty_axis_is_inconsistent() {
+        let good = GridIndex::new(10.0, &[[2.0, 2.0, 15.0, 8.0]]);
+        assert!(good.is_consistent(1) && GridIndex::new(10.0, &[]).is_consistent(0));
+        // What a fuzzed world.bin decoded to: grid origins near the ends of i64 (queries
+        // subtracted them and overflowed), an axis of 0 cells beside one of usize::MAX.
+        let far = GridIndex { i0: i64::MIN + 3, ..good.clone() };
+        let farthest = GridIndex { j0: i64::MIN, ..good.clone() };
+        let flat = GridIndex { nx: usize::MAX, ny: 0, starts: vec![0], items: vec![], ..good.clone() };
+        let tiny = GridIndex { cell_m: f64::INFINITY, ..good.clone() };
+        for (what, index) in [("far", far), ("farthest", farthest), ("flat", flat), ("infinite cells", tiny)] {
+            assert!(!index.is_consistent(1), "{what}");
+        }
     }
 }

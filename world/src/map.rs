@@ -97,8 +97,10 @@ fn dem_terrain(inputs: &WorldInputs, dem: &Dem) -> Result<Terrain, DemError> {
 /// # Guarantees
 /// - Deterministic: the same [`WorldInputs`] give a bit-for-bit identical world with the same
 ///   build of the simulator (the seed is a hash of the inputs, see [`WorldInputs::seed`]).
-/// - Buildings are disjoint, lie inside `[-extent, extent]^2`, off the street corridors and
-///   off every open area; each stands on the ground at its footprint's centre.
+/// - Procedural buildings are disjoint, lie inside `[-extent, extent]^2`, off the street
+///   corridors and off every open area; each stands on the ground at its footprint's centre.
+///   Mapped buildings lie inside the square and may overlap where the map stacks them
+///   (`building:part` prisms over one another): the queries consider every prism.
 ///
 /// # Caveats
 /// `sin`, `exp` and `ln` come from the platform's math library, whose last-bit rounding may
@@ -289,22 +291,28 @@ impl World {
         self.terrain.up_m(east_m, north_m)
     }
 
-    /// The building whose footprint contains the horizontal position (edges included).
+    /// The building whose footprint contains the horizontal position (edges included); the
+    /// first in [`World::buildings`] where several do (stacked `building:part` prisms).
     pub fn building_at(&self, east_m: f64, north_m: f64) -> Option<&Building> {
+        self.buildings_at(east_m, north_m).next()
+    }
+
+    /// Every building whose footprint contains the horizontal position, in index order.
+    fn buildings_at(&self, east_m: f64, north_m: f64) -> impl Iterator<Item = &Building> {
         self.index
             .at(east_m, north_m)
             .iter()
             .map(|&k| &self.buildings[k as usize])
-            .find(|b| b.footprint_contains(east_m, north_m))
+            .filter(move |b| b.footprint_contains(east_m, north_m))
     }
 
-    /// What a falling object would land on (ENU up, metres): the roof of the building at
-    /// the position, else the ground.
+    /// What a falling object would land on (ENU up, metres): the highest roof over the
+    /// position, else the ground.
     pub fn surface_up_m(&self, east_m: f64, north_m: f64) -> f64 {
-        match self.building_at(east_m, north_m) {
-            Some(b) => b.roof_up_m(),
-            None => self.ground_up_m(east_m, north_m),
-        }
+        self.buildings_at(east_m, north_m)
+            .map(Building::roof_up_m)
+            .reduce(f64::max)
+            .unwrap_or_else(|| self.ground_up_m(east_m, north_m))
     }
 
     /// Height above the ground directly below, metres (`pos.z - ground`); roofs do not
@@ -315,7 +323,7 @@ impl World {
 
     /// Whether the ENU point is inside a building's prism (faces included).
     pub fn is_inside_building(&self, pos: Vector3<f64>) -> bool {
-        self.building_at(pos.x, pos.y).is_some_and(|b| b.contains(&pos))
+        self.buildings_at(pos.x, pos.y).any(|b| b.contains(&pos))
     }
 
     /// The first building the segment `a -> b` meets, with the ENU point where it enters:

@@ -7,13 +7,22 @@
 //! - **Buildings**: closed ways and `type=multipolygon` relations tagged `building=*` (not
 //!   `building=no`). A multipolygon's `outer` (or role-less) member ways are joined end to
 //!   end into rings, its `inner` ways into holes of the outer ring that contains them. One
-//!   prism per outer ring. `building:part` outlines are not read yet: a building is its
-//!   outline.
+//!   prism per outer ring.
+//! - **Building parts** (Simple 3D Buildings): closed ways and multipolygons tagged
+//!   `building:part=*` (not `no`; also when tagged `building` too) are prisms with their own
+//!   heights (the rules below), like buildings. A building outline that holds a part is no
+//!   prism of its own: its parts replace it, as 3D renderers draw it. A part belongs to the
+//!   outline that holds its interior point (GEOS' `PointOnSurface`, see `parts`), decided on
+//!   the whole extract before clipping; `type=building` relations are not read. An outline
+//!   without parts stays a prism, and a part inside no outline is a building of its own.
+//!   Parts are not given their outline's tags: a part without height tags gets the
+//!   defaults.
 //! - **Heights** (metres above the ground): roof from `height`, else `building:height`, else
 //!   (`building:levels` + `roof:levels`) x [`STOREY_HEIGHT_M`] + `roof:height`, else
 //!   [`DEFAULT_HEIGHT_M`]; base from `min_height`, else `building:min_height`, else
 //!   `building:min_level` x [`STOREY_HEIGHT_M`], else 0. Lengths may carry `m`, `ft` or
-//!   feet-and-inches (`40'6"`). [`OsmStats`] counts how many roofs came from each rule.
+//!   feet-and-inches (`40'6"`). [`OsmStats`] counts how many roofs came from each rule
+//!   (parts included: every prism has one roof).
 //! - **Open areas**: closed ways and multipolygons with `leisure` = park, garden, common,
 //!   playground, dog_park, recreation_ground or `landuse` = grass, meadow,
 //!   recreation_ground, village_green, park.
@@ -27,6 +36,7 @@
 //! [`LocalFrame::to_plane`] (ellipsoidal ENU at the origin's altitude).
 
 mod assemble;
+mod parts;
 mod pbf;
 
 #[cfg(test)]
@@ -76,12 +86,16 @@ pub enum HeightSource {
     Default,
 }
 
-/// One building of the extract: a prism standing on flat ground at z = 0.
+/// One building of the extract: a prism standing on flat ground at z = 0 (its base at
+/// `min_height` above it).
 #[derive(Clone, Debug, PartialEq)]
 pub struct OsmBuilding {
     pub id: ElementId,
     pub building: Building,
     pub height_source: HeightSource,
+    /// Tagged `building:part`: one part of a building (Simple 3D Buildings), whose outline,
+    /// if any, is not a prism.
+    pub part: bool,
 }
 
 /// One open area (park, grass, ...).
@@ -99,9 +113,13 @@ pub struct OsmOpenArea {
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "camelCase")]
 pub struct OsmStats {
-    /// Building prisms (one per outer ring inside the extent).
+    /// Building prisms (one per outer ring inside the extent), parts included.
     pub buildings: usize,
-    /// Roofs from `height` / `building:height`.
+    /// Of `buildings`, prisms of `building:part` areas.
+    pub parts: usize,
+    /// Building outlines inside the extent not built because parts replace them.
+    pub outlines_replaced_by_parts: usize,
+    /// Roofs from `height` / `building:height` (these three add up to `buildings`).
     pub heights_tagged: usize,
     /// Roofs from `building:levels`.
     pub heights_from_levels: usize,
@@ -152,11 +170,13 @@ pub enum OsmError {
     /// A tag value the import cannot use.
     #[error("{element}: tag {key}={value:?}: expected {expected}")]
     Tag { element: ElementId, key: String, value: String, expected: String },
-    /// Nothing to fly among.
+    /// Nothing to fly among. `skipped` is empty, or says how many areas were incomplete and
+    /// why the first was (`; 1 area of the file skipped as incomplete, the first relation 3:
+    /// member way 999 is not in the file`).
     #[error(
-        "no building within world.extentM {extent_m} m of the origin: check spec.origin (is it inside the extract?) and the extent"
+        "no building within world.extentM {extent_m} m of the origin: check spec.origin (is it inside the extract?) and the extent{skipped}"
     )]
-    NoBuildings { extent_m: f64 },
+    NoBuildings { extent_m: f64, skipped: String },
 }
 
 /// Reads the buildings and open areas of the `.osm.pbf` file `bytes` within `extent_m`

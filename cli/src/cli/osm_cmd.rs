@@ -79,6 +79,13 @@ pub(super) fn osm_file(
             roofs[roofs.len() - 1],
             roofs[roofs.len() / 2]
         )?;
+        if s.parts > 0 || s.outlines_replaced_by_parts > 0 {
+            writeln!(
+                out,
+                "  building:part: {} of the buildings are parts, replacing {} building outlines",
+                s.parts, s.outlines_replaced_by_parts
+            )?;
+        }
         writeln!(out, "  footprint area: {area_m2:.0} m²")?;
         writeln!(
             out,
@@ -93,7 +100,8 @@ pub(super) fn osm_file(
 }
 
 /// The city as an RFC 7946 FeatureCollection (geometries as in the asset cache's
-/// `buildings.geojson`).
+/// `buildings.geojson`): `feature` is `building` for an outline, `buildingPart` for a
+/// `building:part` prism, `openArea` for a park.
 fn feature_collection(city: &OsmCity, frame: &LocalFrame) -> Value {
     let mut features = Vec::new();
     for b in &city.buildings {
@@ -102,7 +110,7 @@ fn feature_collection(city: &OsmCity, frame: &LocalFrame) -> Value {
             "type": "Feature",
             "geometry": footprint_polygon(b.building.footprint(), frame, 0.0),
             "properties": {
-                "feature": "building",
+                "feature": if b.part { "buildingPart" } else { "building" },
                 "osmType": kind,
                 "osmId": id,
                 "heightM": b.building.roof_up_m(),

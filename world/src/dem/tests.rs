@@ -280,6 +280,56 @@ fn broken_or_unsupported_dems_are_refused_with_what_to_do() {
 }
 
 #[test]
+fn sizes_given_as_huge_floats_are_refused_not_overflowed() {
+    // Found by fuzz/fuzz_targets/dem.rs: ImageWidth as a FLOAT of 1e30 saturated to
+    // usize::MAX, and width x height overflowed. Tags are sorted: entry 0 is ImageWidth.
+    let mut bytes = plane_tiff().write();
+    let at = u32::from_le_bytes(bytes[4..8].try_into().unwrap()) as usize + 2;
+    assert_eq!(u16::from_le_bytes(bytes[at..at + 2].try_into().unwrap()), 256);
+    bytes[at + 2..at + 4].copy_from_slice(&11u16.to_le_bytes());
+    bytes[at + 8..at + 12].copy_from_slice(&1e30f32.to_bits().to_le_bytes());
+    let e = Dem::read(&bytes, "x.tif").unwrap_err().to_string();
+    assert!(e.contains("18446744073709551615 x 50 pixels (expected 1 to 25000000 pixels)"), "{e}");
+}
+
+#[test]
+fn the_fuzz_seeds_are_valid_dems() {
+    // The seed corpus of fuzz/fuzz_targets/dem.rs: small grids (a fuzzer mutates every byte
+    // of a small file more often) in each layout the reader reads. The target takes the
+    // file name from the first byte: 0 is `dem.tif`.
+    let small = || {
+        Spec::plane(8, 6, [0.01, 0.01, LON0, LAT0 + 0.06], |lon, lat| {
+            10.0 + 1000.0 * (lon - LON0) + 500.0 * (lat - LAT0)
+        })
+    };
+    let mut int16_be = small();
+    (int16_be.int16, int16_be.big_endian) = (true, true);
+    let mut deflate = small();
+    (deflate.int16, deflate.deflate) = (true, true);
+    let mut nodata = small();
+    nodata.values[10] = -9999.0;
+    nodata.nodata = Some("-9999");
+    let (e0, n0) = utm_forward(60.03, 24.05, 35, true);
+    let mut utm = Spec::plane(6, 6, [400.0, 400.0, (e0 - 1200.0).round(), (n0 + 1200.0).round()], |x, _| x * 1e-4);
+    utm.epsg = 32635;
+    let seeds: Vec<(&str, Vec<u8>)> = [
+        ("float.tif", small()),
+        ("int16-be.tif", int16_be),
+        ("deflate.tif", deflate),
+        ("nodata.tif", nodata),
+        ("utm.tif", utm),
+    ]
+    .into_iter()
+    .map(|(name, spec)| (name, [vec![0u8], spec.write()].concat()))
+    .collect();
+    for (name, bytes) in &seeds {
+        let dem = Dem::read(&bytes[1..], "dem.tif").unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(dem.elevation_m(60.03, 24.05).is_some() || *name == "nodata.tif", "{name}");
+    }
+    crate::fuzz::write_seeds("dem", &seeds);
+}
+
+#[test]
 fn arbitrary_bytes_never_panic() {
     let good = plane_tiff().write();
     for n in (0..good.len()).step_by(7) {

@@ -129,9 +129,12 @@ pub fn read(bytes: &[u8]) -> Result<Dem, DemError> {
             None => Ok(default),
         }
     };
+    // Sizes may come as floats (any numeric type is accepted): a huge one saturates the
+    // cast, so products are checked.
+    let at_most = |w: usize, h: usize| (w as u64).checked_mul(h as u64).is_some_and(|p| p <= MAX_PIXELS);
     let width = number(256, "ImageWidth")? as usize;
     let height = number(257, "ImageLength")? as usize;
-    if width == 0 || height == 0 || (width as u64) * (height as u64) > MAX_PIXELS {
+    if width == 0 || height == 0 || !at_most(width, height) {
         return Err(bad(format!("{width} x {height} pixels (expected 1 to {MAX_PIXELS} pixels)")));
     }
     let bits = optional(258, 1.0)? as u32;
@@ -168,8 +171,8 @@ pub fn read(bytes: &[u8]) -> Result<Dem, DemError> {
             (width, (optional(278, height as f64)? as usize).clamp(1, height), o, c)
         }
     };
-    if tile_w == 0 || tile_h == 0 {
-        return Err(bad("zero tile size"));
+    if tile_w == 0 || tile_h == 0 || !at_most(tile_w, tile_h) {
+        return Err(bad(format!("tiles of {tile_w} x {tile_h} pixels (expected 1 to {MAX_PIXELS} pixels)")));
     }
     let offsets = t.numbers(offsets)?;
     let counts = t.numbers(counts)?;

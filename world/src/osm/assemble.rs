@@ -1,10 +1,11 @@
-//! From OSM elements to the world's shapes: building prisms and open areas in world ENU
-//! metres, clipped to the world's square.
+//! From OSM elements to the world's shapes: building prisms (outlines, or the parts that
+//! replace them) and open areas in world ENU metres, clipped to the world's square.
 
 use std::collections::HashMap;
 
 use sadesim_crds::geo::LocalFrame;
 
+use super::parts::{self, PlanePolygon};
 use super::pbf::{MemberKind, RawOsm, RawRelation, RawWay, Tags};
 use super::{DEFAULT_HEIGHT_M, STOREY_HEIGHT_M};
 use super::{ElementId, HeightSource, OsmBuilding, OsmCity, OsmError, OsmOpenArea, OsmStats};
@@ -17,6 +18,7 @@ pub fn is_read_tag(key: &str) -> bool {
         key,
         "type"
             | "building"
+            | "building:part"
             | "height"
             | "building:height"
             | "min_height"
@@ -42,11 +44,18 @@ fn tag<'a>(tags: &'a Tags, key: &str) -> Option<&'a str> {
 
 /// What an area element is.
 enum Role {
+    /// A building outline: `building` (not `no`), not a part.
     Building,
+    /// `building:part` (not `no`), whether or not it is also tagged `building`: a prism of
+    /// its own that replaces the outline it lies in ([`super::parts`]).
+    Part,
     Open(String),
 }
 
 fn role_of(tags: &Tags) -> Option<Role> {
+    if tag(tags, "building:part").is_some_and(|v| v != "no") {
+        return Some(Role::Part);
+    }
     if tag(tags, "building").is_some_and(|v| v != "no") {
         return Some(Role::Building);
     }
@@ -56,10 +65,18 @@ fn role_of(tags: &Tags) -> Option<Role> {
     tag(tags, "landuse").filter(|v| OPEN_LANDUSE.contains(v)).map(|v| Role::Open(format!("landuse={v}")))
 }
 
-/// One polygon before clipping: outer ring and holes as node positions, degrees.
+/// One polygon before projection: outer ring and holes as node positions, degrees.
 struct Polygon {
     outer: Vec<[f64; 2]>,
     holes: Vec<Vec<[f64; 2]>>,
+}
+
+/// One area element, projected to the plane (not clipped yet).
+struct Area<'a> {
+    id: ElementId,
+    tags: &'a Tags,
+    role: Role,
+    polygons: Vec<PlanePolygon>,
 }
 
 /// Builds the city of `raw` within `extent_m` (half-width of the square) of the origin of
@@ -69,7 +86,27 @@ pub fn city(raw: &RawOsm, frame: &LocalFrame, extent_m: f64) -> Result<OsmCity, 
     let mut buildings = Vec::new();
     let mut open_areas = Vec::new();
     let ways: HashMap<i64, &RawWay> = raw.ways.iter().map(|w| (w.id, w)).collect();
-    let mut areas: Vec<(ElementId, &Tags, Role, Vec<Polygon>)> = Vec::new();
+    let mut areas: Vec<Area> = Vec::new();
+    // The first element skipped as incomplete, for the error when no building is left.
+    let mut first_incomplete: Option<String> = None;
+    let mut skip = |stats: &mut OsmStats, id: ElementId, why: Incomplete| {
+        stats.skipped_incomplete += 1;
+        first_incomplete.get_or_insert_with(|| format!("{id}: {why}"));
+    };
+    let to_plane = |ring: &[[f64; 2]]| -> Vec<Point2> {
+        ring.iter()
+            .map(|&[lat, lon]| {
+                let (e, n) = frame.to_plane(lat, lon);
+                [e, n]
+            })
+            .collect()
+    };
+    let project = |polygons: Vec<Polygon>| -> Vec<PlanePolygon> {
+        polygons
+            .into_iter()
+            .map(|p| PlanePolygon { outer: to_plane(&p.outer), holes: p.holes.iter().map(|h| to_plane(h)).collect() })
+            .collect()
+    };
 
     for way in &raw.ways {
         let Some(role) = role_of(&way.tags) else { continue };
@@ -78,11 +115,15 @@ pub fn city(raw: &RawOsm, frame: &LocalFrame, extent_m: f64) -> Result<OsmCity, 
             stats.skipped_open_ways += 1;
             continue;
         }
+        let id = ElementId::Way(way.id);
         match positions(&way.refs, raw) {
-            Some(outer) => {
-                areas.push((ElementId::Way(way.id), &way.tags, role, vec![Polygon { outer, holes: vec![] }]))
-            }
-            None => stats.skipped_incomplete += 1,
+            Ok(outer) => areas.push(Area {
+                id,
+                tags: &way.tags,
+                role,
+                polygons: project(vec![Polygon { outer, holes: vec![] }]),
+            }),
+            Err(why) => skip(&mut stats, id, why),
         }
     }
     for relation in &raw.relations {
@@ -90,31 +131,41 @@ pub fn city(raw: &RawOsm, frame: &LocalFrame, extent_m: f64) -> Result<OsmCity, 
             continue;
         }
         let Some(role) = role_of(&relation.tags) else { continue };
+        let id = ElementId::Relation(relation.id);
         match multipolygon(relation, &ways, raw) {
-            Some(polygons) => areas.push((ElementId::Relation(relation.id), &relation.tags, role, polygons)),
-            None => stats.skipped_incomplete += 1,
+            Ok(polygons) => areas.push(Area { id, tags: &relation.tags, role, polygons: project(polygons) }),
+            Err(why) => skip(&mut stats, id, why),
         }
     }
 
-    for (id, tags, role, polygons) in areas {
+    // Simple 3D Buildings: an outline holding a part's interior point is replaced by its
+    // parts (decided on the whole extract, before clipping).
+    let part_points: Vec<Point2> = areas
+        .iter()
+        .filter(|a| matches!(a.role, Role::Part))
+        .filter_map(|a| parts::interior_point(&a.polygons))
+        .collect();
+    let outlines: Vec<usize> = (0..areas.len()).filter(|&k| matches!(areas[k].role, Role::Building)).collect();
+    let held =
+        parts::holding(&outlines.iter().map(|&k| areas[k].polygons.as_slice()).collect::<Vec<_>>(), &part_points);
+    let mut replaced = vec![false; areas.len()];
+    for (&k, held) in outlines.iter().zip(held) {
+        replaced[k] = held;
+    }
+
+    for (area, replaced) in areas.into_iter().zip(replaced) {
         let mut footprints = Vec::new();
-        for polygon in polygons {
-            let project = |ring: &[[f64; 2]]| -> Vec<Point2> {
-                let plane: Vec<Point2> = ring
-                    .iter()
-                    .map(|&[lat, lon]| {
-                        let (e, n) = frame.to_plane(lat, lon);
-                        [e, n]
-                    })
-                    .collect();
-                clip_to_square(&plane, extent_m)
-            };
-            let outer = project(&polygon.outer);
+        for polygon in &area.polygons {
+            let outer = clip_to_square(&polygon.outer, extent_m);
             if outer.len() < 3 {
                 continue;
             }
-            let holes: Vec<Vec<Point2>> =
-                polygon.holes.iter().map(|h| project(h)).filter(|h| h.len() >= 3 && ring_area(h) > 0.0).collect();
+            let holes: Vec<Vec<Point2>> = polygon
+                .holes
+                .iter()
+                .map(|h| clip_to_square(h, extent_m))
+                .filter(|h| h.len() >= 3 && ring_area(h) > 0.0)
+                .collect();
             if ring_area(&outer) <= 0.0 {
                 continue;
             }
@@ -126,21 +177,25 @@ pub fn city(raw: &RawOsm, frame: &LocalFrame, extent_m: f64) -> Result<OsmCity, 
         if footprints.is_empty() {
             continue;
         }
-        match role {
-            Role::Building => {
-                let (base_m, height_m, source) = heights(id, tags)?;
+        let id = area.id;
+        match area.role {
+            Role::Building if replaced => stats.outlines_replaced_by_parts += 1,
+            role @ (Role::Building | Role::Part) => {
+                let part = matches!(role, Role::Part);
+                let (base_m, height_m, source) = heights(id, area.tags)?;
                 for footprint in footprints {
                     match Building::new(footprint, base_m, height_m - base_m) {
                         Ok(building) => {
                             stats.count(source);
-                            buildings.push(OsmBuilding { id, building, height_source: source });
+                            stats.parts += usize::from(part);
+                            buildings.push(OsmBuilding { id, building, height_source: source, part });
                         }
                         Err(_) => stats.skipped_invalid += 1,
                     }
                 }
             }
             Role::Open(kind) => {
-                let name = tag(tags, "name").map(str::to_string);
+                let name = tag(area.tags, "name").map(str::to_string);
                 for footprint in footprints {
                     open_areas.push(OsmOpenArea { id, kind: kind.clone(), name: name.clone(), footprint });
                 }
@@ -150,36 +205,67 @@ pub fn city(raw: &RawOsm, frame: &LocalFrame, extent_m: f64) -> Result<OsmCity, 
     stats.buildings = buildings.len();
     stats.open_areas = open_areas.len();
     if buildings.is_empty() {
-        return Err(OsmError::NoBuildings { extent_m });
+        let skipped = first_incomplete.map_or_else(String::new, |first| {
+            let n = stats.skipped_incomplete;
+            format!("; {n} area{} of the file skipped as incomplete, the first {first}", if n == 1 { "" } else { "s" })
+        });
+        return Err(OsmError::NoBuildings { extent_m, skipped });
     }
     Ok(OsmCity { source_sha256: String::new(), buildings, open_areas, stats })
 }
 
-/// The node positions of `refs`, or `None` when a node is missing from the file (the
+/// Why an area element cannot be assembled from the file (usually: the extract cut it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Incomplete {
+    Node(i64),
+    Way(i64),
+    /// The member ways do not join end to end into closed rings.
+    Unclosed,
+    /// A multipolygon without an outer ring.
+    NoOuter,
+}
+
+impl std::fmt::Display for Incomplete {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Incomplete::Node(id) => write!(f, "node {id} is not in the file"),
+            Incomplete::Way(id) => write!(f, "member way {id} is not in the file"),
+            Incomplete::Unclosed => write!(f, "its member ways do not close into rings"),
+            Incomplete::NoOuter => write!(f, "it has no outer ring"),
+        }
+    }
+}
+
+/// The node positions of `refs`; an error names the first node missing from the file (the
 /// extract cut the element).
-fn positions(refs: &[i64], raw: &RawOsm) -> Option<Vec<[f64; 2]>> {
-    refs.iter().map(|r| raw.nodes.get(r).copied()).collect()
+fn positions(refs: &[i64], raw: &RawOsm) -> Result<Vec<[f64; 2]>, Incomplete> {
+    refs.iter().map(|r| raw.nodes.get(r).copied().ok_or(Incomplete::Node(*r))).collect()
 }
 
 /// The polygons of a multipolygon relation: its `outer` (or unnamed) and `inner` member ways
 /// joined end to end into closed rings, each inner ring given to the outer ring containing
-/// it. `None` when a member way or node is missing or a ring does not close.
-fn multipolygon(relation: &RawRelation, ways: &HashMap<i64, &RawWay>, raw: &RawOsm) -> Option<Vec<Polygon>> {
+/// it. An error when a member way or node is missing or a ring does not close.
+fn multipolygon(
+    relation: &RawRelation,
+    ways: &HashMap<i64, &RawWay>,
+    raw: &RawOsm,
+) -> Result<Vec<Polygon>, Incomplete> {
     let mut outer_ways = Vec::new();
     let mut inner_ways = Vec::new();
     for m in relation.members.iter().filter(|m| m.kind == MemberKind::Way) {
-        let way = ways.get(&m.id)?;
+        let way = ways.get(&m.id).ok_or(Incomplete::Way(m.id))?;
         match m.role.as_str() {
             "inner" => inner_ways.push(way.refs.as_slice()),
             _ => outer_ways.push(way.refs.as_slice()),
         }
     }
-    let outers: Vec<Vec<[f64; 2]>> =
-        join_rings(&outer_ways)?.iter().map(|r| positions(r, raw)).collect::<Option<_>>()?;
-    let inners: Vec<Vec<[f64; 2]>> =
-        join_rings(&inner_ways)?.iter().map(|r| positions(r, raw)).collect::<Option<_>>()?;
+    let rings = |ways: &[&[i64]]| -> Result<Vec<Vec<[f64; 2]>>, Incomplete> {
+        join_rings(ways).ok_or(Incomplete::Unclosed)?.iter().map(|r| positions(r, raw)).collect()
+    };
+    let outers = rings(&outer_ways)?;
+    let inners = rings(&inner_ways)?;
     if outers.is_empty() {
-        return None;
+        return Err(Incomplete::NoOuter);
     }
     let mut polygons: Vec<Polygon> = outers.into_iter().map(|outer| Polygon { outer, holes: Vec::new() }).collect();
     for inner in inners {
@@ -188,7 +274,7 @@ fn multipolygon(relation: &RawRelation, ways: &HashMap<i64, &RawWay>, raw: &RawO
             p.holes.push(inner);
         }
     }
-    Some(polygons)
+    Ok(polygons)
 }
 
 /// Joins way node lists into closed rings by their end nodes (reversing ways as needed).

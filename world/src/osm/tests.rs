@@ -165,6 +165,11 @@ fn blob(kind: &str, payload: &[u8], zlib: bool) -> Vec<u8> {
 /// A file: header (bbox `[min_lon, min_lat, max_lon, max_lat]`, or the extent's square
 /// plus a margin) and one zlib data block.
 fn file_with(data: &Data, bbox: Option<[f64; 4]>) -> Vec<u8> {
+    encode(data, bbox, true)
+}
+
+/// [`file_with`], the data block zlib-compressed or raw.
+fn encode(data: &Data, bbox: Option<[f64; 4]>, zlib: bool) -> Vec<u8> {
     let [w, s, e, n] = bbox.unwrap_or_else(|| {
         let (s, w) = at(-2000.0, -2000.0);
         let (n, e) = at(2000.0, 2000.0);
@@ -179,12 +184,18 @@ fn file_with(data: &Data, bbox: Option<[f64; 4]>) -> Vec<u8> {
     field_bytes(&mut header, 4, b"OsmSchema-V0.6");
     field_bytes(&mut header, 4, b"DenseNodes");
     let mut out = blob("OSMHeader", &header, false);
-    out.extend(blob("OSMData", &primitive_block(data), true));
+    out.extend(blob("OSMData", &primitive_block(data), zlib));
     out
 }
 
 fn file(data: &Data) -> Vec<u8> {
     file_with(data, None)
+}
+
+/// [`file`] with the data block stored raw instead of zlib-compressed (so a fuzzer's
+/// mutations reach the block's fields instead of zlib's checksum).
+fn file_raw(data: &Data) -> Vec<u8> {
+    encode(data, None, false)
 }
 
 const EXTENT_M: f64 = 1000.0;
@@ -327,6 +338,134 @@ fn elements_cut_by_the_extract_are_skipped_and_counted() {
     assert_eq!((city.stats.skipped_incomplete, city.stats.skipped_open_ways), (2, 1));
 }
 
+// --- building parts (Simple 3D Buildings) ---------------------------------------------------
+
+fn prisms(city: &OsmCity) -> Vec<(ElementId, bool, f64, f64)> {
+    city.buildings.iter().map(|b| (b.id, b.part, b.building.base_up_m(), b.building.roof_up_m())).collect()
+}
+
+#[test]
+fn an_outline_with_parts_is_replaced_by_its_parts_with_their_own_heights() {
+    let mut d = Data::default();
+    // The outline: 40 x 20 m, 12 m. Inside: a 20 m-tall hall on the west half and a tower
+    // floating from 15 m to 45 m over the east half (building:min_level 5).
+    d.rect_way(1, 100, [0.0, 0.0, 40.0, 20.0], &[("building", "church"), ("height", "12")]);
+    d.rect_way(2, 200, [0.0, 0.0, 20.0, 20.0], &[("building:part", "yes"), ("height", "20"), ("min_height", "0")]);
+    d.rect_way(
+        3,
+        300,
+        [25.0, 5.0, 35.0, 15.0],
+        &[("building:part", "tower"), ("building:levels", "15"), ("building:min_level", "5")],
+    );
+    let city = read(&file(&d)).unwrap();
+    assert_eq!(
+        prisms(&city),
+        [(ElementId::Way(2), true, 0.0, 20.0), (ElementId::Way(3), true, 15.0, 45.0)],
+        "the outline is no prism of its own"
+    );
+    let s = &city.stats;
+    assert_eq!((s.buildings, s.parts, s.outlines_replaced_by_parts), (2, 2, 1));
+    assert_eq!((s.heights_tagged, s.heights_from_levels, s.heights_defaulted), (1, 1, 0), "one roof per prism");
+}
+
+#[test]
+fn outlines_without_parts_stay_and_parts_outside_any_outline_are_buildings() {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 20.0, 20.0], &[("building", "yes"), ("height", "10")]);
+    // A part 100 m away from every outline, and a `building:part=no` inside the outline.
+    d.rect_way(2, 200, [100.0, 0.0, 110.0, 10.0], &[("building:part", "yes"), ("height", "6")]);
+    d.rect_way(3, 300, [5.0, 5.0, 10.0, 10.0], &[("building:part", "no"), ("height", "30")]);
+    let city = read(&file(&d)).unwrap();
+    assert_eq!(prisms(&city), [(ElementId::Way(1), false, 0.0, 10.0), (ElementId::Way(2), true, 0.0, 6.0)]);
+    assert_eq!((city.stats.parts, city.stats.outlines_replaced_by_parts), (1, 0));
+}
+
+#[test]
+fn a_part_belongs_to_the_outline_holding_its_interior_point_not_to_a_courtyard() {
+    let mut d = Data::default();
+    // A courtyard building (multipolygon) with a fountain part in the courtyard: the
+    // outline stays. A part tagged building too is a part. A U-shaped part whose bounding
+    // box centre is outside it still finds a point inside itself, in the second outline.
+    let corners = [(0.0, 0.0), (40.0, 0.0), (40.0, 40.0), (0.0, 40.0)];
+    for (k, (e, n)) in corners.into_iter().enumerate() {
+        d.nodes.push((1 + k as i64, at(e, n)));
+    }
+    d.ways.push((101, &[], vec![1, 2, 3, 4, 1]));
+    d.rect_way(102, 10, [10.0, 10.0, 30.0, 30.0], &[]);
+    d.relations.push((7, &[("type", "multipolygon"), ("building", "yes")], vec![(1, 101, "outer"), (1, 102, "inner")]));
+    d.rect_way(8, 20, [18.0, 18.0, 22.0, 22.0], &[("building:part", "yes"), ("building", "yes"), ("height", "3")]);
+    d.rect_way(9, 30, [100.0, 0.0, 130.0, 30.0], &[("building", "yes")]);
+    let u = [
+        (100.0, 0.0),
+        (130.0, 0.0),
+        (130.0, 30.0),
+        (120.0, 30.0),
+        (120.0, 10.0),
+        (110.0, 10.0),
+        (110.0, 30.0),
+        (100.0, 30.0),
+    ];
+    for (k, (e, n)) in u.into_iter().enumerate() {
+        d.nodes.push((40 + k as i64, at(e, n)));
+    }
+    d.ways.push((10, &[("building:part", "yes"), ("height", "8")], vec![40, 41, 42, 43, 44, 45, 46, 47, 40]));
+    let city = read(&file(&d)).unwrap();
+    let ids: Vec<(ElementId, bool)> = city.buildings.iter().map(|b| (b.id, b.part)).collect();
+    assert_eq!(ids, [(ElementId::Way(8), true), (ElementId::Way(10), true), (ElementId::Relation(7), false)]);
+    assert_eq!(city.stats.outlines_replaced_by_parts, 1);
+}
+
+#[test]
+fn interior_points_are_those_geos_picks() {
+    use super::parts::{PlanePolygon, interior_point};
+    use crate::Point2;
+    let poly = |outer: &[Point2], holes: &[&[Point2]]| PlanePolygon {
+        outer: outer.to_vec(),
+        holes: holes.iter().map(|h| h.to_vec()).collect(),
+    };
+    // shapely 2 / GEOS 3.14 `representative_point()` of the same shapes.
+    let u = poly(
+        &[[0.0, 0.0], [30.0, 0.0], [30.0, 30.0], [20.0, 30.0], [20.0, 10.0], [10.0, 10.0], [10.0, 30.0], [0.0, 30.0]],
+        &[],
+    );
+    assert_eq!(interior_point(&[u]), Some([5.0, 20.0]));
+    let courtyard = poly(
+        &[[0.0, 0.0], [40.0, 0.0], [40.0, 40.0], [0.0, 40.0]],
+        &[&[[5.0, 15.0], [35.0, 15.0], [35.0, 25.0], [5.0, 25.0]]],
+    );
+    assert_eq!(interior_point(&[courtyard]), Some([2.5, 20.0]));
+    let two = [
+        poly(&[[0.0, 0.0], [5.0, 0.0], [5.0, 50.0], [0.0, 50.0]], &[]),
+        poly(&[[100.0, 0.0], [120.0, 0.0], [120.0, 7.0], [100.0, 7.0]], &[]),
+    ];
+    assert_eq!(interior_point(&two), Some([110.0, 3.5]), "the widest section of all polygons");
+    assert_eq!(interior_point(&[poly(&[[0.0, 1.0], [5.0, 1.0], [9.0, 1.0]], &[])]), None, "no area");
+}
+
+#[test]
+fn stacked_parts_are_all_solid_and_the_surface_is_the_highest_roof() {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 40.0, 40.0], &[("building", "yes")]);
+    d.rect_way(2, 200, [0.0, 0.0, 40.0, 40.0], &[("building:part", "yes"), ("height", "10")]);
+    d.rect_way(3, 300, [10.0, 10.0, 30.0, 30.0], &[("building:part", "yes"), ("height", "60"), ("min_height", "10")]);
+    let city = read(&file(&d)).unwrap();
+    let spec = sadesim_crds::run::World {
+        source: sadesim_crds::run::WorldSource::Osm,
+        osm: Some(sadesim_crds::run::OsmExtract { file: "test.osm.pbf".into() }),
+        extent_m: EXTENT_M,
+        ..Default::default()
+    };
+    let inputs = crate::WorldInputs { origin: ORIGIN, world: spec, open_areas: Vec::new() };
+    let world = crate::World::build(&inputs, &crate::WorldData { osm: Some(city), dem: None }).unwrap();
+    assert_eq!(world.buildings().len(), 2);
+    assert!((world.surface_up_m(20.0, 20.0) - 60.0).abs() < 1e-9, "the tower's roof, over the podium");
+    assert!((world.surface_up_m(5.0, 5.0) - 10.0).abs() < 1e-9);
+    for z in [5.0, 30.0, 59.0] {
+        assert!(world.is_inside_building(nalgebra::Vector3::new(20.0, 20.0, z)), "solid at {z} m");
+    }
+    assert!(!world.is_inside_building(nalgebra::Vector3::new(5.0, 5.0, 30.0)), "beside the tower");
+}
+
 // --- refused inputs -------------------------------------------------------------------------
 
 fn one_building() -> Vec<u8> {
@@ -396,6 +535,57 @@ fn no_building_in_the_extent_is_an_error_not_an_empty_city() {
     let mut d = Data::default();
     d.rect_way(1, 100, [0.0, 0.0, 10.0, 10.0], &[("leisure", "park")]);
     assert!(error(&file(&d)).starts_with("no building within world.extentM 1000 m"));
+}
+
+#[test]
+fn a_city_left_empty_by_incomplete_elements_names_the_first_and_what_is_missing() {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 10.0, 10.0], &[]);
+    d.relations.push((3, &[("type", "multipolygon"), ("building", "yes")], vec![(1, 1, "outer"), (1, 999, "inner")]));
+    d.ways.push((4, &[("building", "yes")], vec![900, 901, 902, 900]));
+    assert_eq!(
+        error(&file(&d)),
+        "no building within world.extentM 1000 m of the origin: check spec.origin (is it inside the extract?) and \
+         the extent; 2 areas of the file skipped as incomplete, the first way 4: node 900 is not in the file"
+    );
+    d.ways.pop();
+    assert!(error(&file(&d)).ends_with(
+        "; 1 area of the file skipped as incomplete, the first relation 3: member way 999 is not in the file"
+    ));
+}
+
+#[test]
+fn the_fuzz_seeds_are_valid_extracts() {
+    // The seed corpus of fuzz/fuzz_targets/pbf.rs (same origin and extent): buildings with
+    // each height rule, a courtyard multipolygon, parts, a park; zlib and raw data blocks.
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 20.0, 10.0], &[("building", "yes"), ("height", "24.5")]);
+    d.rect_way(2, 200, [30.0, 0.0, 50.0, 20.0], &[("building", "yes"), ("building:levels", "4"), ("roof:height", "2")]);
+    d.rect_way(3, 300, [60.0, 0.0, 100.0, 20.0], &[("building", "church")]);
+    d.rect_way(4, 400, [60.0, 0.0, 80.0, 20.0], &[("building:part", "yes"), ("height", "30"), ("min_height", "5")]);
+    d.rect_way(5, 500, [100.0, 100.0, 200.0, 180.0], &[("leisure", "park"), ("name", "Esplanadi")]);
+    let corners = [(0.0, 50.0), (40.0, 50.0), (40.0, 90.0), (0.0, 90.0)];
+    for (k, (e, n)) in corners.into_iter().enumerate() {
+        d.nodes.push((600 + k as i64, at(e, n)));
+    }
+    d.ways.push((6, &[], vec![600, 601, 602]));
+    d.ways.push((7, &[], vec![600, 603, 602]));
+    d.rect_way(8, 700, [15.0, 65.0, 25.0, 75.0], &[]);
+    d.relations.push((
+        9,
+        &[("type", "multipolygon"), ("building", "yes"), ("building:min_level", "1"), ("height", "12 m")],
+        vec![(1, 6, "outer"), (1, 7, "outer"), (1, 8, "inner")],
+    ));
+    let mut one = Data::default();
+    one.rect_way(1, 100, [0.0, 0.0, 10.0, 10.0], &[("building", "yes")]);
+    let seeds = [("city-raw.osm.pbf", file_raw(&d)), ("city.osm.pbf", file(&d)), ("one-raw.osm.pbf", file_raw(&one))];
+    for (name, bytes) in &seeds {
+        let city = read(bytes).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(!city.buildings.is_empty() && (city.stats.parts == 0 || city.stats.outlines_replaced_by_parts == 1));
+    }
+    let (raw, zlib) = (read(&seeds[0].1).unwrap(), read(&seeds[1].1).unwrap());
+    assert_eq!((raw.buildings, raw.stats), (zlib.buildings, zlib.stats), "raw or zlib: the same city");
+    crate::fuzz::write_seeds("pbf", &seeds);
 }
 
 #[test]

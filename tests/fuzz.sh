@@ -1,0 +1,63 @@
+#!/usr/bin/env bash
+# Bounded coverage-guided fuzzing of the world's file readers: the cargo-fuzz (libFuzzer)
+# targets in fuzz/ for the OSM PBF reader, the DEM reader and the world bundle decoder
+# (fuzz/README.md). Part of tests/run.sh.
+#
+# The seed corpora are written by the world crate's tests from their own encoders (nothing
+# is committed); each target then fuzzes a fresh copy for SADESIM_FUZZ_SECONDS (default 60),
+# SADESIM_FUZZ_JOBS targets at a time (default: one per core). A crash (a panic, an error of
+# more than one line, an input slower than 10 s, more than 2 GB of memory) fails the script;
+# libFuzzer names the input it saved under fuzz/artifacts/<target>/, which replays with
+# `cd fuzz && cargo fuzz run --sanitizer none <target> <file>`.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+seconds="${SADESIM_FUZZ_SECONDS:-60}"
+jobs="${SADESIM_FUZZ_JOBS:-$(nproc)}"
+targets=(pbf dem bundle)
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+echo "--> seed corpora (the world crate's fuzz_seeds tests)"
+SADESIM_FUZZ_SEEDS="$work/corpus" cargo nextest run -p sadesim-world --locked --no-tests=fail \
+  --status-level fail --final-status-level fail fuzz_seeds
+
+# --sanitizer none: AddressSanitizer needs -Zsanitizer (a nightly compiler); the readers are
+# safe Rust (unsafe_code is forbidden), where what fuzzing finds is panics, overflows (debug
+# assertions are on), hangs and runaway allocations: no sanitizer is needed to see those.
+echo "--> cargo fuzz build"
+(cd fuzz && cargo fuzz build --sanitizer none)
+
+fuzz() {
+  local target=$1 rc=0
+  (cd fuzz && cargo fuzz run --sanitizer none "$target" "$work/corpus/$target" -- \
+    -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1) \
+    >"$work/$target.log" 2>&1 || rc=$?
+  echo "$rc" >"$work/$target.rc"
+}
+
+echo "--> cargo fuzz run: ${targets[*]}, ${seconds} s each, ${jobs} at a time"
+for target in "${targets[@]}"; do
+  while (( $(jobs -rp | wc -l) >= jobs )); do wait -n || true; done
+  fuzz "$target" &
+done
+wait
+failed=()
+for target in "${targets[@]}"; do
+  if [ "$(cat "$work/$target.rc")" = 0 ]; then
+    # "Done 1107947 runs in 61 second(s)", and the final coverage and corpus size.
+    done_line=$(grep -E '^Done [0-9]+ runs' "$work/$target.log" | tail -1)
+    runs=$(awk '{print $2}' <<<"$done_line")
+    secs=$(awk '{print $5}' <<<"$done_line")
+    stats=$(grep -E '^#[0-9]+[[:space:]]+DONE' "$work/$target.log" | tail -1 | grep -oE '(cov|corp): [0-9]+' | paste -sd' ')
+    echo "$target: $runs runs in $secs s ($(( runs / (secs > 0 ? secs : 1) )) per second), $stats"
+  else
+    failed+=("$target")
+    echo "$target: FAILED"
+    tail -n 60 "$work/$target.log"
+  fi
+done
+if (( ${#failed[@]} > 0 )); then
+  echo "fuzzing found a crash in: ${failed[*]} (inputs under fuzz/artifacts/)" >&2
+  exit 1
+fi
