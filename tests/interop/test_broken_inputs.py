@@ -211,8 +211,8 @@ DEM_CASES = [
 
 
 @pytest.fixture(scope="module")
-def bundle(sadesim, tmp_path_factory):
-    """A plan and its world bundle (`sadesim plan`, `sadesim assets`): `(plan.json, entry
+def bundle(sadesim, sim_worker, tmp_path_factory):
+    """A plan and its world bundle (`sadesim plan`, `sim-worker assets`): `(plan.json, entry
     folder)` of a small procedural world."""
     folder = tmp_path_factory.mktemp("bundle")
     origin = (41.8781, -87.6298)
@@ -227,7 +227,7 @@ def bundle(sadesim, tmp_path_factory):
     plan = folder / "plan.json"
     made = subprocess.run([sadesim, "plan", str(scenario), "--json"], check=True, capture_output=True, text=True)
     plan.write_text(made.stdout)
-    built = subprocess.run([sadesim, "assets", "--plan", str(plan), "--archive", f"file://{folder / 'archive'}"],
+    built = subprocess.run([sim_worker, "assets", "--plan", str(plan), "--archive", f"file://{folder / 'archive'}"],
                            check=True, capture_output=True, text=True)
     url = re.search(r"file://(\S+/world/)", built.stdout)
     assert url, built.stdout
