@@ -215,8 +215,9 @@ pub enum WorldSource {
     /// A seeded procedural city (streets, buildings, parks) around the origin.
     #[default]
     Procedural,
-    /// The buildings (footprints with courtyards, tagged or estimated heights) and parks of
-    /// the OpenStreetMap extract `world.osm.file`, on flat ground. Local runs only so far.
+    /// The buildings (footprints with courtyards, tagged or estimated heights, building
+    /// parts) and parks of the OpenStreetMap extract `world.osm.file`, on flat ground or
+    /// `world.terrain`.
     Osm,
 }
 
@@ -225,7 +226,8 @@ pub enum WorldSource {
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct OsmExtract {
     /// The `.osm.pbf` file (Geofabrik, BBBike, `osmium extract`): a path, relative to the
-    /// scenario file's folder, or a `file://` URL. It must cover the whole world square.
+    /// scenario file's folder, a `file://` URL, or an object-store URL (`s3://bucket/key`,
+    /// `gs://`, `az://`; what a Kubernetes run needs). It must cover the whole world square.
     #[schemars(length(min = 1, max = 4096))]
     pub file: String,
 }
@@ -245,7 +247,8 @@ pub struct TerrainSpec {
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct DemFile {
-    /// A path, relative to the scenario file's folder, or a `file://` URL.
+    /// A path, relative to the scenario file's folder, a `file://` URL, or an object-store
+    /// URL (`s3://bucket/key`, `gs://`, `az://`; what a Kubernetes run needs).
     #[schemars(length(min = 1, max = 4096))]
     pub file: String,
 }

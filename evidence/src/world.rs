@@ -2,6 +2,10 @@
 //! (`world.osm.file`) and the DEM of `world.terrain.dem.file`, read and handed to the pure
 //! world library and planner. Every role that needs the world (runner, shards, assets,
 //! report) builds it through here, so all build the same one.
+//!
+//! A file is a local path, a `file://` URL, or an object in object storage (`s3://`,
+//! `gs://`, `az://`, credentials from the environment as for archives): what a cluster run
+//! names, since its pods and the operator share no disk with the user.
 
 use std::path::PathBuf;
 
@@ -22,6 +26,13 @@ pub enum WorldReadError {
         #[source]
         source: std::io::Error,
     },
+    /// An object-store file could not be fetched (the error names the URL).
+    #[error("{field}: {source}")]
+    Fetch {
+        field: &'static str,
+        #[source]
+        source: crate::archive::ArchiveError,
+    },
     #[error("spec.world.osm.file {path}: {source}")]
     Osm {
         path: String,
@@ -39,15 +50,26 @@ pub enum WorldReadError {
     World(#[from] WorldError),
 }
 
-/// The file of `world.osm.file` or `world.terrain.dem.file`: a path, or a `file://` URL's
-/// path. Relative paths are relative to the working directory (`sadesim` makes them
-/// absolute against the scenario's folder when it loads the scenario).
+/// The local file of `world.osm.file` or `world.terrain.dem.file`: a path, or a `file://`
+/// URL's path (object-store URLs are fetched instead, see [`read_data`]). Relative paths are
+/// relative to the working directory (`sadesim` makes them absolute against the scenario's
+/// folder when it loads the scenario).
 pub fn file_path(file: &str) -> PathBuf {
     PathBuf::from(file.strip_prefix("file://").unwrap_or(file))
 }
 
+/// The files the run's world names, as `(field, file)` pairs in the order they are read:
+/// the extract of `source: osm`, then the DEM.
+pub fn world_files(spec: &SimulationRunSpec) -> Vec<(&'static str, String)> {
+    let world = spec.world();
+    let osm = world.osm.filter(|_| world.source == WorldSource::Osm).map(|o| ("spec.world.osm.file", o.file));
+    let dem = world.terrain.map(|t| ("spec.world.terrain.dem.file", t.dem.file));
+    osm.into_iter().chain(dem).collect()
+}
+
 /// The files the run's world names, read and decoded: the extract of `source: osm`, the
-/// DEM of `terrain.dem`; empty for the procedural city.
+/// DEM of `terrain.dem`; empty for the procedural city. Local paths are read from disk,
+/// object-store URLs fetched.
 ///
 /// # Errors
 /// [`WorldReadError`] naming the field and file: unreadable, not a PBF or DEM file, not
@@ -71,6 +93,10 @@ pub fn read_data(spec: &SimulationRunSpec) -> Result<WorldData, WorldReadError> 
 }
 
 fn read_file(field: &'static str, file: &str) -> Result<(String, Vec<u8>), WorldReadError> {
+    if crate::archive::is_object_store(file) {
+        let bytes = crate::archive::read_object(file).map_err(|source| WorldReadError::Fetch { field, source })?;
+        return Ok((file.to_string(), bytes));
+    }
     let path = file_path(file);
     let shown = path.display().to_string();
     let bytes = std::fs::read(&path).map_err(|source| WorldReadError::Read { field, path: shown.clone(), source })?;

@@ -43,10 +43,8 @@ pub enum PlanError {
         "spec.fleet[{group}].homes: no home found for drone {drone} outside the zones that reach the ground after {MAX_HOME_DRAWS} draws: enlarge the area or move it away from the zones"
     )]
     NoHome { group: usize, drone: u32 },
-    /// The world cannot be built (`source: osm` without its extract read).
-    #[error(
-        "{0} (`sadesim run` and `sadesim plan` read it; Kubernetes runs do not support world.source osm or world.terrain yet: the operator reads no map or DEM files)"
-    )]
+    /// The world cannot be built (its files were not read, or the DEM does not cover it).
+    #[error("{0}")]
     World(#[from] WorldError),
     /// An explicit home inside a building of the map.
     #[error(
@@ -290,10 +288,19 @@ fn asset_cache_key(
         dem_sha256: Option<&'a str>,
         zones: &'a [sadesim_crds::zones::Zone],
     }
+    // The files count by their bytes (the digests), not by where they are: the same extract
+    // on a laptop and in a bucket is the same world, and a moved file keeps its entry.
+    let mut world = world.clone();
+    if let Some(osm) = world.world.osm.as_mut() {
+        osm.file.clear();
+    }
+    if let Some(terrain) = world.world.terrain.as_mut() {
+        terrain.dem.file.clear();
+    }
     let inputs = AssetInputs {
         format: ASSETS_FORMAT_VERSION,
         world_format: sadesim_world::bundle::FORMAT_VERSION,
-        world: world.clone(),
+        world,
         extract_sha256,
         dem_sha256,
         zones,

@@ -276,6 +276,10 @@ fn a_mapped_world_needs_its_extract_and_its_bytes_shape_the_asset_key() {
     let b = plan_with(&run, &other).unwrap();
     assert_ne!(a.asset_cache_key, b.asset_cache_key, "a changed extract is a new world");
     assert_eq!(a.asset_cache_key, plan_with(&run, &city).unwrap().asset_cache_key);
+    // The same bytes elsewhere (moved, or uploaded to a bucket) are the same world.
+    let mut moved = run.clone();
+    moved.spec.world.as_mut().unwrap().osm.as_mut().unwrap().file = "s3://maps/city.osm.pbf".into();
+    assert_eq!(plan_with(&moved, &city).unwrap().asset_cache_key, a.asset_cache_key);
 }
 
 #[test]

@@ -16,6 +16,8 @@ import urllib.request
 import boto3
 import pytest
 import yaml
+from test_assets import mission
+from test_osm import helsinki  # noqa: F401  (the fixture)
 
 MOTO_PORT = 9521  # not used by the port plan (MAVLink 14540+/24600+, 5760, 14550, 7400, 8480, 8490, 9090)
 ENDPOINT = f"http://127.0.0.1:{MOTO_PORT}"
@@ -204,3 +206,44 @@ def test_sadesim_run_uploads_to_an_s3_archive(sadesim, s3, repo, tmp_path):
     for where in (url, str(local)):
         verify = sadesim_cmd(sadesim, "archive", "verify", where)
         assert verify.returncode == 0, verify.stdout + verify.stderr
+
+
+def test_a_world_in_object_storage_is_fetched_and_keyed_by_its_bytes(s3, sadesim, helsinki, tmp_path):  # noqa: F811
+    """`world.osm.file: s3://...` (what a Kubernetes run names): `sadesim run` fetches the
+    extract from the S3 server; the asset cache key is the same as for the same bytes on
+    disk (content-addressed, not by location); a missing object is a one-line error naming
+    the field and the URL. `sadesim manifests` plans it as the operator would."""
+    extract = helsinki
+    s3.put_object(Bucket=BUCKET, Key="maps/helsinki.osm.pbf", Body=extract.read_bytes())
+    url = f"s3://{BUCKET}/maps/helsinki.osm.pbf"
+
+    def plan_key(file: str) -> str:
+        doc = mission(file)
+        path = tmp_path / "world.json"
+        path.write_text(json.dumps(doc))
+        done = sadesim_cmd(sadesim, "plan", str(path), "--json")
+        assert done.returncode == 0, done.stdout + done.stderr
+        return json.loads(done.stdout)["assetCacheKey"]
+
+    assert plan_key(url) == plan_key(str(extract))
+
+    doc = mission(url)
+    path = tmp_path / "remote.json"
+    path.write_text(json.dumps(doc))
+    cache = f"file://{tmp_path / 'cache'}"
+    done = sadesim_cmd(sadesim, "run", str(path), "--out", str(tmp_path / "runs"), "-q", "--no-mavlink",
+                       "--asset-cache", cache)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "criteria PASSED" in done.stdout and "assets built:" in done.stdout, done.stdout
+
+    manifests = sadesim_cmd(sadesim, "manifests", str(path))
+    assert manifests.returncode == 0, manifests.stdout + manifests.stderr
+    assert "bundle-shard" in manifests.stdout
+
+    gone = mission(f"s3://{BUCKET}/maps/missing.osm.pbf")
+    path.write_text(json.dumps(gone))
+    done = sadesim_cmd(sadesim, "run", str(path), "--out", str(tmp_path / "runs"), "-q", "--no-mavlink",
+                       "--asset-cache", cache)
+    assert done.returncode == 2, done.stdout + done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "spec.world.osm.file" in lines[0] and "missing.osm.pbf" in lines[0], done.stderr

@@ -71,7 +71,7 @@ fn resolve_paths(run: &mut SimulationRun, scenario: &Path) {
     let Some(world) = run.spec.world.as_mut() else { return };
     let files =
         world.osm.as_mut().map(|o| &mut o.file).into_iter().chain(world.terrain.as_mut().map(|t| &mut t.dem.file));
-    for file in files {
+    for file in files.filter(|f| !sadesim_evidence::archive::is_object_store(f)) {
         let path = sadesim_evidence::world::file_path(file);
         if path.is_relative() {
             let absolute = std::path::absolute(base.join(&path)).unwrap_or_else(|_| base.join(&path));

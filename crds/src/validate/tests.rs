@@ -243,9 +243,15 @@ fn an_osm_world_names_its_extract_and_nothing_of_the_procedural_city() {
     assert_eq!(found, ["spec.world.osm: is required with source osm: the extract's file"]);
     let found = problems_of(|r| r.spec.world = Some(World { source: WorldSource::Procedural, ..osm("x") }));
     assert_eq!(found, ["spec.world.osm: is only allowed with source osm"]);
-    let found = problems_of(|r| r.spec.world = Some(osm("s3://maps/helsinki.osm.pbf")));
+    // Object storage: what a Kubernetes run reads its world from.
+    for url in ["s3://maps/helsinki.osm.pbf", "gs://maps/fi/helsinki.osm.pbf", "az://maps/helsinki.osm.pbf"] {
+        assert_eq!(problems_of(|r| r.spec.world = Some(osm(url))), Vec::<String>::new(), "{url}");
+    }
+    let found = problems_of(|r| r.spec.world = Some(osm("s3://maps")));
+    assert_eq!(found, ["spec.world.osm.file: s3:// must name a file inside a bucket, e.g. s3://maps/helsinki.osm.pbf"]);
+    let found = problems_of(|r| r.spec.world = Some(osm("https://example.com/helsinki.osm.pbf")));
     assert_eq!(found.len(), 1);
-    assert!(found[0].starts_with("spec.world.osm.file: must be a path or a file:// URL"), "{found:?}");
+    assert!(found[0].starts_with("spec.world.osm.file: unsupported scheme \"https\""), "{found:?}");
     let found = problems_of(|r| {
         r.spec.world = Some(World { city: Some(City::default()), open_areas: vec![], ..osm("x") });
     });

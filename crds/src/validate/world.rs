@@ -50,6 +50,29 @@ impl WorldBounds {
     }
 }
 
+/// A world file: a path, a `file://` URL, or an object-store URL of a file
+/// (`s3://bucket/key`, `gs://bucket/key`, `az://container/key`).
+fn check_file_url(p: &mut Problems, field: &str, file: &str) {
+    let Some((scheme, rest)) = file.split_once("://") else { return };
+    match scheme {
+        "file" => {}
+        "s3" | "gs" | "az" => {
+            if !rest.trim_end_matches('/').contains('/') || rest.ends_with('/') {
+                p.add(
+                    field,
+                    format!("{scheme}:// must name a file inside a bucket, e.g. {scheme}://maps/helsinki.osm.pbf"),
+                );
+            }
+        }
+        _ => p.add(
+            field,
+            format!(
+                "unsupported scheme {scheme:?}: expected a path, file://, s3://, gs:// or az:// (http is not fetched)"
+            ),
+        ),
+    }
+}
+
 /// `spec.world`: extent, city and open areas. Returns the world's bounds when the origin
 /// is usable (`origin_ok`), for the horizontal checks of the other sections.
 pub(super) fn check_world(spec: &SimulationRunSpec, origin_ok: bool, p: &mut Problems) -> Option<WorldBounds> {
@@ -62,11 +85,8 @@ pub(super) fn check_world(spec: &SimulationRunSpec, origin_ok: bool, p: &mut Pro
         (WorldSource::Osm, Some(osm)) => {
             if osm.file.trim().is_empty() || osm.file.len() > 4096 {
                 p.add("spec.world.osm.file", "must name the .osm.pbf file (1 to 4096 characters)");
-            } else if osm.file.contains("://") && !osm.file.starts_with("file://") {
-                p.add(
-                    "spec.world.osm.file",
-                    "must be a path or a file:// URL (object-store extracts need the asset bundle, not built yet)",
-                );
+            } else {
+                check_file_url(p, "spec.world.osm.file", &osm.file);
             }
         }
         (WorldSource::Procedural, None) => {}
@@ -75,11 +95,8 @@ pub(super) fn check_world(spec: &SimulationRunSpec, origin_ok: bool, p: &mut Pro
         let file = &terrain.dem.file;
         if file.trim().is_empty() || file.len() > 4096 {
             p.add("spec.world.terrain.dem.file", "must name the DEM file (1 to 4096 characters)");
-        } else if file.contains("://") && !file.starts_with("file://") {
-            p.add(
-                "spec.world.terrain.dem.file",
-                "must be a path or a file:// URL (object-store DEMs need the asset bundle, not built yet)",
-            );
+        } else {
+            check_file_url(p, "spec.world.terrain.dem.file", file);
         }
     }
     if world.source == WorldSource::Osm {

@@ -10,7 +10,7 @@ use std::time::Duration;
 use futures_util::TryStreamExt;
 use indicatif::{ProgressBar, ProgressStyle};
 use object_store::path::Path as ObjectPath;
-use object_store::{BackoffConfig, ObjectStore, RetryConfig};
+use object_store::{BackoffConfig, ObjectStore, ObjectStoreExt, RetryConfig};
 
 use super::ArchiveError;
 use super::url::{Location, child_path, parse_location};
@@ -170,4 +170,33 @@ impl Archive {
         }
         Ok(objects)
     }
+}
+
+/// The bytes of the one object at `url` (`s3://bucket/path/file`, `gs://...`, `az://...`),
+/// read whole: a world's map or DEM kept in object storage. Credentials come from the
+/// environment as for archives.
+///
+/// # Errors
+/// [`ArchiveError::BadUrl`] when `url` is not an object-store URL of a file,
+/// [`ArchiveError::Open`] when the store cannot be configured, [`ArchiveError::NotFound`]
+/// when nothing is there, [`ArchiveError::Download`] when the read fails.
+pub fn read_object(url: &str) -> Result<Vec<u8>, ArchiveError> {
+    let bad = |expected: &str| ArchiveError::BadUrl { url: url.into(), expected: expected.into() };
+    if !super::is_object_store(url) {
+        return Err(bad("an object-store URL of a file: s3://bucket/path/file, gs://... or az://..."));
+    }
+    let (folder, name) =
+        url.trim_end_matches('/').rsplit_once('/').ok_or_else(|| bad("a file name after the bucket"))?;
+    if !folder.contains("://") || folder.ends_with(':') || folder.ends_with("://") {
+        return Err(bad("a file name after the bucket, e.g. s3://maps/helsinki.osm.pbf"));
+    }
+    super::url::check_segment(name).map_err(|e| bad(&e))?;
+    let archive = Archive::open(folder)?;
+    let path = super::url::child_path(&archive.prefix, name);
+    archive.runtime.block_on(async { archive.store.get(&path).await?.bytes().await }).map(|b| b.to_vec()).map_err(
+        |source| match source {
+            object_store::Error::NotFound { .. } => ArchiveError::NotFound { url: url.into() },
+            source => ArchiveError::Download { url: url.into(), source: Box::new(source) },
+        },
+    )
 }

@@ -4,7 +4,8 @@
 //! subresource. See docs/architecture.md, "Operator internals".
 //!
 //! Modules: [`lifecycle`] (the phase machine), [`queue`] (admission without Kueue),
-//! [`observe`] and [`progress`] (what the children and the coordinator say),
+//! [`observe`] and [`progress`] (what the children and the coordinator say), [`planning`]
+//! (the planner with a mapped world's files from object storage),
 //! [`reconcile`] (the I/O shell), [`leader`] (Lease election), [`metrics`], [`log`].
 
 pub mod leader;
@@ -12,6 +13,7 @@ pub mod lifecycle;
 pub mod log;
 pub mod metrics;
 pub mod observe;
+pub mod planning;
 pub mod progress;
 pub mod queue;
 pub mod reconcile;

@@ -11,7 +11,8 @@ use std::io::Write;
 use sadesim_crds::document::parse_runs;
 
 use super::children::{ClusterSettings, Stage, children, problems};
-use sadesim_planner::{DEFAULT_NAMESPACE, PlanError, plan};
+use super::controller::planning::{ObjectStoreFiles, PlanFailure, plan_blocking};
+use sadesim_planner::{DEFAULT_NAMESPACE, PlanError};
 
 /// The uid used when a document has none (documents in Git never do): obviously not a real
 /// one, and a valid value for `ownerReferences[].uid`.
@@ -48,9 +49,11 @@ pub fn write_manifests(
         if placeholder {
             run.metadata.uid = Some(PLACEHOLDER_UID.to_string());
         }
-        let plan = match plan(&run) {
+        // As the operator plans: a local world file is refused; files in object storage are
+        // read here, with this machine's credentials.
+        let plan = match plan_blocking(&run, &ObjectStoreFiles) {
             Ok(plan) => plan,
-            Err(PlanError::Invalid(problems)) => {
+            Err(PlanFailure::Plan(PlanError::Invalid(problems))) => {
                 errors.push(format!("document {}: {problems}", i + 1));
                 continue;
             }

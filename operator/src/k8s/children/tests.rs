@@ -389,6 +389,25 @@ fn without_an_object_store_there_is_no_assets_job_and_no_upload() {
     assert!(problems(&plan, &s3()).iter().any(|p| p.message.contains("lost with it")));
 }
 
+/// Without an object-store archive there is no bundle: each shard builds the world from
+/// its files, so a map or DEM in a bucket is read with the object-store credentials.
+#[test]
+fn shards_read_a_world_in_a_bucket_with_the_object_store_credentials() {
+    use crate::k8s::controller::planning::fixture;
+    let run = fixture::over_tile(piloted(3));
+    let data = sadesim_world::WorldData { dem: Some(fixture::tile()), osm: None };
+    let plan = sadesim_planner::plan_with(&run, &data).expect("plans over the tile");
+    let secret_only =
+        ClusterSettings { object_store_secret: Some("sadesim-object-store".into()), ..Default::default() };
+    let shard = container(&children(&run, &plan, &secret_only, Stage::ALL), "test-run-shard");
+    assert!(!shard.args.clone().unwrap_or_default().iter().any(|a| a == "--assets"), "no bundle without an archive");
+    assert_eq!(shard.env_from.expect("credentials")[0].secret_ref.as_ref().unwrap().name, "sadesim-object-store");
+    // A procedural world needs none.
+    let plain = planned(&piloted(3));
+    let shard = container(&children(&piloted(3), &plain, &secret_only, Stage::ALL), "test-run-shard");
+    assert!(shard.env_from.is_none());
+}
+
 #[test]
 fn the_coordinator_uploads_its_run_folder_with_values_from_the_environment() {
     let run = piloted(3);

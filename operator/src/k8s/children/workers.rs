@@ -306,7 +306,9 @@ pub(super) fn shard_job(ctx: &Context) -> Job {
         args.extend(["--assets".into(), url.clone()]);
     }
     let mut c = worker_container(ctx, Role::Shard, strings(&[SIM_WORKER]), args, shard_resources(ctx));
-    if assets.is_some() {
+    // The bundle, or without one the world's own files (a map or DEM in a bucket), are read
+    // with the object-store credentials.
+    if assets.is_some() || !sadesim_evidence::world::world_files(&ctx.plan.spec).is_empty() {
         c.env_from = ctx.object_store_env();
     }
     let mut spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Never");

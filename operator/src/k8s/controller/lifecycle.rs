@@ -93,7 +93,7 @@ pub struct Sample {
 pub struct Input<'a> {
     pub run: &'a SimulationRun,
     /// The plan, or why the run does not plan (field paths and what is expected).
-    pub plan: Result<&'a RunPlan, &'a sadesim_planner::PlanError>,
+    pub plan: Result<&'a RunPlan, &'a super::planning::PlanFailure>,
     pub settings: &'a ClusterSettings,
     pub observed: &'a Observed,
     /// The queue's answer, computed for runs waiting without Kueue (`None` otherwise).

@@ -25,11 +25,11 @@ use serde_json::json;
 use super::lifecycle::{self, Decision, FINALIZER, Input, Sample};
 use super::metrics::Metrics;
 use super::observe::{Observed, WorkState};
+use super::planning::{self, ObjectStoreFiles, PlanFailure, WorldFiles};
 use super::progress::{self, TAIL_LINES};
 use super::queue::{self, Gang, QueueView, QueuedRun};
 use crate::k8s::children::{Child, ClusterSettings, Kind, ROLE_LABEL, RUN_LABEL, Role, RunFolder, names};
 use sadesim_crds::plan::RunPlan;
-use sadesim_planner::{self as planner, PlanError};
 
 /// Field manager of every server-side apply (children and status).
 pub const MANAGER: &str = "sadesim-operator";
@@ -64,6 +64,14 @@ pub enum Error {
     /// The run has no namespace (SimulationRuns are namespaced; the watch always sets it).
     #[error("run {0} has no namespace")]
     NoNamespace(String),
+    /// A world file could not be fetched for a reason that may pass (network, throttling,
+    /// credentials being rotated): retried, not a verdict on the spec.
+    #[error("failed to plan {run}: {source}")]
+    WorldFiles {
+        run: String,
+        #[source]
+        source: PlanFailure,
+    },
 }
 
 impl Error {
@@ -73,6 +81,7 @@ impl Error {
             Error::Kube { .. } => "kube",
             Error::Archive { .. } | Error::ArchiveTask { .. } => "archive",
             Error::NoNamespace(_) => "no_namespace",
+            Error::WorldFiles { .. } => "world_files",
         }
     }
 }
@@ -94,6 +103,8 @@ pub struct Context {
     pub samples: Mutex<HashMap<String, Sample>>,
     /// The plan of each run, per uid, for one generation (see [`Context::plan_of`]).
     plans: Mutex<HashMap<String, CachedPlan>>,
+    /// Reads the files of mapped worlds (object storage; fixtures in tests).
+    pub world_files: Arc<dyn WorldFiles>,
     /// The wall clock (fixed in tests).
     pub clock: Box<dyn Fn() -> Timestamp + Send + Sync>,
 }
@@ -115,26 +126,41 @@ impl Context {
             recorder,
             samples: Mutex::default(),
             plans: Mutex::default(),
+            world_files: Arc::new(ObjectStoreFiles),
             clock: Box::new(Timestamp::now),
         }
     }
 
     /// The plan of `run`, planned once per (uid, generation). Planning generates the city
-    /// and places every drone; a run is reconciled every few seconds while it lives, and
-    /// the queue view needs the plans of every run of the namespace that holds resources.
-    /// The plan depends only on the spec (whose every change bumps `metadata.generation`)
-    /// and on name, namespace and uid (fixed for a uid).
-    pub fn plan_of(&self, run: &SimulationRun) -> Arc<Result<RunPlan, PlanError>> {
+    /// (for a mapped world: reads its files from object storage, see [`planning`]) and
+    /// places every drone; a run is reconciled every few seconds while it lives, and the
+    /// queue view needs the plans of every run of the namespace that holds resources. The
+    /// plan depends only on the spec (whose every change bumps `metadata.generation`), on
+    /// name, namespace and uid (fixed for a uid), and on the world files' bytes.
+    ///
+    /// # Errors
+    /// [`Error::WorldFiles`] when a world file could not be fetched for a reason that may
+    /// pass (the store unreachable, a server error): nothing is cached and the reconcile is
+    /// retried. A file that is not there or not a map is a planning failure, cached.
+    pub async fn plan_of(&self, run: &SimulationRun) -> Result<Arc<Result<RunPlan, PlanFailure>>, Error> {
         let key = plan_key(run);
         let generation = run.metadata.generation;
-        let mut plans = self.plans.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(cached) = plans.get(&key).filter(|c| c.generation == generation) {
-            return cached.plan.clone();
+        let cached = |plans: &HashMap<String, CachedPlan>| {
+            plans.get(&key).filter(|c| c.generation == generation).map(|c| c.plan.clone())
+        };
+        if let Some(plan) = cached(&self.plans.lock().unwrap_or_else(|e| e.into_inner())) {
+            return Ok(plan);
         }
         self.metrics.plans.inc();
-        let plan = Arc::new(planner::plan(run));
-        plans.insert(key, CachedPlan { generation, plan: plan.clone() });
-        plan
+        let planned = match planning::plan(run, self.world_files.clone()).await {
+            Err(failure) if failure.may_pass() => {
+                return Err(Error::WorldFiles { run: run.name_any(), source: failure });
+            }
+            planned => planned,
+        };
+        let plan = Arc::new(planned);
+        self.plans.lock().unwrap_or_else(|e| e.into_inner()).insert(key, CachedPlan { generation, plan: plan.clone() });
+        Ok(plan)
     }
 
     /// Forgets the plan of a run that ended (a terminal run is not planned again unless it
@@ -147,7 +173,7 @@ impl Context {
 /// A plan and the generation of the spec it was planned from.
 struct CachedPlan {
     generation: Option<i64>,
-    plan: Arc<Result<RunPlan, PlanError>>,
+    plan: Arc<Result<RunPlan, PlanFailure>>,
 }
 
 /// The uid, or `namespace/name` for a run without one (never from the API server).
@@ -177,7 +203,7 @@ pub async fn reconcile(run: Arc<SimulationRun>, ctx: Arc<Context>) -> Result<Act
     let deleting = run.metadata.deletion_timestamp.is_some();
     let kueue = ctx.settings.kueue && run.spec.queue.is_some();
 
-    let planned = ctx.plan_of(&run);
+    let planned = ctx.plan_of(&run).await?;
     let plan = planned.as_ref().as_ref();
     let waiting = matches!(phase, Phase::Pending | Phase::Queued);
     let observe =
@@ -226,22 +252,23 @@ async fn queue_view(ctx: &Context, ns: &str) -> Result<QueueView, Error> {
     let run_list = runs.list(&ListParams::default()).await.map_err(kube_err(format!("list SimulationRuns in {ns}")))?;
     let quota_list =
         quotas.list(&ListParams::default()).await.map_err(kube_err(format!("list ResourceQuotas in {ns}")))?;
-    let runs = run_list
-        .items
-        .iter()
-        .map(|r| {
-            let phase = r.status.as_ref().and_then(|s| s.phase).unwrap_or(Phase::Pending);
-            QueuedRun {
-                name: r.name_any(),
-                created: r.metadata.creation_timestamp.as_ref().map(|t| t.0),
-                phase,
-                kueue: ctx.settings.kueue && r.spec.queue.is_some(),
-                gang: (phase == Phase::GeneratingAssets)
-                    .then(|| ctx.plan_of(r).as_ref().as_ref().ok().map(Gang::of))
-                    .flatten(),
-            }
-        })
-        .collect();
+    let mut runs = Vec::with_capacity(run_list.items.len());
+    for r in &run_list.items {
+        let phase = r.status.as_ref().and_then(|s| s.phase).unwrap_or(Phase::Pending);
+        // A run generating assets holds its gang; one whose plan cannot be had now holds
+        // nothing we can count (its own reconcile retries).
+        let gang = match phase {
+            Phase::GeneratingAssets => ctx.plan_of(r).await.ok().and_then(|p| p.as_ref().as_ref().ok().map(Gang::of)),
+            _ => None,
+        };
+        runs.push(QueuedRun {
+            name: r.name_any(),
+            created: r.metadata.creation_timestamp.as_ref().map(|t| t.0),
+            phase,
+            kueue: ctx.settings.kueue && r.spec.queue.is_some(),
+            gang,
+        });
+    }
     Ok(QueueView { runs, quotas: quota_list.items, max_concurrent_runs: ctx.max_concurrent_runs })
 }
 

@@ -19,12 +19,16 @@ use kube::Client;
 use kube::client::Body;
 use sadesim_crds::SimulationRun;
 use sadesim_crds::fixtures::RunBuilder;
+use sadesim_crds::plan::RunPlan;
 use sadesim_crds::status::{Phase, SimulationRunStatus, condition_types as ct};
+use sadesim_evidence::world::WorldReadError;
+use sadesim_world::WorldData;
 use serde_json::{Value, json};
 use tower_test::mock;
 
 use super::lifecycle::FINALIZER;
 use super::metrics::Metrics;
+use super::planning::{WorldFiles, fixture};
 use super::reconcile::{Context, MANAGER, reconcile};
 use crate::k8s::children::{ClusterSettings, KUEUE_QUEUE_LABEL, ROLE_LABEL, RUN_LABEL};
 
@@ -57,6 +61,8 @@ struct Cluster {
     logs: BTreeMap<String, String>,
     runs: Vec<SimulationRun>,
     quotas: Vec<ResourceQuota>,
+    /// Where the operator reads mapped worlds' files (default: object storage).
+    world_files: Option<Arc<dyn WorldFiles>>,
 }
 
 fn list(kind: &str, items: Vec<Value>) -> Value {
@@ -157,6 +163,9 @@ async fn reconcile_each(
     let metrics = Arc::new(Metrics::default());
     let mut ctx = Context::new(client, settings, 0, metrics.clone());
     ctx.clock = Box::new(move || now);
+    if let Some(files) = cluster.world_files.clone() {
+        ctx.world_files = files;
+    }
     let ctx = Arc::new(ctx);
     for run in runs {
         tokio::time::timeout(Duration::from_secs(10), reconcile(Arc::new(run), ctx.clone()))
@@ -672,6 +681,55 @@ async fn with_kueue_jobs_carry_the_queue_label_and_no_patch_sets_suspend() {
     let shard = applies(&seen).into_iter().find(|s| s.path.ends_with("/jobs/test-run-shard")).expect("shards applied");
     assert_eq!(shard.body["metadata"]["labels"][KUEUE_QUEUE_LABEL], "team-a-queue");
     assert!(shard.body["spec"].get("suspend").is_none());
+}
+
+/// An SRTM tile as the object store would hand it out, counting the reads.
+#[derive(Default)]
+struct TileInTheBucket {
+    reads: std::sync::atomic::AtomicUsize,
+}
+
+impl WorldFiles for TileInTheBucket {
+    fn read(&self, spec: &sadesim_crds::run::SimulationRunSpec) -> Result<WorldData, WorldReadError> {
+        self.reads.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        assert_eq!(spec.world().terrain.expect("a DEM").dem.file, fixture::TILE_URL);
+        Ok(WorldData { dem: Some(fixture::tile()), osm: None })
+    }
+}
+
+/// A run over a DEM in object storage: the operator reads the tile (once, however often
+/// the run is reconciled), plans over it (the plan's homes stand on the DEM's ground and its
+/// asset key hashes the tile) and starts the assets Job, which builds the bundle from the
+/// same URL with the object-store credentials.
+#[tokio::test]
+async fn a_world_from_object_storage_is_read_once_and_planned_over() {
+    let run = fixture::over_tile(new_run());
+    let files = Arc::new(TileInTheBucket::default());
+    let cluster = Cluster {
+        run: Some(run.clone()),
+        runs: vec![run.clone()],
+        world_files: Some(files.clone()),
+        ..Default::default()
+    };
+    let settings = ClusterSettings { object_store_secret: Some("sadesim-object-store".into()), ..s3_settings() };
+    let (seen, metrics) = reconcile_each(cluster, settings, t0(), vec![run.clone(), run]).await;
+    let writes: Vec<&Seen> = seen.iter().filter(|s| s.path.ends_with("/status")).collect();
+    let status = status_of(writes[0]);
+    assert_eq!(files.reads.load(std::sync::atomic::Ordering::SeqCst), 1, "read once per generation: {status:?}");
+    assert_eq!(metrics.plans.get(), 1);
+    assert_eq!(status.phase, Some(Phase::GeneratingAssets));
+    assert_eq!(condition(&status, ct::VALID).status, "True", "{}", condition(&status, ct::VALID).message);
+    let config =
+        applies(&seen).into_iter().find(|s| s.path.ends_with("/configmaps/test-run-config")).expect("the plan");
+    let plan: RunPlan = serde_json::from_str(config.body["data"]["plan.json"].as_str().unwrap()).unwrap();
+    let procedural = sadesim_planner::plan(&new_run()).unwrap();
+    assert_ne!(plan.asset_cache_key, procedural.asset_cache_key, "the tile is part of the key");
+    let ground = plan.drones[0].home.global.altitude_msl_m;
+    assert!(ground > 150.0 && ground < 1351.0, "the home stands on the tile's ground: {ground}");
+    let assets =
+        applies(&seen).into_iter().find(|s| s.path.ends_with("/jobs/test-run-assets")).expect("the assets Job");
+    let container = &assets.body["spec"]["template"]["spec"]["containers"][0];
+    assert_eq!(container["envFrom"][0]["secretRef"]["name"], "sadesim-object-store", "{container}");
 }
 
 /// A fresh folder under the system temp dir for a file:// archive.

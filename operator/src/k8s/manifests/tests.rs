@@ -102,3 +102,13 @@ fn a_run_the_operator_refuses_says_so_at_the_top() {
     assert!(text.contains("spec.pilot.image: required on Kubernetes"), "{text}");
     assert!(!text.contains("demo-pilot"));
 }
+
+#[test]
+fn a_world_file_on_a_local_path_is_refused_as_the_operator_refuses_it() {
+    let mapped =
+        RUN.replace("  duration: 1m\n", "  duration: 1m\n  world: {terrain: {dem: {file: maps/N41W088.hgt}}}\n");
+    let mut out = Vec::new();
+    let e = write_manifests(&mapped, None, &ClusterSettings::default(), &mut out).unwrap_err();
+    assert!(e.starts_with("document 1: spec.world.terrain.dem.file: \"maps/N41W088.hgt\" is a path"), "{e}");
+    assert!(out.is_empty());
+}

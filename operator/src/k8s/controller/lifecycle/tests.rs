@@ -64,7 +64,12 @@ fn decide_full(
     now: Timestamp,
     last_sample: Option<Sample>,
 ) -> Decision {
-    let plan = sadesim_planner::plan(run);
+    // As the operator plans (a mapped world's files refused when local; fetched ones are
+    // the reconcile tests' business).
+    let plan = match super::super::planning::local_file(&run.spec) {
+        Some(failure) => Err(failure),
+        None => sadesim_planner::plan(run).map_err(super::super::planning::PlanFailure::from),
+    };
     decide(&Input { run, plan: plan.as_ref(), settings, observed, admission, now, last_sample })
 }
 
@@ -180,7 +185,7 @@ fn a_pilot_without_an_image_cannot_run_on_a_cluster() {
 }
 
 #[test]
-fn a_mapped_world_is_refused_on_a_cluster_for_now() {
+fn a_mapped_world_on_a_local_path_is_refused_on_a_cluster() {
     let mut run = new_run();
     run.spec.world = Some(sadesim_crds::run::World {
         source: sadesim_crds::run::WorldSource::Osm,
@@ -190,7 +195,8 @@ fn a_mapped_world_is_refused_on_a_cluster_for_now() {
     let d = decide_with(&run, &Observed::default(), Some(Admission::Admitted), t0());
     assert_eq!(d.status.phase, Some(Phase::Failed));
     let message = &cond(&d, ct::VALID).message;
-    assert!(message.contains("Kubernetes runs do not support world.source osm or world.terrain yet"), "{message}");
+    assert!(message.starts_with("spec.world.osm.file: \"/data/helsinki.osm.pbf\" is a path"), "{message}");
+    assert!(message.contains("object storage"), "{message}");
     assert!(d.apply.is_empty());
 }
 
