@@ -9,6 +9,7 @@ import subprocess
 
 import pytest
 from simrun import run_scripted, scripted_run
+from test_osm import helsinki  # noqa: F401  (the fixture)
 
 ORIGIN = (60.17, 24.94)
 # The ASCII grid's lower-left corner and cell size, degrees: 0.08 deg x 0.04 deg.
@@ -123,3 +124,57 @@ def test_a_run_over_a_dem_slope_takes_off_and_flies_above_the_ground_there(sades
             assert float(r["altitude_msl_m"]) == pytest.approx(ground(lon, lat) + 20.0, abs=1.2), r
     world = json.loads((folder / "world.json").read_text())
     assert world["groundMaxUpM"] - world["groundMinUpM"] > 40, "the slope spans the world square"
+
+
+def test_the_jacksboro_example_follows_real_terrain(sadesim, venv_bin, helsinki, repo, tmp_path):  # noqa: F811
+    """examples/maps/jacksboro.yaml over the elevation model its fetch script makes from
+    matplotlib's sample data (a real 90 m DEM with 600 m of relief): the homes stand on the
+    DEM's ground as GDAL reads it, the survey stays 25 m or more above the ground along its
+    legs, and the criteria pass."""
+    folder = tmp_path / "maps"
+    folder.mkdir()
+    for name in ("jacksboro.yaml", "fetch-data.sh"):
+        (folder / name).write_text((repo / "examples" / "maps" / name).read_text())
+    (folder / "Helsinki.osm.pbf").write_bytes(helsinki.read_bytes())  # present: not fetched again
+    subprocess.run(["bash", str(folder / "fetch-data.sh"), str(venv_bin / "python")], check=True)
+    tif = folder / "jacksboro.tif"
+    info = json.loads(subprocess.run(["gdalinfo", "-json", str(tif)], check=True, capture_output=True, text=True).stdout)
+    assert info["size"] == [403, 344] and "4326" in info["coordinateSystem"]["wkt"].split("ID[")[-1]
+    out = tmp_path / "runs"
+    run = subprocess.run([sadesim, "run", str(folder / "jacksboro.yaml"), "--out", str(out), "-q", "--no-mavlink"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "criteria PASSED: 3 of 3" in run.stdout, run.stdout
+    result = next(out.glob("jacksboro/*"))
+    plan = json.loads((result / "plan.json").read_text())
+    # GDAL's reading of the raster, interpolated bilinearly between pixel centres.
+    asc = tmp_path / "jacksboro.asc"
+    gdal("gdal_translate", "-q", "-of", "AAIGrid", str(tif), str(asc))
+    lines = asc.read_text().splitlines()
+    header = {k.lower(): float(v) for k, v in (line.split() for line in lines[:5])}
+    grid = [[float(v) for v in line.split()] for line in lines[5:] if line.strip()]
+    west, north = header["xllcorner"], header["yllcorner"] + header["nrows"] * header["cellsize"]
+
+    def gdal_ground(lon, lat):
+        x, y = (lon - west) / header["cellsize"] - 0.5, (north - lat) / header["cellsize"] - 0.5
+        i, j = math.floor(x), math.floor(y)
+        fx, fy = x - i, y - j
+        return ((1 - fx) * (1 - fy) * grid[j][i] + fx * (1 - fy) * grid[j][i + 1]
+                + (1 - fx) * fy * grid[j + 1][i] + fx * fy * grid[j + 1][i + 1])
+
+    for drone in plan["drones"]:
+        g = drone["home"]["global"]
+        theirs = gdal_ground(g["longitudeDeg"], g["latitudeDeg"])
+        # Resampled on the world's ground grid (about 6 m) from 90 m cells: within a metre.
+        assert g["altitudeMslM"] == pytest.approx(theirs, abs=1.0), (g, theirs)
+    rows = list(csv.DictReader((result / "trajectory.csv").open()))
+    for drone in range(len(plan["drones"])):
+        agl = [float(r["height_agl_m"]) for r in rows if int(r["drone"]) == drone]
+        # From the first to the last moment above 35 m AGL (after the climb, before the
+        # descent to land): never below 25 m over the slopes (the legs are planned 60 m up;
+        # a drone climbs more slowly than it flies forward), never above the 120 m limit.
+        above = [i for i, h in enumerate(agl) if h > 35.0]
+        cruise = agl[above[0]:above[-1] + 1]
+        assert len(cruise) > 100 and min(cruise) >= 25.0 and max(cruise) <= 120.0, (drone, min(cruise), max(cruise))
+    world = json.loads((result / "world.json").read_text())
+    assert world["groundMaxUpM"] - world["groundMinUpM"] > 500, "real relief"

@@ -128,6 +128,7 @@ pub fn svg(world: &World, plan: &RunPlan) -> String {
     open_spaces(&mut out, world, plan, v);
     buildings(&mut out, world, v);
     zones_drawn(&mut out, &zones, v);
+    routes(&mut out, plan, &styles, v);
     homes(&mut out, plan, &styles, v);
     out.push_str("</g>");
     let _ = write!(
@@ -239,6 +240,32 @@ fn zones_drawn(out: &mut String, zones: &[ZoneShape], v: View) {
     }
 }
 
+/// Each scripted group's route: from its first drone's home through its mission's
+/// waypoints, dashed, in the group's colour (random recreational waypoints are not drawn).
+fn routes(out: &mut String, plan: &RunPlan, styles: &[GroupStyle], v: View) {
+    use sadesim_crds::fleet::MissionItem;
+    let frame = sadesim_crds::geo::LocalFrame::new(plan.spec.origin.geo());
+    for group in &plan.spec.fleet {
+        let Some(mission) = &group.mission else { continue };
+        let Some(first) = plan.drones.iter().find(|d| d.group == group.name) else { continue };
+        let mut d = String::new();
+        let (x, y) = v.px(first.home.local.east_m, first.home.local.north_m);
+        let _ = write!(d, "M{x:.1},{y:.1}");
+        for item in &mission.items {
+            if let MissionItem::Waypoint { latitude_deg, longitude_deg, .. } = item {
+                let (e, n) = frame.to_plane(*latitude_deg, *longitude_deg);
+                let (x, y) = v.px(e, n);
+                let _ = write!(d, "L{x:.1},{y:.1}");
+            }
+        }
+        let colour = model::style_of(styles, &group.name).map_or("#555555", |s| s.colour);
+        let _ = write!(
+            out,
+            r#"<path class="route" d="{d}" fill="none" stroke="{colour}" stroke-width="2.5" stroke-dasharray="8 5"/>"#
+        );
+    }
+}
+
 fn homes(out: &mut String, plan: &RunPlan, styles: &[GroupStyle], v: View) {
     for d in &plan.drones {
         let colour = model::style_of(styles, &d.group).map_or("#555555", |s| s.colour);
@@ -277,6 +304,13 @@ fn legend(out: &mut String, styles: &[GroupStyle], top: f64) {
         row - 12.0
     );
     text(out, MAP_LEFT + 184.0, row, 14.0, "start", "zone (floor-ceiling)");
+    let _ = write!(
+        out,
+        r##"<path class="legend" d="M{:.1},{:.1}h24" stroke="#555555" stroke-width="2.5" stroke-dasharray="8 5"/>"##,
+        MAP_LEFT + 400.0,
+        row - 5.0
+    );
+    text(out, MAP_LEFT + 432.0, row, 14.0, "start", "scripted route (waypoints)");
     for (k, s) in styles.iter().enumerate() {
         let (col, line) = (k % 3, k / 3);
         let (x, y) = (MAP_LEFT + col as f64 * 400.0, row + 28.0 * (line + 1) as f64);
@@ -328,6 +362,8 @@ mod tests {
         let paths = svg.matches("<path d=\"M").count();
         assert_eq!(paths, world.buildings().len());
         assert_eq!(svg.matches(r#"<path class="zone""#).count(), plan.spec.zones.len());
+        let routes = svg.matches(r#"class="route""#).count();
+        assert_eq!(routes, plan.spec.fleet.iter().filter(|g| g.mission.is_some()).count());
         let homes = svg.matches(r#"class="home""#).count();
         assert_eq!(homes, plan.drones.len());
         assert!(svg.contains("museum ("), "the zone is labelled");
