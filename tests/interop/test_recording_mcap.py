@@ -352,14 +352,14 @@ def test_the_city_is_drawn_as_a_scene_of_the_bundle_buildings_and_ground(finishe
     folder, _, messages = finished_run
     (scene,) = [msg for topic, _, log_time, _, msg in messages if topic == "/world" and log_time == 0]
     entities = {e["id"]: e for e in scene["entities"]}
-    assert set(entities) == {"world/buildings", "world/ground"}
+    assert set(entities) == {"buildings", "ground"}
     plan = json.loads((folder / "plan.json").read_text())
     bundle = folder.parent.parent.parent / "asset-cache" / "assets" / plan["assetCacheKey"] / "world"
     geojson = json.loads((bundle / "buildings.geojson").read_text())["features"]
     world = json.loads((folder / "world.json").read_text())
     assert len(geojson) == world["buildingCount"] > 100
 
-    buildings = entities["world/buildings"]
+    buildings = entities["buildings"]
     assert {"key": "buildings", "value": str(len(geojson))} in buildings["metadata"]
     (solid,) = buildings["triangles"]
     points, indices = solid["points"], solid["indices"]
@@ -373,7 +373,7 @@ def test_the_city_is_drawn_as_a_scene_of_the_bundle_buildings_and_ground(finishe
     top = max(p["z"] for p in points)
     assert abs(top - max(roofs)) <= 0.02, (top, max(roofs))
 
-    (ground,) = entities["world/ground"]["triangles"]
+    (ground,) = entities["ground"]["triangles"]
     extent = plan["spec"]["world"].get("extentM", 2000)
     xs = [p["x"] for p in ground["points"]]
     assert (min(xs), max(xs)) == (-extent, extent)

@@ -60,6 +60,7 @@ pub enum RoleError {
 /// # Errors
 /// The bundle cannot be loaded, or the world's files cannot be read.
 pub fn world(plan: &RunPlan, assets: Option<&str>) -> Result<Arc<World>, RoleError> {
+    let started = std::time::Instant::now();
     let world = match assets {
         Some(url) => sadesim_evidence::assets::load_bundle(url)?,
         None => sadesim_evidence::world::load_world(&plan.spec)?,
@@ -69,7 +70,8 @@ pub fn world(plan: &RunPlan, assets: Option<&str>) -> Result<Arc<World>, RoleErr
         || "built from the plan (no --assets)".to_string(),
         |u| format!("loaded from the asset bundle {u}"),
     );
-    eprintln!("world: {} buildings, {from}", world.buildings().len());
+    let ms = started.elapsed().as_secs_f64() * 1e3;
+    eprintln!("world: {} buildings, {from} in {ms:.0} ms", world.buildings().len());
     Ok(Arc::new(world))
 }
 

@@ -1,6 +1,6 @@
 //! The static scene as `foxglove.SceneUpdate`s, in frame `world` (ENU metres):
-//! - `/world`: the city, one entity `world/buildings` (every building as a closed solid) and
-//!   one `world/ground` (the terrain over the world square), as triangle lists from
+//! - `/world`: the city, one entity `buildings` (every building as a closed solid) and
+//!   one `ground` (the terrain over the world square), as triangle lists from
 //!   `sadesim_world::mesh`, so Foxglove's 3D panel shows the drones among the buildings;
 //! - `/zones`: one entity per zone, a prism drawn as outlines (floor and ceiling loops,
 //!   vertical edges), translucent walls and a label. AGL floors and ceilings follow the
@@ -48,10 +48,10 @@ pub fn world_update(world: &World) -> Vec<u8> {
     out.extend_from_slice(br#"{"deletions":[],"entities":["#);
     if !buildings.is_empty() {
         let count = world.buildings().len().to_string();
-        entity(&mut out, "world/buildings", &buildings, [0.62, 0.64, 0.68], &[("buildings", &count)]);
+        entity(&mut out, "buildings", &buildings, [0.62, 0.64, 0.68], &[("buildings", &count)]);
         out.push(b',');
     }
-    entity(&mut out, "world/ground", &ground, [0.45, 0.52, 0.40], &[]);
+    entity(&mut out, "ground", &ground, [0.45, 0.52, 0.40], &[]);
     out.extend_from_slice(b"]}");
     out
 }

@@ -193,7 +193,7 @@ fn the_city_is_one_scene_of_the_world_buildings_and_ground() {
     let entity = |id: &str| {
         scene["entities"].as_array().unwrap().iter().find(|e| e["id"] == id).unwrap_or_else(|| panic!("{id}")).clone()
     };
-    let buildings = entity("world/buildings");
+    let buildings = entity("buildings");
     assert_eq!(buildings["frame_id"], "world");
     assert_eq!(buildings["metadata"][0]["value"], world.buildings().len().to_string());
     let mesh = sadesim_world::mesh::buildings_mesh(&world);
@@ -204,7 +204,7 @@ fn the_city_is_one_scene_of_the_world_buildings_and_ground() {
     let top = solid["points"].as_array().unwrap().iter().map(|p| p["z"].as_f64().unwrap()).fold(f64::MIN, f64::max);
     let tallest = world.buildings().iter().map(|b| b.roof_up_m()).fold(f64::MIN, f64::max);
     assert!((top - tallest).abs() <= 0.005, "{top} vs {tallest}");
-    let ground = &entity("world/ground")["triangles"][0];
+    let ground = &entity("ground")["triangles"][0];
     let corner = &ground["points"][0];
     let e = world.extent_m();
     assert_eq!((corner["x"].as_f64(), corner["y"].as_f64()), (Some(-e), Some(-e)));
