@@ -16,7 +16,6 @@ pub mod env;
 pub mod events;
 pub mod mavlink;
 pub mod pacing;
-pub mod physics;
 pub mod pilot;
 pub mod protocol;
 pub mod record;

@@ -1,7 +1,7 @@
 //! Cross-crate integration tests, in one test binary.
 //!
 //! Each module was its own `[[test]]` target once; every target links the whole engine
-//! (rapier, kube, mavlink), so six targets meant six links of about 500 MB each with debug
+//! (kube, mavlink, object_store), so six targets meant six links of about 500 MB each with debug
 //! info. One binary links once: faster builds on two cores and a target directory CI's
 //! disk can hold. Filter by module as usual: `cargo nextest run -p sadesim-integration-tests
 //! chicago::`.

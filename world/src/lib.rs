@@ -1,8 +1,9 @@
 //! The world as a pure library: ground, buildings and open areas around the run origin
 //! (procedural city), with the ground and line-of-sight queries every role reads.
 //!
-//! No I/O and no physics-engine types: the planner, the shards (which build their rapier
-//! colliders from [`Building`]s), the asset role and every test use the same values.
+//! No I/O and no physics-engine types: the planner, the shards (whose building contacts
+//! are [`World::ball_touches_building`]), the asset role and every test use the same
+//! values.
 //!
 //! Frame: world **ENU** metres from the run origin (x east, y north, z up); z = 0 is the
 //! ground altitude at the origin (`spec.origin.altitudeMslM`), so an MSL altitude is

@@ -326,6 +326,36 @@ impl World {
         self.buildings_at(pos.x, pos.y).any(|b| b.contains(&pos))
     }
 
+    /// The first building (index into [`World::buildings`]) that the closed ball of
+    /// `radius_m` around the ENU point `center` touches: a drone's rotor disc meeting a wall
+    /// or a roof. Exact for prisms: the ball touches when the squared horizontal distance
+    /// to the footprint (0 over it) plus the squared vertical distance to the prism's
+    /// `[base, roof]` (0 within it) is at most `radius_m²`. Courtyards and notches are open
+    /// (the footprint's own distance). The buildings whose bounding rectangles the ball's
+    /// square meets come from the grid index, so a query costs a few footprint distances,
+    /// however big the city.
+    pub fn ball_touches_building(&self, center: Vector3<f64>, radius_m: f64) -> Option<usize> {
+        let (z_lo, z_hi) = self.z_band_up_m;
+        if center.z + radius_m < z_lo || center.z - radius_m > z_hi {
+            return None;
+        }
+        let square = [center.x - radius_m, center.y - radius_m, center.x + radius_m, center.y + radius_m];
+        let mut hits = self.index.in_rect(&square).map(|k| k as usize).filter(|&k| {
+            let b = &self.buildings[k];
+            let vertical_m = (b.base_up_m() - center.z).max(center.z - b.roof_up_m()).max(0.0);
+            if vertical_m > radius_m {
+                return false;
+            }
+            // The ball's horizontal section at the prism's nearest height.
+            let section_m = (radius_m * radius_m - vertical_m * vertical_m).sqrt();
+            b.footprint().touches_disc(center.x, center.y, section_m)
+        });
+        // An item spanning several cells is yielded once per cell: the lowest index wins,
+        // whichever cell it came from, so the answer does not depend on the index layout.
+        let first = hits.next()?;
+        Some(hits.fold(first, usize::min))
+    }
+
     /// The first building the segment `a -> b` meets, with the ENU point where it enters:
     /// `(index into buildings(), point)`. A segment starting inside a building returns that
     /// building at `a`. For line of sight (drone to drone, drone to satellite: pass a point

@@ -324,3 +324,132 @@ fn chicago_world_stats() {
     println!("generated in {:.1} ms", elapsed.as_secs_f64() * 1e3);
     assert!(world.stats().building_count > 5000);
 }
+
+/// Ball contact (`World::ball_touches_building`): a drone's rotor disc against prisms.
+mod ball_contact {
+    use nalgebra::Vector3;
+
+    use crate::footprint::Footprint;
+    use crate::{Building, World};
+
+    fn tower() -> Building {
+        let square = vec![[40.0, -10.0], [60.0, -10.0], [60.0, 10.0], [40.0, 10.0]];
+        Building::new(Footprint::new(square, vec![]).unwrap(), 0.0, 60.0).unwrap()
+    }
+
+    /// An L: the 30 m square at the origin without its north-east 20 m quarter; roof 20 m.
+    fn l_shape() -> Building {
+        let outer = vec![[0.0, 0.0], [30.0, 0.0], [30.0, 10.0], [10.0, 10.0], [10.0, 30.0], [0.0, 30.0]];
+        Building::new(Footprint::new(outer, vec![]).unwrap(), 0.0, 20.0).unwrap()
+    }
+
+    /// A 40 m block at the origin around a 20 m courtyard, on ground at 2 m; roof at 17 m.
+    fn courtyard() -> Building {
+        let outer = vec![[0.0, 0.0], [40.0, 0.0], [40.0, 40.0], [0.0, 40.0]];
+        let hole = vec![[10.0, 10.0], [30.0, 10.0], [30.0, 30.0], [10.0, 30.0]];
+        Building::new(Footprint::new(outer, vec![hole]).unwrap(), 2.0, 15.0).unwrap()
+    }
+
+    /// A diamond (convex, not axis-aligned) centred at (100, 100), 10 m to each corner.
+    fn diamond() -> Building {
+        let outer = vec![[100.0, 90.0], [110.0, 100.0], [100.0, 110.0], [90.0, 100.0]];
+        Building::new(Footprint::new(outer, vec![]).unwrap(), 0.0, 30.0).unwrap()
+    }
+
+    fn world(buildings: Vec<Building>) -> World {
+        World::of_buildings(500.0, buildings)
+    }
+
+    /// Drops a ball of `radius_m` from 40 m straight down at (east, north) in 5 cm steps and
+    /// returns the height of its centre at first contact, or `None`.
+    fn drop_ball(building: &Building, east_m: f64, north_m: f64, radius_m: f64) -> Option<f64> {
+        let w = world(vec![building.clone()]);
+        (0..=800)
+            .map(|k| 40.0 - 0.05 * k as f64)
+            .find(|&z| w.ball_touches_building(Vector3::new(east_m, north_m, z), radius_m).is_some())
+    }
+
+    #[test]
+    fn a_ball_falling_into_a_courtyard_does_not_touch_and_one_over_the_wing_does() {
+        let b = courtyard();
+        assert_eq!(drop_ball(&b, 20.0, 20.0, 0.4), None, "the courtyard is open down to the ground");
+        assert_eq!(drop_ball(&b, 11.0, 20.0, 0.4), None, "0.6 m clear of the courtyard's west wall");
+        let z = drop_ball(&b, 5.0, 20.0, 0.4).expect("the west wing is solid");
+        assert!((17.35..=17.4).contains(&z), "roof at 17 m, ball radius 0.4 m: first contact at {z}");
+        let z = drop_ball(&b, 10.2, 20.0, 0.4).expect("grazes the courtyard's west wall");
+        assert!(z <= 17.4 && z > 17.0, "{z}");
+    }
+
+    #[test]
+    fn an_l_shape_is_solid_in_its_arms_and_open_in_its_notch() {
+        let b = l_shape();
+        assert_eq!(drop_ball(&b, 20.0, 20.0, 0.4), None, "the missing quarter");
+        assert_eq!(drop_ball(&b, 11.0, 11.0, 0.4), None, "near the inner corner, 1 m off both walls");
+        for (e, n) in [(5.0, 25.0), (25.0, 5.0), (5.0, 5.0)] {
+            let z = drop_ball(&b, e, n, 0.4).expect("the arms are solid");
+            assert!((20.35..=20.4).contains(&z), "{z}");
+        }
+    }
+
+    /// Against brute force: the exact distance from the ball's centre to each prism (a 3-D
+    /// lattice around the buildings, corners and edges included).
+    #[test]
+    fn contact_is_the_exact_distance_to_the_prism() {
+        let radius_m = 0.4;
+        let buildings = vec![l_shape(), courtyard(), diamond(), tower()];
+        let w = world(buildings.clone());
+        let distance = |b: &Building, p: &Vector3<f64>| {
+            let horizontal = b.footprint().distance_m(p.x, p.y);
+            let vertical = (b.base_up_m() - p.z).max(p.z - b.roof_up_m()).max(0.0);
+            horizontal.hypot(vertical)
+        };
+        let mut touching = 0;
+        for b in &buildings {
+            let [lo_e, lo_n, hi_e, hi_n] = b.footprint().bounds();
+            for i in 0..=((hi_e - lo_e + 4.0) / 0.7) as usize {
+                for j in 0..=((hi_n - lo_n + 4.0) / 0.7) as usize {
+                    for z in [
+                        b.base_up_m() + 0.2,
+                        b.base_up_m() + b.height_m() / 2.0,
+                        b.roof_up_m() + 0.25,
+                        b.roof_up_m() + 0.45,
+                    ] {
+                        let p =
+                            Vector3::new(lo_e - 2.0 + 0.7 * i as f64 + 0.013, lo_n - 2.0 + 0.7 * j as f64 + 0.029, z);
+                        let nearest = buildings.iter().map(|b| distance(b, &p)).fold(f64::INFINITY, f64::min);
+                        if (nearest - radius_m).abs() < 1e-9 {
+                            continue;
+                        }
+                        let hit = w.ball_touches_building(p, radius_m);
+                        assert_eq!(
+                            hit.is_some(),
+                            nearest <= radius_m,
+                            "ball at {p:?}, {nearest} m from the nearest prism"
+                        );
+                        if let Some(k) = hit {
+                            assert!(distance(&buildings[k], &p) <= radius_m);
+                            touching += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(touching > 1000, "the lattice covers the buildings: {touching}");
+    }
+
+    #[test]
+    fn a_drone_flying_into_a_building_touches_it_and_one_above_does_not() {
+        let w = world(vec![tower()]);
+        let hit_at = (0..1000)
+            .map(|step| step as f64 * 0.05) // 50 m/s east, 1 ms steps
+            .find(|&x| w.ball_touches_building(Vector3::new(x, 0.0, 30.0), 0.4).is_some())
+            .expect("the drone hits the tower's west face at x = 40 m");
+        assert!((39.55..=39.65).contains(&hit_at), "first contact at {hit_at} (face at 40, ball radius 0.4)");
+        assert!(
+            (0..1000).all(|step| w
+                .ball_touches_building(Vector3::new(50.0, 0.0, 60.41 + step as f64 * 0.01), 0.4)
+                .is_none())
+        );
+        assert!(w.ball_touches_building(Vector3::new(50.0, 0.0, 60.39), 0.4).is_some(), "0.39 m over the roof");
+    }
+}

@@ -366,15 +366,9 @@ mod tests {
         let started = Instant::now();
         let timeouts = Timeouts { connect, shard: None };
         let any = SocketAddr::from(([127, 0, 0, 1], 0));
-        let error = run(
-            &plan,
-            &world,
-            "127.0.0.1:0",
-            any,
-            &dir.0,
-            Ends { stop, timeouts, requests: StopRequest::new() },
-        )
-        .expect_err("no shard connects");
+        let error =
+            run(&plan, &world, "127.0.0.1:0", any, &dir.0, Ends { stop, timeouts, requests: StopRequest::new() })
+                .expect_err("no shard connects");
         (error, started.elapsed())
     }
 

@@ -1,8 +1,8 @@
 //! One simulated drone: rigid body, motors, battery, sensors and its FMU, stepped at the
 //! physics rate, with its scripted pilot (`pilot::ScriptedPilot`), its ground contact
 //! (`vehicle::ground`) and its MAVLink session, which reads and writes the shard's queues
-//! (`shard::mavlink_io`), never a socket. Building contact comes from the shard's rapier
-//! world.
+//! (`shard::mavlink_io`), never a socket. Building contact is the shard's query of the
+//! world (`World::ball_touches_building`).
 
 use nalgebra::Vector3;
 use sadesim_crds::fleet::GeofenceAction;

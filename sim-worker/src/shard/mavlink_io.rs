@@ -3,7 +3,7 @@
 //! belong to the shard; whatever moves them to and from the network (the sockets of
 //! `roles::shard::ShardSockets`, or nothing at all in tests) implements [`MavlinkIo`] and
 //! is called by [`super::Shard::advance_with`] at fixed points of a window, so the core
-//! never waits on a socket (rapier's `PhysicsPipeline::step` does no I/O either).
+//! never waits on a socket.
 //!
 //! When the I/O side runs, relative to the windows, is told at [`MavlinkIo`].
 

@@ -20,7 +20,6 @@ use sadesim_crds::plan::RunPlan;
 use crate::airspace::volume::ZoneVolume;
 use crate::env::{EnvSample, Environment};
 use crate::events::Event;
-use crate::physics::ContactWorld;
 use crate::pilot::scripted::{self, GroundHeight};
 use crate::protocol::{FromShard, PROTOCOL_VERSION, ToShard};
 use crate::sensors::SensorSuite;
@@ -81,7 +80,6 @@ pub struct Shard {
     index: u32,
     world: Arc<World>,
     env: Environment,
-    contacts: ContactWorld,
     drones: Vec<DroneSim>,
     /// The latest environment sample of each drone.
     env_samples: Vec<EnvSample>,
@@ -152,14 +150,11 @@ impl Shard {
         let indices: Vec<u32> = planned.iter().map(|d| d.index).collect();
         let groups: Vec<String> = planned.iter().map(|d| d.group.clone()).collect();
         let env = Environment::from_spec(&env_spec, plan.seed, &indices, &groups);
-        let balls: Vec<_> = drones.iter().map(|d| (d.position_enu_m(), d.radius_m)).collect();
-        let contacts = ContactWorld::new(world.buildings(), &balls);
         Ok(Self {
             index,
             world,
             env,
             env_samples: vec![EnvSample::default(); drones.len()],
-            contacts,
             drones,
             step: 0,
             dt_s: 1.0 / f64::from(plan.physics_rate_hz),
@@ -263,16 +258,18 @@ impl Shard {
                     self.env_samples[i] = self.env.sample(&drone.sample_context(i, t, env_dt_s));
                 }
                 drone.step(self.step + 1, t, self.dt_s, &self.env_samples[i], &self.world, self.released);
-                self.contacts.set_position(i, &drone.position_enu_m());
             }
-            self.contacts.step();
             // Times are step counts times dt, never sums, so they print the same everywhere.
             let t_end = (self.step + 1) as f64 * self.dt_s;
-            for (i, drone) in self.drones.iter_mut().enumerate() {
-                if !drone.is_crashed() && self.contacts.touches_building(i) {
+            for drone in &mut self.drones {
+                // Building contact: the rotor disc's ball against the prisms (an exact query
+                // of the world; drones of other shards are not here, and drone-drone contact
+                // is judged on the merged snapshot, DESIGN §5).
+                if !drone.is_crashed()
+                    && self.world.ball_touches_building(drone.position_enu_m(), drone.radius_m).is_some()
+                {
                     let speed = drone.speed_mps();
                     drone.crash("building", speed);
-                    self.contacts.disable(i);
                 }
                 let index = drone.plan.index;
                 events.extend(drone.take_events().into_iter().map(|kind| Event {

@@ -1,9 +1,8 @@
 //! Forces and torques on a multirotor, and a reference rigid-body integrator.
 //!
 //! Frames: forces in world **ENU**, torques in body **FLU**, attitude `q` rotates body ->
-//! world (`v_world = q * v_body`). The physics engine (rapier) integrates the [`Wrench`]
-//! in the shard; [`RigidState::integrate`] is the plain reference used by tests and as a
-//! fallback.
+//! world (`v_world = q * v_body`). [`RigidState::integrate`] integrates the [`Wrench`]
+//! in the shard.
 
 use nalgebra::{UnitQuaternion, Vector3};
 
