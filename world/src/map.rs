@@ -346,9 +346,16 @@ impl World {
             if vertical_m > radius_m {
                 return false;
             }
-            // The ball's horizontal section at the prism's nearest height.
+            // The ball's horizontal section at the prism's nearest height; its square must
+            // meet the footprint's bounds before the polygon is looked at (an index cell
+            // holds the buildings of a whole block).
             let section_m = (radius_m * radius_m - vertical_m * vertical_m).sqrt();
-            b.footprint().touches_disc(center.x, center.y, section_m)
+            let [e0, n0, e1, n1] = b.footprint().bounds();
+            center.x + section_m >= e0
+                && center.x - section_m <= e1
+                && center.y + section_m >= n0
+                && center.y - section_m <= n1
+                && b.footprint().touches_disc(center.x, center.y, section_m)
         });
         // An item spanning several cells is yielded once per cell: the lowest index wins,
         // whichever cell it came from, so the answer does not depend on the index layout.
