@@ -44,6 +44,23 @@ PY
   rm -rf "$tmp"
 fi
 
+# Debian's rtklib package carries a public satellite catalogue (TLE, 2020-12-01) with every
+# GNSS satellite: the orbit file of tests/interop/test_gnss.py. Unpacked, not installed.
+RTKLIB_TLE=.tools/rtklib/usr/share/rtklib/TLE_20201201txt.txt
+if [ ! -f "$RTKLIB_TLE" ]; then
+  echo "==> unpacking Debian's rtklib package (its TLE catalogue)"
+  tmp=$(mktemp -d)
+  if ! (cd "$tmp" && apt-get download rtklib >/dev/null 2>&1); then
+    sudo=""
+    if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+    $sudo apt-get update -qq
+    (cd "$tmp" && apt-get download rtklib >/dev/null 2>&1)
+  fi
+  mkdir -p .tools/rtklib
+  dpkg-deb -x "$tmp"/rtklib_*.deb .tools/rtklib
+  rm -rf "$tmp"
+fi
+
 # Khronos' glTF validator (npm) checks the world.glb we write (tests/interop/test_osm.py).
 GLTF_VALIDATOR_NPM_PACKAGE="gltf-validator@2.0.0-dev.3.10"
 if [ ! -f .tools/npm/node_modules/gltf-validator/package.json ]; then

@@ -5,6 +5,7 @@ mod archive_cmd;
 mod args;
 mod assets_cmd;
 mod dem_cmd;
+mod gnss_cmd;
 mod osm_cmd;
 mod outcome;
 mod plan_cmd;
@@ -14,7 +15,7 @@ mod validate_cmd;
 
 use std::io::Write;
 
-pub use args::{ArchiveCommand, AssetsCommand, Cli, Command};
+pub use args::{ArchiveCommand, AssetsCommand, Cli, Command, GnssCommand};
 pub use outcome::{CliError, Outcome};
 pub use plan_cmd::summary;
 pub use scenario::read_scenario;
@@ -114,6 +115,9 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             osm_cmd::osm_file(&file, origin, extent_m, targets, json, out)
         }
         Command::Dem { file, origin, extent_m, at, json } => dem_cmd::dem_file(&file, origin, extent_m, &at, json, out),
+        Command::Gnss { command: GnssCommand::Sky { file, at, time, mask_deg, json } } => {
+            gnss_cmd::sky(&file, at, &time, mask_deg, json, out)
+        }
         Command::Operator(args) => {
             sadesim_operator::k8s::controller::run(args.options()).map_err(|e| CliError::Failed(e.to_string()))?;
             Ok(Outcome::Success)

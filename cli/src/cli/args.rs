@@ -218,12 +218,43 @@ pub enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// GNSS geometry from an orbit file.
+    Gnss {
+        #[command(subcommand)]
+        command: GnssCommand,
+    },
     /// Run the Kubernetes operator: reconcile SimulationRuns in the cluster of the current
     /// kubeconfig or service account.
     ///
     /// Logs JSON lines to stderr; stops cleanly on SIGTERM. The Lease for leader election is
     /// `sadesim-operator` in POD_NAMESPACE, held as POD_NAME.
     Operator(sadesim_operator::OperatorArgs),
+}
+
+/// `sadesim gnss ...`
+#[derive(Debug, Subcommand)]
+pub enum GnssCommand {
+    /// The navigation satellites an orbit file puts over a place at a time: azimuth,
+    /// elevation and range of each above the elevation mask, and their dilution of
+    /// precision. Warns when the file's element sets are more than a week from the time.
+    Sky {
+        /// The orbit file: TLE or 3LE element sets (e.g. CelesTrak's gnss group); GPS,
+        /// Galileo, GLONASS and BeiDou satellites are recognised by name.
+        file: PathBuf,
+        /// The receiver as `LAT,LON` or `LAT,LON,HEIGHT_M` (degrees, metres above the
+        /// WGS84 ellipsoid).
+        #[arg(long, value_parser = parse_lat_lon_height)]
+        at: (f64, f64, f64),
+        /// The time, RFC 3339 (`2026-05-01T14:30:00Z`).
+        #[arg(long)]
+        time: String,
+        /// Elevation mask, degrees.
+        #[arg(long, default_value_t = 10.0)]
+        mask_deg: f64,
+        /// Print as JSON.
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 /// `sadesim assets ...`
@@ -340,4 +371,24 @@ fn parse_lat_lon(text: &str) -> Result<(f64, f64), String> {
         (Some(lat), Some(lon)) if lat.abs() <= 90.0 && lon.abs() <= 180.0 => Ok((lat, lon)),
         _ => Err(format!("{text:?}: {expected} (latitude within ±90, longitude within ±180)")),
     }
+}
+
+/// `LAT,LON` or `LAT,LON,HEIGHT_M`: degrees as [`parse_lat_lon`], the height in metres
+/// (default 0).
+fn parse_lat_lon_height(text: &str) -> Result<(f64, f64, f64), String> {
+    let (lat_lon, height) = match text.rsplit_once(',') {
+        Some((head, tail)) if head.contains(',') => (head, Some(tail)),
+        _ => (text, None),
+    };
+    let (lat, lon) = parse_lat_lon(lat_lon)?;
+    let height_m = match height {
+        None => 0.0,
+        Some(h) => h
+            .trim()
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite() && v.abs() < 100_000.0)
+            .ok_or_else(|| format!("{text:?}: the height {h:?} must be metres (|h| < 100 km)"))?,
+    };
+    Ok((lat, lon, height_m))
 }

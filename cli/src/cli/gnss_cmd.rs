@@ -1,0 +1,90 @@
+//! `sadesim gnss sky FILE`: the GNSS satellites an orbit file puts in the sky over a place at
+//! a time, with their look angles and the dilution of precision of those above the mask.
+
+use std::io::Write;
+use std::path::Path;
+
+use sadesim_crds::geo::GeoPoint;
+use sadesim_gnss::{Constellation, Dop, LookAngles};
+use serde_json::json;
+
+use super::{CliError, Outcome};
+
+/// Orbit files older or newer than this many days from the asked time get a warning: SGP4's
+/// error for navigation satellites grows by kilometres per day away from the elements' epoch.
+const STALE_DAYS: f64 = 7.0;
+
+pub(super) fn sky(
+    file: &Path,
+    at: (f64, f64, f64),
+    time: &str,
+    mask_deg: f64,
+    json: bool,
+    out: &mut dyn Write,
+) -> Result<Outcome, CliError> {
+    let shown = file.display().to_string();
+    let text = std::fs::read_to_string(file).map_err(|source| CliError::Read { path: shown.clone(), source })?;
+    let constellation = Constellation::from_tle(&text).map_err(|e| CliError::Failed(format!("{shown}: {e}")))?;
+    let unix_s = sadesim_gnss::parse_utc(time).map_err(|e| CliError::Failed(format!("--time {e}")))?;
+    let receiver = GeoPoint::new(at.0, at.1, at.2);
+    let mut seen: Vec<(usize, LookAngles)> = constellation
+        .positions(unix_s)
+        .into_iter()
+        .map(|p| (p.index, LookAngles::of(receiver, p.ecef)))
+        .filter(|(_, look)| look.elevation_deg >= mask_deg)
+        .collect();
+    seen.sort_by(|a, b| b.1.elevation_deg.total_cmp(&a.1.elevation_deg));
+    let units: Vec<[f64; 3]> = seen.iter().map(|(_, l)| l.unit_enu).collect();
+    let dop = Dop::of(&units);
+    let age_days = constellation.age_days(unix_s);
+    let warning = (age_days > STALE_DAYS).then(|| {
+        format!(
+            "{shown}: element sets up to {age_days:.0} days from {time}: SGP4 drifts by kilometres per day from their epoch, so this is not that day's sky; use an orbit file from within a few days"
+        )
+    });
+    if let Some(w) = &warning {
+        eprintln!("warning: {w}");
+    }
+    if json {
+        let satellites: Vec<_> = seen
+            .iter()
+            .map(|(i, l)| {
+                let s = &constellation.satellites[*i];
+                json!({"name": s.name, "noradId": s.norad_id, "system": s.system, "azimuthDeg": l.azimuth_deg,
+                       "elevationDeg": l.elevation_deg, "rangeM": l.range_m})
+            })
+            .collect();
+        let doc = json!({"unixS": unix_s, "ageDays": age_days, "maskDeg": mask_deg, "satellites": satellites, "dop": dop});
+        writeln!(out, "{}", serde_json::to_string_pretty(&doc).expect("JSON values always serialize"))?;
+        return Ok(Outcome::Success);
+    }
+    writeln!(
+        out,
+        "{shown}: {} of {} satellites above {mask_deg}° at {:.5}, {:.5} at {time}",
+        seen.len(),
+        constellation.satellites.len(),
+        at.0,
+        at.1
+    )?;
+    match dop {
+        Some(d) => writeln!(
+            out,
+            "  GDOP {:.2}  PDOP {:.2}  HDOP {:.2}  VDOP {:.2}  TDOP {:.2}",
+            d.gdop, d.pdop, d.hdop, d.vdop, d.tdop
+        )?,
+        None => writeln!(out, "  no DOP: fewer than 4 satellites (or all in one plane)")?,
+    }
+    for (i, l) in &seen {
+        let s = &constellation.satellites[*i];
+        writeln!(
+            out,
+            "  {} {:<28} az {:6.1}°  el {:5.1}°  {:8.0} km",
+            s.system.code(),
+            s.name,
+            l.azimuth_deg,
+            l.elevation_deg,
+            l.range_m / 1000.0
+        )?;
+    }
+    Ok(Outcome::Success)
+}
