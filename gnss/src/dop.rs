@@ -3,10 +3,11 @@
 //!
 //! With the unit lines of sight `u_i` (local ENU, receiver to satellite), the geometry
 //! matrix has rows `[-u_i, 1]` (the partial derivatives of the pseudoranges by position and
-//! by the receiver clock in metres); `Q = (GᵀG)⁻¹`. Then GDOP = √tr Q, PDOP = √(Q_ee + Q_nn
-//! + Q_uu), HDOP = √(Q_ee + Q_nn), VDOP = √Q_uu, TDOP = √Q_tt. One clock for all systems, as
-//! most DOP figures are given (a receiver mixing systems also estimates their time
-//! offsets; that adds a column per system).
+//! by the receiver clock in metres); `Q = (GᵀG)⁻¹`. Then GDOP = √tr Q,
+//! PDOP = √(Q_ee + Q_nn + Q_uu), HDOP = √(Q_ee + Q_nn), VDOP = √Q_uu, TDOP = √Q_tt.
+//!
+//! One clock for all systems, as most DOP figures are given (a receiver mixing systems
+//! also estimates their time offsets; that adds a column per system).
 
 use nalgebra::{Matrix4, Vector4};
 

@@ -54,7 +54,8 @@ pub(super) fn sky(
                        "elevationDeg": l.elevation_deg, "rangeM": l.range_m})
             })
             .collect();
-        let doc = json!({"unixS": unix_s, "ageDays": age_days, "maskDeg": mask_deg, "satellites": satellites, "dop": dop});
+        let doc =
+            json!({"unixS": unix_s, "ageDays": age_days, "maskDeg": mask_deg, "satellites": satellites, "dop": dop});
         writeln!(out, "{}", serde_json::to_string_pretty(&doc).expect("JSON values always serialize"))?;
         return Ok(Outcome::Success);
     }
