@@ -48,10 +48,18 @@ pub struct Wind {
     pub turbulence: Turbulence,
 }
 
-/// GNSS receiver model: white noise, a random-walk bias, and scheduled dropouts.
+/// GNSS receiver model. Without `constellation`: the statistical receiver (white noise, a
+/// random-walk bias). With it: the ranging receiver, whose fix is solved from
+/// pseudoranges to the real satellites, blocked and reflected by the world's buildings and
+/// terrain. Both honour `rateHz` and the scheduled `dropouts`.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct Gnss {
+    /// The satellites of an orbit file: turns on the ranging receiver (urban GNSS). The
+    /// statistical receiver's noise fields (`horizontalSigmaM`, `verticalSigmaM`,
+    /// `biasWalkMPerSqrtS`) are then not allowed: the errors come from the geometry.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub constellation: Option<GnssConstellation>,
     /// Fix rate, Hz (1..20). Default 5.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 1.0, max = 20.0))]
@@ -72,6 +80,26 @@ pub struct Gnss {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 256))]
     pub dropouts: Vec<GnssDropout>,
+}
+
+/// The GNSS constellation of a run: which orbit file, which instant is the run's t = 0.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct GnssConstellation {
+    /// Orbit file: two- or three-line element sets (TLE, as CelesTrak publishes its GNSS
+    /// groups). A local path (relative to the scenario's folder), `file://`, or an
+    /// object-store URL (`s3://`, `gs://`, `az://`) on a cluster.
+    #[schemars(length(min = 1, max = 1024))]
+    pub file: String,
+    /// UTC time of the run's t = 0 (RFC 3339, e.g. `2020-12-01T12:00:00Z`). Default: the
+    /// newest element set's epoch in the file (orbits are most accurate near their epoch).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(max = 64))]
+    pub epoch: Option<String>,
+    /// Satellites below this elevation are not tracked, degrees (0..60). Default 10.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 0.0, max = 60.0))]
+    pub elevation_mask_deg: Option<f64>,
 }
 
 /// No fix for `duration` from sim time `start`, for the listed groups (all when empty).

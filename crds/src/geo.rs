@@ -160,8 +160,18 @@ impl LocalFrame {
 
     /// Geodetic -> ENU: rotate the ECEF offset from the origin into east/north/up axes.
     pub fn to_enu(&self, p: GeoPoint) -> Enu {
-        let e = p.to_ecef();
+        self.ecef_to_enu(p.to_ecef())
+    }
+
+    /// Earth-fixed -> ENU: the offset from the origin, rotated into the tangent plane's
+    /// east/north/up axes (satellites, thousands of kilometres away, included).
+    pub fn ecef_to_enu(&self, e: Ecef) -> Enu {
         let (dx, dy, dz) = (e.x_m - self.origin_ecef.x_m, e.y_m - self.origin_ecef.y_m, e.z_m - self.origin_ecef.z_m);
+        self.rotate_to_enu(dx, dy, dz)
+    }
+
+    /// An Earth-fixed vector (a velocity, an offset) in the tangent plane's axes.
+    pub fn rotate_to_enu(&self, dx: f64, dy: f64, dz: f64) -> Enu {
         Enu {
             east_m: -self.sin_lon * dx + self.cos_lon * dy,
             north_m: -self.sin_lat * self.cos_lon * dx - self.sin_lat * self.sin_lon * dy + self.cos_lat * dz,

@@ -8,6 +8,7 @@ pub mod assets;
 #[cfg(feature = "report")]
 pub mod finish;
 pub mod gltf;
+pub mod gnss;
 #[cfg(feature = "report")]
 pub mod report;
 pub mod world;

@@ -92,7 +92,7 @@ pub fn read_data(spec: &SimulationRunSpec) -> Result<WorldData, WorldReadError> 
     Ok(data)
 }
 
-fn read_file(field: &'static str, file: &str) -> Result<(String, Vec<u8>), WorldReadError> {
+pub(crate) fn read_file(field: &'static str, file: &str) -> Result<(String, Vec<u8>), WorldReadError> {
     if crate::archive::is_object_store(file) {
         let bytes = crate::archive::read_object(file).map_err(|source| WorldReadError::Fetch { field, source })?;
         return Ok((file.to_string(), bytes));

@@ -7,6 +7,12 @@
 //!   and Space-Track publish them), propagated with SGP4 to Earth-fixed positions.
 //! - [`sky`]: azimuth, elevation and range of a satellite from a receiver.
 //! - [`dop`]: dilution of precision (GDOP, PDOP, HDOP, VDOP, TDOP) of a satellite set.
+//! - [`run_sky`]: the satellites in the run's ENU frame at simulated times (cached per
+//!   epoch, shared by a shard's receivers).
+//! - [`signal`]: line of sight, single facade reflections (NLOS) and C/N0 among the
+//!   world's buildings and terrain.
+//! - [`receiver`]: pseudoranges with their errors and the least-squares fix.
+//! - [`synthetic`]: a GPS-like Walker constellation for tests and demonstrations.
 //!
 //! Frames and units: Earth-fixed positions are WGS84 ECEF metres (`sadesim_crds::geo::Ecef`);
 //! look angles are degrees (azimuth clockwise from true north, elevation above the
@@ -15,10 +21,17 @@
 
 pub mod dop;
 pub mod orbits;
+pub mod receiver;
+pub mod run_sky;
+pub mod signal;
 pub mod sky;
+pub mod synthetic;
 
 pub use dop::Dop;
 pub use orbits::{Constellation, OrbitError, Satellite, System};
+pub use receiver::{RangingReceiver, ReceiverEpoch, Solution};
+pub use run_sky::{RunSky, SatelliteState};
+pub use signal::SignalPath;
 pub use sky::LookAngles;
 
 /// A UTC time as UNIX seconds from RFC 3339 text (`2026-05-01T14:30:00Z`, fractional

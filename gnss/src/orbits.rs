@@ -99,6 +99,11 @@ pub enum OrbitError {
     NoNavigationSatellites { objects: usize },
 }
 
+/// Element sets farther than this many days from the time they are used at deserve a
+/// warning: SGP4's error for navigation satellites grows by kilometres per day away from the
+/// elements' epoch.
+pub const STALE_DAYS: f64 = 7.0;
+
 /// The navigation satellites of an orbit file.
 #[derive(Debug)]
 pub struct Constellation {
@@ -203,6 +208,11 @@ impl Constellation {
                 Some(SatellitePosition { index, ecef: Ecef { x_m: r.x, y_m: r.y, z_m: r.z } })
             })
             .collect()
+    }
+
+    /// The newest element set's epoch, UNIX seconds (UTC): the default t = 0 of a run.
+    pub fn newest_epoch_unix_s(&self) -> f64 {
+        self.satellites.iter().map(|s| s.epoch_unix_s).fold(f64::NEG_INFINITY, f64::max)
     }
 
     /// The element set of satellite `index` (for tools that propagate it themselves).

@@ -20,7 +20,7 @@ impl LookAngles {
     /// above the ellipsoid in `altitude_msl_m`: the geoid's undulation, tens of metres,
     /// changes an elevation by microdegrees at GNSS distances).
     pub fn of(receiver: GeoPoint, satellite: Ecef) -> Self {
-        let enu = LocalFrame::new(receiver).to_enu(satellite.to_geodetic());
+        let enu = LocalFrame::new(receiver).ecef_to_enu(satellite);
         let v = [enu.east_m, enu.north_m, enu.up_m];
         let range_m = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         let unit_enu = v.map(|c| c / range_m);

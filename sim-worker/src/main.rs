@@ -174,7 +174,8 @@ fn main() -> ExitCode {
                 let timeout = Duration::from_secs_f64(connect_timeout);
                 roles::read_plan(&plan).and_then(|plan| {
                     let world = roles::world(&plan, assets.as_deref())?;
-                    roles::shard::run(&plan, world, shard, &coordinator, mavlink.as_ref(), timeout)
+                    let sky = roles::sky(&plan)?;
+                    roles::shard::run(&plan, world, sky, shard, &coordinator, mavlink.as_ref(), timeout)
                 })
             })
         }

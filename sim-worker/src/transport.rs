@@ -51,7 +51,8 @@ pub fn serve(
     }
 }
 
-/// Starts shard `index` of `plan` on its own thread.
+/// Starts shard `index` of `plan` on its own thread (in `world`, under `sky`: see
+/// [`Shard::new`]).
 ///
 /// # Errors
 /// When the shard cannot be built (reported before any thread starts).
@@ -59,9 +60,10 @@ pub fn spawn_thread(
     plan: &RunPlan,
     index: u32,
     world: Arc<World>,
+    sky: Option<Arc<sadesim_gnss::RunSky>>,
     mavlink: Option<&crate::shard::MavlinkOptions>,
 ) -> Result<(ThreadLink, JoinHandle<()>), crate::shard::ShardError> {
-    let mut shard = Shard::new(plan, index, world)?;
+    let mut shard = Shard::new(plan, index, world, sky)?;
     let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
     let (to_shard, shard_rx) = channel::<ToShard>();
     let (shard_tx, from_shard) = channel::<FromShard>();

@@ -12,3 +12,4 @@ mod chicago;
 mod flight;
 mod pilot;
 mod run;
+mod urban_gnss;

@@ -21,8 +21,20 @@ pub fn plan(run: &SimulationRun) -> RunPlan {
 /// every `sample_steps` physics steps.
 pub fn fly(run: &SimulationRun, seconds: u64, sample_steps: u64) -> (Vec<Event>, Vec<DroneSnapshot>) {
     let plan = plan(run);
+    let world = world(&plan);
+    fly_in(&plan, world, None, seconds, sample_steps)
+}
+
+/// As [`fly`], for a planned run in a given world and GNSS sky.
+pub fn fly_in(
+    plan: &RunPlan,
+    world: Arc<World>,
+    sky: Option<Arc<sadesim_gnss::RunSky>>,
+    seconds: u64,
+    sample_steps: u64,
+) -> (Vec<Event>, Vec<DroneSnapshot>) {
     let steps_per_s = u64::from(plan.physics_rate_hz);
-    let mut shard = Shard::new(&plan, 0, world(&plan)).expect("the shard builds");
+    let mut shard = Shard::new(plan, 0, world, sky).expect("the shard builds");
     let warm_up = steps_per_s * 3 / 10;
     let mut events = shard.advance(warm_up);
     let mut track = Vec::new();

@@ -210,9 +210,10 @@ impl World {
         world
     }
 
-    /// A world of exactly `buildings` on flat ground (tests of the consumers of buildings).
-    #[cfg(test)]
-    pub(crate) fn of_buildings(extent_m: f64, buildings: Vec<Building>) -> Self {
+    /// A world of exactly `buildings` on flat ground at 0 m, in the square of half-side
+    /// `extent_m`: synthetic scenes for the consumers of buildings (a street canyon for the
+    /// GNSS model's tests, the contact tests).
+    pub fn of_buildings(extent_m: f64, buildings: Vec<Building>) -> Self {
         let side_m = 2.0 * extent_m;
         let layout = CityLayout {
             buildings,
@@ -361,6 +362,31 @@ impl World {
         // whichever cell it came from, so the answer does not depend on the index layout.
         let first = hits.next()?;
         Some(hits.fold(first, usize::min))
+    }
+
+    /// Indices (into [`World::buildings`]) of the buildings whose footprint bounds meet the
+    /// rectangle `[east0, north0, east1, north1]` (metres), each once, ascending: the
+    /// candidates for a question about a neighbourhood (which facades may reflect a
+    /// satellite's signal to an antenna).
+    pub fn buildings_in_rect(&self, rect: &[f64; 4]) -> Vec<usize> {
+        let mut found: Vec<usize> = self
+            .index
+            .in_rect(rect)
+            .map(|k| k as usize)
+            .filter(|&k| {
+                let [e0, n0, e1, n1] = self.buildings[k].footprint().bounds();
+                e0 <= rect[2] && e1 >= rect[0] && n0 <= rect[3] && n1 >= rect[1]
+            })
+            .collect();
+        found.sort_unstable();
+        found.dedup();
+        found
+    }
+
+    /// Lowest base and highest roof over all buildings, ENU up, metres (`(inf, -inf)`
+    /// without buildings): above the band nothing can block a line of sight.
+    pub fn building_band_up_m(&self) -> (f64, f64) {
+        self.z_band_up_m
     }
 
     /// The first building the segment `a -> b` meets, with the ENU point where it enters:

@@ -5,14 +5,11 @@ use std::io::Write;
 use std::path::Path;
 
 use sadesim_crds::geo::GeoPoint;
+use sadesim_gnss::orbits::STALE_DAYS;
 use sadesim_gnss::{Constellation, Dop, LookAngles};
 use serde_json::json;
 
 use super::{CliError, Outcome};
-
-/// Orbit files older or newer than this many days from the asked time get a warning: SGP4's
-/// error for navigation satellites grows by kilometres per day away from the elements' epoch.
-const STALE_DAYS: f64 = 7.0;
 
 pub(super) fn sky(
     file: &Path,

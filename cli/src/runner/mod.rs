@@ -90,6 +90,8 @@ pub enum RunError {
     World(#[from] sadesim_evidence::world::WorldReadError),
     #[error(transparent)]
     Assets(#[from] sadesim_evidence::assets::AssetsError),
+    #[error(transparent)]
+    Sky(#[from] sadesim_evidence::gnss::SkyReadError),
     /// The scenario asks for something this build cannot do yet.
     #[error("not supported yet: {0}")]
     NotSupported(String),
@@ -286,6 +288,8 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     let (assets, world) = run_world(run, &world_data, options.asset_cache.as_deref(), options.progress)?;
     let plan = planner::plan_in(run, &world_data, &world)?;
     check_supported(&plan, options)?;
+    // The orbit file is read before anything is written: a bad one fails the run at once.
+    let sky = sadesim_evidence::gnss::load_sky(&plan.spec)?.map(Arc::new);
     let base = out_root(&plan, options).join(&plan.run.name);
     let stamp = utc_stamp(SystemTime::now());
     // Two runs started within the same second get `-2`, `-3`, ... rather than mixing files.
@@ -330,7 +334,8 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             assets.as_ref().map(AssetsOutcome::url),
         )
     } else {
-        run_threads(&plan, world.clone(), options.mavlink, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
+        let links = ShardInputs { world: world.clone(), sky, mavlink: options.mavlink };
+        run_threads(&plan, links, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
     bar.finish_and_clear();
     // The run is over, whatever its end: stop a pilot still running and record it.
@@ -400,26 +405,35 @@ fn start_routers(plan: &RunPlan) -> Result<Vec<RouterHandle>, RunError> {
         .collect()
 }
 
+/// What the in-process shards fly in and with.
+struct ShardInputs {
+    world: Arc<World>,
+    /// The GNSS sky of a run with a constellation.
+    sky: Option<Arc<sadesim_gnss::RunSky>>,
+    /// Whether the drones get MAVLink endpoints.
+    mavlink: bool,
+}
+
 /// Every role in this process: one thread per shard, the coordinator on this thread, the
 /// MAVLink routers on their own threads.
-#[allow(clippy::too_many_arguments)]
 fn run_threads(
     plan: &RunPlan,
-    world: Arc<World>,
-    mavlink: bool,
+    inputs: ShardInputs,
     out_dir: &Path,
     bar: &ProgressBar,
     stop: &AtomicBool,
     pilot: Option<&mut Supervisor>,
     airspace: &mut Airspace,
 ) -> Result<RunSummary, RunError> {
+    let ShardInputs { world, sky, mavlink } = inputs;
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
     let mavlink_options = mavlink.then(MavlinkOptions::local);
     let _routers = if mavlink { start_routers(plan)? } else { Vec::new() };
     for shard in &plan.shards {
-        let (link, handle) = transport::spawn_thread(plan, shard.index, world.clone(), mavlink_options.as_ref())
-            .map_err(|source| RunError::Shard { shard: shard.index, source })?;
+        let (link, handle) =
+            transport::spawn_thread(plan, shard.index, world.clone(), sky.clone(), mavlink_options.as_ref())
+                .map_err(|source| RunError::Shard { shard: shard.index, source })?;
         links.push(Box::new(link));
         threads.push(handle);
     }

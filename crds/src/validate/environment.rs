@@ -8,6 +8,27 @@ use super::MAX_DURATION_S;
 use super::criteria::check_group_refs;
 use super::problems::{Problems, duration_s};
 
+/// `spec.environment.gnss.constellation`: a readable file reference, an RFC 3339 epoch, a
+/// mask in range.
+fn check_constellation(c: &crate::environment::GnssConstellation, base: &str, p: &mut Problems) {
+    let field = format!("{base}.constellation.file");
+    if c.file.trim().is_empty() {
+        p.add(&field, "must name an orbit file (TLE)");
+    }
+    super::world::check_file_url(p, &field, &c.file);
+    if let Some(epoch) = &c.epoch
+        && epoch.trim().parse::<k8s_openapi::jiff::Timestamp>().is_err()
+    {
+        p.add(
+            format!("{base}.constellation.epoch"),
+            format!("{epoch:?} is not an RFC 3339 UTC time: expected e.g. 2020-12-01T12:00:00Z"),
+        );
+    }
+    if let Some(mask) = c.elevation_mask_deg {
+        p.range(format!("{base}.constellation.elevationMaskDeg"), mask, 0.0, 60.0);
+    }
+}
+
 pub(super) fn check_environment(spec: &SimulationRunSpec, groups: &HashSet<String>, p: &mut Problems) {
     let env = spec.environment();
     if let Some(w) = &env.wind {
@@ -30,6 +51,18 @@ pub(super) fn check_environment(spec: &SimulationRunSpec, groups: &HashSet<Strin
         for (field, value, hi) in limits {
             if let Some(v) = value {
                 p.range(format!("{base}.{field}"), v, 0.0, hi);
+            }
+        }
+        if let Some(c) = &g.constellation {
+            check_constellation(c, base, p);
+            for (field, value, _) in limits {
+                if value.is_some() {
+                    p.add(
+                        format!("{base}.{field}"),
+                        "is not allowed with constellation: the ranging receiver's errors come from the \
+                         satellites' geometry and signal paths, not from a noise figure",
+                    );
+                }
             }
         }
         p.max_items(format!("{base}.dropouts"), g.dropouts.len(), 256);

@@ -52,7 +52,7 @@ impl WorldBounds {
 
 /// A world file: a path, a `file://` URL, or an object-store URL of a file
 /// (`s3://bucket/key`, `gs://bucket/key`, `az://container/key`).
-fn check_file_url(p: &mut Problems, field: &str, file: &str) {
+pub(super) fn check_file_url(p: &mut Problems, field: &str, file: &str) {
     let Some((scheme, rest)) = file.split_once("://") else { return };
     match scheme {
         "file" => {}

@@ -22,13 +22,25 @@ pub const G_MPS2: f64 = 9.80665;
 /// Accelerometer noise driving the prediction, m/s^2 (1 sigma) — covers IMU noise plus
 /// unmodelled vibration.
 const ACCEL_PROCESS_SIGMA_MPS2: f64 = 0.35;
-/// GNSS velocity noise, m/s (1 sigma), as u-blox M8/M9 receivers report (sAcc).
+/// Smallest GNSS velocity noise a fix is fused with, m/s (1 sigma; PX4's EKF2_GPS_V_NOISE
+/// is 0.3, u-blox M8/M9 report ~0.15 at open sky).
 const GNSS_VEL_SIGMA_MPS: f64 = 0.15;
 /// Barometric height noise, m (1 sigma).
 const BARO_SIGMA_M: f64 = 0.5;
 /// Without a GNSS fix for this long, the horizontal estimate is no longer trusted (PX4's
 /// EKF2 position timeout is similar).
 pub const GNSS_TIMEOUT_S: f64 = 1.0;
+/// Smallest position noise a fix is fused with, m (PX4's EKF2_GPS_P_NOISE default): a
+/// receiver's accuracy estimate is not believed below it.
+pub const GNSS_MIN_SIGMA_M: f64 = 0.5;
+/// A fix whose horizontal position innovation exceeds this many standard deviations of the
+/// innovation is rejected (PX4's EKF2_GPS_P_GATE default): a jump of tens of metres from a
+/// receiver in a street canyon is not believed, and rejected fixes do not count as GNSS.
+pub const GNSS_POSITION_GATE_SD: f64 = 5.0;
+/// After this long without a fused fix the estimate is reset to the next fix instead of
+/// gating it (PX4's EKF2_NOAID_TOUT default, 5 s): dead reckoning has drifted by then, and
+/// a gate on a drifted estimate would refuse good fixes for ever.
+pub const GNSS_RESET_AFTER_S: f64 = 5.0;
 
 /// What the estimator outputs for the controllers.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,6 +67,27 @@ impl From<&Estimate> for crate::autopilot::control::EstimatedState {
     }
 }
 
+/// What the estimator did with a GNSS fix.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GnssFusion {
+    /// The first fix: the filter starts at it.
+    Initialised,
+    /// Fused into the estimate.
+    Fused,
+    /// Failed the innovation gate: not used, and not counted as GNSS.
+    Rejected,
+    /// The estimate jumped to the fix after too long without one; the jump (ENU, m), which
+    /// the navigator adds to its setpoints so that the vehicle does not fly the jump (as
+    /// PX4's position controller does on an EKF2 reset).
+    Reset(Vector3<f64>),
+}
+
+impl GnssFusion {
+    pub fn is_used(self) -> bool {
+        self != GnssFusion::Rejected
+    }
+}
+
 /// A GNSS fix as the estimator consumes it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GnssMeasurement {
@@ -63,6 +96,8 @@ pub struct GnssMeasurement {
     /// Reported 1-sigma horizontal / vertical accuracy, m.
     pub eph_m: f64,
     pub epv_m: f64,
+    /// Reported 1-sigma of each velocity component, m/s.
+    pub velocity_sigma_mps: f64,
 }
 
 /// Kalman filter over one axis: position p (m), velocity v (m/s).
@@ -153,11 +188,34 @@ impl Estimator {
         }
     }
 
-    /// Correction with a GNSS fix at sim time `time_s`. The first fix initialises the filter.
-    pub fn fuse_gnss(&mut self, time_s: f64, fix: &GnssMeasurement) {
+    /// Correction with a GNSS fix at sim time `time_s`. The first fix, and the first after
+    /// [`GNSS_RESET_AFTER_S`] without a fused one, (re)initialises the filter; any other is
+    /// fused unless its horizontal innovation fails the [`GNSS_POSITION_GATE_SD`] gate.
+    pub fn fuse_gnss(&mut self, time_s: f64, fix: &GnssMeasurement) -> GnssFusion {
+        let eph = fix.eph_m.max(GNSS_MIN_SIGMA_M);
+        let epv = fix.epv_m.max(GNSS_MIN_SIGMA_M);
+        let velocity_sigma = fix.velocity_sigma_mps.max(GNSS_VEL_SIGMA_MPS);
+        let stale = self.last_gnss_s.is_some_and(|t| time_s - t > GNSS_RESET_AFTER_S);
+        if stale && let Some(axes) = self.axes.take() {
+            let before = Vector3::new(axes[0].x[0], axes[1].x[0], axes[2].x[0]);
+            self.last_gnss_s = Some(time_s);
+            self.axes = Some([
+                Axis { x: [fix.position_enu_m.x, axes[0].x[1]], ..Axis::new(0.0, eph) },
+                Axis { x: [fix.position_enu_m.y, axes[1].x[1]], ..Axis::new(0.0, eph) },
+                Axis { x: [fix.position_enu_m.z, axes[2].x[1]], ..Axis::new(0.0, epv) },
+            ]);
+            return GnssFusion::Reset(fix.position_enu_m - before);
+        }
+        if let Some(axes) = &self.axes {
+            let ratio = |k: usize| {
+                let innovation = fix.position_enu_m[k] - axes[k].x[0];
+                innovation * innovation / (GNSS_POSITION_GATE_SD.powi(2) * (axes[k].p[0][0] + eph * eph))
+            };
+            if ratio(0).max(ratio(1)) > 1.0 {
+                return GnssFusion::Rejected;
+            }
+        }
         self.last_gnss_s = Some(time_s);
-        let eph = fix.eph_m.max(0.05);
-        let epv = fix.epv_m.max(0.05);
         match &mut self.axes {
             None => {
                 self.axes = Some([
@@ -165,15 +223,17 @@ impl Estimator {
                     Axis::new(fix.position_enu_m.y, eph),
                     Axis::new(fix.position_enu_m.z, epv),
                 ]);
+                return GnssFusion::Initialised;
             }
             Some(axes) => {
                 for (i, axis) in axes.iter_mut().enumerate() {
                     let r = if i < 2 { eph * eph } else { epv * epv };
                     axis.update(0, fix.position_enu_m[i], r);
-                    axis.update(1, fix.velocity_enu_mps[i], GNSS_VEL_SIGMA_MPS * GNSS_VEL_SIGMA_MPS);
+                    axis.update(1, fix.velocity_enu_mps[i], velocity_sigma * velocity_sigma);
                 }
             }
         }
+        GnssFusion::Fused
     }
 
     /// Correction with a barometric height (metres up from the origin's altitude).
@@ -216,7 +276,7 @@ mod tests {
     const LEVEL_AT_REST: Vector3<f64> = Vector3::new(0.0, 0.0, G_MPS2);
 
     fn fix(p: Vector3<f64>, v: Vector3<f64>) -> GnssMeasurement {
-        GnssMeasurement { position_enu_m: p, velocity_enu_mps: v, eph_m: 0.5, epv_m: 0.8 }
+        GnssMeasurement { position_enu_m: p, velocity_enu_mps: v, eph_m: 0.5, epv_m: 0.8, velocity_sigma_mps: 0.15 }
     }
 
     #[test]
@@ -279,6 +339,33 @@ mod tests {
             est.predict(LEVEL_AT_REST, Vector3::zeros(), UnitQuaternion::identity(), 0.001);
         }
         assert!(est.estimate().unwrap().eph_m > before * 2.0);
+    }
+
+    #[test]
+    fn a_fix_that_jumps_is_rejected_until_dead_reckoning_has_gone_on_too_long() {
+        fn run(est: &mut Estimator, t: &mut f64, seconds: f64, at: Vector3<f64>) -> Vec<bool> {
+            let mut used = Vec::new();
+            for step in 0..(seconds * 1000.0) as usize {
+                *t += 0.001;
+                est.predict(LEVEL_AT_REST, Vector3::zeros(), UnitQuaternion::identity(), 0.001);
+                if step % 200 == 199 {
+                    used.push(est.fuse_gnss(*t, &fix(at, Vector3::zeros())).is_used());
+                }
+            }
+            used
+        }
+        let mut est = Estimator::default();
+        let mut t = 0.0;
+        assert!(run(&mut est, &mut t, 10.0, Vector3::zeros()).iter().all(|&u| u));
+        // A canyon's fix 40 m east (eph 0.5 m): rejected, so GNSS is unhealthy after 1 s
+        // and the estimate stays put.
+        let jumped = run(&mut est, &mut t, 2.0, Vector3::new(40.0, 0.0, 0.0));
+        assert!(jumped.iter().all(|&u| !u), "{jumped:?}");
+        assert!(!est.gnss_healthy(t) && est.estimate().unwrap().position_enu_m.x.abs() < 1.0);
+        // Still 40 m east 5 s after the last fused fix: the estimate resets to it.
+        let later = run(&mut est, &mut t, 4.0, Vector3::new(40.0, 0.0, 0.0));
+        assert!(later.contains(&true) && est.gnss_healthy(t), "{later:?}");
+        assert!((est.estimate().unwrap().position_enu_m.x - 40.0).abs() < 1.0);
     }
 
     #[test]

@@ -4,7 +4,7 @@
 use nalgebra::{UnitQuaternion, Vector3};
 
 use crate::autopilot::control::{ControlError, ControlOutput, Controller, EstimatedState, Gains};
-use crate::autopilot::estimator::{Estimate, Estimator, GnssMeasurement};
+use crate::autopilot::estimator::{Estimate, Estimator, GnssFusion, GnssMeasurement};
 use crate::autopilot::navigator::{Command, Navigator, NavigatorConfig, Rejection, VehicleStatus};
 use crate::events::{EventKind, FlightMode};
 use crate::sensors::{BaroSample, GnssFix, ImuSample};
@@ -113,15 +113,19 @@ impl Fmu {
         self.time_s = time_s;
         self.estimator.predict(sensors.imu.accel_body_mps2, sensors.imu.gyro_body_rps, attitude, dt_s);
         if let Some(fix) = sensors.gnss.filter(|f| f.has_3d_fix()) {
-            self.estimator.fuse_gnss(
+            let fusion = self.estimator.fuse_gnss(
                 time_s,
                 &GnssMeasurement {
                     position_enu_m: fix.position_enu_m,
                     velocity_enu_mps: fix.velocity_enu_mps,
                     eph_m: fix.eph_m,
                     epv_m: fix.epv_m,
+                    velocity_sigma_mps: fix.velocity_sigma_mps,
                 },
             );
+            if let GnssFusion::Reset(delta) = fusion {
+                self.navigator.shift_for_estimate_reset(delta);
+            }
         }
         if let Some(baro) = sensors.baro {
             self.estimator.fuse_baro(baro.alt_msl_m - self.origin_alt_msl_m);

@@ -208,6 +208,22 @@ impl Navigator {
     pub fn set_config(&mut self, config: NavigatorConfig) {
         self.config = config;
     }
+    /// The estimator's position jumped by `delta` (ENU, m): the setpoints derived from the
+    /// old estimate (a hold point, a descent's column, a leg's start) move with it, so the
+    /// vehicle stays where it is instead of flying the jump. Mission waypoints and home are
+    /// places on the map and stay.
+    pub fn shift_for_estimate_reset(&mut self, delta: Vector3<f64>) {
+        match &mut self.phase {
+            Phase::Leg { from, .. } => *from += delta,
+            Phase::Hold { at, .. } => *at += delta,
+            Phase::Descend { from, carrot_z, .. } => {
+                *from += delta;
+                *carrot_z += delta.z;
+            }
+            Phase::Ground => {}
+        }
+    }
+
     /// Events since the last call.
     pub fn take_events(&mut self) -> Vec<EventKind> {
         std::mem::take(&mut self.events)

@@ -87,6 +87,7 @@ mod tests {
     #[test]
     fn dropout_windows_apply_to_listed_groups_only() {
         let gnss = Gnss {
+            constellation: None,
             rate_hz: None,
             horizontal_sigma_m: None,
             vertical_sigma_m: None,

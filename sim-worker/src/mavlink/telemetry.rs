@@ -234,10 +234,15 @@ pub fn gps_raw_int(v: &VehicleView, id: &VehicleIdentity) -> MavMessage {
             ..Default::default()
         });
     };
-    let fix_type = if fix.has_3d_fix() { GpsFixType::GPS_FIX_TYPE_3D_FIX } else { GpsFixType::GPS_FIX_TYPE_NO_FIX };
+    let fix_type = match fix.fix_type {
+        crate::sensors::GPS_FIX_TYPE_3D_FIX => GpsFixType::GPS_FIX_TYPE_3D_FIX,
+        crate::sensors::GPS_FIX_TYPE_2D_FIX => GpsFixType::GPS_FIX_TYPE_2D_FIX,
+        _ => GpsFixType::GPS_FIX_TYPE_NO_FIX,
+    };
     let dop = |d: f64| if d.is_finite() { (d * 100.0).round().min(65_534.0) as u16 } else { u16::MAX };
     let acc = |m: f64| if m.is_finite() { (m * 1000.0).round().min(f64::from(u32::MAX - 1)) as u32 } else { 0 };
-    let (lat, lon, alt, vel, cog) = if fix.has_3d_fix() {
+    // A 2D fix has a position too (its height held at the last 3D fix's).
+    let (lat, lon, alt, vel, cog) = if fix.fix_type >= crate::sensors::GPS_FIX_TYPE_2D_FIX {
         let (lat, lon) = geodetic(id, &fix.position_enu_m);
         let ned = enu_to_ned(&fix.velocity_enu_mps);
         let ground = ned.xy().norm();
@@ -265,7 +270,7 @@ pub fn gps_raw_int(v: &VehicleView, id: &VehicleIdentity) -> MavMessage {
         alt_ellipsoid: alt,
         h_acc: acc(fix.eph_m),
         v_acc: acc(fix.epv_m),
-        vel_acc: acc(fix.eph_m * 0.1),
+        vel_acc: acc(fix.velocity_sigma_mps),
         hdg_acc: 0,
         yaw: 0,
     })

@@ -49,6 +49,9 @@ pub enum RoleError {
     /// `--assets` names a bundle that cannot be loaded (missing, damaged, another format).
     #[error(transparent)]
     Assets(#[from] sadesim_evidence::assets::AssetsError),
+    /// The run's GNSS constellation cannot be read (its orbit file, its epoch).
+    #[error(transparent)]
+    Sky(#[from] sadesim_evidence::gnss::SkyReadError),
 }
 
 /// The run's world, for every role that needs it (shards fly in it, the coordinator
@@ -73,6 +76,24 @@ pub fn world(plan: &RunPlan, assets: Option<&str>) -> Result<Arc<World>, RoleErr
     let ms = started.elapsed().as_secs_f64() * 1e3;
     eprintln!("world: {} buildings, {from} in {ms:.0} ms", world.buildings().len());
     Ok(Arc::new(world))
+}
+
+/// The run's GNSS sky for the shards' ranging receivers (`None` without a constellation):
+/// the orbit file read and placed over the origin at the run's epoch.
+///
+/// # Errors
+/// The orbit file cannot be read or parsed, or the epoch is not a time.
+pub fn sky(plan: &RunPlan) -> Result<Option<Arc<sadesim_gnss::RunSky>>, RoleError> {
+    let sky = sadesim_evidence::gnss::load_sky(&plan.spec)?;
+    if let Some(s) = &sky {
+        eprintln!(
+            "sky: {} navigation satellites, mask {}°, t = 0 at UNIX {:.0} s",
+            s.constellation().satellites.len(),
+            s.mask_deg(),
+            s.epoch_unix_s()
+        );
+    }
+    Ok(sky.map(Arc::new))
 }
 
 /// Reads a RunPlan written by the planner (`plan.json`).

@@ -39,7 +39,7 @@ const ATTEMPT_TIMEOUT: Duration = Duration::from_secs(5);
 /// Pause between attempts (a refused connection fails at once).
 const RETRY_PAUSE: Duration = Duration::from_millis(200);
 
-/// Runs shard `index` of `plan` in `world` against the coordinator at `coordinator`
+/// Runs shard `index` of `plan` in `world` (under `sky`, see [`Shard::new`]) against the coordinator at `coordinator`
 /// (host:port), trying to reach it for up to `connect_timeout`.
 ///
 /// # Errors
@@ -48,12 +48,13 @@ const RETRY_PAUSE: Duration = Duration::from_millis(200);
 pub fn run(
     plan: &RunPlan,
     world: Arc<World>,
+    sky: Option<Arc<sadesim_gnss::RunSky>>,
     index: u32,
     coordinator: &str,
     mavlink: Option<&crate::shard::MavlinkOptions>,
     connect_timeout: Duration,
 ) -> Result<(), RoleError> {
-    let mut shard = Shard::new(plan, index, world)?;
+    let mut shard = Shard::new(plan, index, world, sky)?;
     let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
     let stream = connect(coordinator, connect_timeout)?;
     // On stderr (the role's log), so a run across hosts says who was where.

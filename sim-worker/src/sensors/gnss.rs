@@ -1,15 +1,24 @@
-//! `GnssReceiver`: position and velocity fixes at a fixed rate, with a random-walk bias,
-//! white noise scaled by the environment's `GnssCondition`, and no fix during outages.
+//! `GnssReceiver`: position and velocity fixes at a fixed rate, and no fix during outages.
+//! Two models: the statistical receiver (a random-walk bias and white noise scaled by the
+//! environment's `GnssCondition`), and the ranging receiver (`sadesim_gnss`: pseudoranges
+//! to the constellation's satellites, blocked and reflected by the world's buildings, and a
+//! least-squares fix) when the run names a constellation.
+
+use std::sync::Arc;
 
 use nalgebra::Vector3;
 use sadesim_crds::environment::Gnss;
 use sadesim_crds::random::{Purpose, Rng};
+use sadesim_gnss::{RangingReceiver, RunSky};
+use sadesim_world::World;
 
 use super::noise::{gauss_markov_step3, normal3};
 use crate::env::GnssCondition;
 
 /// MAVLink `GPS_FIX_TYPE_NO_FIX`: receiver present, no position.
 pub const GPS_FIX_TYPE_NO_FIX: u8 = 1;
+/// MAVLink `GPS_FIX_TYPE_2D_FIX`: horizontal position only (three satellites, height held).
+pub const GPS_FIX_TYPE_2D_FIX: u8 = 2;
 /// MAVLink `GPS_FIX_TYPE_3D_FIX`.
 pub const GPS_FIX_TYPE_3D_FIX: u8 = 3;
 /// A 3D fix needs at least four satellites (x, y, z and clock bias).
@@ -60,11 +69,14 @@ impl Default for GnssConfig {
 pub struct GnssFix {
     /// Simulated time of the measurement, s.
     pub time_s: f64,
-    /// Position, world ENU, m. Zero (meaningless) unless `fix_type` is 3.
+    /// Position, world ENU, m. Zero (meaningless) without a fix (`fix_type` below 2; a 2D
+    /// fix holds the height of the last 3D fix).
     pub position_enu_m: Vector3<f64>,
-    /// Velocity, world ENU, m/s. Zero (meaningless) unless `fix_type` is 3.
+    /// Velocity, world ENU, m/s. Zero (meaningless) without a fix.
     pub velocity_enu_mps: Vector3<f64>,
-    /// MAVLink GPS_FIX_TYPE: [`GPS_FIX_TYPE_3D_FIX`] or [`GPS_FIX_TYPE_NO_FIX`].
+    /// MAVLink GPS_FIX_TYPE: [`GPS_FIX_TYPE_3D_FIX`], [`GPS_FIX_TYPE_2D_FIX`] (the ranging
+    /// receiver with three satellites) or [`GPS_FIX_TYPE_NO_FIX`]. The estimator fuses 3D
+    /// fixes only (as PX4's EKF2 by default).
     pub fix_type: u8,
     /// Satellites used (0 during an outage).
     pub satellites: u8,
@@ -72,9 +84,26 @@ pub struct GnssFix {
     /// without a fix (saturates to MAVLink's "unknown" UINT16_MAX when cast).
     pub eph_m: f64,
     pub epv_m: f64,
+    /// Estimated 1-sigma of each velocity component, m/s (a receiver's speed accuracy);
+    /// infinite without a fix.
+    pub velocity_sigma_mps: f64,
     /// Dilutions of precision, unitless; infinite without a fix.
     pub hdop: f64,
     pub vdop: f64,
+    /// What the ranging receiver's antenna saw (`None` for the statistical receiver).
+    pub sky: Option<SkyCounts>,
+}
+
+/// Satellites by signal path at one fix epoch (the ranging receiver): the evidence of why a
+/// fix is good or bad, which a real receiver does not report but a simulator can.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SkyCounts {
+    /// Above the elevation mask.
+    pub above_mask: u8,
+    /// Received directly.
+    pub line_of_sight: u8,
+    /// Received only by a facade reflection (non-line-of-sight).
+    pub reflected: u8,
 }
 
 impl GnssFix {
@@ -94,13 +123,30 @@ pub struct GnssReceiver {
     last_epoch_s: Option<f64>,
     /// Index of the next fix epoch; epoch k is due at k / rate_hz.
     next_epoch: u64,
+    /// The ranging model, when the run names a constellation.
+    ranging: Option<RangingReceiver>,
 }
 
 impl GnssReceiver {
     /// Noise from the drone's `(seed, global index, Purpose::Gnss)` stream.
     pub fn new(config: GnssConfig, seed: u64, drone_global_index: u32) -> Self {
         let rng = Rng::stream(seed, u64::from(drone_global_index), Purpose::Gnss);
-        Self { config, rng, bias_enu_m: Vector3::zeros(), last_epoch_s: None, next_epoch: 0 }
+        Self { config, rng, bias_enu_m: Vector3::zeros(), last_epoch_s: None, next_epoch: 0, ranging: None }
+    }
+
+    /// The ranging receiver: fixes solved from pseudoranges to `sky`'s satellites as the
+    /// antenna sees them among `world`'s buildings; `config`'s rate applies, its noise
+    /// figures do not (validation refuses them with a constellation).
+    pub fn ranging(
+        config: GnssConfig,
+        seed: u64,
+        drone_global_index: u32,
+        sky: Arc<RunSky>,
+        world: Arc<World>,
+    ) -> Self {
+        let mut receiver = Self::new(config, seed, drone_global_index);
+        receiver.ranging = Some(RangingReceiver::new(sky, world, seed, drone_global_index));
+        receiver
     }
 
     /// Call every physics step; returns a fix only when one is due (at `rate_hz`, on the
@@ -126,6 +172,9 @@ impl GnssReceiver {
         self.next_epoch = ((time_s + EPOCH_TOLERANCE_S) * c.rate_hz).floor().max(0.0) as u64 + 1;
         let dt_s = self.last_epoch_s.map_or(0.0, |last| time_s - last);
         self.last_epoch_s = Some(time_s);
+        if let Some(ranging) = &mut self.ranging {
+            return Some(ranging_fix(ranging, time_s, true_pos_enu_m, true_vel_enu_mps, cond));
+        }
 
         self.bias_enu_m =
             gauss_markov_step3(self.bias_enu_m, c.bias_walk_m_per_sqrt_s, f64::INFINITY, dt_s, &mut self.rng);
@@ -148,8 +197,10 @@ impl GnssReceiver {
                 satellites: if cond.available { cond.satellites } else { 0 },
                 eph_m: f64::INFINITY,
                 epv_m: f64::INFINITY,
+                velocity_sigma_mps: f64::INFINITY,
                 hdop: f64::INFINITY,
                 vdop: f64::INFINITY,
+                sky: None,
             });
         }
         // VDOP is not modelled by the environment yet: scale HDOP by the vertical to
@@ -163,8 +214,10 @@ impl GnssReceiver {
             satellites: cond.satellites,
             eph_m: sigma_pos.x,
             epv_m: sigma_pos.z,
+            velocity_sigma_mps: sigma_vel.x,
             hdop: cond.hdop,
             vdop: cond.hdop * vertical_ratio,
+            sky: None,
         })
     }
 
@@ -175,6 +228,52 @@ impl GnssReceiver {
 
     pub fn config(&self) -> &GnssConfig {
         &self.config
+    }
+}
+
+/// One fix epoch of the ranging receiver. The receiver measures in every epoch, outage or
+/// not, so an outage does not shift later noise; during an outage (`!cond.available`) the
+/// fix is dropped.
+fn ranging_fix(
+    ranging: &mut RangingReceiver,
+    time_s: f64,
+    true_pos_enu_m: Vector3<f64>,
+    true_vel_enu_mps: Vector3<f64>,
+    cond: &GnssCondition,
+) -> GnssFix {
+    let epoch = ranging.measure(time_s, true_pos_enu_m, true_vel_enu_mps);
+    let sky = Some(SkyCounts {
+        above_mask: epoch.above_mask,
+        line_of_sight: epoch.line_of_sight,
+        reflected: epoch.reflected,
+    });
+    match epoch.solution.filter(|_| cond.available) {
+        Some(s) => GnssFix {
+            time_s,
+            position_enu_m: s.position_enu_m,
+            velocity_enu_mps: s.velocity_enu_mps,
+            fix_type: if s.three_d { GPS_FIX_TYPE_3D_FIX } else { GPS_FIX_TYPE_2D_FIX },
+            satellites: s.satellites_used,
+            eph_m: s.eph_m,
+            epv_m: s.epv_m,
+            velocity_sigma_mps: s.velocity_sigma_mps,
+            hdop: s.dop.hdop,
+            vdop: s.dop.vdop,
+            sky,
+        },
+        None => GnssFix {
+            time_s,
+            position_enu_m: Vector3::zeros(),
+            velocity_enu_mps: Vector3::zeros(),
+            fix_type: GPS_FIX_TYPE_NO_FIX,
+            satellites: if cond.available { epoch.tracked } else { 0 },
+            eph_m: f64::INFINITY,
+            epv_m: f64::INFINITY,
+            velocity_sigma_mps: f64::INFINITY,
+            hdop: f64::INFINITY,
+            vdop: f64::INFINITY,
+            sky,
+        },
     }
 }
 

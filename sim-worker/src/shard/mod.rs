@@ -24,6 +24,7 @@ use crate::pilot::scripted::{self, GroundHeight};
 use crate::protocol::{FromShard, PROTOCOL_VERSION, ToShard};
 use crate::sensors::SensorSuite;
 use crate::vehicle;
+use sadesim_gnss::RunSky;
 use sadesim_world::World;
 
 pub use crate::vehicle::ground::{CRASH_HORIZONTAL_MPS, CRASH_VERTICAL_MPS};
@@ -45,6 +46,11 @@ pub enum ShardError {
     /// A MAVLink endpoint could not open its sockets.
     #[error(transparent)]
     Mavlink(#[from] crate::mavlink::endpoint::EndpointError),
+    /// The sky and the plan disagree: the run names a GNSS constellation and no sky was
+    /// given, or a sky was given to a run without one (a caller's bug; the roles load the
+    /// sky with `roles::sky`).
+    #[error("spec.environment.gnss.constellation is {0} but the shard was given {1}")]
+    SkyMismatch(&'static str, &'static str),
 }
 
 /// How a shard's drones expose MAVLink.
@@ -111,13 +117,20 @@ pub const MAVLINK_IO_PERIOD_S: f64 = 0.02;
 pub const ENV_SAMPLE_DIVIDER: u64 = 10;
 
 impl Shard {
-    /// Builds shard `index` of `plan` in `world`.
+    /// Builds shard `index` of `plan` in `world`, under `sky` when the run names a GNSS
+    /// constellation (its drones then carry the ranging receiver).
     ///
     /// # Errors
     /// See [`ShardError`].
-    pub fn new(plan: &RunPlan, index: u32, world: Arc<World>) -> Result<Self, ShardError> {
+    pub fn new(plan: &RunPlan, index: u32, world: Arc<World>, sky: Option<Arc<RunSky>>) -> Result<Self, ShardError> {
         let shard = *plan.shards.get(index as usize).ok_or(ShardError::NoSuchShard(index))?;
         let spec = &plan.spec;
+        let wants_sky = spec.environment().gnss.is_some_and(|g| g.constellation.is_some());
+        match (wants_sky, &sky) {
+            (true, None) => return Err(ShardError::SkyMismatch("set", "no sky")),
+            (false, Some(_)) => return Err(ShardError::SkyMismatch("absent", "a sky")),
+            _ => {}
+        }
         let frame = LocalFrame::new(spec.origin.geo());
         let env_spec = spec.environment();
         let planned = plan.shard_drones(&shard);
@@ -138,7 +151,8 @@ impl Shard {
                 .map(|m| scripted::expand(m, &frame, world.as_ref(), home_en, home_area, plan.seed, d.index));
             // Return below the group's ceiling (the same tunables the parameter table reports).
             let navigator = crate::mavlink::params::plan::navigator_config(group);
-            let sensors = SensorSuite::new(env_spec.gnss.as_ref(), plan.seed, d.index);
+            let sensors =
+                SensorSuite::new(env_spec.gnss.as_ref(), sky.as_ref().map(|s| (s, &world)), plan.seed, d.index);
             let mut drone =
                 DroneSim::new(d.clone(), preset, sensors, &world, navigator, spec.origin.altitude_msl_m, mission)?;
             if let Some(action) = group.geofence {

@@ -184,7 +184,8 @@ pub fn sensor_gps(t_us: u64, f: &DroneFrame, g: &GnssDetail) -> SensorGps {
     let p = f.geodetic(g.position_enu_m);
     let [vn, ve, vd] = ned(g.velocity_enu_mps);
     let unknown = |x: Option<f64>| x.map_or(f32::NAN, |x| x as f32);
-    let fix = g.fix_type >= 3;
+    // PX4 marks velocity valid with a 2D fix too.
+    let fix = g.fix_type >= 2;
     SensorGps {
         timestamp: t_us,
         timestamp_sample: micros(g.time_s).min(t_us),

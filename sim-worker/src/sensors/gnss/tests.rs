@@ -110,6 +110,7 @@ fn same_seed_same_fixes_other_drone_other_fixes() {
 #[test]
 fn config_comes_from_the_spec_with_defaults() {
     let spec = Gnss {
+        constellation: None,
         rate_hz: Some(10.0),
         horizontal_sigma_m: None,
         vertical_sigma_m: Some(2.0),
