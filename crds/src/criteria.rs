@@ -56,4 +56,17 @@ pub enum Criterion {
         /// `granted` or `denied`.
         expect: Expectation,
     },
+    /// Airborne drones of `groups` (every drone when empty) keep their estimated position,
+    /// what the autopilot flies on, within `maxHorizontalM` of the truth: a pilot gated in
+    /// CI on a GNSS-degraded scenario (urban canyons, outages).
+    EstimatedPositionError {
+        /// Fleet group names; empty means every drone.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        #[schemars(length(max = 64), inner(length(max = 40)))]
+        groups: Vec<String>,
+        /// Largest allowed horizontal distance between the estimate and the truth, metres
+        /// (0.1..1000).
+        #[schemars(range(min = 0.1, max = 1000.0))]
+        max_horizontal_m: f64,
+    },
 }

@@ -58,3 +58,71 @@ pub fn load_sky(spec: &SimulationRunSpec) -> Result<Option<RunSky>, SkyReadError
 
 /// Default elevation mask, degrees (`constellation.elevationMaskDeg`).
 pub const DEFAULT_MASK_DEG: f64 = 10.0;
+
+#[cfg(test)]
+mod tests {
+    use sadesim_crds::fixtures::RunBuilder;
+
+    use super::*;
+
+    /// The fixture run with a constellation file holding `bytes` (written to a fresh file).
+    fn sky_of(name: &str, bytes: &[u8], epoch: Option<&str>) -> Result<Option<RunSky>, SkyReadError> {
+        let path = std::env::temp_dir().join(format!("sadesim-sky-{}-{name}", std::process::id()));
+        std::fs::write(&path, bytes).unwrap();
+        let file = path.display().to_string();
+        let run = RunBuilder::test()
+            .with(|r| {
+                r.spec.environment = Some(
+                    serde_json::from_value(
+                        serde_json::json!({"gnss": {"constellation": {"file": file, "epoch": epoch}}}),
+                    )
+                    .unwrap(),
+                );
+            })
+            .build();
+        let sky = load_sky(&run.spec);
+        std::fs::remove_file(&path).unwrap();
+        sky
+    }
+
+    #[test]
+    fn a_tle_file_makes_the_sky_at_its_own_epoch_unless_the_scenario_gives_one() {
+        let tle = sadesim_gnss::synthetic::walker_gps_galileo_tle();
+        let sky = sky_of("ok", tle.as_bytes(), None).unwrap().unwrap();
+        assert_eq!(sky.constellation().satellites.len(), 48);
+        assert_eq!(sky.epoch_unix_s(), 1_606_737_600.0);
+        assert_eq!(sky.mask_deg(), DEFAULT_MASK_DEG);
+        let later = sky_of("epoch", tle.as_bytes(), Some("2020-12-01T00:00:00Z")).unwrap().unwrap();
+        assert_eq!(later.epoch_unix_s(), 1_606_780_800.0);
+        let run = RunBuilder::test().build();
+        assert!(load_sky(&run.spec).unwrap().is_none(), "no constellation, no sky");
+    }
+
+    #[test]
+    fn bad_orbit_files_name_the_field_the_file_and_what_is_wrong() {
+        let binary = sky_of("pbf", b"\x00\x00\x00\x0d\n\x09OSMHeader\xff", None).unwrap_err().to_string();
+        assert!(binary.starts_with("spec.environment.gnss.constellation.file "), "{binary}");
+        assert!(binary.ends_with("not a text orbit file (TLE): byte 15 is not UTF-8"), "{binary}");
+        let csv = sky_of("csv", b"name,lat,lon\nfoo,1,2\n", None).unwrap_err().to_string();
+        assert!(csv.ends_with(r#"not a TLE file: no line starts with "1 " (a TLE line 1); first line "name,lat,lon". Expected two- or three-line element sets as CelesTrak publishes them (FORMAT=tle)"#), "{csv}");
+        let missing = load_sky(
+            &RunBuilder::test()
+                .with(|r| {
+                    r.spec.environment = Some(
+                        serde_json::from_value(
+                            serde_json::json!({"gnss": {"constellation": {"file": "/nonexistent/gps.tle"}}}),
+                        )
+                        .unwrap(),
+                    );
+                })
+                .build()
+                .spec,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            missing.starts_with("spec.environment.gnss.constellation.file /nonexistent/gps.tle: failed to read"),
+            "{missing}"
+        );
+    }
+}

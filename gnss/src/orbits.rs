@@ -92,6 +92,11 @@ pub enum OrbitError {
     /// An element set that SGP4 refuses (e.g. an eccentricity out of range).
     #[error("line {line} ({name}): the elements cannot be propagated: {reason}")]
     Elements { line: usize, name: String, reason: String },
+    /// Nothing in the file looks like a TLE (another kind of file: CSV, RINEX, OMM XML...).
+    #[error(
+        "not a TLE file: no line starts with \"1 \" (a TLE line 1); first line {first:?}. Expected two- or three-line element sets as CelesTrak publishes them (FORMAT=tle)"
+    )]
+    NotTle { first: String },
     /// The file has no navigation satellite.
     #[error(
         "no GPS, Galileo, GLONASS or BeiDou satellite among {objects} element sets: expected an orbit file of navigation satellites (e.g. CelesTrak's gnss group in TLE format)"
@@ -130,6 +135,10 @@ impl Constellation {
     pub fn from_tle(text: &str) -> Result<Self, OrbitError> {
         let lines: Vec<(usize, &str)> =
             text.lines().enumerate().map(|(i, l)| (i + 1, l.trim_end())).filter(|(_, l)| !l.is_empty()).collect();
+        if !lines.iter().any(|(_, l)| l.starts_with("1 ")) {
+            let first: String = lines.first().map_or("", |(_, l)| l).chars().take(60).collect();
+            return Err(OrbitError::NotTle { first });
+        }
         let mut sets: Vec<(usize, Option<String>, &str, &str)> = Vec::new();
         let mut k = 0;
         while k < lines.len() {
@@ -279,7 +288,10 @@ mod tests {
         let iss = &SAMPLE[SAMPLE.find("0 ISS").unwrap()..];
         let e = Constellation::from_tle(iss).unwrap_err();
         assert_eq!(e, OrbitError::NoNavigationSatellites { objects: 1 });
-        let e = Constellation::from_tle("<html>\n<body>not found</body>\n</html>\n").unwrap_err().to_string();
+        let e = Constellation::from_tle("<html>\n<body>not found</body>\n</html>\n").unwrap_err();
+        assert_eq!(e, OrbitError::NotTle { first: "<html>".into() });
+        // A TLE-looking file whose name line is followed by something else.
+        let e = Constellation::from_tle(&format!("GPS X\nnot a line\n{SAMPLE}")).unwrap_err().to_string();
         assert!(e.starts_with("line 2: expected a TLE line 1"), "{e}");
     }
 }

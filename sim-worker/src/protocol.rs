@@ -97,6 +97,19 @@ pub struct GnssDetail {
     /// Dilutions of precision; `None` without a fix.
     pub hdop: Option<f64>,
     pub vdop: Option<f64>,
+    /// The ranging receiver's sky (`None` for the statistical receiver): satellites above
+    /// the mask, received directly, received only by a reflection.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sky: Option<SkyDetail>,
+}
+
+/// Satellites by signal path at one fix epoch (see `sensors::SkyCounts`).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[serde(rename_all = "camelCase")]
+pub struct SkyDetail {
+    pub above_mask: u8,
+    pub line_of_sight: u8,
+    pub reflected: u8,
 }
 
 #[cfg(test)]

@@ -203,4 +203,19 @@ pub struct ComplianceReport {
     /// may be smaller, but still at least that distance; `None` when no two airborne
     /// drones were ever in neighbouring cells.
     pub closest_approach: Option<(f64, f64, u32, u32)>,
+    /// Per drone (index order), the largest horizontal distance between its estimated and
+    /// its true position while airborne, tracked when the scenario has an
+    /// `estimatedPositionError` criterion; `None` for a drone never airborne with an
+    /// estimate.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub worst_position_errors: Vec<Option<PositionError>>,
+}
+
+/// A drone's worst estimated-position error: how far, when, where (the truth).
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct PositionError {
+    pub horizontal_m: f64,
+    pub time_s: f64,
+    pub at: Place,
 }

@@ -21,6 +21,58 @@ pub struct DroneSummary {
     pub waypoints_reached: u32,
     pub failsafes: u32,
     pub final_battery_remaining: f64,
+    /// How the drone's GNSS receiver did (absent when it produced no epoch).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gnss: Option<GnssSummary>,
+}
+
+/// A drone's GNSS over the run: what its receiver saw and how far its fixes and its
+/// estimate were from the truth.
+#[derive(Serialize, Deserialize, Clone, Debug, Default, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct GnssSummary {
+    /// Receiver epochs (fixes or not).
+    pub epochs: u32,
+    /// Epochs without a 3D fix (2D or none), outages included.
+    pub epochs_without_3d_fix: u32,
+    /// Mean satellites used over the epochs with a fix.
+    pub mean_satellites: f64,
+    /// Median HDOP over the epochs with a fix (absent without one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub median_hdop: Option<f64>,
+    /// Horizontal distance of the receiver's 3D fixes from the true position, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fix_error_m: Option<ErrorStats>,
+    /// Horizontal distance of the estimate (what the autopilot flies on) from the true
+    /// position at the receiver's epochs while airborne, m.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub estimate_error_m: Option<ErrorStats>,
+    /// Of the satellites above the elevation mask, the share received only by a facade
+    /// reflection (ranging receiver; absent for the statistical one).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reflected_share: Option<f64>,
+}
+
+/// Order statistics of an error, metres.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct ErrorStats {
+    pub median: f64,
+    pub p95: f64,
+    pub max: f64,
+}
+
+impl ErrorStats {
+    /// The statistics of `values` (sorted in place; NaNs last); `None` when empty.
+    /// Percentiles are nearest-rank.
+    pub fn of(values: &mut [f64]) -> Option<Self> {
+        if values.is_empty() {
+            return None;
+        }
+        values.sort_by(f64::total_cmp);
+        let rank = |q: f64| values[((q * values.len() as f64).ceil() as usize).clamp(1, values.len()) - 1];
+        Some(Self { median: rank(0.5), p95: rank(0.95), max: values[values.len() - 1] })
+    }
 }
 
 /// The whole run.

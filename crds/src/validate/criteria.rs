@@ -65,6 +65,11 @@ pub(super) fn check_criteria(
                 check_group_refs(gs, groups, &format!("{path}.zoneVerdicts.groups"), p);
                 zone_ref(p, format!("{path}.zoneVerdicts.zone"), zone);
             }
+            Criterion::EstimatedPositionError { groups: gs, max_horizontal_m } => {
+                let path = format!("{path}.estimatedPositionError");
+                check_group_refs(gs, groups, &format!("{path}.groups"), p);
+                p.range(format!("{path}.maxHorizontalM"), *max_horizontal_m, 0.1, 1000.0);
+            }
             Criterion::NoUnauthorizedEntries {}
             | Criterion::ZoneConstraintsRespected {}
             | Criterion::AltitudeLimitsRespected {}

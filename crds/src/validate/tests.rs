@@ -258,3 +258,37 @@ fn an_osm_world_names_its_extract_and_nothing_of_the_procedural_city() {
     assert_eq!(found.len(), 1);
     assert!(found[0].starts_with("spec.world.city: shapes the procedural city only"), "{found:?}");
 }
+
+#[test]
+fn a_gnss_constellation_needs_a_file_a_time_and_no_noise_figures() {
+    let found = problems_of(|r| {
+        r.spec.environment = Some(
+            serde_json::from_value(serde_json::json!({"gnss": {
+                "constellation": {"file": "ftp://host/gps.tle", "epoch": "yesterday", "elevationMaskDeg": 75},
+                "horizontalSigmaM": 2.0
+            }}))
+            .unwrap(),
+        );
+        r.spec.criteria =
+            vec![Criterion::EstimatedPositionError { groups: vec!["beta".into()], max_horizontal_m: 0.0 }];
+    });
+    assert_eq!(
+        found,
+        [
+            r#"spec.environment.gnss.constellation.file: unsupported scheme "ftp": expected a path, file://, s3://, gs:// or az:// (http is not fetched)"#,
+            r#"spec.environment.gnss.constellation.epoch: "yesterday" is not an RFC 3339 UTC time: expected e.g. 2020-12-01T12:00:00Z"#,
+            "spec.environment.gnss.constellation.elevationMaskDeg: must be between 0 and 60, got 75",
+            "spec.environment.gnss.horizontalSigmaM: is not allowed with constellation: the ranging receiver's errors come from the satellites' geometry and signal paths, not from a noise figure",
+            r#"spec.criteria[0].estimatedPositionError.groups[0]: unknown group "beta", expected one of: alpha"#,
+            "spec.criteria[0].estimatedPositionError.maxHorizontalM: must be between 0.1 and 1000, got 0",
+        ]
+    );
+    let fine = problems_of(|r| {
+        r.spec.environment = Some(
+            serde_json::from_value(serde_json::json!({"gnss": {"rateHz": 5,
+                "constellation": {"file": "s3://orbits/gnss.tle", "epoch": "2020-12-01T12:00:00Z"}}}))
+            .unwrap(),
+        );
+    });
+    assert!(fine.is_empty(), "{fine:?}");
+}

@@ -84,6 +84,8 @@ struct AirspaceFields {
     crash_places: Vec<Place>,
     #[serde(default)]
     closest_approach: Option<(f64, f64, u32, u32)>,
+    #[serde(default)]
+    worst_position_errors: Vec<Option<sadesim_crds::outcome::compliance::PositionError>>,
 }
 
 impl<'de> Deserialize<'de> for AirspaceFile {
@@ -98,6 +100,7 @@ impl<'de> Deserialize<'de> for AirspaceFile {
                 crashes: f.crashes,
                 crash_places: f.crash_places,
                 closest_approach: f.closest_approach,
+                worst_position_errors: f.worst_position_errors,
             },
         })
     }

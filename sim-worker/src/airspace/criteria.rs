@@ -16,6 +16,10 @@
 //!   zone, and no request of theirs for it got the other verdict. Drones that never asked
 //!   are named in the summary but do not fail it (a drone may never need the zone).
 //!
+//! - `estimatedPositionError {groups, maxHorizontalM}`: while airborne, no drone of the
+//!   groups (every drone when empty) had its estimated position farther than
+//!   `maxHorizontalM` from the truth (one failure line per drone, at its worst moment).
+//!
 //! Failure lines name the drone, the sim time (seconds, 2 decimals), the duration, the
 //! place (latitude and longitude to 5 decimals, about 1 m; height above ground) and the
 //! zone, so a reader can find the moment in the events log and on a map.
@@ -31,6 +35,7 @@ pub use sadesim_crds::outcome::verdict::{CriterionResult, RunVerdict};
 use super::authority::RequestRecord;
 use super::monitor::{ComplianceReport, ViolationKind, ViolationRecord};
 use crate::events::Place;
+use sadesim_crds::outcome::compliance::PositionError;
 
 /// Most drone names a summary lists (the rest are counted).
 pub const MAX_NAMES_IN_SUMMARY: usize = 20;
@@ -54,6 +59,7 @@ pub fn criterion_name(c: &Criterion) -> &'static str {
         Criterion::MinSeparation { .. } => "minSeparation",
         Criterion::ReachZone { .. } => "reachZone",
         Criterion::ZoneVerdicts { .. } => "zoneVerdicts",
+        Criterion::EstimatedPositionError { .. } => "estimatedPositionError",
     }
 }
 
@@ -99,6 +105,9 @@ impl Judge<'_> {
             Criterion::MinSeparation { distance_m } => self.min_separation(*distance_m),
             Criterion::ReachZone { groups, zone, within } => self.reach_zone(groups, zone, duration_s(within)),
             Criterion::ZoneVerdicts { groups, zone, expect } => self.zone_verdicts(groups, zone, *expect),
+            Criterion::EstimatedPositionError { groups, max_horizontal_m } => {
+                self.position_error(groups, *max_horizontal_m)
+            }
         };
         CriterionResult {
             path: format!("spec.criteria[{i}]"),
@@ -183,6 +192,44 @@ impl Judge<'_> {
             },
             failures,
         }
+    }
+
+    /// Each drone of `groups` (all when empty) against its worst estimated-position error.
+    fn position_error(&self, groups: &[String], max_m: f64) -> Outcome {
+        let judged: Vec<(u32, Option<&PositionError>)> = self
+            .plan
+            .drones
+            .iter()
+            .filter(|d| groups.is_empty() || groups.contains(&d.group))
+            .map(|d| (d.index, self.report.worst_position_errors.get(d.index as usize).and_then(Option::as_ref)))
+            .collect();
+        let worst = judged
+            .iter()
+            .filter_map(|(d, e)| e.map(|e| (*d, e)))
+            .max_by(|a, b| a.1.horizontal_m.total_cmp(&b.1.horizontal_m));
+        let failures: Vec<String> = judged
+            .iter()
+            .filter_map(|(d, e)| e.filter(|e| e.horizontal_m > max_m).map(|e| (*d, e)))
+            .map(|(d, e)| {
+                format!(
+                    "{}: estimate {:.1} m from the truth at {:.2} s at {} (limit {max_m} m)",
+                    self.name(d),
+                    e.horizontal_m,
+                    e.time_s,
+                    place(&e.at)
+                )
+            })
+            .collect();
+        let summary = match worst {
+            None => "no drone of the groups was airborne with a position estimate".to_string(),
+            Some((d, e)) if failures.is_empty() => format!(
+                "every estimate stayed within {max_m} m of the truth (worst {:.1} m, {})",
+                e.horizontal_m,
+                self.name(d)
+            ),
+            Some(_) => format!("{} of {} drones' estimates strayed over {max_m} m", failures.len(), judged.len()),
+        };
+        Outcome { passed: failures.is_empty(), summary, failures }
     }
 
     /// The monitor records losses below the smallest `minSeparation` distance; a larger

@@ -91,6 +91,7 @@ impl Monitor {
             Criterion::MinSeparation { distance_m } if distance_m.is_finite() && *distance_m > 0.0 => Some(*distance_m),
             _ => None,
         });
+        let position_errors = plan.spec.criteria.iter().any(|c| matches!(c, Criterion::EstimatedPositionError { .. }));
         let separation = distances
             .fold(None, |acc: Option<(f64, f64)>, d| Some(acc.map_or((d, d), |(lo, hi)| (lo.min(d), hi.max(d)))));
         Self {
@@ -107,7 +108,10 @@ impl Monitor {
             crash_events: Vec::new(),
             log: Log {
                 frame: LocalFrame::new(plan.spec.origin.geo()),
-                report: ComplianceReport::default(),
+                report: ComplianceReport {
+                    worst_position_errors: if position_errors { vec![None; plan.drones.len()] } else { Vec::new() },
+                    ..ComplianceReport::default()
+                },
                 events: Vec::new(),
             },
         }
@@ -151,6 +155,7 @@ impl Monitor {
                 self.watch_zone(i, z, &prev, &now, airborne, lease);
             }
             self.watch_altitude(i, &now, airborne, snap.mode);
+            self.watch_position_error(i, &now, snap, airborne);
             self.drones[i].last = Some(now);
         }
         // Crashes of drones without a snapshot this window: where they were last seen.
@@ -691,6 +696,7 @@ impl Log {
 }
 
 mod altitude;
+mod position_error;
 #[cfg(test)]
 pub(crate) mod test_plan;
 #[cfg(test)]

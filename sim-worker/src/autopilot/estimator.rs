@@ -37,6 +37,11 @@ pub const GNSS_MIN_SIGMA_M: f64 = 0.5;
 /// innovation is rejected (PX4's EKF2_GPS_P_GATE default): a jump of tens of metres from a
 /// receiver in a street canyon is not believed, and rejected fixes do not count as GNSS.
 pub const GNSS_POSITION_GATE_SD: f64 = 5.0;
+/// Floor of the innovation's standard deviation in the gate, m (so the gate is at least
+/// 10 m). This per-axis filter's covariance is optimistic (it models neither IMU biases nor
+/// attitude errors: ~0.1 m where the estimate really errs by ~0.5 m), and a gate on it
+/// alone refused open-sky fixes 2.6 m off; jumps of tens of metres are still refused.
+pub const GNSS_GATE_MIN_SD_M: f64 = 2.0;
 /// After this long without a fused fix the estimate is reset to the next fix instead of
 /// gating it (PX4's EKF2_NOAID_TOUT default, 5 s): dead reckoning has drifted by then, and
 /// a gate on a drifted estimate would refuse good fixes for ever.
@@ -209,7 +214,8 @@ impl Estimator {
         if let Some(axes) = &self.axes {
             let ratio = |k: usize| {
                 let innovation = fix.position_enu_m[k] - axes[k].x[0];
-                innovation * innovation / (GNSS_POSITION_GATE_SD.powi(2) * (axes[k].p[0][0] + eph * eph))
+                let variance = (axes[k].p[0][0] + eph * eph).max(GNSS_GATE_MIN_SD_M * GNSS_GATE_MIN_SD_M);
+                innovation * innovation / (GNSS_POSITION_GATE_SD.powi(2) * variance)
             };
             if ratio(0).max(ratio(1)) > 1.0 {
                 return GnssFusion::Rejected;

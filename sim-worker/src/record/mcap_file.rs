@@ -67,8 +67,9 @@ pub const MCAP_FILE: &str = "recording.mcap";
 pub const CHUNK_BYTES: usize = 1 << 20;
 
 /// Channels per drone (pose, velocity, estimate, motors, battery, status, wind, location,
-/// gnss); MCAP channel ids are 16-bit, which bounds the fleet one file can record.
-const CHANNELS_PER_DRONE: usize = 9;
+/// gnss, gnss_quality); MCAP channel ids are 16-bit, which bounds the fleet one file can
+/// record.
+const CHANNELS_PER_DRONE: usize = 10;
 
 /// Most drones one `recording.mcap` holds (65 535 channel ids, 4 run-wide channels).
 pub const MAX_DRONES: usize = (u16::MAX as usize - 4) / CHANNELS_PER_DRONE;
@@ -128,6 +129,7 @@ struct DroneChannels {
     wind: Channel,
     location: Channel,
     gnss: Channel,
+    gnss_quality: Channel,
     /// `time_s` of the last GNSS output seen (a new fix when it changes).
     last_gnss_s: Option<f64>,
 }
@@ -226,6 +228,7 @@ impl McapRecorder {
                 wind: channel(&mut writer, &topic("wind"), schemas::WIND_NAME)?,
                 location: channel(&mut writer, &topic("location"), schemas::LOCATION_FIX_NAME)?,
                 gnss: channel(&mut writer, &topic("gnss"), schemas::LOCATION_FIX_NAME)?,
+                gnss_quality: channel(&mut writer, &topic("gnss_quality"), schemas::GNSS_QUALITY_NAME)?,
                 last_gnss_s: None,
             });
         }
@@ -299,9 +302,11 @@ impl McapRecorder {
                 && c.last_gnss_s != Some(g.time_s)
             {
                 c.last_gnss_s = Some(g.time_s);
+                let fix_ns = ns(g.time_s).min(log_ns);
+                let truth = truth_at(s, g.time_s, time_s);
+                out.write(&mut c.gnss_quality, log_ns, fix_ns, |b| messages::gnss_quality(b, fix_ns, g, truth))?;
                 // Without a 3D fix the receiver's position means nothing.
                 if g.fix_type >= 3 {
-                    let fix_ns = ns(g.time_s).min(log_ns);
                     let sigma = g.eph_m.zip(g.epv_m);
                     out.write(&mut c.gnss, log_ns, fix_ns, |b| {
                         messages::location(b, fix_ns, &c.frame, frame.to_geodetic(messages::gnss_enu(g)), sigma)
@@ -324,6 +329,14 @@ impl McapRecorder {
         file.into_inner().map_err(|e| e.into_error())?;
         Ok(())
     }
+}
+
+/// The true position of drone `s` (sampled at `window_s`) at the earlier `at_s`, back along
+/// its velocity: a fix is measured at its own epoch, up to a window before the sample.
+pub fn truth_at(s: &DroneSnapshot, at_s: f64, window_s: f64) -> [f64; 3] {
+    let dt = (window_s - at_s).max(0.0);
+    let (p, v) = (s.position_enu_m, s.velocity_enu_mps);
+    [p[0] - v[0] * dt, p[1] - v[1] * dt, p[2] - v[2] * dt]
 }
 
 /// Test support: the pose messages (`/drones/<name>/pose`, all drones) in the finished

@@ -5,6 +5,7 @@
 
 mod cost;
 mod events;
+mod gnss_tally;
 pub mod mcap_file;
 mod recorder;
 mod sampler;

@@ -47,6 +47,8 @@ pub struct Recorder {
     /// When `trajectory.geojson` takes a point (the first window included).
     track_points: Sampler,
     summary: RunSummary,
+    /// Per drone: the GNSS part of the summary.
+    gnss: Vec<super::gnss_tally::GnssTally>,
     last_positions: Vec<Option<[f64; 2]>>,
     last: Vec<DroneSnapshot>,
     /// `recording.mcap` (unless `spec.recording.mcap` is false) and `ulog/*.ulg` (unless
@@ -91,6 +93,7 @@ impl Recorder {
             rows: Sampler::new(options.trajectory_hz),
             track_points: Sampler::including_start(options.track_hz),
             summary,
+            gnss: vec![super::gnss_tally::GnssTally::default(); plan.drones.len()],
             last_positions: vec![None; plan.drones.len()],
             last: Vec::new(),
             plan: plan.clone(),
@@ -129,6 +132,9 @@ impl Recorder {
         self.summary.wall_time_s = outcome.wall_time.as_secs_f64();
         self.summary.real_time_factor = outcome.sim_time_s / outcome.wall_time.as_secs_f64().max(1e-9);
         self.summary.pilots_released_at_s = outcome.released_at_s;
+        for (d, tally) in self.summary.per_drone.iter_mut().zip(&mut self.gnss) {
+            d.gnss = tally.summary();
+        }
         let json = serde_json::to_vec_pretty(&self.summary).map_err(std::io::Error::other)?;
         std::fs::write(self.dir.join(sadesim_crds::outcome::run_folder::SUMMARY), json)?;
         Ok(self.summary)
@@ -150,6 +156,11 @@ impl RunObserver for Recorder {
         // The track's last point is where the drone ended, whatever the rate.
         if self.track_points.due(time_s) || final_window {
             self.tracks.add(drones, &self.frame);
+        }
+        for s in drones {
+            if let Some(tally) = self.gnss.get_mut(s.index as usize) {
+                tally.observe(time_s, s);
+            }
         }
         if !final_window {
             super::summary::observe_window(&mut self.summary, drones, events, &mut self.last_positions);

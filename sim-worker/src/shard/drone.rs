@@ -411,6 +411,11 @@ impl DroneSim {
                 epv_m: finite(g.epv_m),
                 hdop: finite(g.hdop),
                 vdop: finite(g.vdop),
+                sky: g.sky.map(|k| crate::protocol::SkyDetail {
+                    above_mask: k.above_mask,
+                    line_of_sight: k.line_of_sight,
+                    reflected: k.reflected,
+                }),
             }),
             motor_commands,
             motor_count: self.motors.len().min(8) as u8,

@@ -352,3 +352,33 @@ fn the_monitor_s_records_make_the_failure_lines() {
         "journalists-0 inside tfr without a lease from 10.50 s for 9.50 s at 41.88005 N 87.62370 W, 40.0 m AGL"
     );
 }
+
+#[test]
+fn estimated_position_error_fails_each_drone_of_the_groups_over_the_bound_at_its_worst_moment() {
+    let worst = |m: f64, t: f64| Some(PositionError { horizontal_m: m, time_s: t, at: museum() });
+    let report = ComplianceReport {
+        // public-safety-0 strayed 12.5 m, -1 never flew; journalists 3 m, 30 m, 1 m.
+        worst_position_errors: vec![worst(12.5, 40.0), None, worst(3.0, 10.0), worst(30.0, 75.5), worst(1.0, 5.0)],
+        ..ComplianceReport::default()
+    };
+    let all = |m: f64| Criterion::EstimatedPositionError { groups: vec![], max_horizontal_m: m };
+    let r = judge(all(10.0), &report, &[]);
+    assert!(!r.passed);
+    assert_eq!(r.criterion, "estimatedPositionError");
+    assert_eq!(r.summary, "2 of 5 drones' estimates strayed over 10 m");
+    assert_eq!(r.failures.len(), 2);
+    assert!(
+        r.failures[0]
+            .starts_with("public-safety-0: estimate 12.5 m from the truth at 40.00 s at 41.88011 N 87.62301 W"),
+        "{}",
+        r.failures[0]
+    );
+    assert!(r.failures[1].starts_with("journalists-1: estimate 30.0 m"), "{}", r.failures[1]);
+    let passed = judge(all(50.0), &report, &[]);
+    assert!(passed.passed && passed.summary.contains("worst 30.0 m, journalists-1"), "{}", passed.summary);
+    // Only the named group is judged.
+    let ps = Criterion::EstimatedPositionError { groups: vec!["public-safety".into()], max_horizontal_m: 20.0 };
+    assert!(judge(ps, &report, &[]).passed);
+    let none = judge(all(1.0), &ComplianceReport::default(), &[]);
+    assert!(none.passed && none.summary.contains("no drone"), "{}", none.summary);
+}

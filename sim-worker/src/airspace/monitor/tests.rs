@@ -652,3 +652,31 @@ fn a_window_of_1000_drones_and_10_zones_takes_under_2_ms() {
     assert!(monitor.report().presences.len() > 10, "the workload must cross zones");
     assert!(per_window < std::time::Duration::from_millis(2), "{per_window:?} per window");
 }
+
+/// A drone at `p` whose estimate is `offset` metres east of the truth.
+fn estimated(index: u32, p: [f64; 3], offset_m: f64, on_ground: bool) -> DroneSnapshot {
+    let mut s = at(index, p[0], p[1], p[2]);
+    s.on_ground = on_ground;
+    s.detail.estimate =
+        Some(crate::protocol::EstimateDetail { position_enu_m: [p[0] + offset_m, p[1], p[2]], ..Default::default() });
+    s
+}
+
+#[test]
+fn the_worst_airborne_estimate_error_is_kept_per_drone_when_a_criterion_needs_it() {
+    let criterion = Criterion::EstimatedPositionError { groups: vec![], max_horizontal_m: 5.0 };
+    let mut h = harness(2, |r| r.spec.criteria.push(criterion));
+    h.window(1.0, &[estimated(0, [0.0, 0.0, 0.0], 40.0, true), estimated(1, [5.0, 0.0, 30.0], 2.0, false)]);
+    h.window(2.0, &[estimated(0, [0.0, 0.0, 20.0], 7.5, false), estimated(1, [6.0, 0.0, 30.0], 1.0, false)]);
+    h.window(3.0, &[estimated(0, [0.0, 0.0, 20.0], 3.0, false), at(1, 7.0, 0.0, 30.0)]);
+    let worst = &h.report().worst_position_errors;
+    assert_eq!(worst.len(), 2);
+    let w0 = worst[0].as_ref().unwrap();
+    assert_eq!((w0.horizontal_m, w0.time_s), (7.5, 2.0), "the 40 m error on the ground does not count");
+    assert_eq!(w0.at.up_m, 20.0);
+    assert_eq!(worst[1].as_ref().unwrap().horizontal_m, 2.0);
+    // Without the criterion nothing is tracked.
+    let mut plain = harness(1, |_| {});
+    plain.window(1.0, &[estimated(0, [0.0, 0.0, 20.0], 7.5, false)]);
+    assert!(plain.report().worst_position_errors.is_empty());
+}

@@ -152,6 +152,39 @@ pub fn location(out: &mut Vec<u8>, ns: u64, frame: &str, g: GeoPoint, sigma_m: O
     out.push(b'}');
 }
 
+/// `sadesim.GnssQuality` of the receiver output `g`; `truth_enu_m` is the true position at
+/// the measurement time.
+pub fn gnss_quality(out: &mut Vec<u8>, ns: u64, g: &GnssDetail, truth_enu_m: [f64; 3]) {
+    open(out, ns);
+    member(out, "fix_type");
+    json::uint(out, u64::from(g.fix_type));
+    member(out, "satellites_used");
+    json::uint(out, u64::from(g.satellites));
+    let opt = |v: Option<f64>| v.unwrap_or(f64::NAN);
+    let fixed = g.fix_type >= 2;
+    let [e, n, u] = g.position_enu_m;
+    let horizontal = if fixed { (e - truth_enu_m[0]).hypot(n - truth_enu_m[1]) } else { f64::NAN };
+    let vertical = if g.fix_type >= 3 { u - truth_enu_m[2] } else { f64::NAN };
+    json::numbers(out, &[("hdop", opt(g.hdop)), ("vdop", opt(g.vdop))], COARSE);
+    json::numbers(
+        out,
+        &[
+            ("eph_m", opt(g.eph_m)),
+            ("epv_m", opt(g.epv_m)),
+            ("horizontal_error_m", horizontal),
+            ("vertical_error_m", vertical),
+        ],
+        METRES,
+    );
+    let counts = g.sky.map(|k| [k.above_mask, k.line_of_sight, k.reflected].map(f64::from)).unwrap_or([f64::NAN; 3]);
+    json::numbers(
+        out,
+        &[("satellites_above_mask", counts[0]), ("line_of_sight", counts[1]), ("reflected", counts[2])],
+        0,
+    );
+    out.push(b'}');
+}
+
 /// The ENU position of a GNSS output.
 pub fn gnss_enu(g: &GnssDetail) -> Enu {
     Enu::new(g.position_enu_m[0], g.position_enu_m[1], g.position_enu_m[2])

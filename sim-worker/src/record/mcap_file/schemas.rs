@@ -150,6 +150,14 @@ pub const ESTIMATE: &str = concat!(
     r#","eph_m":{"type":"number","description":"1-sigma horizontal position uncertainty, m"},"epv_m":{"type":"number","description":"1-sigma vertical position uncertainty, m"}}}"#
 );
 
+pub const GNSS_QUALITY_NAME: &str = "sadesim.GnssQuality";
+/// The receiver's account of each fix epoch and its error against the truth.
+pub const GNSS_QUALITY: &str = concat!(
+    r#"{"title":"sadesim.GnssQuality","description":"A GNSS receiver's fix epoch: fix type, satellites, dilution of precision, reported accuracy, the sky by signal path (ranging receiver) and the fix's error against the ground truth","type":"object","properties":{"timestamp":"#,
+    time!("Simulated time of the measurement"),
+    r#","fix_type":{"type":"integer","description":"MAVLink GPS_FIX_TYPE: 1 no fix, 2 2D, 3 3D"},"satellites_used":{"type":"integer","description":"Satellites in the solution"},"hdop":{"type":["number","null"],"description":"Horizontal dilution of precision (null without a fix)"},"vdop":{"type":["number","null"],"description":"Vertical dilution of precision"},"eph_m":{"type":["number","null"],"description":"Reported 1-sigma horizontal accuracy, m"},"epv_m":{"type":["number","null"],"description":"Reported 1-sigma vertical accuracy, m"},"satellites_above_mask":{"type":["integer","null"],"description":"Satellites above the elevation mask (ranging receiver)"},"line_of_sight":{"type":["integer","null"],"description":"Of those, received directly"},"reflected":{"type":["integer","null"],"description":"Of those, received only by a facade reflection (NLOS)"},"horizontal_error_m":{"type":["number","null"],"description":"Horizontal distance from the fix to the true position, m (null without a fix)"},"vertical_error_m":{"type":["number","null"],"description":"Fix height minus true height, m (null without a 3D fix)"}}}"#
+);
+
 pub const MOTORS_NAME: &str = "sadesim.MotorCommands";
 /// Motor commands.
 pub const MOTORS: &str = concat!(
@@ -185,11 +193,12 @@ pub const WIND: &str = concat!(
 );
 
 /// Every schema: (name, JSON Schema text).
-pub const ALL: [(&str, &str); 8] = [
+pub const ALL: [(&str, &str); 9] = [
     (LOCATION_FIX_NAME, LOCATION_FIX),
     (LOG_NAME, LOG),
     (SCENE_UPDATE_NAME, SCENE_UPDATE),
     (ESTIMATE_NAME, ESTIMATE),
+    (GNSS_QUALITY_NAME, GNSS_QUALITY),
     (MOTORS_NAME, MOTORS),
     (BATTERY_NAME, BATTERY),
     (STATUS_NAME, STATUS),

@@ -10,7 +10,7 @@ use serde_json::Value;
 use super::{CHUNK_BYTES, MCAP_FILE, McapRecorder};
 use crate::airspace::monitor::test_plan::{plan_of, rect_zone, run_with_groups, world_of};
 use crate::events::{Event, EventKind, FlightMode};
-use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail};
+use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail, SkyDetail};
 
 /// Physics windows of 10 ms, as the default plan.
 const WINDOW_S: f64 = 0.01;
@@ -63,6 +63,7 @@ fn snapshot(index: u32, t: f64) -> DroneSnapshot {
                 epv_m: Some(1.1),
                 hdop: Some(0.9),
                 vdop: Some(1.3),
+                sky: Some(SkyDetail { above_mask: 14, line_of_sight: 10, reflected: 3 }),
             }),
             motor_commands: [0.5 + 0.01 * t, 0.51, 0.52, 0.53, 0.0, 0.0, 0.0, 0.0],
             motor_count: 4,
@@ -317,7 +318,7 @@ fn log_times_are_monotonic_per_channel_and_timestamps_match() {
             assert_eq!(t, m.publish_time, "{}", m.topic);
         }
     }
-    assert_eq!(last.len(), 4 + 2 * 9, "every channel has messages");
+    assert_eq!(last.len(), 4 + 2 * 10, "every channel has messages");
 }
 
 #[test]
@@ -378,6 +379,20 @@ fn values_equal_the_snapshots() {
                 let fix_s = ns_to_s(&j["timestamp"]);
                 assert!(((fix_s / 0.2).round() * 0.2 - fix_s).abs() < 1e-6, "fix times are multiples of 0.2 s");
             }
+            (Some(i), "gnss_quality") => {
+                // The snapshot's fix lies at its own time's circle point; the truth is taken
+                // back along the velocity from the window to the fix time.
+                let fix_s = ns_to_s(&j["timestamp"]);
+                let s = snapshot(i, t);
+                let g = s.detail.gnss.as_ref().unwrap();
+                let truth = super::truth_at(&s, g.time_s, t);
+                let expected = (g.position_enu_m[0] - truth[0]).hypot(g.position_enu_m[1] - truth[1]);
+                assert!((fix_s - g.time_s).abs() < 1e-6);
+                assert!((j["horizontal_error_m"].as_f64().unwrap() - expected).abs() < 1e-3, "{j}");
+                assert_eq!((j["fix_type"].as_u64(), j["satellites_used"].as_u64()), (Some(3), Some(12)));
+                assert_eq!((j["satellites_above_mask"].as_u64(), j["reflected"].as_u64()), (Some(14), Some(3)));
+                assert_eq!(j["hdop"], 0.9);
+            }
             (None, "tf") => {
                 let transforms = j["transforms"].as_array().unwrap();
                 assert_eq!(transforms.len(), 2, "one transform per drone");
@@ -410,7 +425,19 @@ fn values_equal_the_snapshots() {
         }
         *checked.entry(stream.to_string()).or_insert(0) += 1;
     }
-    for stream in ["pose", "velocity", "estimate", "motors", "status", "location", "gnss", "tf", "events", "zones"] {
+    for stream in [
+        "pose",
+        "velocity",
+        "estimate",
+        "motors",
+        "status",
+        "location",
+        "gnss",
+        "gnss_quality",
+        "tf",
+        "events",
+        "zones",
+    ] {
         assert!(checked.get(stream).copied().unwrap_or(0) > 0, "no {stream} message checked");
     }
 }

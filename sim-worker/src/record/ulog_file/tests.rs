@@ -351,6 +351,7 @@ fn snapshot(index: u32, t: f64) -> DroneSnapshot {
                 epv_m: Some(0.8),
                 hdop: Some(0.9),
                 vdop: Some(1.2),
+                sky: None,
             }),
             motor_commands: [0.5, 0.6, 0.7, 0.8, 0.0, 0.0, 0.0, 0.0],
             motor_count: 4,

@@ -1,0 +1,111 @@
+//! The GNSS part of `summary.json`: per drone, the receiver's epochs and the errors of its
+//! fixes and of the estimate against the truth, folded from the windows as they pass.
+
+use sadesim_crds::outcome::summary::{ErrorStats, GnssSummary};
+
+use crate::protocol::DroneSnapshot;
+use crate::record::mcap_file::truth_at;
+
+/// One drone's samples so far.
+#[derive(Clone, Debug, Default)]
+pub struct GnssTally {
+    last_epoch_s: Option<f64>,
+    epochs: u32,
+    without_3d_fix: u32,
+    satellites: u64,
+    hdop: Vec<f64>,
+    fix_error_m: Vec<f64>,
+    estimate_error_m: Vec<f64>,
+    above_mask: u64,
+    reflected: u64,
+    ranging: bool,
+}
+
+impl GnssTally {
+    /// Takes drone `s`'s receiver output when it is a new epoch (sampled at `window_s`).
+    pub fn observe(&mut self, window_s: f64, s: &DroneSnapshot) {
+        let Some(g) = &s.detail.gnss else { return };
+        if self.last_epoch_s == Some(g.time_s) {
+            return;
+        }
+        self.last_epoch_s = Some(g.time_s);
+        self.epochs += 1;
+        let truth = truth_at(s, g.time_s, window_s);
+        if let Some(sky) = g.sky {
+            self.ranging = true;
+            self.above_mask += u64::from(sky.above_mask);
+            self.reflected += u64::from(sky.reflected);
+        }
+        if g.fix_type >= 3 {
+            self.satellites += u64::from(g.satellites);
+            self.hdop.extend(g.hdop);
+            let [e, n, _] = g.position_enu_m;
+            self.fix_error_m.push((e - truth[0]).hypot(n - truth[1]));
+        } else {
+            self.without_3d_fix += 1;
+        }
+        if let Some(est) = s.detail.estimate.as_ref().filter(|_| !s.on_ground && !s.crashed) {
+            let [e, n, _] = est.position_enu_m;
+            self.estimate_error_m.push((e - truth[0]).hypot(n - truth[1]));
+        }
+    }
+
+    /// The summary (`None` before the first epoch).
+    pub fn summary(&mut self) -> Option<GnssSummary> {
+        if self.epochs == 0 {
+            return None;
+        }
+        let fixes = self.epochs - self.without_3d_fix;
+        Some(GnssSummary {
+            epochs: self.epochs,
+            epochs_without_3d_fix: self.without_3d_fix,
+            mean_satellites: if fixes == 0 { 0.0 } else { self.satellites as f64 / f64::from(fixes) },
+            median_hdop: ErrorStats::of(&mut self.hdop).map(|s| s.median),
+            fix_error_m: ErrorStats::of(&mut self.fix_error_m),
+            estimate_error_m: ErrorStats::of(&mut self.estimate_error_m),
+            reflected_share: (self.ranging && self.above_mask > 0)
+                .then(|| self.reflected as f64 / self.above_mask as f64),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::protocol::{GnssDetail, SkyDetail};
+
+    fn snap(t: f64, fix: Option<[f64; 3]>) -> DroneSnapshot {
+        let mut s = DroneSnapshot::climbing(0, 0.0, t);
+        s.position_enu_m = [0.0, 0.0, 20.0];
+        s.velocity_enu_mps = [0.0; 3];
+        s.detail.gnss = Some(GnssDetail {
+            time_s: t,
+            position_enu_m: fix.unwrap_or([0.0; 3]),
+            fix_type: if fix.is_some() { 3 } else { 1 },
+            satellites: 8,
+            hdop: fix.map(|_| 1.5),
+            sky: Some(SkyDetail { above_mask: 10, line_of_sight: 8, reflected: 2 }),
+            ..Default::default()
+        });
+        s
+    }
+
+    #[test]
+    fn epochs_are_counted_once_and_errors_measured_against_the_truth() {
+        let mut tally = GnssTally::default();
+        for k in 0..20 {
+            let t = f64::from(k) * 0.2;
+            let fix = if k < 15 { Some([f64::from(k % 5), 0.0, 20.0]) } else { None };
+            tally.observe(t, &snap(t, fix));
+            tally.observe(t + 0.01, &snap(t, fix)); // the same epoch in the next window
+        }
+        let s = tally.summary().unwrap();
+        assert_eq!((s.epochs, s.epochs_without_3d_fix), (20, 5));
+        assert_eq!(s.mean_satellites, 8.0);
+        assert_eq!(s.median_hdop, Some(1.5));
+        let fix = s.fix_error_m.unwrap();
+        assert_eq!((fix.median, fix.max), (2.0, 4.0), "errors 0..4 m, three times each");
+        assert_eq!(s.reflected_share, Some(0.2));
+        assert_eq!(GnssTally::default().summary(), None);
+    }
+}
