@@ -118,6 +118,9 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
         Command::Gnss { command: GnssCommand::Sky { file, at, time, mask_deg, json } } => {
             gnss_cmd::sky(&file, at, &time, mask_deg, json, out)
         }
+        Command::Gnss { command: GnssCommand::Los { scenario, points, at_s, buildings } } => {
+            gnss_cmd::los(&scenario, &points, at_s, buildings.as_deref(), out)
+        }
         Command::Operator(args) => {
             sadesim_operator::k8s::controller::run(args.options()).map_err(|e| CliError::Failed(e.to_string()))?;
             Ok(Outcome::Success)

@@ -230,6 +230,14 @@ pub struct OsmExtract {
     /// `gs://`, `az://`; what a Kubernetes run needs). It must cover the whole world square.
     #[schemars(length(min = 1, max = 4096))]
     pub file: String,
+    /// Roof height, metres above the building's base, of the buildings whose map has no
+    /// `height`, `building:height` or `building:levels` tag (2..300). Default 9 (three
+    /// storeys). Where the map leaves most heights out and the local stock is known (the
+    /// five- to seven-storey blocks of a European centre: ~20 m), say so here: urban GNSS
+    /// and contacts depend on it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 2.0, max = 300.0))]
+    pub default_height_m: Option<f64>,
 }
 
 /// The ground of the world.

@@ -6,7 +6,12 @@
 #                      Tennessee (USGS data), inside the matplotlib wheel as
 #                      jacksboro_fault_dem.npz; written as a GeoTIFF (EPSG:4326, Deflate)
 #                      with GDAL's gdal_translate (Debian: gdal-bin)
+#   gnss-2020-12-01.tle the GNSS satellites in service on 2020-12-01 (GPS, GLONASS, Galileo,
+#                      BeiDou) in three-line form, named by their RINEX id (`G13 ...`): cut
+#                      from the public catalogue and the in-service list that Debian's
+#                      rtklib package carries (TLE_20201201txt.txt, TLE_GNSS_SATNO.txt)
 # Usage: bash examples/maps/fetch-data.sh [PYTHON]   (PYTHON: a python3 with numpy and pip)
+#        RTKLIB_DIR=DIR picks rtklib's data folder (default /usr/share/rtklib, else apt download)
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 python="${1:-python3}"
@@ -42,4 +47,23 @@ with open(sys.argv[2], "w") as out:
 PY
   gdal_translate -q -of GTiff -a_srs EPSG:4326 -co COMPRESS=DEFLATE -co PREDICTOR=2 "$tmp/jacksboro.asc" "$here/jacksboro.tif"
   echo "wrote $here/jacksboro.tif"
+fi
+
+if [ ! -f "$here/gnss-2020-12-01.tle" ]; then
+  # Debian's rtklib installed, or unpacked somewhere (RTKLIB_DIR), else downloaded with apt.
+  rtklib="${RTKLIB_DIR:-/usr/share/rtklib}"
+  if [ ! -f "$rtklib/TLE_GNSS_SATNO.txt" ]; then
+    (cd "$tmp" && apt-get download rtklib >/dev/null && dpkg-deb -x rtklib_*.deb "$tmp/rtklib")
+    rtklib="$tmp/rtklib/usr/share/rtklib"
+  fi
+  # In service (status OK) -> "RINEX-ID NORAD"; then each of those element sets, its name
+  # line replaced by "RINEX-ID NAME".
+  awk '!/^#/ && NF >= 2 && $NF == "OK" { sub(/U$/, "", $2); print $1, $2 + 0 }' \
+    "$rtklib/TLE_GNSS_SATNO.txt" > "$tmp/in-service.txt"
+  awk 'NR == FNR { id[$2] = $1; next }
+       /^0 / { name = substr($0, 3); next }
+       /^1 / { n = substr($0, 3, 5) + 0; if (n in id) { keep = 1; print id[n], name; print; next } }
+       /^2 / { if (keep) print; keep = 0 }' \
+    "$tmp/in-service.txt" "$rtklib/TLE_20201201txt.txt" > "$here/gnss-2020-12-01.tle"
+  echo "wrote $here/gnss-2020-12-01.tle ($(grep -c '^1 ' "$here/gnss-2020-12-01.tle") satellites)"
 fi

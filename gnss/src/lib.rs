@@ -19,6 +19,9 @@
 //! ellipsoid's tangent plane at the receiver); times are UNIX seconds (UTC, leap seconds
 //! ignored, as SGP4's element epochs are).
 
+/// The vector types of this crate's API.
+pub use nalgebra;
+
 pub mod dop;
 pub mod orbits;
 pub mod receiver;

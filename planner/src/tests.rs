@@ -245,7 +245,7 @@ fn mapped(sha256: &str) -> (SimulationRun, sadesim_world::WorldData) {
         .with(|r| {
             r.spec.world = Some(sadesim_crds::run::World {
                 source: sadesim_crds::run::WorldSource::Osm,
-                osm: Some(sadesim_crds::run::OsmExtract { file: "city.osm.pbf".into() }),
+                osm: Some(sadesim_crds::run::OsmExtract { file: "city.osm.pbf".into(), default_height_m: None }),
                 ..Default::default()
             })
         })

@@ -136,6 +136,7 @@ def test_the_jacksboro_example_follows_real_terrain(sadesim, venv_bin, helsinki,
     for name in ("jacksboro.yaml", "fetch-data.sh"):
         (folder / name).write_text((repo / "examples" / "maps" / name).read_text())
     (folder / "Helsinki.osm.pbf").write_bytes(helsinki.read_bytes())  # present: not fetched again
+    (folder / "gnss-2020-12-01.tle").write_text("")  # not needed here: not fetched
     subprocess.run(["bash", str(folder / "fetch-data.sh"), str(venv_bin / "python")], check=True)
     tif = folder / "jacksboro.tif"
     info = json.loads(subprocess.run(["gdalinfo", "-json", str(tif)], check=True, capture_output=True, text=True).stdout)

@@ -182,14 +182,23 @@ impl World {
     fn from_osm(inputs: &WorldInputs, city: &OsmCity, terrain: Terrain) -> Self {
         let extent_m = inputs.world.extent_m.max(0.0);
         let side_m = 2.0 * extent_m;
+        let default_roof_m = inputs.world.osm.as_ref().and_then(|o| o.default_height_m);
         let buildings = city
             .buildings
             .iter()
-            .map(|b| {
-                let b = &b.building;
+            .map(|ob| {
+                let b = &ob.building;
                 let [e, n] = b.footprint().bounds_center();
                 let base_up_m = terrain.up_m(e, n) + b.base_up_m();
-                Building::new(b.footprint().clone(), base_up_m, b.height_m()).unwrap_or_else(|_| b.clone())
+                // `osm.defaultHeightM` replaces the import's default roof (untagged buildings),
+                // keeping at least a storey above a tagged base, as the import does.
+                let height_m = match (ob.height_source, default_roof_m) {
+                    (crate::osm::HeightSource::Default, Some(roof_m)) => {
+                        roof_m.max(b.base_up_m() + crate::osm::STOREY_HEIGHT_M) - b.base_up_m()
+                    }
+                    _ => b.height_m(),
+                };
+                Building::new(b.footprint().clone(), base_up_m, height_m).unwrap_or_else(|_| b.clone())
             })
             .collect();
         let layout = CityLayout {

@@ -255,6 +255,25 @@ pub enum GnssCommand {
         #[arg(long)]
         json: bool,
     },
+    /// How each satellite of a scenario's constellation reaches antennas in its world: line
+    /// of sight, a single facade reflection (with its extra path) or blocked, at the
+    /// scenario's epoch plus `--at-s`. Prints JSON: the satellites (look angles from the
+    /// origin), and for every point its verdict per satellite with the exact line of sight.
+    Los {
+        /// The scenario file (its `environment.gnss.constellation` and `world`).
+        scenario: PathBuf,
+        /// Antenna points: a JSON array of `[east, north, up]` in the run's ENU metres.
+        #[arg(long)]
+        points: PathBuf,
+        /// Sim time after the scenario's epoch, seconds.
+        #[arg(long, default_value_t = 0.0)]
+        at_s: f64,
+        /// Also write the world's buildings here as JSON prisms in ENU metres
+        /// (`{"outer": [[e, n], ...], "holes": [...], "baseM": .., "roofM": ..}`), for
+        /// independent checks.
+        #[arg(long)]
+        buildings: Option<PathBuf>,
+    },
 }
 
 /// `sadesim assets ...`

@@ -86,3 +86,72 @@ pub(super) fn sky(
     }
     Ok(Outcome::Success)
 }
+
+/// `sadesim gnss los SCENARIO --points FILE`: the signal path of every satellite of the
+/// scenario's constellation to each antenna point in its world.
+pub(super) fn los(
+    scenario: &Path,
+    points: &Path,
+    at_s: f64,
+    buildings: Option<&Path>,
+    out: &mut dyn Write,
+) -> Result<Outcome, CliError> {
+    use sadesim_gnss::SignalPath;
+    use sadesim_gnss::signal::signal_path;
+
+    let shown = scenario.display().to_string();
+    let Some(run) = super::scenario::load_one(scenario, out)? else { return Ok(Outcome::Problems) };
+    if let Err(errors) = sadesim_crds::validate::validate(&run) {
+        super::scenario::report_problems(out, &shown, &errors)?;
+        return Ok(Outcome::Problems);
+    }
+    let sky = sadesim_evidence::gnss::load_sky(&run.spec)
+        .map_err(|e| CliError::Failed(e.to_string()))?
+        .ok_or_else(|| CliError::Failed(format!("{shown}: spec.environment.gnss.constellation is not set")))?;
+    let world = sadesim_evidence::world::load_world(&run.spec).map_err(|e| CliError::Failed(e.to_string()))?;
+    let text = std::fs::read_to_string(points)
+        .map_err(|source| CliError::Read { path: points.display().to_string(), source })?;
+    let antennas: Vec<[f64; 3]> = serde_json::from_str(&text).map_err(|e| {
+        CliError::Failed(format!("{}: expected a JSON array of [east, north, up] metres: {e}", points.display()))
+    })?;
+    if let Some(path) = buildings {
+        let prisms: Vec<_> = world
+            .buildings()
+            .iter()
+            .map(|b| {
+                json!({"outer": b.footprint().outer(), "holes": b.footprint().holes(),
+                       "baseM": b.base_up_m(), "roofM": b.roof_up_m()})
+            })
+            .collect();
+        let bytes = serde_json::to_vec(&prisms).map_err(|e| CliError::Failed(e.to_string()))?;
+        std::fs::write(path, bytes).map_err(|e| CliError::Failed(format!("--buildings {}: {e}", path.display())))?;
+    }
+    let states = sky.at(at_s);
+    let mask_sin = sky.mask_deg().to_radians().sin();
+    let names: Vec<&str> = states.iter().map(|s| sky.constellation().satellites[s.index].name.as_str()).collect();
+    let points_json: Vec<_> = antennas
+        .iter()
+        .map(|p| {
+            let antenna = sadesim_gnss::nalgebra::Vector3::new(p[0], p[1], p[2]);
+            let seen: Vec<_> = states
+                .iter()
+                .zip(&names)
+                .filter_map(|(s, name)| {
+                    let u = (s.position_enu_m - antenna).normalize();
+                    (u.z >= mask_sin).then(|| {
+                        let (path, excess) = match signal_path(&world, &antenna, &u) {
+                            SignalPath::LineOfSight => ("los", None),
+                            SignalPath::Reflected { excess_m, .. } => ("reflected", Some(excess_m)),
+                            SignalPath::Blocked => ("blocked", None),
+                        };
+                        json!({"satellite": name, "unitEnu": [u.x, u.y, u.z], "path": path, "excessM": excess})
+                    })
+                })
+                .collect();
+            json!({"enu": p, "insideBuilding": world.is_inside_building(antenna), "signals": seen})
+        })
+        .collect();
+    let doc = json!({"epochUnixS": sky.epoch_unix_s() + at_s, "maskDeg": sky.mask_deg(), "points": points_json});
+    writeln!(out, "{doc}")?;
+    Ok(Outcome::Success)
+}

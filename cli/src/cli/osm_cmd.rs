@@ -39,7 +39,7 @@ pub(super) fn osm_file(
     if let Some(target) = targets.glb {
         let spec = sadesim_crds::run::World {
             source: sadesim_crds::run::WorldSource::Osm,
-            osm: Some(sadesim_crds::run::OsmExtract { file: path.clone() }),
+            osm: Some(sadesim_crds::run::OsmExtract { file: path.clone(), default_height_m: None }),
             extent_m,
             ..Default::default()
         };

@@ -60,7 +60,8 @@ pub(super) fn report_problems(
     Ok(())
 }
 
-/// Makes `world.osm.file` and `world.terrain.dem.file` absolute against the scenario file's folder (as a user expects of
+/// Makes `world.osm.file`, `world.terrain.dem.file` and `environment.gnss.constellation.file`
+/// absolute against the scenario file's folder (as a user expects of
 /// a path written in a scenario kept beside its data), so the plan names the file wherever
 /// its roles run. Stdin scenarios resolve against the working directory.
 fn resolve_paths(run: &mut SimulationRun, scenario: &Path) {
@@ -68,10 +69,19 @@ fn resolve_paths(run: &mut SimulationRun, scenario: &Path) {
         true => std::env::current_dir().unwrap_or_default(),
         false => scenario.parent().map(Path::to_path_buf).unwrap_or_default(),
     };
-    let Some(world) = run.spec.world.as_mut() else { return };
-    let files =
-        world.osm.as_mut().map(|o| &mut o.file).into_iter().chain(world.terrain.as_mut().map(|t| &mut t.dem.file));
-    for file in files.filter(|f| !sadesim_evidence::archive::is_object_store(f)) {
+    let world = run.spec.world.as_mut();
+    let (osm, dem) = match world {
+        Some(w) => (w.osm.as_mut().map(|o| &mut o.file), w.terrain.as_mut().map(|t| &mut t.dem.file)),
+        None => (None, None),
+    };
+    let orbits = run
+        .spec
+        .environment
+        .as_mut()
+        .and_then(|e| e.gnss.as_mut())
+        .and_then(|g| g.constellation.as_mut())
+        .map(|c| &mut c.file);
+    for file in osm.into_iter().chain(dem).chain(orbits).filter(|f| !sadesim_evidence::archive::is_object_store(f)) {
         let path = sadesim_evidence::world::file_path(file);
         if path.is_relative() {
             let absolute = std::path::absolute(base.join(&path)).unwrap_or_else(|_| base.join(&path));

@@ -21,17 +21,17 @@ pub struct DroneSummary {
     pub waypoints_reached: u32,
     pub failsafes: u32,
     pub final_battery_remaining: f64,
-    /// How the drone's GNSS receiver did (absent when it produced no epoch).
+    /// How the drone's GNSS receiver did in flight (absent when it never flew with one).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gnss: Option<GnssSummary>,
 }
 
-/// A drone's GNSS over the run: what its receiver saw and how far its fixes and its
-/// estimate were from the truth.
+/// A drone's GNSS in flight (the receiver's epochs while airborne): what its receiver saw
+/// and how far its fixes and its estimate were from the truth.
 #[derive(Serialize, Deserialize, Clone, Debug, Default, PartialEq)]
 #[serde(rename_all = "camelCase")]
 pub struct GnssSummary {
-    /// Receiver epochs (fixes or not).
+    /// Receiver epochs while airborne (fixes or not).
     pub epochs: u32,
     /// Epochs without a 3D fix (2D or none), outages included.
     pub epochs_without_3d_fix: u32,
@@ -44,7 +44,7 @@ pub struct GnssSummary {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fix_error_m: Option<ErrorStats>,
     /// Horizontal distance of the estimate (what the autopilot flies on) from the true
-    /// position at the receiver's epochs while airborne, m.
+    /// position at the receiver's epochs, m.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub estimate_error_m: Option<ErrorStats>,
     /// Of the satellites above the elevation mask, the share received only by a facade

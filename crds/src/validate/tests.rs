@@ -234,7 +234,7 @@ fn an_osm_world_names_its_extract_and_nothing_of_the_procedural_city() {
     use crate::run::{City, OsmExtract, World, WorldSource};
     let osm = |file: &str| World {
         source: WorldSource::Osm,
-        osm: Some(OsmExtract { file: file.into() }),
+        osm: Some(OsmExtract { file: file.into(), default_height_m: None }),
         ..World::default()
     };
     assert_eq!(problems_of(|r| r.spec.world = Some(osm("helsinki.osm.pbf"))), Vec::<String>::new());

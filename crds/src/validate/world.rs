@@ -87,6 +87,9 @@ pub(super) fn check_world(spec: &SimulationRunSpec, origin_ok: bool, p: &mut Pro
                 p.add("spec.world.osm.file", "must name the .osm.pbf file (1 to 4096 characters)");
             } else {
                 check_file_url(p, "spec.world.osm.file", &osm.file);
+                if let Some(h) = osm.default_height_m {
+                    p.range("spec.world.osm.defaultHeightM", h, 2.0, 300.0);
+                }
             }
         }
         (WorldSource::Procedural, None) => {}

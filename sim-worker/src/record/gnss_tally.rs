@@ -1,5 +1,6 @@
-//! The GNSS part of `summary.json`: per drone, the receiver's epochs and the errors of its
-//! fixes and of the estimate against the truth, folded from the windows as they pass.
+//! The GNSS part of `summary.json`: per drone, the receiver's epochs in flight (airborne:
+//! neither on the ground nor crashed) and the errors of its fixes and of the estimate
+//! against the truth, folded from the windows as they pass.
 
 use sadesim_crds::outcome::summary::{ErrorStats, GnssSummary};
 
@@ -29,6 +30,10 @@ impl GnssTally {
             return;
         }
         self.last_epoch_s = Some(g.time_s);
+        // On the ground a drone is waiting or done: the statistics are of its flight.
+        if s.on_ground || s.crashed {
+            return;
+        }
         self.epochs += 1;
         let truth = truth_at(s, g.time_s, window_s);
         if let Some(sky) = g.sky {
@@ -44,7 +49,7 @@ impl GnssTally {
         } else {
             self.without_3d_fix += 1;
         }
-        if let Some(est) = s.detail.estimate.as_ref().filter(|_| !s.on_ground && !s.crashed) {
+        if let Some(est) = &s.detail.estimate {
             let [e, n, _] = est.position_enu_m;
             self.estimate_error_m.push((e - truth[0]).hypot(n - truth[1]));
         }
@@ -99,6 +104,9 @@ mod tests {
             tally.observe(t, &snap(t, fix));
             tally.observe(t + 0.01, &snap(t, fix)); // the same epoch in the next window
         }
+        let mut grounded = snap(10.0, Some([50.0, 0.0, 0.0]));
+        grounded.on_ground = true;
+        tally.observe(10.0, &grounded);
         let s = tally.summary().unwrap();
         assert_eq!((s.epochs, s.epochs_without_3d_fix), (20, 5));
         assert_eq!(s.mean_satellites, 8.0);

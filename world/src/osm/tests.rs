@@ -451,7 +451,7 @@ fn stacked_parts_are_all_solid_and_the_surface_is_the_highest_roof() {
     let city = read(&file(&d)).unwrap();
     let spec = sadesim_crds::run::World {
         source: sadesim_crds::run::WorldSource::Osm,
-        osm: Some(sadesim_crds::run::OsmExtract { file: "test.osm.pbf".into() }),
+        osm: Some(sadesim_crds::run::OsmExtract { file: "test.osm.pbf".into(), default_height_m: None }),
         extent_m: EXTENT_M,
         ..Default::default()
     };
@@ -464,6 +464,28 @@ fn stacked_parts_are_all_solid_and_the_surface_is_the_highest_roof() {
         assert!(world.is_inside_building(nalgebra::Vector3::new(20.0, 20.0, z)), "solid at {z} m");
     }
     assert!(!world.is_inside_building(nalgebra::Vector3::new(5.0, 5.0, 30.0)), "beside the tower");
+}
+
+#[test]
+fn the_scenario_default_height_replaces_only_the_import_default() {
+    let mut d = Data::default();
+    d.rect_way(1, 100, [0.0, 0.0, 20.0, 20.0], &[("building", "yes")]);
+    d.rect_way(2, 200, [30.0, 0.0, 50.0, 20.0], &[("building", "yes"), ("height", "12")]);
+    d.rect_way(3, 300, [60.0, 0.0, 80.0, 20.0], &[("building", "yes"), ("building:levels", "2")]);
+    let city = read(&file(&d)).unwrap();
+    let roofs = |default_height_m: Option<f64>| {
+        let spec = sadesim_crds::run::World {
+            source: sadesim_crds::run::WorldSource::Osm,
+            osm: Some(sadesim_crds::run::OsmExtract { file: "test.osm.pbf".into(), default_height_m }),
+            extent_m: EXTENT_M,
+            ..Default::default()
+        };
+        let inputs = crate::WorldInputs { origin: ORIGIN, world: spec, open_areas: Vec::new() };
+        let world = crate::World::build(&inputs, &crate::WorldData { osm: Some(city.clone()), dem: None }).unwrap();
+        [10.0, 40.0, 70.0].map(|e| world.surface_up_m(e, 10.0))
+    };
+    assert_eq!(roofs(None), [DEFAULT_HEIGHT_M, 12.0, 6.0]);
+    assert_eq!(roofs(Some(21.0)), [21.0, 12.0, 6.0], "tagged and levelled roofs keep their height");
 }
 
 // --- refused inputs -------------------------------------------------------------------------

@@ -189,7 +189,7 @@ fn a_mapped_world_on_a_local_path_is_refused_on_a_cluster() {
     let mut run = new_run();
     run.spec.world = Some(sadesim_crds::run::World {
         source: sadesim_crds::run::WorldSource::Osm,
-        osm: Some(sadesim_crds::run::OsmExtract { file: "/data/helsinki.osm.pbf".into() }),
+        osm: Some(sadesim_crds::run::OsmExtract { file: "/data/helsinki.osm.pbf".into(), default_height_m: None }),
         ..Default::default()
     });
     let d = decide_with(&run, &Observed::default(), Some(Admission::Admitted), t0());

@@ -1,0 +1,108 @@
+"""Urban GNSS (`sadesim gnss los`, the ranging receiver) on the real Helsinki map: line-of-sight
+verdicts against an independent 2.5-D ray cast with shapely, and the GPS-degraded canyon
+example (examples/maps/helsinki-canyon.yaml) flown with the real constellation of
+2020-12-01 that its fetch script cuts from Debian's rtklib data.
+"""
+import json
+import os
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from shapely.geometry import LineString, Polygon
+from shapely.strtree import STRtree
+
+from test_osm import helsinki  # noqa: F401  (the fixture)
+
+
+@pytest.fixture(scope="module")
+def maps(repo, venv_bin, helsinki, tmp_path_factory):  # noqa: F811
+    """A copy of examples/maps with the Helsinki extract and the orbit file fetched."""
+    folder = tmp_path_factory.mktemp("maps")
+    for name in ("helsinki-canyon.yaml", "fetch-data.sh"):
+        shutil.copy(repo / "examples" / "maps" / name, folder / name)
+    (folder / "Helsinki.osm.pbf").write_bytes(helsinki.read_bytes())
+    (folder / "jacksboro.tif").write_text("")  # not needed here: not fetched
+    env = dict(os.environ, RTKLIB_DIR=str(repo / ".tools" / "rtklib" / "usr" / "share" / "rtklib"))
+    subprocess.run(["bash", str(folder / "fetch-data.sh"), str(venv_bin / "python")], check=True, env=env)
+    assert (folder / "gnss-2020-12-01.tle").stat().st_size > 10_000
+    return folder
+
+
+def blocked_by(prisms, tree, antenna, unit):
+    """Whether the ray from `antenna` along `unit` (ENU) passes through a prism: its
+    horizontal trace is cut by each footprint (shapely), and the ray's height over each cut
+    piece, rising linearly, must overlap the prism's [base, roof]."""
+    e, n, up = antenna
+    horizontal = np.hypot(unit[0], unit[1])
+    top = max(p["roofM"] for p in prisms)
+    if up >= top or horizontal < 1e-12:
+        return False
+    rise = unit[2] / horizontal  # metres up per metre along the ground
+    reach = min((top - up) / rise + 1.0, 5000.0)
+    d = (unit[0] / horizontal, unit[1] / horizontal)
+    trace = LineString([(e, n), (e + d[0] * reach, n + d[1] * reach)])
+    for k in tree.query(trace):
+        piece = trace.intersection(prisms[k]["polygon"])
+        if piece.is_empty:
+            continue
+        parts = getattr(piece, "geoms", [piece])
+        for part in parts:
+            along = [np.hypot(x - e, y - n) for x, y in part.coords]
+            z0, z1 = up + min(along) * rise, up + max(along) * rise
+            if z0 < prisms[k]["roofM"] and z1 > prisms[k]["baseM"]:
+                return True
+    return False
+
+
+def test_line_of_sight_verdicts_match_an_independent_ray_cast(sadesim, maps, tmp_path):
+    rng = np.random.default_rng(16)
+    points = [[float(rng.uniform(-320, 320)), float(rng.uniform(-320, 320)), float(rng.uniform(1.5, 60))]
+              for _ in range(300)]
+    (tmp_path / "points.json").write_text(json.dumps(points))
+    done = subprocess.run([sadesim, "gnss", "los", str(maps / "helsinki-canyon.yaml"), "--points",
+                           str(tmp_path / "points.json"), "--buildings", str(tmp_path / "buildings.json")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout + done.stderr
+    result = json.loads(done.stdout)
+    prisms = json.loads((tmp_path / "buildings.json").read_text())
+    for p in prisms:
+        p["polygon"] = Polygon(p["outer"], p["holes"])
+    tree = STRtree([p["polygon"] for p in prisms])
+    outside = [p for p in result["points"] if not p["insideBuilding"]][:200]
+    assert len(outside) == 200
+    compared = disagreements = blocked = 0
+    for p in outside:
+        for s in p["signals"]:
+            ours = s["path"] == "los"
+            theirs = not blocked_by(prisms, tree, p["enu"], s["unitEnu"])
+            compared += 1
+            blocked += not theirs
+            if ours != theirs:
+                disagreements += 1
+                print("disagree", p["enu"], s)
+    print(f"{compared} verdicts, {blocked} blocked, {disagreements} disagreements")
+    assert compared > 200 * 20 and blocked > 100, "a real mix of clear and blocked rays"
+    assert disagreements == 0
+
+
+def test_the_canyon_example_degrades_the_fix_in_the_street_and_not_above_the_roofs(sadesim, maps, tmp_path):
+    out = tmp_path / "runs"
+    run = subprocess.run([sadesim, "run", str(maps / "helsinki-canyon.yaml"), "--out", str(out), "-q",
+                          "--no-mavlink"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout + run.stderr
+    folder = next(out.glob("helsinki-canyon/*"))
+    summary = json.loads((folder / "summary.json").read_text())
+    gnss = {d["group"]: d["gnss"] for d in summary["perDrone"]}
+    street, roofs, park = gnss["street"], gnss["roofs"], gnss["park"]
+    print(json.dumps(gnss, indent=1))
+    # Fewer satellites and a worse geometry in the street than above the roofs, on the same route.
+    assert street["meanSatellites"] < roofs["meanSatellites"] - 3
+    assert street["medianHdop"] > roofs["medianHdop"]
+    assert street["reflectedShare"] > 3 * roofs["reflectedShare"]
+    # The street's reflected signals show in the tail of its fix error; above the roofs the
+    # error is the open sky's (the park's).
+    assert street["fixErrorM"]["p95"] > 3 * roofs["fixErrorM"]["p95"]
+    assert roofs["fixErrorM"]["median"] < 1.5 * park["fixErrorM"]["median"]
+    assert summary["verdict"]["passed"], summary["verdict"]
