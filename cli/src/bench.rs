@@ -32,7 +32,7 @@ spec:
   seed: 1
   environment:
     wind: {speedMps: 5, directionFromDeg: 270, turbulence: light}
-    gnss: {rateHz: 5}
+    gnss: {gnss}
   sharding: {dronesPerShard: {per_shard}}
   recording: {mcap: {mcap}, ulog: {ulog}}
   world:
@@ -116,6 +116,8 @@ pub struct BenchResult {
     pub mavlink: bool,
     /// The recordings written.
     pub recordings: Recordings,
+    /// The ranging GNSS receiver was on.
+    pub urban_gnss: bool,
     /// Drone-steps (drones x physics steps) per wall second.
     pub drone_steps_per_s: f64,
     pub report: RunReport,
@@ -125,15 +127,39 @@ pub struct BenchResult {
 ///
 /// # Errors
 /// As [`run_local`].
+/// What one benchmark run turns on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Variant {
+    /// MAVLink endpoints and routers.
+    pub mavlink: bool,
+    pub recordings: Recordings,
+    /// The ranging GNSS receiver (urban GNSS) under the synthetic GPS + Galileo
+    /// constellation, instead of the statistical receiver.
+    pub urban_gnss: bool,
+}
+
+/// The constellation file of the urban-GNSS variant, in the run's output root.
+const BENCH_ORBITS: &str = "bench-walker.tle";
+
 pub fn run(
     drones: u32,
     seconds: u32,
     drones_per_shard: u32,
     out_root: std::path::PathBuf,
-    mavlink: bool,
-    recordings: Recordings,
+    variant: Variant,
 ) -> Result<BenchResult, RunError> {
+    let Variant { mavlink, recordings, urban_gnss } = variant;
+    let gnss = if urban_gnss {
+        let orbits = out_root.join(BENCH_ORBITS);
+        std::fs::create_dir_all(&out_root)
+            .and_then(|()| std::fs::write(&orbits, sadesim_gnss::synthetic::walker_gps_galileo_tle()))
+            .map_err(|source| RunError::Output { path: orbits.display().to_string(), source })?;
+        format!("{{rateHz: 5, constellation: {{file: {:?}}}}}", orbits.display().to_string())
+    } else {
+        "{rateHz: 5}".to_string()
+    };
     let text = SCENARIO
+        .replace("{gnss}", &gnss)
         .replace("{mcap}", &recordings.mcap.to_string())
         .replace("{ulog}", &recordings.ulog.to_string())
         .replace("{drones}", &drones.to_string())
@@ -157,6 +183,7 @@ pub fn run(
         cpu_time_s,
         mavlink,
         recordings,
+        urban_gnss,
         report,
     })
 }

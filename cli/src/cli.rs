@@ -76,8 +76,15 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             let clean = report.errors == 0 && report.answered == report.requests;
             Ok(if clean { Outcome::Success } else { Outcome::Problems })
         }
-        Command::Bench { drones, seconds, drones_per_shard, mavlink, recording, repeat, .. } => {
-            crate::bench::pairs::run_pairs(drones, seconds, drones_per_shard, mavlink, recording, repeat, out)
+        Command::Bench { drones, seconds, drones_per_shard, mavlink, recording, urban_gnss, repeat, .. } => {
+            use crate::bench::pairs::Comparison;
+            let comparison = match (mavlink, recording, urban_gnss) {
+                (true, _, _) => Comparison::Mavlink,
+                (_, Some(set), _) => Comparison::Recording(set),
+                (_, _, true) => Comparison::UrbanGnss,
+                _ => Comparison::None,
+            };
+            crate::bench::pairs::run_pairs(drones, seconds, drones_per_shard, comparison, repeat, out)
         }
         Command::Crd => {
             out.write_all(sadesim_crds::crd::crd_yaml().as_bytes())?;

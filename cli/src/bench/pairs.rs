@@ -3,7 +3,20 @@
 
 use std::io::Write;
 
-use super::Recordings;
+use super::{Recordings, Variant};
+
+/// What the pairs of a benchmark compare (the "off" variant against the "on" one).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Comparison {
+    /// One run: MAVLink off, every recording.
+    None,
+    /// MAVLink off / on.
+    Mavlink,
+    /// Recordings off / the chosen set.
+    Recording(super::RecordingSet),
+    /// The statistical GNSS receiver / the ranging receiver among the buildings.
+    UrbanGnss,
+}
 use crate::cli::{CliError, Outcome, count};
 
 /// Runs the throughput benchmark (`sadesim bench` without `--airspace`) and writes its
@@ -15,24 +28,29 @@ pub fn run_pairs(
     drones: u32,
     seconds: Option<u32>,
     drones_per_shard: u32,
-    mavlink: bool,
-    recording: Option<super::RecordingSet>,
+    comparison: Comparison,
     repeat: u32,
     out: &mut dyn Write,
 ) -> Result<Outcome, CliError> {
+    let recording = match comparison {
+        Comparison::Recording(set) => Some(set),
+        _ => None,
+    };
     use crate::bench::BenchResult;
     let seconds = seconds.unwrap_or(60);
     let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
-    let variants = schedule(mavlink, recording, repeat);
+    let variants = schedule(comparison, repeat);
     let mut results = Vec::new();
-    for &(with_mavlink, recordings) in &variants {
-        let result = crate::bench::run(drones, seconds, drones_per_shard, root.clone(), with_mavlink, recordings)
+    for &variant in &variants {
+        let result = crate::bench::run(drones, seconds, drones_per_shard, root.clone(), variant)
             .map_err(|source| CliError::Run { path: "bench".into(), source })?;
+        let (with_mavlink, recordings) = (variant.mavlink, variant.recordings);
         writeln!(
             out,
-            "bench{}{}: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall{} = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
+            "bench{}{}{}: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall{} = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
             if with_mavlink { " (MAVLink on)" } else { "" },
             if recording.is_some() { format!(" ({})", recordings.label()) } else { String::new() },
+            if variant.urban_gnss { " (urban GNSS)" } else { "" },
             count(result.drones as usize, "drone"),
             count(result.shards as usize, "shard"),
             result.sim_time_s,
@@ -57,12 +75,17 @@ pub fn run_pairs(
     }
     let _ = std::fs::remove_dir_all(&root);
     // What the pairs compare: the report's label, and which runs are the "on" variant.
-    let label = match recording {
-        _ if mavlink => Some("MAVLink cost".to_string()),
-        Some(set) => Some(format!("Recording cost ({})", set.recordings().label())),
-        None => None,
+    let label = match comparison {
+        Comparison::Mavlink => Some("MAVLink cost".to_string()),
+        Comparison::Recording(set) => Some(format!("Recording cost ({})", set.recordings().label())),
+        Comparison::UrbanGnss => Some("Urban GNSS cost".to_string()),
+        Comparison::None => None,
     };
-    let is_on = |r: &BenchResult| if mavlink { r.mavlink } else { r.recordings != Recordings::NONE };
+    let is_on = |r: &BenchResult| match comparison {
+        Comparison::Mavlink => r.mavlink,
+        Comparison::UrbanGnss => r.urban_gnss,
+        _ => r.recordings != Recordings::NONE,
+    };
     if let Some(label) = label {
         // Each pair (one run off, one on) ran back to back.
         let pairs = |f: &dyn Fn(&BenchResult) -> Option<f64>| -> Vec<(f64, f64)> {
@@ -88,7 +111,9 @@ pub fn run_pairs(
         // between runs that the pairs above suffer from.
         let shares: Vec<f64> =
             results.iter().filter(|r| is_on(r)).filter_map(crate::bench::recorder_share_percent).collect();
-        if !mavlink && let Some(c) = crate::bench::median(shares) {
+        if recording.is_some()
+            && let Some(c) = crate::bench::median(shares)
+        {
             writeln!(
                 out,
                 "{label} measured on the recorder's thread (median of {repeat}): {c:.1} % of the simulation's CPU time"
@@ -98,23 +123,25 @@ pub fn run_pairs(
     Ok(Outcome::Success)
 }
 
-/// The runs of a benchmark in order, each as (MAVLink on, recordings written): with
-/// `mavlink` or `recording`, `repeat` (at least 1) back-to-back (off, on) pairs, every other
-/// one "on" first; otherwise one run with MAVLink off and every recording.
-fn schedule(mavlink: bool, recording: Option<super::RecordingSet>, repeat: u32) -> Vec<(bool, Recordings)> {
-    // (MAVLink on, recordings written) per run; the "off" variant of each pair first.
-    // The (off, on) variants a comparison alternates: MAVLink off/on, or recordings
-    // off/on; `None` for a single run.
-    let compared: Option<[(bool, Recordings); 2]> = match (mavlink, recording) {
-        (true, _) => Some([(false, Recordings::ALL), (true, Recordings::ALL)]),
-        (false, Some(set)) => Some([(false, Recordings::NONE), (false, set.recordings())]),
-        (false, None) => None,
+/// The runs of a benchmark in order: with a comparison, `repeat` (at least 1) back-to-back
+/// (off, on) pairs, every other one "on" first; otherwise one run with MAVLink off and
+/// every recording.
+fn schedule(comparison: Comparison, repeat: u32) -> Vec<Variant> {
+    let base = Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false };
+    // The (off, on) variants a comparison alternates; `None` for a single run.
+    let compared: Option<[Variant; 2]> = match comparison {
+        Comparison::Mavlink => Some([base, Variant { mavlink: true, ..base }]),
+        Comparison::Recording(set) => {
+            Some([Variant { recordings: Recordings::NONE, ..base }, Variant { recordings: set.recordings(), ..base }])
+        }
+        Comparison::UrbanGnss => Some([base, Variant { urban_gnss: true, ..base }]),
+        Comparison::None => None,
     };
     match compared {
         // Every other pair runs "on" first, so what one position in a pair gains
         // (caches warmed, the previous run's files being written back) cancels out.
         Some([off, on]) => (0..repeat.max(1)).flat_map(|i| if i % 2 == 0 { [off, on] } else { [on, off] }).collect(),
-        None => vec![(false, Recordings::ALL)],
+        None => vec![base],
     }
 }
 
@@ -128,25 +155,34 @@ mod tests {
     use super::*;
     use crate::bench::RecordingSet;
 
+    const BASE: Variant = Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false };
+
     #[test]
     fn mavlink_pairs_alternate_which_variant_runs_first() {
-        let (off, on) = ((false, Recordings::ALL), (true, Recordings::ALL));
-        assert_eq!(schedule(true, None, 3), vec![off, on, on, off, off, on]);
+        let (off, on) = (BASE, Variant { mavlink: true, ..BASE });
+        assert_eq!(schedule(Comparison::Mavlink, 3), vec![off, on, on, off, off, on]);
     }
 
     #[test]
     fn recording_pairs_compare_the_chosen_set_against_recordings_off() {
-        let (off, on) = ((false, Recordings::NONE), (false, Recordings { mcap: true, ulog: false }));
-        assert_eq!(schedule(false, Some(RecordingSet::Mcap), 2), vec![off, on, on, off]);
+        let off = Variant { recordings: Recordings::NONE, ..BASE };
+        let on = Variant { recordings: Recordings { mcap: true, ulog: false }, ..BASE };
+        assert_eq!(schedule(Comparison::Recording(RecordingSet::Mcap), 2), vec![off, on, on, off]);
+    }
+
+    #[test]
+    fn urban_gnss_pairs_change_only_the_receiver() {
+        let on = Variant { urban_gnss: true, ..BASE };
+        assert_eq!(schedule(Comparison::UrbanGnss, 2), vec![BASE, on, on, BASE]);
     }
 
     #[test]
     fn zero_repeats_still_run_one_pair() {
-        assert_eq!(schedule(true, None, 0), vec![(false, Recordings::ALL), (true, Recordings::ALL)]);
+        assert_eq!(schedule(Comparison::Mavlink, 0), vec![BASE, Variant { mavlink: true, ..BASE }]);
     }
 
     #[test]
     fn without_a_comparison_one_run_with_every_recording() {
-        assert_eq!(schedule(false, None, 5), vec![(false, Recordings::ALL)]);
+        assert_eq!(schedule(Comparison::None, 5), vec![BASE]);
     }
 }

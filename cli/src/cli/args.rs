@@ -61,6 +61,11 @@ pub enum Command {
         /// report the CPU cost of MAVLink as a ratio of the run without.
         #[arg(long)]
         mavlink: bool,
+        /// Also run with the ranging GNSS receiver (urban GNSS: pseudoranges to the
+        /// synthetic GPS + Galileo constellation among the city's buildings) and report its
+        /// cost as a ratio of the statistical receiver's run.
+        #[arg(long, conflicts_with_all = ["mavlink", "recording"])]
+        urban_gnss: bool,
         /// Also run with `spec.recording` off (no recording.mcap, no ULogs) and report the CPU
         /// cost of the recordings as a ratio of the run without: `all` (default) turns both on
         /// in the other runs, `mcap` or `ulog` one of them.
