@@ -125,6 +125,44 @@ fn trajectories_do_not_depend_on_sharding_or_on_processes() {
 }
 
 #[test]
+fn urban_gnss_does_not_depend_on_sharding_or_on_processes() {
+    // The ranging receiver under the synthetic GPS + Galileo sky: the same pseudoranges
+    // (hence fixes, estimates and flights) in one shard, four, and four processes.
+    let root = out_root("urban-gnss");
+    std::fs::create_dir_all(&root).unwrap();
+    let orbits = root.join("walker.tle");
+    std::fs::write(&orbits, sadesim_gnss::synthetic::walker_gps_galileo_tle()).unwrap();
+    let with_sky = |per_shard: u32| {
+        let mut r = scenario(4, per_shard);
+        r.spec.environment = Some(
+            serde_json::from_value(
+                serde_json::json!({"gnss": {"constellation": {"file": orbits.display().to_string()}}}),
+            )
+            .unwrap(),
+        );
+        r
+    };
+    let one = run(&with_sky(4), &root.join("one"), false).unwrap();
+    let four = run(&with_sky(1), &root.join("four"), false).unwrap();
+    let processes = run(&with_sky(1), &root.join("processes"), true).unwrap();
+    let gnss = |r: &sadesim::runner::RunReport| {
+        let g: Vec<_> = r.summary.per_drone.iter().map(|d| d.gnss.clone()).collect();
+        assert!(g.iter().all(|g| g.as_ref().is_some_and(|g| g.reflected_share.is_some())), "ranging receivers: {g:?}");
+        serde_json::to_string(&g).unwrap()
+    };
+    assert_same(&gnss(&one), &gnss(&four), "GNSS statistics, 1 vs 4 shards");
+    assert_same(&gnss(&four), &gnss(&processes), "GNSS statistics, threads vs processes");
+    for other in [&four, &processes] {
+        let (a, b) = (bytes(&one.out_dir, "trajectory.csv"), bytes(&other.out_dir, "trajectory.csv"));
+        assert_same(&a, &b, "trajectories");
+    }
+    // And not the statistical receiver's flight.
+    let plain = run(&scenario(4, 4), &root.join("plain"), false).unwrap();
+    assert_ne!(bytes(&one.out_dir, "trajectory.csv"), bytes(&plain.out_dir, "trajectory.csv"));
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
 fn a_shard_process_that_dies_before_connecting_fails_the_run_naming_it() {
     let root = out_root("shard-dies");
     std::fs::create_dir_all(&root).unwrap();

@@ -106,3 +106,10 @@ def test_the_canyon_example_degrades_the_fix_in_the_street_and_not_above_the_roo
     assert street["fixErrorM"]["p95"] > 3 * roofs["fixErrorM"]["p95"]
     assert roofs["fixErrorM"]["median"] < 1.5 * park["fixErrorM"]["median"]
     assert summary["verdict"]["passed"], summary["verdict"]
+    # The report's GNSS panel lists the three, worst estimate first, with the street's numbers.
+    html = (folder / "report.html").read_text()
+    table = html.split('<table id="gnss-table">')[1].split("</table>")[0]
+    rows = table.split("<tr")[2:]
+    assert len(rows) == 3 and all(f">{g}-0<" in "".join(rows) for g in ("street", "roofs", "park"))
+    street_row = next(r for r in rows if ">street-0<" in r)
+    assert f"{street['meanSatellites']:.1f}" in street_row and f"{street['medianHdop']:.2f}" in street_row

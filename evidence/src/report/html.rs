@@ -1,7 +1,8 @@
 //! `report.html`: one self-contained page (inline CSS and SVG, no script, no external
 //! URL) that opens offline and can be attached to a review: the verdict first, then the
 //! map and the altitude timeline, the zones, every request with its verdict, leases,
-//! violations, per-drone totals and the run's metadata.
+//! violations, per-drone totals, GNSS in flight (when a receiver flew) and the run's
+//! metadata.
 
 use std::collections::BTreeMap;
 use std::fmt::Write;
@@ -116,6 +117,7 @@ pub fn page(data: &RunData, styles: &[GroupStyle], zones: &[ZoneShape], map_svg:
     leases(&mut out, data);
     violations(&mut out, data, styles);
     drones(&mut out, data, styles);
+    gnss(&mut out, data, styles);
     metadata(&mut out, data);
     out.push_str("</body></html>\n");
     out
@@ -443,6 +445,50 @@ fn drones(out: &mut String, data: &RunData, styles: &[GroupStyle]) {
         num(out, &d.failsafes.to_string());
         num(out, &format!("{:.0} %", d.final_battery_remaining * 100.0));
         num(out, &stays.get(&d.index).copied().unwrap_or(0).to_string());
+        out.push_str("</tr>");
+    }
+    out.push_str("</table>");
+}
+
+/// Per drone, what its GNSS receiver did in flight (`summary.json`'s `gnss`): shown when
+/// some drone has it. Rows of the worst estimates first are the reviewer's question.
+fn gnss(out: &mut String, data: &RunData, styles: &[GroupStyle]) {
+    let Some(s) = &data.summary else { return };
+    let mut rows: Vec<_> = s.per_drone.iter().filter_map(|d| d.gnss.as_ref().map(|g| (d, g))).collect();
+    if rows.is_empty() {
+        return;
+    }
+    let worst = |g: &sadesim_crds::outcome::summary::GnssSummary| g.estimate_error_m.map_or(0.0, |e| e.max);
+    rows.sort_by(|a, b| worst(b.1).total_cmp(&worst(a.1)).then(a.0.index.cmp(&b.0.index)));
+    out.push_str(r#"<h2 id="gnss">GNSS in flight</h2><p class="sub">Each drone's receiver while airborne: satellites in its fixes, dilution of precision, the share of the satellites above the mask received only by a facade reflection (urban GNSS; blank for the statistical receiver), and the horizontal distance from the truth of its fixes and of the estimate the autopilot flew on (median / 95th percentile / largest). Worst estimate first. recording.mcap has every epoch (<code>/drones/&lt;name&gt;/gnss_quality</code>).</p><table id="gnss-table">"#);
+    header(
+        out,
+        &[
+            "drone",
+            "group",
+            "epochs",
+            "without 3D fix",
+            "satellites (mean)",
+            "HDOP (median)",
+            "reflected",
+            "fix error",
+            "estimate error",
+        ],
+    );
+    let stats = |e: Option<sadesim_crds::outcome::summary::ErrorStats>| {
+        e.map_or_else(|| "–".to_string(), |e| format!("{:.1} / {:.1} / {:.1} m", e.median, e.p95, e.max))
+    };
+    for (d, g) in rows {
+        let _ = write!(out, r#"<tr class="{}">"#, if g.epochs_without_3d_fix > 0 { "bad" } else { "" });
+        cell(out, &d.name);
+        let _ = write!(out, "<td>{}</td>", swatch(styles, &d.group));
+        num(out, &g.epochs.to_string());
+        num(out, &g.epochs_without_3d_fix.to_string());
+        num(out, &format!("{:.1}", g.mean_satellites));
+        num(out, &g.median_hdop.map_or_else(|| "–".to_string(), |h| format!("{h:.2}")));
+        num(out, &g.reflected_share.map_or_else(String::new, |r| format!("{:.1} %", r * 100.0)));
+        num(out, &stats(g.fix_error_m));
+        num(out, &stats(g.estimate_error_m));
         out.push_str("</tr>");
     }
     out.push_str("</table>");
