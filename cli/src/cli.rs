@@ -11,6 +11,7 @@ mod outcome;
 mod plan_cmd;
 mod run_cmd;
 mod scenario;
+mod sky_grid_cmd;
 mod validate_cmd;
 
 use std::io::Write;
@@ -127,6 +128,9 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
         }
         Command::Gnss { command: GnssCommand::Los { scenario, points, at_s, buildings } } => {
             gnss_cmd::los(&scenario, &points, at_s, buildings.as_deref(), out)
+        }
+        Command::Gnss { command: GnssCommand::Grid { scenario, out: dir, spacing_m, slice_s } } => {
+            sky_grid_cmd::grid(&scenario, &dir, spacing_m, slice_s, out)
         }
         Command::Operator(args) => {
             sadesim_operator::k8s::controller::run(args.options()).map_err(|e| CliError::Failed(e.to_string()))?;

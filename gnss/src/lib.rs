@@ -12,6 +12,8 @@
 //! - [`signal`]: line of sight, single facade reflections (NLOS) and C/N0 among the
 //!   world's buildings and terrain.
 //! - [`receiver`]: pseudoranges with their errors and the least-squares fix.
+//! - [`grid`]: the sky grid: per voxel and time slice, satellites in sight and reflected,
+//!   and HDOP (precomputed for inspection).
 //! - [`synthetic`]: a GPS-like Walker constellation for tests and demonstrations.
 //!
 //! Frames and units: Earth-fixed positions are WGS84 ECEF metres (`sadesim_crds::geo::Ecef`);
@@ -23,6 +25,7 @@
 pub use nalgebra;
 
 pub mod dop;
+pub mod grid;
 pub mod orbits;
 pub mod receiver;
 pub mod run_sky;

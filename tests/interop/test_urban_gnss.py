@@ -10,6 +10,7 @@ import subprocess
 
 import numpy as np
 import pytest
+import zarr
 from shapely.geometry import LineString, Polygon
 from shapely.strtree import STRtree
 
@@ -113,3 +114,38 @@ def test_the_canyon_example_degrades_the_fix_in_the_street_and_not_above_the_roo
     assert len(rows) == 3 and all(f">{g}-0<" in "".join(rows) for g in ("street", "roofs", "park"))
     street_row = next(r for r in rows if ">street-0<" in r)
     assert f"{street['meanSatellites']:.1f}" in street_row and f"{street['medianHdop']:.2f}" in street_row
+
+
+def test_the_sky_grid_reads_with_zarr_and_agrees_with_the_live_signal_paths(sadesim, maps, tmp_path):
+    """`sadesim gnss grid` over the canyon example, opened with the zarr package: the layout
+    its docs promise, and 25 random open-air voxels whose counts equal `sadesim gnss los`
+    at their centres."""
+    out = tmp_path / "sky.zarr"
+    done = subprocess.run([sadesim, "gnss", "grid", str(maps / "helsinki-canyon.yaml"), "--out", str(out),
+                           "--spacing-m", "20", "--slice-s", "120"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout + done.stderr
+    group = zarr.open_group(str(out), mode="r")
+    attrs = dict(group.attrs)
+    spacing, corner, slice_s = attrs["spacingM"], attrs["voxelCornerEnuM"], attrs["sliceS"]
+    los, reflected, hdop, solid = group["line_of_sight"], group["reflected"], group["hdop"], group["solid"][:]
+    assert los.dtype == np.uint8 and hdop.dtype == np.float32
+    assert los.shape[0] == 2, "a 3-minute run in 2-minute slices: slices at 0 and 120 s"
+    assert los.shape[1:] == solid.shape == reflected.shape[1:] == hdop.shape[1:]
+    assert los.attrs["_ARRAY_DIMENSIONS"] == ["slice", "up", "north", "east"]
+    assert solid.sum() > 0 and (solid == 0).sum() > 0
+    assert np.all(np.isnan(hdop[0][solid == 1]))
+    rng = np.random.default_rng(3)
+    open_voxels = np.argwhere(solid == 0)
+    picks = open_voxels[rng.choice(len(open_voxels), 25, replace=False)]
+    for s in (0, 1):
+        centres = [[corner[0] + (i + 0.5) * spacing, corner[1] + (j + 0.5) * spacing, corner[2] + (k + 0.5) * spacing]
+                   for k, j, i in picks]
+        (tmp_path / "centres.json").write_text(json.dumps(centres))
+        live = subprocess.run([sadesim, "gnss", "los", str(maps / "helsinki-canyon.yaml"), "--points",
+                               str(tmp_path / "centres.json"), "--at-s", str(s * slice_s)],
+                              capture_output=True, text=True, check=True)
+        for (k, j, i), point in zip(picks, json.loads(live.stdout)["points"]):
+            paths = [x["path"] for x in point["signals"]]
+            assert los[s, k, j, i] == paths.count("los"), (s, k, j, i)
+            assert reflected[s, k, j, i] == paths.count("reflected"), (s, k, j, i)
+

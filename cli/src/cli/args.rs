@@ -279,6 +279,23 @@ pub enum GnssCommand {
         #[arg(long)]
         buildings: Option<PathBuf>,
     },
+    /// The sky grid of a scenario: for every voxel of its world and every time slice of the
+    /// run, the satellites in line of sight, those received only by a facade reflection, and
+    /// the HDOP of those strong enough to use; written as a Zarr v2 group (read it with
+    /// Python's `zarr` or xarray). For inspection: the receiver casts its rays live.
+    Grid {
+        /// The scenario file (its `environment.gnss.constellation` and `world`).
+        scenario: PathBuf,
+        /// The Zarr folder to write (e.g. `sky.zarr`).
+        #[arg(long)]
+        out: PathBuf,
+        /// Voxel edge, metres.
+        #[arg(long, default_value_t = 10.0)]
+        spacing_m: f64,
+        /// Sim seconds between time slices (the sky turns by a degree in 4 minutes).
+        #[arg(long, default_value_t = 300.0)]
+        slice_s: f64,
+    },
 }
 
 /// `sadesim assets ...`
