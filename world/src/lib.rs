@@ -50,7 +50,7 @@ pub use ground::{FlatGround, Ground};
 pub use inputs::{EXPLICIT_HOME_CLEARANCE_M, OpenArea, WorldInputs};
 pub use map::{OpenSpace, World, WorldData, WorldError};
 pub use stats::WorldStats;
-pub use terrain::Terrain;
+pub use terrain::{GroundGrid, Terrain};
 
 /// SHA-256 of `bytes` as lowercase hex: the digest of a world's input files (extract, DEM)
 /// and of the asset inputs, as it appears in asset cache keys.

@@ -223,6 +223,13 @@ impl World {
     /// `extent_m`: synthetic scenes for the consumers of buildings (a street canyon for the
     /// GNSS model's tests, the contact tests).
     pub fn of_buildings(extent_m: f64, buildings: Vec<Building>) -> Self {
+        Self::of_buildings_on(extent_m, Terrain::flat(), buildings)
+    }
+
+    /// As [`World::of_buildings`], on `terrain` (e.g. [`Terrain::from_grid`] of a
+    /// [`crate::GroundGrid::sample`]d function):
+    /// synthetic hills for the consumers of the ground. The buildings keep their bases.
+    pub fn of_buildings_on(extent_m: f64, terrain: Terrain, buildings: Vec<Building>) -> Self {
         let side_m = 2.0 * extent_m;
         let layout = CityLayout {
             buildings,
@@ -231,7 +238,7 @@ impl World {
             block_area_m2: side_m * side_m,
             dropped_for_open_areas: 0,
         };
-        Self::assemble(0, extent_m, Terrain::flat(), layout, OSM_INDEX_CELL_M, 0)
+        Self::assemble(0, extent_m, terrain, layout, OSM_INDEX_CELL_M, 0)
     }
 
     /// Builds the index and stats around the geometry. `cell_m` is the index's cell:

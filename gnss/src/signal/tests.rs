@@ -114,3 +114,21 @@ fn reflected_and_low_signals_are_weaker() {
     assert_eq!(cn0_dbhz(80.0, &reflected), Some(high - REFLECTION_LOSS_DB));
     assert_eq!(cn0_dbhz(80.0, &SignalPath::Blocked), None);
 }
+
+#[test]
+fn a_ridge_hides_the_low_satellites_behind_it() {
+    // Ground at 0 m but a 100 m ridge from 150 to 200 m east (sampled every 10 m).
+    let grid =
+        sadesim_world::GroundGrid::sample(500.0, 101, |e, _| if (150.0..=200.0).contains(&e) { 100.0 } else { 0.0 });
+    let world = World::of_buildings_on(500.0, sadesim_world::Terrain::from_grid(grid), vec![]);
+    let antenna = Vector3::new(0.0, 0.0, 2.0);
+    // East at 20 deg: 2 + 150 tan 20 = 56.6 m where the ridge starts: blocked, and no facade
+    // to reflect it.
+    assert!(!line_of_sight(&world, &antenna, &towards(90.0, 20.0)));
+    assert_eq!(signal_path(&world, &antenna, &towards(90.0, 20.0)), SignalPath::Blocked);
+    // East at 45 deg clears it (152 m at its foot); west at 20 deg has open ground.
+    assert!(line_of_sight(&world, &antenna, &towards(90.0, 45.0)));
+    assert!(line_of_sight(&world, &antenna, &towards(270.0, 20.0)));
+    // From the ridge's top everything above the horizon is in sight.
+    assert!(line_of_sight(&world, &Vector3::new(175.0, 0.0, 102.0), &towards(270.0, 5.0)));
+}
