@@ -159,6 +159,10 @@ fn urban_gnss_does_not_depend_on_sharding_or_on_processes() {
     // And not the statistical receiver's flight.
     let plain = run(&scenario(4, 4), &root.join("plain"), false).unwrap();
     assert_ne!(bytes(&one.out_dir, "trajectory.csv"), bytes(&plain.out_dir, "trajectory.csv"));
+    // gnss.csv comes with the constellation only, the same in every layout.
+    assert!(!plain.out_dir.join("gnss.csv").exists());
+    assert_same(&bytes(&one.out_dir, "gnss.csv"), &bytes(&processes.out_dir, "gnss.csv"), "gnss.csv");
+    assert!(bytes(&one.out_dir, "gnss.csv").lines().count() > 4 * 10, "a row per drone per second in flight");
     std::fs::remove_dir_all(&root).unwrap();
 }
 

@@ -119,6 +119,13 @@ def test_the_canyon_example_degrades_the_fix_in_the_street_and_not_above_the_roo
     rows = table.split("<tr")[2:]
     assert len(rows) == 4 and all(f">{g}-0<" in "".join(rows) for g in ("street", "street-low", "roofs", "park"))
     street_row = next(r for r in rows if ">street-0<" in r)
+    # The timeline below it: a line per drone, from gnss.csv's rows (one a second in flight).
+    timeline = html.split('id="gnss-timeline"')[1].split("</svg>")[0]
+    assert timeline.count("<path") == 4
+    rows_csv = (folder / "gnss.csv").read_text().splitlines()
+    assert rows_csv[0] == "time_s,drone,fix_type,satellites,hdop,fix_error_m,estimate_error_m"
+    per_drone = {d: [r for r in rows_csv[1:] if r.split(",")[1] == str(d)] for d in range(4)}
+    assert all(60 < len(r) < 200 for r in per_drone.values()), {d: len(r) for d, r in per_drone.items()}
     assert f"{street['meanSatellites']:.1f}" in street_row and f"{street['medianHdop']:.2f}" in street_row
 
 

@@ -23,3 +23,8 @@ pub const REPORT: &str = "report.html";
 pub const REPORT_ERROR: &str = "report-error.txt";
 /// The archive manifest with every file's checksum, written last.
 pub const MANIFEST: &str = "manifest.json";
+
+/// Each drone's GNSS receiver in flight once a second (`time_s,drone,fix_type,satellites,
+/// hdop,fix_error_m,estimate_error_m`; errors are horizontal metres from the truth, empty
+/// when there is no fix or estimate): runs with a GNSS constellation only.
+pub const GNSS: &str = "gnss.csv";

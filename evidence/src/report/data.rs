@@ -47,6 +47,18 @@ pub struct Sample {
     pub crashed: bool,
 }
 
+/// One row of `gnss.csv`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GnssSample {
+    pub time_s: f64,
+    pub drone: u32,
+    pub satellites: u32,
+    /// Horizontal distance of the estimate from the truth, m (`None`: no estimate).
+    pub estimate_error_m: Option<f64>,
+    /// Horizontal distance of the 3D fix from the truth, m (`None`: no 3D fix).
+    pub fix_error_m: Option<f64>,
+}
+
 /// All samples of one drone, in time order.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Track {
@@ -119,6 +131,9 @@ pub struct RunData {
     pub world: Option<WorldStats>,
     /// `pilot.json`: what happened to the pilot process.
     pub pilot: Option<PilotRecord>,
+    /// `gnss.csv` (runs with a GNSS constellation): each drone's receiver in flight once a
+    /// second.
+    pub gnss: Option<Vec<GnssSample>>,
     /// Files of the run folder the report would use but that are not there, e.g.
     /// "airspace.json: not recorded".
     pub notes: Vec<String>,
@@ -172,10 +187,17 @@ impl RunData {
         } else {
             None
         };
+        // Only runs with a constellation write it: its absence is no gap worth a note.
+        let gnss_path = dir.join(sadesim_crds::outcome::run_folder::GNSS);
+        let gnss = match std::fs::read_to_string(&gnss_path) {
+            Ok(text) => Some(parse_gnss(&gnss_path, &text)?),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(source) => return Err(DataError::Read { path: gnss_path.display().to_string(), source }),
+        };
         // Absolute, so that the page names the folder (`<run>/<UTC time>`) even when it
         // was given as `.`.
         let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-        Ok(Self { dir, plan, tracks, events, airspace, summary, world, pilot, notes })
+        Ok(Self { dir, plan, tracks, events, airspace, summary, world, pilot, gnss, notes })
     }
 
     /// The track of drone `index`, when recorded.
@@ -253,6 +275,46 @@ impl Columns {
     }
 }
 
+/// Parses `gnss.csv` (its header, then `time_s,drone,fix_type,satellites,hdop,fix_error_m,
+/// estimate_error_m` rows; empty optional cells).
+pub fn parse_gnss(path: &Path, text: &str) -> Result<Vec<GnssSample>, DataError> {
+    const HEADER: &str = "time_s,drone,fix_type,satellites,hdop,fix_error_m,estimate_error_m";
+    let mut lines = text.lines().enumerate();
+    let bad = |line: usize, message: String| DataError::Line { path: path.display().to_string(), line, message };
+    if lines.next().map(|(_, h)| h.trim()) != Some(HEADER) {
+        return Err(bad(1, format!("expected the header {HEADER}")));
+    }
+    let mut out = Vec::new();
+    for (i, line) in lines.filter(|(_, l)| !l.trim().is_empty()) {
+        let f: Vec<&str> = line.split(',').map(str::trim).collect();
+        if f.len() != 7 {
+            return Err(bad(i + 1, format!("{} fields, expected 7", f.len())));
+        }
+        let number = |k: usize| -> Result<Option<f64>, DataError> {
+            match f[k] {
+                "" => Ok(None),
+                raw => raw
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|v| v.is_finite())
+                    .map(Some)
+                    .ok_or_else(|| bad(i + 1, format!("column {}: expected a finite number, got {raw:?}", k + 1))),
+            }
+        };
+        let int = |k: usize| -> Result<u32, DataError> {
+            f[k].parse().map_err(|_| bad(i + 1, format!("column {}: expected a count, got {:?}", k + 1, f[k])))
+        };
+        out.push(GnssSample {
+            time_s: number(0)?.ok_or_else(|| bad(i + 1, "column 1: time_s is empty".into()))?,
+            drone: int(1)?,
+            satellites: int(3)?,
+            fix_error_m: number(5)?,
+            estimate_error_m: number(6)?,
+        });
+    }
+    Ok(out)
+}
+
 /// Parses `trajectory.csv` (header line, then one row per drone per sample) into one
 /// track per drone, sorted by drone index.
 pub fn parse_trajectory(path: &Path, text: &str) -> Result<Vec<Track>, DataError> {
@@ -323,4 +385,23 @@ pub fn parse_trajectory(path: &Path, text: &str) -> Result<Vec<Track>, DataError
     }
     tracks.sort_by_key(|t| t.drone);
     Ok(tracks)
+}
+
+#[cfg(test)]
+mod gnss_tests {
+    use super::*;
+
+    #[test]
+    fn gnss_rows_parse_with_empty_cells_and_bad_ones_name_the_line() {
+        let path = Path::new("gnss.csv");
+        let text = "time_s,drone,fix_type,satellites,hdop,fix_error_m,estimate_error_m\n\
+                    1.000,0,3,12,0.80,1.25,0.90\n2.000,0,1,2,,,1.40\n";
+        let rows = parse_gnss(path, text).unwrap();
+        assert_eq!(rows.len(), 2);
+        assert_eq!((rows[0].drone, rows[0].satellites, rows[0].fix_error_m), (0, 12, Some(1.25)));
+        assert_eq!((rows[1].fix_error_m, rows[1].estimate_error_m), (None, Some(1.4)));
+        let e = parse_gnss(path, &text.replace("1.40", "x")).unwrap_err().to_string();
+        assert!(e.contains("gnss.csv") && e.contains('3') && e.contains("\"x\""), "{e}");
+        assert!(parse_gnss(path, "a,b\n").is_err());
+    }
 }

@@ -492,6 +492,13 @@ fn gnss(out: &mut String, data: &RunData, styles: &[GroupStyle]) {
         out.push_str("</tr>");
     }
     out.push_str("</table>");
+    if let Some(svg) = super::svg::gnss(data, styles) {
+        let _ = write!(
+            out,
+            r#"<figure>{}<figcaption>Each drone's estimate error (the horizontal distance between the position the autopilot flew on and the truth) against simulated time, once a second in flight, one panel per group (gnss.csv).</figcaption></figure>"#,
+            inline_svg(&svg)
+        );
+    }
 }
 
 fn metadata(out: &mut String, data: &RunData) {

@@ -10,10 +10,12 @@
 
 mod altitude;
 mod draw;
+mod gnss;
 mod map;
 
 pub use altitude::altitude;
 #[cfg(test)]
 pub(super) use draw::path_data;
 pub use draw::{FONT, esc};
+pub use gnss::gnss;
 pub use map::{Footprint, map};

@@ -7,10 +7,27 @@ use sadesim_crds::outcome::summary::{ErrorStats, GnssSummary};
 use crate::protocol::DroneSnapshot;
 use crate::record::mcap_file::truth_at;
 
+/// One row of `gnss.csv`: a drone's receiver epoch in flight, at most one per second.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GnssRow {
+    pub time_s: f64,
+    pub fix_type: u8,
+    pub satellites: u8,
+    pub hdop: Option<f64>,
+    /// Horizontal distance of the 3D fix from the truth, m.
+    pub fix_error_m: Option<f64>,
+    /// Horizontal distance of the estimate from the truth, m.
+    pub estimate_error_m: Option<f64>,
+}
+
+/// Seconds between two rows of one drone in `gnss.csv`.
+pub const ROW_PERIOD_S: f64 = 1.0;
+
 /// One drone's samples so far.
 #[derive(Clone, Debug, Default)]
 pub struct GnssTally {
     last_epoch_s: Option<f64>,
+    last_row_s: Option<f64>,
     epochs: u32,
     without_3d_fix: u32,
     satellites: u64,
@@ -23,16 +40,18 @@ pub struct GnssTally {
 }
 
 impl GnssTally {
-    /// Takes drone `s`'s receiver output when it is a new epoch (sampled at `window_s`).
-    pub fn observe(&mut self, window_s: f64, s: &DroneSnapshot) {
-        let Some(g) = &s.detail.gnss else { return };
+    /// Takes drone `s`'s receiver output when it is a new epoch (sampled at `window_s`);
+    /// returns the epoch as a `gnss.csv` row when one is due (in flight, [`ROW_PERIOD_S`]
+    /// after the last).
+    pub fn observe(&mut self, window_s: f64, s: &DroneSnapshot) -> Option<GnssRow> {
+        let g = s.detail.gnss.as_ref()?;
         if self.last_epoch_s == Some(g.time_s) {
-            return;
+            return None;
         }
         self.last_epoch_s = Some(g.time_s);
         // On the ground a drone is waiting or done: the statistics are of its flight.
         if s.on_ground || s.crashed {
-            return;
+            return None;
         }
         self.epochs += 1;
         let truth = truth_at(s, g.time_s, window_s);
@@ -41,18 +60,35 @@ impl GnssTally {
             self.above_mask += u64::from(sky.above_mask);
             self.reflected += u64::from(sky.reflected);
         }
-        if g.fix_type >= 3 {
-            self.satellites += u64::from(g.satellites);
-            self.hdop.extend(g.hdop);
+        let fix_error_m = (g.fix_type >= 3).then(|| {
             let [e, n, _] = g.position_enu_m;
-            self.fix_error_m.push((e - truth[0]).hypot(n - truth[1]));
-        } else {
-            self.without_3d_fix += 1;
+            (e - truth[0]).hypot(n - truth[1])
+        });
+        match fix_error_m {
+            Some(error) => {
+                self.satellites += u64::from(g.satellites);
+                self.hdop.extend(g.hdop);
+                self.fix_error_m.push(error);
+            }
+            None => self.without_3d_fix += 1,
         }
-        if let Some(est) = &s.detail.estimate {
+        let estimate_error_m = s.detail.estimate.as_ref().map(|est| {
             let [e, n, _] = est.position_enu_m;
-            self.estimate_error_m.push((e - truth[0]).hypot(n - truth[1]));
+            (e - truth[0]).hypot(n - truth[1])
+        });
+        self.estimate_error_m.extend(estimate_error_m);
+        if self.last_row_s.is_some_and(|t| g.time_s < t + ROW_PERIOD_S - 1e-9) {
+            return None;
         }
+        self.last_row_s = Some(g.time_s);
+        Some(GnssRow {
+            time_s: g.time_s,
+            fix_type: g.fix_type,
+            satellites: g.satellites,
+            hdop: g.hdop,
+            fix_error_m,
+            estimate_error_m,
+        })
     }
 
     /// The summary (`None` before the first epoch).
@@ -104,6 +140,16 @@ mod tests {
             tally.observe(t, &snap(t, fix));
             tally.observe(t + 0.01, &snap(t, fix)); // the same epoch in the next window
         }
+        let mut rows = GnssTally::default();
+        let written: Vec<f64> = (0..20)
+            .filter_map(|k| {
+                let t = f64::from(k) * 0.2;
+                rows.observe(t, &snap(t, Some([1.0, 0.0, 20.0])))
+            })
+            .map(|r| r.time_s)
+            .collect();
+        assert_eq!(written.len(), 4, "a row a second: {written:?}");
+        assert!((written[1] - 1.0).abs() < 1e-9);
         let mut grounded = snap(10.0, Some([50.0, 0.0, 0.0]));
         grounded.on_ground = true;
         tally.observe(10.0, &grounded);

@@ -49,6 +49,9 @@ pub struct Recorder {
     summary: RunSummary,
     /// Per drone: the GNSS part of the summary.
     gnss: Vec<super::gnss_tally::GnssTally>,
+    /// `gnss.csv`: each drone's receiver in flight once a second, for the report's GNSS
+    /// timeline; written for runs with the ranging receiver (a constellation) only.
+    gnss_csv: Option<std::io::BufWriter<std::fs::File>>,
     last_positions: Vec<Option<[f64; 2]>>,
     last: Vec<DroneSnapshot>,
     /// `recording.mcap` (unless `spec.recording.mcap` is false) and `ulog/*.ulg` (unless
@@ -94,6 +97,17 @@ impl Recorder {
             track_points: Sampler::including_start(options.track_hz),
             summary,
             gnss: vec![super::gnss_tally::GnssTally::default(); plan.drones.len()],
+            gnss_csv: match plan.spec.environment().gnss.is_some_and(|g| g.constellation.is_some()) {
+                true => {
+                    use std::io::Write;
+                    let mut w = std::io::BufWriter::new(std::fs::File::create(
+                        dir.join(sadesim_crds::outcome::run_folder::GNSS),
+                    )?);
+                    writeln!(w, "time_s,drone,fix_type,satellites,hdop,fix_error_m,estimate_error_m")?;
+                    Some(w)
+                }
+                false => None,
+            },
             last_positions: vec![None; plan.drones.len()],
             last: Vec::new(),
             plan: plan.clone(),
@@ -135,6 +149,10 @@ impl Recorder {
         for (d, tally) in self.summary.per_drone.iter_mut().zip(&mut self.gnss) {
             d.gnss = tally.summary();
         }
+        if let Some(mut csv) = self.gnss_csv.take() {
+            use std::io::Write;
+            csv.flush()?;
+        }
         let json = serde_json::to_vec_pretty(&self.summary).map_err(std::io::Error::other)?;
         std::fs::write(self.dir.join(sadesim_crds::outcome::run_folder::SUMMARY), json)?;
         Ok(self.summary)
@@ -158,8 +176,22 @@ impl RunObserver for Recorder {
             self.tracks.add(drones, &self.frame);
         }
         for s in drones {
-            if let Some(tally) = self.gnss.get_mut(s.index as usize) {
-                tally.observe(time_s, s);
+            let Some(tally) = self.gnss.get_mut(s.index as usize) else { continue };
+            if let (Some(row), Some(csv)) = (tally.observe(time_s, s), &mut self.gnss_csv) {
+                use std::io::Write;
+                let opt = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
+                writeln!(
+                    csv,
+                    "{:.3},{},{},{},{},{},{}",
+                    row.time_s,
+                    s.index,
+                    row.fix_type,
+                    row.satellites,
+                    opt(row.hdop, 2),
+                    opt(row.fix_error_m, 2),
+                    opt(row.estimate_error_m, 2)
+                )
+                .map_err(ObserverError::Record)?;
             }
         }
         if !final_window {
