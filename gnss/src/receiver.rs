@@ -123,22 +123,13 @@ pub fn solve(measurements: &[Measurement], guess: Vector3<f64>, held_up_m: Optio
     let mut normal = Matrix4::zeros();
     let mut converged = false;
     for _ in 0..MAX_ITERATIONS {
-        normal = Matrix4::zeros();
-        let mut rhs = Vector4::zeros();
-        for m in measurements {
+        let terms = measurements.iter().map(|m| {
             let to_sat = m.satellite_enu_m - x;
             let range = to_sat.norm();
-            let u = to_sat / range;
-            let row = Vector4::new(-u.x, -u.y, if three_d { -u.z } else { 0.0 }, 1.0);
-            let w = 1.0 / (m.sigma_m * m.sigma_m);
-            normal += row * row.transpose() * w;
-            rhs += row * (w * (m.pseudorange_m - range - clock_m));
-        }
-        if !three_d {
-            // The held height: a unit diagonal keeps the normal matrix invertible; the
-            // right-hand side's zero keeps the height where it is.
-            normal[(2, 2)] = 1.0;
-        }
+            (geometry_row(&(to_sat / range), three_d), m.pseudorange_m - range - clock_m, m.sigma_m)
+        });
+        let rhs;
+        (normal, rhs) = normal_equations(terms, three_d);
         let step = normal.try_inverse()? * rhs;
         x += step.xyz();
         clock_m += step.w;
@@ -150,22 +141,10 @@ pub fn solve(measurements: &[Measurement], guess: Vector3<f64>, held_up_m: Optio
     if !converged || !x.iter().all(|c| c.is_finite()) || (x - guess).norm() > MAX_STEP_FROM_GUESS_M {
         return None;
     }
-    // A-posteriori variance factor: weighted residuals' sum of squares over the redundancy.
     let unknowns = if three_d { 4 } else { 3 };
-    let redundancy = measurements.len().saturating_sub(unknowns);
-    let factor = if redundancy == 0 {
-        1.0
-    } else {
-        let ssr: f64 = measurements
-            .iter()
-            .map(|m| {
-                let r = m.pseudorange_m - (m.satellite_enu_m - x).norm() - clock_m;
-                r * r / (m.sigma_m * m.sigma_m)
-            })
-            .sum();
-        (ssr / redundancy as f64).max(1.0)
-    };
-    let cov = normal.try_inverse()? * factor;
+    let residuals =
+        measurements.iter().map(|m| (m.pseudorange_m - (m.satellite_enu_m - x).norm() - clock_m, m.sigma_m));
+    let cov = normal.try_inverse()? * variance_factor(residuals, measurements.len(), unknowns);
     let units: Vec<Vector3<f64>> = measurements.iter().map(|m| (m.satellite_enu_m - x).normalize()).collect();
     let (velocity, velocity_sigma_mps) = solve_velocity(measurements, &units, three_d, unknowns)?;
     let dop = if three_d {
@@ -197,34 +176,59 @@ fn solve_velocity(
     three_d: bool,
     unknowns: usize,
 ) -> Option<(Vector3<f64>, f64)> {
-    let row = |u: &Vector3<f64>| Vector4::new(-u.x, -u.y, if three_d { -u.z } else { 0.0 }, 1.0);
     let observed = |m: &Measurement, u: &Vector3<f64>| m.range_rate_mps - u.dot(&m.satellite_velocity_enu_mps);
+    let terms =
+        measurements.iter().zip(units).map(|(m, u)| (geometry_row(u, three_d), observed(m, u), m.rate_sigma_mps));
+    let (normal, rhs) = normal_equations(terms, three_d);
+    let q = normal.try_inverse()?;
+    let x = q * rhs;
+    let residuals = measurements
+        .iter()
+        .zip(units)
+        .map(|(m, u)| (observed(m, u) - geometry_row(u, three_d).dot(&x), m.rate_sigma_mps));
+    let factor = variance_factor(residuals, measurements.len(), unknowns);
+    let axes = if three_d { 3.0 } else { 2.0 };
+    let variance = (q[(0, 0)] + q[(1, 1)] + if three_d { q[(2, 2)] } else { 0.0 }) / axes;
+    Some((x.xyz(), (variance * factor).sqrt()))
+}
+
+/// The row of a range (or range rate) in the geometry matrix for a satellite at unit line of
+/// sight `u` (ENU): its derivatives by east, north, up (0 in a 2D fix: the height is held)
+/// and by the receiver clock.
+fn geometry_row(u: &Vector3<f64>, three_d: bool) -> Vector4<f64> {
+    Vector4::new(-u.x, -u.y, if three_d { -u.z } else { 0.0 }, 1.0)
+}
+
+/// The weighted normal equations `(GᵀWG, GᵀWy)` of `(row, observation, 1-sigma)` terms. In
+/// a 2D fix the held height gets a unit diagonal: the matrix stays invertible and the
+/// right-hand side's zero keeps the height where it is.
+fn normal_equations(
+    terms: impl Iterator<Item = (Vector4<f64>, f64, f64)>,
+    three_d: bool,
+) -> (Matrix4<f64>, Vector4<f64>) {
     let mut normal = Matrix4::zeros();
     let mut rhs = Vector4::zeros();
-    for (m, u) in measurements.iter().zip(units) {
-        let w = 1.0 / (m.rate_sigma_mps * m.rate_sigma_mps);
-        normal += row(u) * row(u).transpose() * w;
-        rhs += row(u) * (w * observed(m, u));
+    for (row, observed, sigma) in terms {
+        let w = 1.0 / (sigma * sigma);
+        normal += row * row.transpose() * w;
+        rhs += row * (w * observed);
     }
     if !three_d {
         normal[(2, 2)] = 1.0;
     }
-    let q = normal.try_inverse()?;
-    let x = q * rhs;
-    let redundancy = measurements.len().saturating_sub(unknowns);
-    let factor = if redundancy == 0 {
-        1.0
-    } else {
-        let ssr: f64 = measurements
-            .iter()
-            .zip(units)
-            .map(|(m, u)| (observed(m, u) - row(u).dot(&x)).powi(2) / (m.rate_sigma_mps * m.rate_sigma_mps))
-            .sum();
-        (ssr / redundancy as f64).max(1.0)
-    };
-    let axes = if three_d { 3.0 } else { 2.0 };
-    let variance = (q[(0, 0)] + q[(1, 1)] + if three_d { q[(2, 2)] } else { 0.0 }) / axes;
-    Some((x.xyz(), (variance * factor).sqrt()))
+    (normal, rhs)
+}
+
+/// The a-posteriori variance factor of a weighted least-squares solution: the sum of the
+/// squared `(residual / 1-sigma)` over the redundancy (`count - unknowns`), at least 1; 1
+/// without redundancy (nothing to judge the residuals by).
+fn variance_factor(residuals: impl Iterator<Item = (f64, f64)>, count: usize, unknowns: usize) -> f64 {
+    let redundancy = count.saturating_sub(unknowns);
+    if redundancy == 0 {
+        return 1.0;
+    }
+    let ssr: f64 = residuals.map(|(r, sigma)| r * r / (sigma * sigma)).sum();
+    (ssr / redundancy as f64).max(1.0)
 }
 
 /// The DOP of a 2D solution (east, north, clock): HDOP and TDOP; the rest infinite.
