@@ -78,6 +78,17 @@ pub struct EstimateDetail {
     pub epv_m: f64,
 }
 
+impl DroneSnapshot {
+    /// The true position (ENU, m) at the earlier sim time `at_s` of this snapshot taken at
+    /// `window_s`, back along its velocity: a GNSS fix is measured at its own epoch, up to a
+    /// window before the snapshot.
+    pub fn position_back_at(&self, at_s: f64, window_s: f64) -> [f64; 3] {
+        let dt = (window_s - at_s).max(0.0);
+        let (p, v) = (self.position_enu_m, self.velocity_enu_mps);
+        [p[0] - v[0] * dt, p[1] - v[1] * dt, p[2] - v[2] * dt]
+    }
+}
+
 /// One GNSS receiver output.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default)]
 #[serde(rename_all = "camelCase")]

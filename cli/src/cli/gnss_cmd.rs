@@ -87,6 +87,32 @@ pub(super) fn sky(
     Ok(Outcome::Success)
 }
 
+/// The one run of `scenario`, valid; `None` when it is not (its problems are on `out`).
+pub(super) fn valid_scenario(
+    scenario: &Path,
+    out: &mut dyn Write,
+) -> Result<Option<sadesim_crds::SimulationRun>, CliError> {
+    let Some(run) = super::scenario::load_one(scenario, out)? else { return Ok(None) };
+    if let Err(errors) = sadesim_crds::validate::validate(&run) {
+        super::scenario::report_problems(out, &scenario.display().to_string(), &errors)?;
+        return Ok(None);
+    }
+    Ok(Some(run))
+}
+
+/// The run's GNSS sky (its constellation must be set) and its world.
+pub(super) fn sky_and_world(
+    run: &sadesim_crds::SimulationRun,
+    scenario: &Path,
+) -> Result<(sadesim_gnss::RunSky, sadesim_world::World), CliError> {
+    let sky =
+        sadesim_evidence::gnss::load_sky(&run.spec).map_err(|e| CliError::Failed(e.to_string()))?.ok_or_else(|| {
+            CliError::Failed(format!("{}: spec.environment.gnss.constellation is not set", scenario.display()))
+        })?;
+    let world = sadesim_evidence::world::load_world(&run.spec).map_err(|e| CliError::Failed(e.to_string()))?;
+    Ok((sky, world))
+}
+
 /// `sadesim gnss los SCENARIO --points FILE`: the signal path of every satellite of the
 /// scenario's constellation to each antenna point in its world.
 pub(super) fn los(
@@ -99,16 +125,8 @@ pub(super) fn los(
     use sadesim_gnss::SignalPath;
     use sadesim_gnss::signal::signal_path;
 
-    let shown = scenario.display().to_string();
-    let Some(run) = super::scenario::load_one(scenario, out)? else { return Ok(Outcome::Problems) };
-    if let Err(errors) = sadesim_crds::validate::validate(&run) {
-        super::scenario::report_problems(out, &shown, &errors)?;
-        return Ok(Outcome::Problems);
-    }
-    let sky = sadesim_evidence::gnss::load_sky(&run.spec)
-        .map_err(|e| CliError::Failed(e.to_string()))?
-        .ok_or_else(|| CliError::Failed(format!("{shown}: spec.environment.gnss.constellation is not set")))?;
-    let world = sadesim_evidence::world::load_world(&run.spec).map_err(|e| CliError::Failed(e.to_string()))?;
+    let Some(run) = valid_scenario(scenario, out)? else { return Ok(Outcome::Problems) };
+    let (sky, world) = sky_and_world(&run, scenario)?;
     let text = std::fs::read_to_string(points)
         .map_err(|source| CliError::Read { path: points.display().to_string(), source })?;
     let antennas: Vec<[f64; 3]> = serde_json::from_str(&text).map_err(|e| {

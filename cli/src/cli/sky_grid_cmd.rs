@@ -28,22 +28,14 @@ pub(super) fn grid(
     slice_s: f64,
     out: &mut dyn Write,
 ) -> Result<Outcome, CliError> {
-    let shown = scenario.display().to_string();
-    let Some(run) = super::scenario::load_one(scenario, out)? else { return Ok(Outcome::Problems) };
-    if let Err(errors) = sadesim_crds::validate::validate(&run) {
-        super::scenario::report_problems(out, &shown, &errors)?;
-        return Ok(Outcome::Problems);
-    }
+    let Some(run) = super::gnss_cmd::valid_scenario(scenario, out)? else { return Ok(Outcome::Problems) };
     if !(spacing_m.is_finite() && (1.0..=500.0).contains(&spacing_m)) {
         return Err(CliError::Failed(format!("--spacing-m {spacing_m}: expected 1..500 metres")));
     }
     if !(slice_s.is_finite() && slice_s >= 1.0) {
         return Err(CliError::Failed(format!("--slice-s {slice_s}: expected at least 1 second")));
     }
-    let sky = sadesim_evidence::gnss::load_sky(&run.spec)
-        .map_err(|e| CliError::Failed(e.to_string()))?
-        .ok_or_else(|| CliError::Failed(format!("{shown}: spec.environment.gnss.constellation is not set")))?;
-    let world = sadesim_evidence::world::load_world(&run.spec).map_err(|e| CliError::Failed(e.to_string()))?;
+    let (sky, world) = super::gnss_cmd::sky_and_world(&run, scenario)?;
     let stats = world.stats();
     // Above the tallest roof (and the highest ground) every voxel of a layer sees the same
     // sky: one layer more is enough to show it.

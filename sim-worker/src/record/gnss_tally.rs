@@ -5,7 +5,6 @@
 use sadesim_crds::outcome::summary::{ErrorStats, GnssSummary};
 
 use crate::protocol::DroneSnapshot;
-use crate::record::mcap_file::truth_at;
 
 /// One row of `gnss.csv`: a drone's receiver epoch in flight, at most one per second.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,7 +53,7 @@ impl GnssTally {
             return None;
         }
         self.epochs += 1;
-        let truth = truth_at(s, g.time_s, window_s);
+        let truth = s.position_back_at(g.time_s, window_s);
         if let Some(sky) = g.sky {
             self.ranging = true;
             self.above_mask += u64::from(sky.above_mask);

@@ -303,7 +303,7 @@ impl McapRecorder {
             {
                 c.last_gnss_s = Some(g.time_s);
                 let fix_ns = ns(g.time_s).min(log_ns);
-                let truth = truth_at(s, g.time_s, time_s);
+                let truth = s.position_back_at(g.time_s, time_s);
                 out.write(&mut c.gnss_quality, log_ns, fix_ns, |b| messages::gnss_quality(b, fix_ns, g, truth))?;
                 // Without a 3D fix the receiver's position means nothing.
                 if g.fix_type >= 3 {
@@ -329,14 +329,6 @@ impl McapRecorder {
         file.into_inner().map_err(|e| e.into_error())?;
         Ok(())
     }
-}
-
-/// The true position of drone `s` (sampled at `window_s`) at the earlier `at_s`, back along
-/// its velocity: a fix is measured at its own epoch, up to a window before the sample.
-pub fn truth_at(s: &DroneSnapshot, at_s: f64, window_s: f64) -> [f64; 3] {
-    let dt = (window_s - at_s).max(0.0);
-    let (p, v) = (s.position_enu_m, s.velocity_enu_mps);
-    [p[0] - v[0] * dt, p[1] - v[1] * dt, p[2] - v[2] * dt]
 }
 
 /// Test support: the pose messages (`/drones/<name>/pose`, all drones) in the finished

@@ -385,7 +385,7 @@ fn values_equal_the_snapshots() {
                 let fix_s = ns_to_s(&j["timestamp"]);
                 let s = snapshot(i, t);
                 let g = s.detail.gnss.as_ref().unwrap();
-                let truth = super::truth_at(&s, g.time_s, t);
+                let truth = s.position_back_at(g.time_s, t);
                 let expected = (g.position_enu_m[0] - truth[0]).hypot(g.position_enu_m[1] - truth[1]);
                 assert!((fix_s - g.time_s).abs() < 1e-6);
                 assert!((j["horizontal_error_m"].as_f64().unwrap() - expected).abs() < 1e-3, "{j}");
