@@ -146,6 +146,44 @@ fn the_runner_writes_a_self_contained_report_with_every_drone_zone_and_verdict()
     assert!(map.starts_with(r#"<svg xmlns="http://www.w3.org/2000/svg" id="map""#));
 }
 
+#[test]
+fn gnss_rows_give_a_timeline_of_three_series_and_a_map_of_the_estimate_error() {
+    use std::fmt::Write;
+    // The fixture flew without a constellation: no GNSS plots.
+    assert!(!run_dir().join("report/gnss-map.svg").exists() && !read(run_dir(), HTML_FILE).contains("gnss-timeline"));
+    // Its copy with gnss.csv rows as a canyon run writes them: drone 0's estimate is 12 m off
+    // from 21 s, the others stay at 0.5 m.
+    let dir = copy_of_run("gnss");
+    let mut csv = String::from("time_s,drone,fix_type,satellites,hdop,fix_error_m,estimate_error_m\n");
+    for t in 1..=30 {
+        for d in 0..3 {
+            let error = if d == 0 && t > 20 { 12.0 } else { 0.5 };
+            writeln!(csv, "{t}.000,{d},3,{},0.90,{error:.2},{error:.2}", 20 - d).unwrap();
+        }
+    }
+    std::fs::write(dir.join("gnss.csv"), csv).unwrap();
+    let files = write_report(&dir).unwrap();
+    for file in ["gnss-timeline.svg", "gnss-timeline.png", "gnss-map.svg", "gnss-map.png"] {
+        assert!(files.images.contains(&dir.join("report").join(file)), "{file} not written");
+    }
+    let html = read(&dir, HTML_FILE);
+    let timeline = html.split(r#"id="gnss-timeline""#).nth(1).expect("a GNSS timeline").split("</svg>").next().unwrap();
+    for series in ["satellites", "hdop", "estimate_error"] {
+        assert_eq!(timeline.matches(&format!(r#"data-series="{series}""#)).count(), 3, "{series}");
+    }
+    // A dot per row with an estimate, coloured by its class; the 12 m ones (10-20 m, red)
+    // are drawn last, over the rest.
+    let map = read(&dir, "report/gnss-map.svg");
+    assert!(html.contains(r#"id="gnss-map""#));
+    let dots: Vec<&str> = map.split(r#"<circle class="gnss-error""#).skip(1).collect();
+    assert_eq!(dots.len(), 90);
+    let red: Vec<bool> = dots.iter().map(|d| d.contains(r##"fill="#d73027""##)).collect();
+    assert_eq!(red.iter().filter(|r| **r).count(), 10);
+    assert!(red[80..].iter().all(|r| *r), "the worst errors are on top");
+    assert!(dots[89].contains(r#"data-drone="0" data-error-m="12.00""#));
+    assert!(map.contains("10–20 m (11 %)") && map.contains("&lt; 1 m (89 %)"), "the legend's shares");
+}
+
 /// Width and height from a PNG's IHDR chunk, after checking the signature.
 fn png_size(bytes: &[u8]) -> (u32, u32) {
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "PNG signature");

@@ -4,6 +4,7 @@ example (examples/maps/helsinki-canyon.yaml) flown with the real constellation o
 2020-12-01 that its fetch script cuts from Debian's rtklib data.
 """
 import json
+import re
 import os
 import shutil
 import subprocess
@@ -121,12 +122,22 @@ def test_the_canyon_example_degrades_the_fix_in_the_street_and_not_above_the_roo
     street_row = next(r for r in rows if ">street-0<" in r)
     # The timeline below it: a line per drone, from gnss.csv's rows (one a second in flight).
     timeline = html.split('id="gnss-timeline"')[1].split("</svg>")[0]
-    assert timeline.count("<path") == 4
+    for series in ("satellites", "hdop", "estimate_error"):
+        assert timeline.count(f'data-series="{series}"') == 4, series
     rows_csv = (folder / "gnss.csv").read_text().splitlines()
     assert rows_csv[0] == "time_s,drone,fix_type,satellites,hdop,fix_error_m,estimate_error_m"
     per_drone = {d: [r for r in rows_csv[1:] if r.split(",")[1] == str(d)] for d in range(4)}
     assert all(60 < len(r) < 200 for r in per_drone.values()), {d: len(r) for d, r in per_drone.items()}
     assert f"{street['meanSatellites']:.1f}" in street_row and f"{street['medianHdop']:.2f}" in street_row
+    # The error map: a dot per row with an estimate, and the low street's dots are the
+    # worst (its median dot error above every other group's).
+    error_map = (folder / "report" / "gnss-map.svg").read_text()
+    dots = re.findall(r'class="gnss-error" data-drone="(\d+)" data-error-m="([0-9.]+)"', error_map)
+    assert len(dots) == sum(1 for r in rows_csv[1:] if r.split(",")[6])
+    low_index = next(i for i, d in enumerate(summary["perDrone"]) if d["name"] == "street-low-0")
+    by_drone = {d: sorted(float(e) for dd, e in dots if int(dd) == d) for d in range(4)}
+    medians = {d: v[len(v) // 2] for d, v in by_drone.items()}
+    assert all(medians[low_index] > m for d, m in medians.items() if d != low_index), medians
 
 
 def test_the_sky_grid_reads_with_zarr_and_agrees_with_the_live_signal_paths(sadesim, maps, tmp_path):

@@ -53,6 +53,8 @@ pub struct GnssSample {
     pub time_s: f64,
     pub drone: u32,
     pub satellites: u32,
+    /// Horizontal dilution of precision of the satellites in the fix (`None`: no fix).
+    pub hdop: Option<f64>,
     /// Horizontal distance of the estimate from the truth, m (`None`: no estimate).
     pub estimate_error_m: Option<f64>,
     /// Horizontal distance of the 3D fix from the truth, m (`None`: no 3D fix).
@@ -308,6 +310,7 @@ pub fn parse_gnss(path: &Path, text: &str) -> Result<Vec<GnssSample>, DataError>
             time_s: number(0)?.ok_or_else(|| bad(i + 1, "column 1: time_s is empty".into()))?,
             drone: int(1)?,
             satellites: int(3)?,
+            hdop: number(4)?,
             fix_error_m: number(5)?,
             estimate_error_m: number(6)?,
         });
@@ -400,6 +403,7 @@ mod gnss_tests {
         assert_eq!(rows.len(), 2);
         assert_eq!((rows[0].drone, rows[0].satellites, rows[0].fix_error_m), (0, 12, Some(1.25)));
         assert_eq!((rows[1].fix_error_m, rows[1].estimate_error_m), (None, Some(1.4)));
+        assert_eq!((rows[0].hdop, rows[1].hdop), (Some(0.8), None));
         let e = parse_gnss(path, &text.replace("1.40", "x")).unwrap_err().to_string();
         assert!(e.contains("gnss.csv") && e.contains('3') && e.contains("\"x\""), "{e}");
         assert!(parse_gnss(path, "a,b\n").is_err());

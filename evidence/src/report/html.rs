@@ -72,8 +72,18 @@ fn folder_label(data: &RunData) -> String {
     parts.join("/")
 }
 
-/// The page. `map_svg` and `altitude_svg` are the plots of `svg.rs`.
-pub fn page(data: &RunData, styles: &[GroupStyle], zones: &[ZoneShape], map_svg: &str, altitude_svg: &str) -> String {
+/// The plots of `svg.rs` the page shows.
+#[derive(Clone, Copy, Debug)]
+pub struct Figures<'a> {
+    pub map: &'a str,
+    pub altitude: &'a str,
+    /// Runs with a GNSS constellation (`gnss.csv`): the timeline and the error map.
+    pub gnss_timeline: Option<&'a str>,
+    pub gnss_map: Option<&'a str>,
+}
+
+/// The page.
+pub fn page(data: &RunData, styles: &[GroupStyle], zones: &[ZoneShape], figures: &Figures) -> String {
     let plan = &data.plan;
     let mut out = String::new();
     let _ = write!(
@@ -103,21 +113,21 @@ pub fn page(data: &RunData, styles: &[GroupStyle], zones: &[ZoneShape], map_svg:
     let _ = write!(
         out,
         r#"<h2 id="map">Flight paths</h2><figure>{}<figcaption>Every drone's path from trajectory.csv, metres east and north of the run's origin ({:.5}, {:.5}), coloured by group; zones filled pink. Left: the whole run; right: the area around the zones, where drones enter or turn away. Circles mark where a drone started, squares where it ended.</figcaption></figure>"#,
-        inline_svg(map_svg),
+        inline_svg(figures.map),
         plan.spec.origin.latitude_deg,
         plan.spec.origin.longitude_deg
     );
     let _ = write!(
         out,
         r#"<h2 id="altitude">Altitude timeline</h2><figure>{}<figcaption>Height above ground of every drone against simulated time, one panel per group (metres left, feet right). Dashed grey: the group's altitude limit; solid pink: a zone's minimum (or maximum) altitude for lease holders; dashed pink: a zone's floor and ceiling (lines above a group's heights are listed beside its panel instead). Thick dark segments: the drone was inside a zone; yellow bands: violations.</figcaption></figure>"#,
-        inline_svg(altitude_svg)
+        inline_svg(figures.altitude)
     );
     zones_table(&mut out, data, zones);
     requests(&mut out, data, styles);
     leases(&mut out, data);
     violations(&mut out, data, styles);
     drones(&mut out, data, styles);
-    gnss(&mut out, data, styles);
+    gnss(&mut out, data, styles, figures);
     metadata(&mut out, data);
     out.push_str("</body></html>\n");
     out
@@ -452,7 +462,7 @@ fn drones(out: &mut String, data: &RunData, styles: &[GroupStyle]) {
 
 /// Per drone, what its GNSS receiver did in flight (`summary.json`'s `gnss`): shown when
 /// some drone has it. Rows of the worst estimates first are the reviewer's question.
-fn gnss(out: &mut String, data: &RunData, styles: &[GroupStyle]) {
+fn gnss(out: &mut String, data: &RunData, styles: &[GroupStyle], figures: &Figures) {
     let Some(s) = &data.summary else { return };
     let mut rows: Vec<_> = s.per_drone.iter().filter_map(|d| d.gnss.as_ref().map(|g| (d, g))).collect();
     if rows.is_empty() {
@@ -492,11 +502,18 @@ fn gnss(out: &mut String, data: &RunData, styles: &[GroupStyle]) {
         out.push_str("</tr>");
     }
     out.push_str("</table>");
-    if let Some(svg) = super::svg::gnss(data, styles) {
+    if let Some(svg) = figures.gnss_timeline {
         let _ = write!(
             out,
-            r#"<figure>{}<figcaption>Each drone's estimate error (the horizontal distance between the position the autopilot flew on and the truth) against simulated time, once a second in flight, one panel per group (gnss.csv).</figcaption></figure>"#,
-            inline_svg(&svg)
+            r#"<figure>{}<figcaption>Per group, once a second in flight (gnss.csv): the satellites in each drone's fix, its HDOP (drawn at most at 10) and its estimate error, the horizontal distance between the position the autopilot flew on and the truth. A street canyon shows as fewer satellites, a higher HDOP and a larger error at the same moments.</figcaption></figure>"#,
+            inline_svg(svg)
+        );
+    }
+    if let Some(svg) = figures.gnss_map {
+        let _ = write!(
+            out,
+            r#"<figure>{}<figcaption>Where the estimate was off: every track in grey over the buildings, a dot a second in flight coloured by the estimate error there (the legend gives each class's share of the flight's seconds).</figcaption></figure>"#,
+            inline_svg(svg)
         );
     }
 }

@@ -1,5 +1,6 @@
 //! The run report: `report.html` (self-contained: inline CSS and SVG, opens offline) and
-//! `report/{map,altitude}.{svg,png}`, rebuilt from the files of a run folder. It shows
+//! `report/{map,altitude,gnss-timeline,gnss-map}.{svg,png}` (the GNSS ones for runs with a
+//! constellation), rebuilt from the files of a run folder. It shows
 //! what the paper's case study shows (§4, Fig. 4A the flight paths of every drone by
 //! group with the SADE Zone, Fig. 4G the altitude timeline against the zone's 350 ft
 //! minimum) plus the evidence behind the verdict: each criterion, every zone request and
@@ -45,6 +46,9 @@ pub struct Report {
     pub html: String,
     pub map_svg: String,
     pub altitude_svg: String,
+    /// Runs with a GNSS constellation: the GNSS timeline and the error map.
+    pub gnss_timeline_svg: Option<String>,
+    pub gnss_map_svg: Option<String>,
 }
 
 /// The run's world when the caller does not have it (`sadesim report` on a folder): the
@@ -96,10 +100,19 @@ fn buildings(data: &RunData, world: Option<&World>) -> Vec<svg::Footprint> {
 pub fn build(data: &RunData, world: Option<&World>) -> Report {
     let styles = model::group_styles(&data.plan);
     let zones = model::zone_shapes(&data.plan);
-    let map_svg = svg::map(data, &styles, &zones, &buildings(data, world));
+    let buildings = buildings(data, world);
+    let map_svg = svg::map(data, &styles, &zones, &buildings);
     let altitude_svg = svg::altitude(data, &styles, &zones);
-    let html = html::page(data, &styles, &zones, &map_svg, &altitude_svg);
-    Report { html, map_svg, altitude_svg }
+    let gnss_timeline_svg = svg::gnss(data, &styles);
+    let gnss_map_svg = svg::gnss_map(data, &buildings);
+    let figures = html::Figures {
+        map: &map_svg,
+        altitude: &altitude_svg,
+        gnss_timeline: gnss_timeline_svg.as_deref(),
+        gnss_map: gnss_map_svg.as_deref(),
+    };
+    let html = html::page(data, &styles, &zones, &figures);
+    Report { html, map_svg, altitude_svg, gnss_timeline_svg, gnss_map_svg }
 }
 
 /// Why a run folder's report could not be written; every variant names the file.
@@ -126,7 +139,8 @@ pub enum ReportError {
 }
 
 /// Builds the report of the run folder `run_dir` into the same folder: `report.html`,
-/// `report/map.svg`, `report/altitude.svg`, `report/map.png`, `report/altitude.png`.
+/// `report/map.svg`, `report/altitude.svg`, `report/map.png`, `report/altitude.png`, and
+/// with `gnss.csv` `report/gnss-timeline.{svg,png}` and `report/gnss-map.{svg,png}`.
 ///
 /// The map draws the buildings of the run's world: loaded from the local asset cache (the
 /// plan's asset cache key), else built from the plan and its files; none when neither is
@@ -156,7 +170,11 @@ pub fn write_report_in(run_dir: &Path, world: Option<&World>) -> Result<ReportFi
         Ok(path)
     };
     let mut images = Vec::new();
-    for (name, svg) in [("map", &report.map_svg), ("altitude", &report.altitude_svg)] {
+    let gnss = [("gnss-timeline", &report.gnss_timeline_svg), ("gnss-map", &report.gnss_map_svg)];
+    let plots = [("map", &report.map_svg), ("altitude", &report.altitude_svg)]
+        .into_iter()
+        .chain(gnss.into_iter().filter_map(|(name, svg)| svg.as_ref().map(|svg| (name, svg))));
+    for (name, svg) in plots {
         images.push(write(images_dir.join(format!("{name}.svg")), svg.as_bytes())?);
         let path = images_dir.join(format!("{name}.png"));
         let png =

@@ -1,7 +1,8 @@
 //! The report's plots as SVG text: the trajectory map (the paper's Fig. 4A: every drone's
 //! path coloured by group, the zones drawn over the city) and the altitude timeline (Fig.
 //! 4G: height above ground against sim time, one panel per group, with the zones' and
-//! the groups' altitude limits).
+//! the groups' altitude limits), and for runs with a GNSS constellation the GNSS timeline
+//! (satellites, HDOP and estimate error per group) and the map of the estimate error.
 //!
 //! Pure functions of the run's data: no I/O, the same input gives the same bytes. Text
 //! uses the font family `DejaVu Sans` (embedded for the PNGs, see `png.rs`). Map
@@ -11,6 +12,7 @@
 mod altitude;
 mod draw;
 mod gnss;
+mod gnss_map;
 mod map;
 
 pub use altitude::altitude;
@@ -18,4 +20,5 @@ pub use altitude::altitude;
 pub(super) use draw::path_data;
 pub use draw::{FONT, esc};
 pub use gnss::gnss;
+pub use gnss_map::gnss_map;
 pub use map::{Footprint, map};

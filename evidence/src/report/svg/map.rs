@@ -24,7 +24,7 @@ pub struct Footprint {
 
 /// Maps metres east/north to pixels, with the same scale on both axes.
 #[derive(Clone, Copy, Debug)]
-struct MapView {
+pub(super) struct MapView {
     /// Plot area in pixels: left, top, width, height.
     x: f64,
     y: f64,
@@ -39,7 +39,7 @@ struct MapView {
 impl MapView {
     /// Fits `[east_min, north_min, east_max, north_max]` (grown by `pad` of its size) in
     /// the plot area, centred, one scale for both axes.
-    fn fit(area: [f64; 4], bounds: [f64; 4], pad: f64) -> Self {
+    pub(super) fn fit(area: [f64; 4], bounds: [f64; 4], pad: f64) -> Self {
         let [x, y, w, h] = area;
         let (mut w_m, mut h_m) = ((bounds[2] - bounds[0]).max(1.0), (bounds[3] - bounds[1]).max(1.0));
         w_m *= 1.0 + 2.0 * pad;
@@ -49,7 +49,7 @@ impl MapView {
         Self { x, y, w, h, east_min: ce - w / scale / 2.0, north_max: cn + h / scale / 2.0, scale }
     }
 
-    fn px(&self, e: f64, n: f64) -> (f64, f64) {
+    pub(super) fn px(&self, e: f64, n: f64) -> (f64, f64) {
         (self.x + (e - self.east_min) * self.scale, self.y + (self.north_max - n) * self.scale)
     }
 
@@ -70,7 +70,7 @@ impl MapView {
 }
 
 /// Bounds of everything the full map must show: tracks, zones.
-fn data_bounds(tracks: &[Track], zones: &[ZoneShape]) -> Option<[f64; 4]> {
+pub(super) fn data_bounds(tracks: &[Track], zones: &[ZoneShape]) -> Option<[f64; 4]> {
     let mut b = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
     let mut any = false;
     for s in tracks.iter().flat_map(|t| &t.samples) {
@@ -153,61 +153,9 @@ fn map_panel(
     zones: &[ZoneShape],
     buildings: &[Footprint],
 ) {
-    let _ = write!(
-        out,
-        r#"<clipPath id="clip-{id}"><rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}"/></clipPath>"#,
-        v.x, v.y, v.w, v.h
-    );
-    text(out, v.x + v.w / 2.0, v.y - 12.0, 18.0, "middle", r#"font-weight="bold""#, title);
-    let _ = write!(
-        out,
-        r##"<g id="panel-{id}"><rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="#fbfbf8"/>"##,
-        v.x, v.y, v.w, v.h
-    );
-    // Grid and ticks, metres from the origin.
-    let span = (v.w / v.scale).max(v.h / v.scale);
-    let target = if span > 2000.0 { 6 } else { 5 };
-    let _ = write!(out, r##"<g stroke="#dddddd" stroke-width="1">"##);
-    let east_ticks = model::ticks(v.east_min, v.east_max(), target);
-    let north_ticks = model::ticks(v.north_min(), v.north_max, target);
-    for e in &east_ticks {
-        let (x, _) = v.px(*e, 0.0);
-        let _ = write!(out, r#"<line x1="{x:.1}" y1="{:.1}" x2="{x:.1}" y2="{:.1}"/>"#, v.y, v.y + v.h);
-    }
-    for n in &north_ticks {
-        let (_, y) = v.px(0.0, *n);
-        let _ = write!(out, r#"<line x1="{:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}"/>"#, v.x, v.x + v.w);
-    }
-    out.push_str("</g>");
-    let _ = write!(out, r#"<g clip-path="url(#clip-{id})">"#);
+    let ticks = open_panel(out, id, title, v);
     // Buildings, then zones, then tracks: the paths stay visible over everything.
-    if !buildings.is_empty() {
-        let _ = write!(out, r#"<g fill="{BUILDING_FILL}">"#);
-        for b in buildings.iter().filter(|b| v.sees(b)) {
-            if let Some(rings) = &b.rings {
-                // Even-odd: holes stay open.
-                let mut d = String::new();
-                for ring in rings {
-                    for (k, [e, n]) in ring.iter().enumerate() {
-                        let (x, y) = v.px(*e, *n);
-                        let _ = write!(d, "{}{x:.1},{y:.1}", if k == 0 { "M" } else { "L" });
-                    }
-                    d.push('Z');
-                }
-                let _ = write!(out, r#"<path fill-rule="evenodd" d="{d}"/>"#);
-                continue;
-            }
-            let (x0, y0) = v.px(b.east_min_m, b.north_max_m);
-            let (x1, y1) = v.px(b.east_max_m, b.north_min_m);
-            let _ = write!(
-                out,
-                r#"<rect x="{x0:.1}" y="{y0:.1}" width="{:.1}" height="{:.1}"/>"#,
-                (x1 - x0).max(0.3),
-                (y1 - y0).max(0.3)
-            );
-        }
-        out.push_str("</g>");
-    }
+    draw_buildings(out, v, buildings);
     for z in zones {
         let pts: Vec<String> = z
             .ring_en_m
@@ -274,6 +222,44 @@ fn map_panel(
         let label = format!("{} ({})", z.name, z.vertical_label());
         halo_text(out, x, y - 6.0, size, "middle", &format!(r#"fill="{ZONE_STROKE}" font-weight="bold""#), &label);
     }
+    close_panel(out, v, &ticks);
+}
+
+/// A map panel's background, title, grid and the clipped group its contents go in; returns
+/// the east and north ticks for [`close_panel`].
+pub(super) fn open_panel(out: &mut String, id: &str, title: &str, v: &MapView) -> (Vec<f64>, Vec<f64>) {
+    let _ = write!(
+        out,
+        r#"<clipPath id="clip-{id}"><rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}"/></clipPath>"#,
+        v.x, v.y, v.w, v.h
+    );
+    text(out, v.x + v.w / 2.0, v.y - 12.0, 18.0, "middle", r#"font-weight="bold""#, title);
+    let _ = write!(
+        out,
+        r##"<g id="panel-{id}"><rect x="{:.1}" y="{:.1}" width="{:.1}" height="{:.1}" fill="#fbfbf8"/>"##,
+        v.x, v.y, v.w, v.h
+    );
+    // Grid and ticks, metres from the origin.
+    let span = (v.w / v.scale).max(v.h / v.scale);
+    let target = if span > 2000.0 { 6 } else { 5 };
+    let _ = write!(out, r##"<g stroke="#dddddd" stroke-width="1">"##);
+    let east_ticks = model::ticks(v.east_min, v.east_max(), target);
+    let north_ticks = model::ticks(v.north_min(), v.north_max, target);
+    for e in &east_ticks {
+        let (x, _) = v.px(*e, 0.0);
+        let _ = write!(out, r#"<line x1="{x:.1}" y1="{:.1}" x2="{x:.1}" y2="{:.1}"/>"#, v.y, v.y + v.h);
+    }
+    for n in &north_ticks {
+        let (_, y) = v.px(0.0, *n);
+        let _ = write!(out, r#"<line x1="{:.1}" y1="{y:.1}" x2="{:.1}" y2="{y:.1}"/>"#, v.x, v.x + v.w);
+    }
+    out.push_str("</g>");
+    let _ = write!(out, r#"<g clip-path="url(#clip-{id})">"#);
+    (east_ticks, north_ticks)
+}
+
+/// Closes [`open_panel`]'s clipped group: the frame, tick labels, axis titles, scale bar.
+pub(super) fn close_panel(out: &mut String, v: &MapView, (east_ticks, north_ticks): &(Vec<f64>, Vec<f64>)) {
     out.push_str("</g>");
     let _ = write!(
         out,
@@ -281,11 +267,11 @@ fn map_panel(
         v.x, v.y, v.w, v.h
     );
     // Tick labels and axis titles.
-    for e in &east_ticks {
+    for e in east_ticks {
         let (x, _) = v.px(*e, 0.0);
         text(out, x, v.y + v.h + 20.0, 13.0, "middle", "", &model::tick_label(*e));
     }
-    for n in &north_ticks {
+    for n in north_ticks {
         let (_, y) = v.px(0.0, *n);
         text(out, v.x - 8.0, y + 4.5, 13.0, "end", "", &model::tick_label(*n));
     }
@@ -301,6 +287,38 @@ fn map_panel(
         "metres north of the origin",
     );
     scale_bar(out, v);
+    out.push_str("</g>");
+}
+
+/// Building footprints (grey) in the panel.
+pub(super) fn draw_buildings(out: &mut String, v: &MapView, buildings: &[Footprint]) {
+    if buildings.is_empty() {
+        return;
+    }
+    let _ = write!(out, r#"<g fill="{BUILDING_FILL}">"#);
+    for b in buildings.iter().filter(|b| v.sees(b)) {
+        if let Some(rings) = &b.rings {
+            // Even-odd: holes stay open.
+            let mut d = String::new();
+            for ring in rings {
+                for (k, [e, n]) in ring.iter().enumerate() {
+                    let (x, y) = v.px(*e, *n);
+                    let _ = write!(d, "{}{x:.1},{y:.1}", if k == 0 { "M" } else { "L" });
+                }
+                d.push('Z');
+            }
+            let _ = write!(out, r#"<path fill-rule="evenodd" d="{d}"/>"#);
+            continue;
+        }
+        let (x0, y0) = v.px(b.east_min_m, b.north_max_m);
+        let (x1, y1) = v.px(b.east_max_m, b.north_min_m);
+        let _ = write!(
+            out,
+            r#"<rect x="{x0:.1}" y="{y0:.1}" width="{:.1}" height="{:.1}"/>"#,
+            (x1 - x0).max(0.3),
+            (y1 - y0).max(0.3)
+        );
+    }
     out.push_str("</g>");
 }
 
