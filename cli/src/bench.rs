@@ -138,9 +138,6 @@ pub struct Variant {
     pub urban_gnss: bool,
 }
 
-/// The constellation file of the urban-GNSS variant, in the run's output root.
-const BENCH_ORBITS: &str = "bench-walker.tle";
-
 pub fn run(
     drones: u32,
     seconds: u32,
@@ -149,17 +146,10 @@ pub fn run(
     variant: Variant,
 ) -> Result<BenchResult, RunError> {
     let Variant { mavlink, recordings, urban_gnss } = variant;
-    let gnss = if urban_gnss {
-        let orbits = out_root.join(BENCH_ORBITS);
-        std::fs::create_dir_all(&out_root)
-            .and_then(|()| std::fs::write(&orbits, sadesim_gnss::synthetic::walker_gps_galileo_tle()))
-            .map_err(|source| RunError::Output { path: orbits.display().to_string(), source })?;
-        format!("{{rateHz: 5, constellation: {{file: {:?}}}}}", orbits.display().to_string())
-    } else {
-        "{rateHz: 5}".to_string()
-    };
+    // Urban GNSS under the built-in nominal GPS + Galileo constellation (no file).
+    let gnss = if urban_gnss { "{rateHz: 5, constellation: {}}" } else { "{rateHz: 5}" };
     let text = SCENARIO
-        .replace("{gnss}", &gnss)
+        .replace("{gnss}", gnss)
         .replace("{mcap}", &recordings.mcap.to_string())
         .replace("{ulog}", &recordings.ulog.to_string())
         .replace("{drones}", &drones.to_string())

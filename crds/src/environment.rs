@@ -88,9 +88,13 @@ pub struct Gnss {
 pub struct GnssConstellation {
     /// Orbit file: two- or three-line element sets (TLE, as CelesTrak publishes its GNSS
     /// groups). A local path (relative to the scenario's folder), `file://`, or an
-    /// object-store URL (`s3://`, `gs://`, `az://`) on a cluster.
+    /// object-store URL (`s3://`, `gs://`, `az://`) on a cluster. Default: the nominal
+    /// GPS + Galileo constellation shipped with sadesim (48 satellites in their nominal
+    /// Walker patterns, element sets of 2020-11-30T12:00:00Z): a plausible sky for any
+    /// epoch, not a real day's.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1, max = 1024))]
-    pub file: String,
+    pub file: Option<String>,
     /// UTC time of the run's t = 0 (RFC 3339, e.g. `2020-12-01T12:00:00Z`). Default: the
     /// newest element set's epoch in the file (orbits are most accurate near their epoch).
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -1,10 +1,12 @@
 //! A run's GNSS sky, read at the I/O edge: the orbit file of
 //! `environment.gnss.constellation.file` (a path, `file://` or an object-store URL, as the
 //! world's files), parsed by the pure `sadesim-gnss` library and placed over the run's
-//! origin with t = 0 at the constellation's epoch.
+//! origin with t = 0 at the constellation's epoch. Without a file, the sky is the nominal
+//! constellation shipped with the project (`sadesim_gnss::synthetic::NOMINAL_TLE`).
 
 use sadesim_crds::SimulationRunSpec;
 use sadesim_gnss::orbits::STALE_DAYS;
+use sadesim_gnss::synthetic::{NOMINAL_NAME, NOMINAL_TLE};
 use sadesim_gnss::{Constellation, OrbitError, RunSky};
 
 /// The field every error names.
@@ -36,9 +38,15 @@ pub enum SkyReadError {
 /// navigation satellite; an epoch that is not RFC 3339.
 pub fn load_sky(spec: &SimulationRunSpec) -> Result<Option<RunSky>, SkyReadError> {
     let Some(c) = spec.environment().gnss.and_then(|g| g.constellation) else { return Ok(None) };
-    let (path, bytes) = crate::world::read_file(FIELD, &c.file)?;
-    let text = String::from_utf8(bytes)
-        .map_err(|e| SkyReadError::NotText { path: path.clone(), offset: e.utf8_error().valid_up_to() })?;
+    let (path, text) = match &c.file {
+        Some(file) => {
+            let (path, bytes) = crate::world::read_file(FIELD, file)?;
+            let text = String::from_utf8(bytes)
+                .map_err(|e| SkyReadError::NotText { path: path.clone(), offset: e.utf8_error().valid_up_to() })?;
+            (path, text)
+        }
+        None => (NOMINAL_NAME.to_string(), NOMINAL_TLE.to_string()),
+    };
     let constellation =
         Constellation::from_tle(&text).map_err(|source| SkyReadError::Orbits { path: path.clone(), source })?;
     let epoch_unix_s = match &c.epoch {
@@ -46,7 +54,8 @@ pub fn load_sky(spec: &SimulationRunSpec) -> Result<Option<RunSky>, SkyReadError
         None => constellation.newest_epoch_unix_s(),
     };
     let age_days = constellation.age_days(epoch_unix_s);
-    if age_days > STALE_DAYS {
+    // The nominal constellation is no day's sky at any epoch: nothing to warn about.
+    if age_days > STALE_DAYS && c.file.is_some() {
         eprintln!(
             "warning: {FIELD} {path}: element sets up to {age_days:.0} days from the run's epoch: SGP4 drifts by \
              kilometres per day from their epoch, so this is not that day's sky; use an orbit file from within a few days"
@@ -96,6 +105,28 @@ mod tests {
         assert_eq!(later.epoch_unix_s(), 1_606_780_800.0);
         let run = RunBuilder::test().build();
         assert!(load_sky(&run.spec).unwrap().is_none(), "no constellation, no sky");
+    }
+
+    #[test]
+    fn a_constellation_without_a_file_is_the_shipped_nominal_one_at_any_epoch() {
+        let run = |epoch: &str| {
+            RunBuilder::test()
+                .with(|r| {
+                    r.spec.environment = Some(
+                        serde_json::from_value(serde_json::json!({"gnss": {"constellation": {"epoch": epoch}}}))
+                            .unwrap(),
+                    );
+                })
+                .build()
+        };
+        let sky = load_sky(&run("2026-06-01T08:00:00Z").spec).unwrap().expect("a sky");
+        assert_eq!(sky.constellation().satellites.len(), 48);
+        assert_eq!(sky.epoch_unix_s(), 1_780_300_800.0);
+        // Six years from its element sets the nominal sky still has a dual-constellation
+        // receiver's dozen-plus satellites above the mask.
+        let mask_sin = sky.mask_deg().to_radians().sin();
+        let above = sky.at(0.0).iter().filter(|s| s.position_enu_m.z / s.position_enu_m.norm() > mask_sin).count();
+        assert!((12..=24).contains(&above), "{above} above the mask");
     }
 
     #[test]

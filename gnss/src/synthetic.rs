@@ -8,6 +8,9 @@
 //! Together they are the sky of a dual-constellation receiver (u-blox M8/M9 track GPS and
 //! Galileo at once). They are *not* the real constellations of any day: bring CelesTrak's
 //! `gnss` file for that.
+//!
+//! [`NOMINAL_TLE`] is both of them as a file shipped with the project (`gnss/data/`,
+//! element sets of 2020-11-30T12:00:00Z): the sky of a run whose constellation names no file.
 
 /// One Walker constellation: `planes` × `per_plane` satellites, phasing factor `phasing`.
 struct Walker {
@@ -39,6 +42,15 @@ const GALILEO_LIKE: Walker = Walker {
     inclination_deg: 56.0,
     mean_motion_rev_per_day: 1.704_75,
 };
+
+/// The default orbit file: [`walker_gps_galileo_tle`] as shipped in
+/// `gnss/data/nominal-gps-galileo.tle` (a test keeps the two equal). Circular orbits without
+/// drag, so SGP4 keeps them in shape for years around their epoch: any run epoch gives a
+/// plausible dual-constellation sky, not a real day's.
+pub const NOMINAL_TLE: &str = include_str!("../data/nominal-gps-galileo.tle");
+
+/// What errors and logs call [`NOMINAL_TLE`].
+pub const NOMINAL_NAME: &str = "the built-in nominal GPS + Galileo constellation (gnss/data/nominal-gps-galileo.tle)";
 
 /// The TLE checksum: the digits of the line's first 68 characters summed, each `-` counting
 /// one, modulo 10.
@@ -102,5 +114,16 @@ mod tests {
         }
         assert_eq!(c.satellites.iter().filter(|s| s.system == System::Galileo).count(), 24);
         assert_eq!(Constellation::from_tle(&walker_gps_tle()).unwrap().satellites.len(), 24);
+    }
+
+    /// Regenerate with `SADESIM_WRITE_NOMINAL=1 cargo test -p sadesim-gnss nominal`.
+    #[test]
+    fn the_shipped_nominal_file_is_what_the_generator_writes() {
+        let generated = walker_gps_galileo_tle();
+        if std::env::var_os("SADESIM_WRITE_NOMINAL").is_some() {
+            let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/nominal-gps-galileo.tle");
+            std::fs::write(path, &generated).unwrap();
+        }
+        assert_eq!(NOMINAL_TLE, generated, "gnss/data/nominal-gps-galileo.tle is stale: regenerate it");
     }
 }

@@ -80,7 +80,7 @@ fn resolve_paths(run: &mut SimulationRun, scenario: &Path) {
         .as_mut()
         .and_then(|e| e.gnss.as_mut())
         .and_then(|g| g.constellation.as_mut())
-        .map(|c| &mut c.file);
+        .and_then(|c| c.file.as_mut());
     for file in osm.into_iter().chain(dem).chain(orbits).filter(|f| !sadesim_evidence::archive::is_object_store(f)) {
         let path = sadesim_evidence::world::file_path(file);
         if path.is_relative() {

@@ -8,14 +8,16 @@ use super::MAX_DURATION_S;
 use super::criteria::check_group_refs;
 use super::problems::{Problems, duration_s};
 
-/// `spec.environment.gnss.constellation`: a readable file reference, an RFC 3339 epoch, a
+/// `spec.environment.gnss.constellation`: a readable file reference when one is named, an RFC 3339 epoch, a
 /// mask in range.
 fn check_constellation(c: &crate::environment::GnssConstellation, base: &str, p: &mut Problems) {
     let field = format!("{base}.constellation.file");
-    if c.file.trim().is_empty() {
-        p.add(&field, "must name an orbit file (TLE)");
+    if let Some(file) = &c.file {
+        if file.trim().is_empty() {
+            p.add(&field, "must name an orbit file (TLE), or be left out for the built-in nominal constellation");
+        }
+        super::world::check_file_url(p, &field, file);
     }
-    super::world::check_file_url(p, &field, &c.file);
     if let Some(epoch) = &c.epoch
         && epoch.trim().parse::<k8s_openapi::jiff::Timestamp>().is_err()
     {
