@@ -46,6 +46,42 @@ pub struct Wind {
     /// Turbulence intensity. Default none.
     #[serde(default)]
     pub turbulence: Turbulence,
+    /// The wind around the world's buildings. Default: the built-in diagnostic model when
+    /// the world has buildings (`model: diagnostic`, 8 sectors, 5 m cells or coarser for
+    /// large worlds); `model: none` flies the plain profile everywhere.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub urban: Option<UrbanWind>,
+}
+
+/// How the wind around buildings is computed.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct UrbanWind {
+    /// `diagnostic` (default): the built-in Röckle-type model made mass-consistent;
+    /// `none`: no building effects; `openfoam`: not supported yet (refused).
+    #[serde(default)]
+    pub model: UrbanWindModel,
+    /// Edge of the field's cubic cells, metres (1..100). Default 5, coarser when the world
+    /// square would be more than 200 cells across.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1.0, max = 100.0))]
+    pub spacing_m: Option<f64>,
+    /// Inflow direction sectors around the compass (4..36). Default 8 (45° apart): a
+    /// direction between two sectors blends their fields.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 4, max = 36))]
+    pub sectors: Option<u32>,
+}
+
+/// The urban wind model.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase")]
+pub enum UrbanWindModel {
+    #[default]
+    Diagnostic,
+    None,
+    #[serde(rename = "openfoam")]
+    OpenFoam,
 }
 
 /// GNSS receiver model. Without `constellation`: the statistical receiver (white noise, a

@@ -175,7 +175,8 @@ fn main() -> ExitCode {
                 roles::read_plan(&plan).and_then(|plan| {
                     let world = roles::world(&plan, assets.as_deref())?;
                     let sky = roles::sky(&plan)?;
-                    roles::shard::run(&plan, world, sky, shard, &coordinator, mavlink.as_ref(), timeout)
+                    let surroundings = roles::surroundings(&plan, world, sky);
+                    roles::shard::run(&plan, &surroundings, shard, &coordinator, mavlink.as_ref(), timeout)
                 })
             })
         }

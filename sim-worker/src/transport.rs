@@ -3,7 +3,6 @@
 
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
 use std::net::TcpStream;
-use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::thread::JoinHandle;
 
@@ -13,7 +12,6 @@ use crate::coordinator::{LinkError, ShardLink};
 use crate::protocol::{FromShard, ToShard};
 use crate::roles::shard::ShardSockets;
 use crate::shard::{MavlinkIo, Shard};
-use sadesim_world::World;
 
 /// The coordinator's end of an in-process shard thread.
 #[derive(Debug)]
@@ -51,19 +49,17 @@ pub fn serve(
     }
 }
 
-/// Starts shard `index` of `plan` on its own thread (in `world`, under `sky`: see
-/// [`Shard::new`]).
+/// Starts shard `index` of `plan` on its own thread, in `surroundings` (see [`Shard::new`]).
 ///
 /// # Errors
 /// When the shard cannot be built (reported before any thread starts).
 pub fn spawn_thread(
     plan: &RunPlan,
     index: u32,
-    world: Arc<World>,
-    sky: Option<Arc<sadesim_gnss::RunSky>>,
+    surroundings: &crate::shard::Surroundings,
     mavlink: Option<&crate::shard::MavlinkOptions>,
 ) -> Result<(ThreadLink, JoinHandle<()>), crate::shard::ShardError> {
-    let mut shard = Shard::new(plan, index, world, sky)?;
+    let mut shard = Shard::new(plan, index, surroundings)?;
     let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
     let (to_shard, shard_rx) = channel::<ToShard>();
     let (shard_tx, from_shard) = channel::<FromShard>();

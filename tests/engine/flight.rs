@@ -21,7 +21,7 @@ fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
     run.spec.fleet[0].mission = Some(fly_to_and_land(wp, 20.0, 30.0, Some(3.0), 5.0));
     let plan = plan_for(&run);
     let world = world_for(&plan);
-    let mut shard = Shard::new(&plan, 0, world.clone(), None).unwrap();
+    let mut shard = Shard::new(&plan, 0, &sim_worker::shard::Surroundings::new(&plan, world.clone(), None)).unwrap();
     let mut events = Vec::new();
     // Warm up until the estimator has a fix, then release the pilot.
     events.extend(shard.advance(500));

@@ -34,7 +34,8 @@ pub fn fly_in(
     sample_steps: u64,
 ) -> (Vec<Event>, Vec<DroneSnapshot>) {
     let steps_per_s = u64::from(plan.physics_rate_hz);
-    let mut shard = Shard::new(plan, 0, world, sky).expect("the shard builds");
+    let mut shard =
+        Shard::new(plan, 0, &sim_worker::shard::Surroundings::new(plan, world, sky)).expect("the shard builds");
     let warm_up = steps_per_s * 3 / 10;
     let mut events = shard.advance(warm_up);
     let mut track = Vec::new();

@@ -1,2 +1,23 @@
 //! Urban wind (the paper's first environment factor, §3.3): the wind around the world's
-//! buildings on a 3-D grid aligned with the run's ENU frame.
+//! buildings on a 3-D grid aligned with the run's ENU frame, each cell holding the wind
+//! vector.
+//!
+//! - [`grid`]: the cells over the world square and which are solid;
+//! - [`profile`]: the undisturbed log profile the field is a factor of;
+//! - [`rockle`]: the diagnostic first guess (upwind displacement, cavity, wake);
+//! - [`solver`]: the mass-consistent adjustment that makes it divergence free;
+//! - [`field`]: per inflow sector, the adjusted field; sampling and sector blending.
+//!
+//! Pure: the world in, numbers out; the same inputs give the same bits.
+
+pub mod field;
+pub mod grid;
+pub mod profile;
+pub mod rockle;
+pub mod solver;
+
+pub use field::{DEFAULT_SECTORS, SectorField, UrbanWindField};
+pub use grid::{GridSpec, WindGrid};
+
+#[cfg(test)]
+mod tests;

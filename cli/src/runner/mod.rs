@@ -334,7 +334,8 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             assets.as_ref().map(AssetsOutcome::url),
         )
     } else {
-        let links = ShardInputs { world: world.clone(), sky, mavlink: options.mavlink };
+        let surroundings = sim_worker::roles::surroundings(&plan, world.clone(), sky);
+        let links = ShardInputs { surroundings, mavlink: options.mavlink };
         run_threads(&plan, links, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
     bar.finish_and_clear();
@@ -407,9 +408,8 @@ fn start_routers(plan: &RunPlan) -> Result<Vec<RouterHandle>, RunError> {
 
 /// What the in-process shards fly in and with.
 struct ShardInputs {
-    world: Arc<World>,
-    /// The GNSS sky of a run with a constellation.
-    sky: Option<Arc<sadesim_gnss::RunSky>>,
+    /// The world, the GNSS sky and the urban wind field.
+    surroundings: sim_worker::shard::Surroundings,
     /// Whether the drones get MAVLink endpoints.
     mavlink: bool,
 }
@@ -425,20 +425,20 @@ fn run_threads(
     pilot: Option<&mut Supervisor>,
     airspace: &mut Airspace,
 ) -> Result<RunSummary, RunError> {
-    let ShardInputs { world, sky, mavlink } = inputs;
+    let ShardInputs { surroundings, mavlink } = inputs;
+    let world = &surroundings.world;
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
     let mavlink_options = mavlink.then(MavlinkOptions::local);
     let _routers = if mavlink { start_routers(plan)? } else { Vec::new() };
     for shard in &plan.shards {
-        let (link, handle) =
-            transport::spawn_thread(plan, shard.index, world.clone(), sky.clone(), mavlink_options.as_ref())
-                .map_err(|source| RunError::Shard { shard: shard.index, source })?;
+        let (link, handle) = transport::spawn_thread(plan, shard.index, &surroundings, mavlink_options.as_ref())
+            .map_err(|source| RunError::Shard { shard: shard.index, source })?;
         links.push(Box::new(link));
         threads.push(handle);
     }
     let output_err = |source| RunError::Output { path: out_dir.display().to_string(), source };
-    let mut recorder = Recorder::create(out_dir, plan, &world, RecorderOptions::default()).map_err(output_err)?;
+    let mut recorder = Recorder::create(out_dir, plan, world, RecorderOptions::default()).map_err(output_err)?;
     let mut progress = Progress {
         recorder: &mut recorder,
         bar: bar.clone(),

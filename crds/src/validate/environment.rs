@@ -39,6 +39,22 @@ pub(super) fn check_environment(spec: &SimulationRunSpec, groups: &HashSet<Strin
         if let Some(h) = w.reference_height_m {
             p.range("spec.environment.wind.referenceHeightM", h, 1.0, 500.0);
         }
+        if let Some(u) = &w.urban {
+            if u.model == crate::environment::UrbanWindModel::OpenFoam {
+                p.add(
+                    "spec.environment.wind.urban.model",
+                    "openfoam is not supported yet: use diagnostic (the built-in model) or none",
+                );
+            }
+            if let Some(spacing) = u.spacing_m {
+                p.range("spec.environment.wind.urban.spacingM", spacing, 1.0, 100.0);
+            }
+            if let Some(n) = u.sectors
+                && !(4..=36).contains(&n)
+            {
+                p.add("spec.environment.wind.urban.sectors", format!("{n} is out of range: expected 4 to 36"));
+            }
+        }
     }
     if let Some(g) = &env.gnss {
         let base = "spec.environment.gnss";

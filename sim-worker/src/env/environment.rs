@@ -1,6 +1,7 @@
 //! `Environment`: the ordered list of factors of one shard, built from the run spec.
 
 use std::fmt;
+use std::sync::Arc;
 
 use sadesim_crds::environment as spec;
 
@@ -27,11 +28,12 @@ impl Environment {
         seed: u64,
         drone_global_indices: &[u32],
         group_of_drone: &[String],
+        urban_wind: Option<Arc<sadesim_wind::UrbanWindField>>,
     ) -> Environment {
         debug_assert_eq!(drone_global_indices.len(), group_of_drone.len());
         let mut out = Environment::new();
         if let Some(wind) = &env.wind {
-            out.push(Box::new(WindFactor::from_spec(wind, seed, drone_global_indices)));
+            out.push(Box::new(WindFactor::from_spec(wind, seed, drone_global_indices, urban_wind)));
         }
         if let Some(gnss) = &env.gnss
             && !gnss.dropouts.is_empty()
@@ -87,8 +89,13 @@ mod tests {
     use super::*;
 
     fn spec() -> spec::Environment {
-        let wind =
-            Wind { speed_mps: 5.0, direction_from_deg: 225.0, reference_height_m: None, turbulence: Turbulence::Light };
+        let wind = Wind {
+            speed_mps: 5.0,
+            direction_from_deg: 225.0,
+            reference_height_m: None,
+            turbulence: Turbulence::Light,
+            urban: None,
+        };
         spec::Environment { wind: Some(wind), gnss: None }
     }
 
@@ -114,21 +121,21 @@ mod tests {
 
     #[test]
     fn turbulence_is_reproducible_per_seed_and_drone_and_independent_of_sharding() {
-        let mut shard_a = Environment::from_spec(&spec(), 42, &[5, 9], &groups(2));
-        let mut shard_b = Environment::from_spec(&spec(), 42, &[9], &groups(1));
+        let mut shard_a = Environment::from_spec(&spec(), 42, &[5, 9], &groups(2), None);
+        let mut shard_b = Environment::from_spec(&spec(), 42, &[9], &groups(1), None);
         let a9 = series(&mut shard_a, 1, 500, 0.1);
         assert_eq!(a9, series(&mut shard_b, 0, 500, 0.1), "drone 9 alone in a shard sees the same wind");
-        let mut again = Environment::from_spec(&spec(), 42, &[5, 9], &groups(2));
+        let mut again = Environment::from_spec(&spec(), 42, &[5, 9], &groups(2), None);
         let a5 = series(&mut shard_a, 0, 500, 0.1);
         series(&mut again, 1, 500, 0.1);
         assert_eq!(a5, series(&mut again, 0, 500, 0.1));
-        let mut other_seed = Environment::from_spec(&spec(), 43, &[5], &groups(1));
+        let mut other_seed = Environment::from_spec(&spec(), 43, &[5], &groups(1), None);
         assert_ne!(a5, series(&mut other_seed, 0, 500, 0.1));
     }
 
     #[test]
     fn different_drones_get_uncorrelated_gusts() {
-        let mut env = Environment::from_spec(&spec(), 7, &[0, 1], &groups(2));
+        let mut env = Environment::from_spec(&spec(), 7, &[0, 1], &groups(2), None);
         // 1 s steps (the filters are exact at any step) over 20 000 s; vertical gusts
         // (L_w = 30 m, T = 6 s): ~1700 independent samples, so |correlation| of independent
         // streams is ~0.025 and stays well below 0.1.
@@ -142,8 +149,10 @@ mod tests {
 
     #[test]
     fn factors_follow_the_spec_and_debug_lists_them() {
-        assert!(Environment::from_spec(&spec::Environment::default(), 1, &[0], &groups(1)).factor_names().is_empty());
-        let env = Environment::from_spec(&spec(), 1, &[0], &groups(1));
+        assert!(
+            Environment::from_spec(&spec::Environment::default(), 1, &[0], &groups(1), None).factor_names().is_empty()
+        );
+        let env = Environment::from_spec(&spec(), 1, &[0], &groups(1), None);
         assert_eq!(env.factor_names(), vec!["wind"]);
         assert_eq!(format!("{env:?}"), r#"Environment { factors: ["wind"] }"#);
     }

@@ -96,7 +96,7 @@ mod tests {
         };
         let spec = EnvSpec { wind: None, gnss: Some(gnss) };
         let groups = ["survey".to_string(), "delivery".to_string()];
-        let mut env = Environment::from_spec(&spec, 1, &[0, 1], &groups);
+        let mut env = Environment::from_spec(&spec, 1, &[0, 1], &groups, None);
         assert_eq!(env.factor_names(), vec!["gnss-outage"]);
         for (t, survey, delivery) in [
             (0.0, true, true),

@@ -96,6 +96,21 @@ pub fn sky(plan: &RunPlan) -> Result<Option<Arc<sadesim_gnss::RunSky>>, RoleErro
     Ok(sky.map(Arc::new))
 }
 
+/// The shard's surroundings: `world`, `sky` and the urban wind field computed from them
+/// (logged with its grid and time on stderr, the role's log).
+pub fn surroundings(
+    plan: &RunPlan,
+    world: Arc<World>,
+    sky: Option<Arc<sadesim_gnss::RunSky>>,
+) -> crate::shard::Surroundings {
+    let started = std::time::Instant::now();
+    let s = crate::shard::Surroundings::new(plan, world, sky);
+    if let Some(field) = &s.wind {
+        eprintln!("{}", crate::env::describe_urban_wind(field, started.elapsed().as_secs_f64()));
+    }
+    s
+}
+
 /// Reads a RunPlan written by the planner (`plan.json`).
 ///
 /// # Errors

@@ -15,11 +15,9 @@ pub use sockets::ShardSockets;
 
 use std::io::{BufReader, BufWriter};
 use std::net::{TcpStream, ToSocketAddrs};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use sadesim_crds::plan::RunPlan;
-use sadesim_world::World;
 
 use super::RoleError;
 use crate::coordinator::LinkError;
@@ -39,7 +37,7 @@ const ATTEMPT_TIMEOUT: Duration = Duration::from_secs(5);
 /// Pause between attempts (a refused connection fails at once).
 const RETRY_PAUSE: Duration = Duration::from_millis(200);
 
-/// Runs shard `index` of `plan` in `world` (under `sky`, see [`Shard::new`]) against the coordinator at `coordinator`
+/// Runs shard `index` of `plan` in `surroundings` (see [`Shard::new`]) against the coordinator at `coordinator`
 /// (host:port), trying to reach it for up to `connect_timeout`.
 ///
 /// # Errors
@@ -47,14 +45,13 @@ const RETRY_PAUSE: Duration = Duration::from_millis(200);
 /// connection to it is lost before it says `Stop`.
 pub fn run(
     plan: &RunPlan,
-    world: Arc<World>,
-    sky: Option<Arc<sadesim_gnss::RunSky>>,
+    surroundings: &crate::shard::Surroundings,
     index: u32,
     coordinator: &str,
     mavlink: Option<&crate::shard::MavlinkOptions>,
     connect_timeout: Duration,
 ) -> Result<(), RoleError> {
-    let mut shard = Shard::new(plan, index, world, sky)?;
+    let mut shard = Shard::new(plan, index, surroundings)?;
     let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
     let stream = connect(coordinator, connect_timeout)?;
     // On stderr (the role's log), so a run across hosts says who was where.

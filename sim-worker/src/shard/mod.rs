@@ -8,6 +8,7 @@
 
 mod drone;
 mod mavlink_io;
+mod surroundings;
 #[cfg(test)]
 mod tests;
 
@@ -24,12 +25,12 @@ use crate::pilot::scripted::{self, GroundHeight};
 use crate::protocol::{FromShard, PROTOCOL_VERSION, ToShard};
 use crate::sensors::SensorSuite;
 use crate::vehicle;
-use sadesim_gnss::RunSky;
 use sadesim_world::World;
 
 pub use crate::vehicle::ground::{CRASH_HORIZONTAL_MPS, CRASH_VERTICAL_MPS};
 pub use drone::DroneSim;
 pub use mavlink_io::{MavlinkIo, MavlinkQueues, NoMavlinkIo};
+pub use surroundings::Surroundings;
 
 /// Why a shard could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -51,6 +52,10 @@ pub enum ShardError {
     /// sky with `roles::sky`).
     #[error("spec.environment.gnss.constellation is {0} but the shard was given {1}")]
     SkyMismatch(&'static str, &'static str),
+    /// The urban wind field and the plan disagree (a caller's bug: `Surroundings::new`
+    /// computes the field the run wants).
+    #[error("the run {0} an urban wind field but the shard was given {1}")]
+    WindMismatch(&'static str, &'static str),
 }
 
 /// How a shard's drones expose MAVLink.
@@ -117,18 +122,25 @@ pub const MAVLINK_IO_PERIOD_S: f64 = 0.02;
 pub const ENV_SAMPLE_DIVIDER: u64 = 10;
 
 impl Shard {
-    /// Builds shard `index` of `plan` in `world`, under `sky` when the run names a GNSS
-    /// constellation (its drones then carry the ranging receiver).
+    /// Builds shard `index` of `plan` in its surroundings: the world, the sky when the run
+    /// names a GNSS constellation (its drones then carry the ranging receiver), the urban
+    /// wind field when it has wind among buildings.
     ///
     /// # Errors
     /// See [`ShardError`].
-    pub fn new(plan: &RunPlan, index: u32, world: Arc<World>, sky: Option<Arc<RunSky>>) -> Result<Self, ShardError> {
+    pub fn new(plan: &RunPlan, index: u32, surroundings: &Surroundings) -> Result<Self, ShardError> {
+        let Surroundings { world, sky, wind } = surroundings.clone();
         let shard = *plan.shards.get(index as usize).ok_or(ShardError::NoSuchShard(index))?;
         let spec = &plan.spec;
         let wants_sky = spec.environment().gnss.is_some_and(|g| g.constellation.is_some());
         match (wants_sky, &sky) {
             (true, None) => return Err(ShardError::SkyMismatch("set", "no sky")),
             (false, Some(_)) => return Err(ShardError::SkyMismatch("absent", "a sky")),
+            _ => {}
+        }
+        match (crate::env::wants_urban_wind(spec, &world), &wind) {
+            (true, None) => return Err(ShardError::WindMismatch("wants", "none")),
+            (false, Some(_)) => return Err(ShardError::WindMismatch("does not want", "one")),
             _ => {}
         }
         let frame = LocalFrame::new(spec.origin.geo());
@@ -163,7 +175,7 @@ impl Shard {
         let fenced = planned.iter().any(|d| spec.fleet[d.group_index as usize].geofence.is_some());
         let indices: Vec<u32> = planned.iter().map(|d| d.index).collect();
         let groups: Vec<String> = planned.iter().map(|d| d.group.clone()).collect();
-        let env = Environment::from_spec(&env_spec, plan.seed, &indices, &groups);
+        let env = Environment::from_spec(&env_spec, plan.seed, &indices, &groups, wind);
         Ok(Self {
             index,
             world,

@@ -23,7 +23,7 @@ fn plan() -> RunPlan {
 /// Shard 0 of `plan` with MAVLink sessions and no sockets.
 fn shard(plan: &RunPlan) -> Shard {
     let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
-    let mut shard = Shard::new(plan, 0, world, None).expect("the shard builds");
+    let mut shard = Shard::new(plan, 0, &Surroundings::new(plan, world, None)).expect("the shard builds");
     shard.enable_mavlink(plan, 0).expect("every preset has a parameter table");
     shard
 }
@@ -179,7 +179,7 @@ fn frames_are_read_and_sent_only_at_exchanges_every_20_ms_of_sim_time() {
 fn a_shard_without_mavlink_has_no_queues() {
     let plan = plan();
     let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
-    let mut shard = Shard::new(&plan, 0, world, None).unwrap();
+    let mut shard = Shard::new(&plan, 0, &Surroundings::new(&plan, world, None)).unwrap();
     let mut io = Recorder::default();
     shard.advance_with(10, &mut io);
     assert!(shard.mavlink_queues().is_empty());

@@ -100,7 +100,7 @@ mod tests {
         let mut plan = plan_of(run_with_groups(&[("a", 1)]).build());
         plan.drones[0].ports.endpoint = 0; // any free port
         let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
-        let mut shard = Shard::new(&plan, 0, world, None).unwrap();
+        let mut shard = Shard::new(&plan, 0, &crate::shard::Surroundings::new(&plan, world, None)).unwrap();
         let localhost = std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
         let options = MavlinkOptions { bind_ip: localhost, api_host: None, unix_epoch_at_start_us: 0 };
         let mut sockets = ShardSockets::open(&mut shard, &plan, &options).unwrap();

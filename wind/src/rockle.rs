@@ -1,0 +1,212 @@
+//! The first guess of the diagnostic model, after Röckle (1990) as urban dispersion codes
+//! use it (QUIC-URB: Pardyjak & Brown 2003; Singh et al. 2008): the undisturbed log profile,
+//! then, per building, empirical zones where the streamwise wind is replaced:
+//!
+//! - **upwind displacement** (the front eddy): an ellipsoid of length
+//!   `L_F = 2 W / (1 + 0.8 W / H)` and height `0.6 H` before the upwind face, wind 0;
+//! - **cavity** (near wake): an ellipsoid of length
+//!   `L_R = 1.8 W / ((L / H)^0.3 (1 + 0.24 W / H))` (Fackrell 1984), height `H` and the
+//!   building's width behind the downwind face, reversed flow
+//!   `u = -u_H (1 - d / d_c)^2` where `d` is the distance behind the face and `d_c` the
+//!   cavity's length at that height and offset;
+//! - **far wake**: out to three cavity lengths, the deficit `u = u0(z) (1 - (d_c / d)^1.5)`.
+//!
+//! `L` is the building's length along the wind, `W` its width across it and `H` its height
+//! (the extent of its footprint projected on the wind's axes: an oblique or irregular
+//! building is its bounding rectangle in the wind frame). Where zones of several buildings
+//! overlap the lowest streamwise wind wins (a cavity inside another's wake stays a
+//! cavity), so the guess does not depend on the order of the buildings. Rooftop separation
+//! and the street-canyon vortex of later QUIC versions are not modelled: a canyon narrower
+//! than the cavity gets the upwind building's reversed flow, cut off by the next facade.
+//! The guess is not mass-consistent; [`crate::solver`] makes it so.
+
+use sadesim_world::World;
+
+use crate::grid::WindGrid;
+use crate::profile::LogProfile;
+
+/// Unit vectors of the wind frame in ENU (east, north): `downwind` where the air goes,
+/// `across` 90° to its left.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WindAxes {
+    pub downwind: [f64; 2],
+    pub across: [f64; 2],
+}
+
+impl WindAxes {
+    /// For a wind blowing *from* `direction_from_deg` (clockwise from north): from 270°
+    /// (west) it blows toward +east.
+    pub fn from_deg(direction_from_deg: f64) -> Self {
+        let t = direction_from_deg.to_radians();
+        let downwind = [-t.sin(), -t.cos()];
+        Self { downwind, across: [-downwind[1], downwind[0]] }
+    }
+
+    /// `(s, t)`: metres along the wind and across it.
+    fn project(&self, e: f64, n: f64) -> (f64, f64) {
+        (e * self.downwind[0] + n * self.downwind[1], e * self.across[0] + n * self.across[1])
+    }
+}
+
+/// One building in the wind frame.
+#[derive(Clone, Copy, Debug)]
+struct Obstacle {
+    /// Upwind and downwind faces, metres along the wind.
+    s_front: f64,
+    s_back: f64,
+    /// Centre and half-width across the wind, metres.
+    t_centre: f64,
+    half_width: f64,
+    base_up_m: f64,
+    height_m: f64,
+}
+
+impl Obstacle {
+    fn length_m(&self) -> f64 {
+        self.s_back - self.s_front
+    }
+
+    fn width_m(&self) -> f64 {
+        2.0 * self.half_width
+    }
+
+    /// Front-eddy length `L_F`, metres.
+    fn front_length_m(&self) -> f64 {
+        let (w, h) = (self.width_m(), self.height_m);
+        2.0 * w / (1.0 + 0.8 * w / h)
+    }
+
+    /// Cavity length `L_R`, metres (Fackrell 1984, as Röckle and QUIC use it).
+    fn cavity_length_m(&self) -> f64 {
+        let (l, w, h) = (self.length_m().max(1e-3), self.width_m(), self.height_m);
+        1.8 * w / ((l / h).powf(0.3) * (1.0 + 0.24 * w / h))
+    }
+}
+
+/// The streamwise first guess per cell for one wind direction: the log profile, with each
+/// building's zones applied (solid cells 0). Multiply by the axes' `downwind` for the vector.
+pub fn first_guess(world: &World, grid: &WindGrid, axes: WindAxes, profile: &LogProfile) -> Vec<f64> {
+    let [nx, ny, nz] = grid.dims;
+    let mut u = vec![0.0; grid.cells()];
+    for k in 0..nz {
+        for j in 0..ny {
+            for i in 0..nx {
+                let c = grid.index(i, j, k);
+                if !grid.solid[c] {
+                    u[c] = profile.factor(grid.height_agl_m(i, j, k));
+                }
+            }
+        }
+    }
+    for b in world.buildings() {
+        let (mut s0, mut s1, mut t0, mut t1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+        for [e, n] in b.footprint().outer() {
+            let (s, t) = axes.project(*e, *n);
+            (s0, s1, t0, t1) = (s0.min(s), s1.max(s), t0.min(t), t1.max(t));
+        }
+        let o = Obstacle {
+            s_front: s0,
+            s_back: s1,
+            t_centre: (t0 + t1) / 2.0,
+            half_width: (t1 - t0) / 2.0,
+            base_up_m: b.base_up_m(),
+            height_m: b.height_m(),
+        };
+        apply_zones(grid, axes, profile, &o, &mut u);
+    }
+    u
+}
+
+/// Lowers `u` in the obstacle's front eddy, cavity and far wake.
+fn apply_zones(grid: &WindGrid, axes: WindAxes, profile: &LogProfile, o: &Obstacle, u: &mut [f64]) {
+    if o.half_width <= 0.0 || o.height_m <= 0.0 {
+        return;
+    }
+    let (lf, lr) = (o.front_length_m(), o.cavity_length_m());
+    // Wind at roof height over the building's ground, the cavity's return flow scale.
+    let u_roof = profile.factor(o.height_m);
+    // The zones' box in the wind frame, then in ENU (its four corners' bounds).
+    let (s_lo, s_hi) = (o.s_front - lf, o.s_back + 3.0 * lr);
+    let (t_lo, t_hi) = (o.t_centre - o.half_width, o.t_centre + o.half_width);
+    let mut box_en = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    for (s, t) in [(s_lo, t_lo), (s_lo, t_hi), (s_hi, t_lo), (s_hi, t_hi)] {
+        let e = s * axes.downwind[0] + t * axes.across[0];
+        let n = s * axes.downwind[1] + t * axes.across[1];
+        box_en = [box_en[0].min(e), box_en[1].min(n), box_en[2].max(e), box_en[3].max(n)];
+    }
+    let h = grid.spacing_m;
+    let [nx, ny, nz] = grid.dims;
+    let cell = |v: f64, corner: f64, n: usize| (((v - corner) / h).floor().max(0.0) as usize).min(n);
+    let (i0, i1) = (cell(box_en[0], grid.corner_m[0], nx), cell(box_en[2], grid.corner_m[0], nx - 1) + 1);
+    let (j0, j1) = (cell(box_en[1], grid.corner_m[1], ny), cell(box_en[3], grid.corner_m[1], ny - 1) + 1);
+    let k1 = cell(o.base_up_m + o.height_m, grid.corner_m[2], nz - 1) + 1;
+    let k0 = cell(o.base_up_m, grid.corner_m[2], nz);
+    for k in k0..k1 {
+        for j in j0..j1 {
+            for i in i0..i1 {
+                let c = grid.index(i, j, k);
+                if grid.solid[c] {
+                    continue;
+                }
+                let [e, n, up] = grid.centre(i, j, k);
+                let (s, t) = axes.project(e, n);
+                let z = (up - o.base_up_m) / o.height_m;
+                let y = (t - o.t_centre) / o.half_width;
+                if !(0.0..=1.0).contains(&z) || y.abs() > 1.0 {
+                    continue;
+                }
+                let guess = if s < o.s_front {
+                    // The front eddy: an ellipsoid 0.6 H high.
+                    let zf = z / 0.6;
+                    let reach = lf * ((1.0 - zf * zf).max(0.0) * (1.0 - y * y)).sqrt();
+                    if o.s_front - s <= reach { Some(0.0) } else { None }
+                } else if s > o.s_back {
+                    let d = s - o.s_back;
+                    let d_c = lr * ((1.0 - z * z) * (1.0 - y * y)).sqrt();
+                    if d <= d_c {
+                        let r = 1.0 - d / d_c;
+                        Some(-u_roof * r * r)
+                    } else if d <= 3.0 * d_c {
+                        Some(profile.factor(grid.height_agl_m(i, j, k)) * (1.0 - (d_c / d).powf(1.5)))
+                    } else {
+                        None
+                    }
+                } else {
+                    None
+                };
+                if let Some(g) = guess {
+                    u[c] = u[c].min(g);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_wind_axes_point_where_the_air_goes() {
+        let west = WindAxes::from_deg(270.0);
+        assert!((west.downwind[0] - 1.0).abs() < 1e-12 && west.downwind[1].abs() < 1e-12);
+        // 90° left of an eastward wind is north.
+        assert!((west.across[1] - 1.0).abs() < 1e-12);
+        let north = WindAxes::from_deg(0.0);
+        assert!((north.downwind[1] + 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_cube_has_the_published_zone_lengths() {
+        let cube =
+            Obstacle { s_front: 0.0, s_back: 10.0, t_centre: 0.0, half_width: 5.0, base_up_m: 0.0, height_m: 10.0 };
+        // L_F = 2 W / 1.8 = 1.11 H; L_R = 1.8 / 1.24 = 1.45 H.
+        assert!((cube.front_length_m() - 100.0 / 9.0).abs() < 1e-9);
+        assert!((cube.cavity_length_m() - 18.0 / 1.24).abs() < 1e-9);
+        // A long building (L = 4 H) has a shorter cavity, a wide one (W = 4 H) a longer.
+        let long = Obstacle { s_back: 40.0, ..cube };
+        let wide = Obstacle { half_width: 20.0, ..cube };
+        assert!(long.cavity_length_m() < cube.cavity_length_m());
+        assert!(wide.cavity_length_m() > cube.cavity_length_m());
+    }
+}

@@ -1,0 +1,87 @@
+//! The classic reference: a surface-mounted cube in a boundary layer.
+
+use nalgebra::Vector3;
+use sadesim_world::{Building, Footprint, World};
+
+use super::*;
+
+/// Cube edge, metres, and the cell edge: ten cells per cube height.
+const H: f64 = 20.0;
+const CELL: f64 = 2.0;
+
+/// A cube of edge `H` centred on the origin, in a 300 m square, and its field for a wind
+/// from the west (sector 6 of 8).
+fn cube_field() -> (World, UrbanWindField) {
+    let half = H / 2.0;
+    let footprint = Footprint::new(vec![[-half, -half], [half, -half], [half, half], [-half, half]], vec![]).unwrap();
+    let world = World::of_buildings(150.0, vec![Building::new(footprint, 0.0, H).unwrap()]);
+    let mut field = UrbanWindField::new(&world, GridSpec { spacing_m: CELL, top_factor: 2.0 }, 8);
+    field.ensure_sector(&world, 6);
+    (world, field)
+}
+
+/// East component along the cube's centreline (north = +1 m, the first cell row north of
+/// it) in the lowest cells above the roughness length (where the undisturbed profile is
+/// not zero: 3 m, 0.15 H), from the leeward face downstream: `(metres behind the face, u)`.
+fn centreline(field: &UrbanWindField) -> Vec<(f64, f64)> {
+    let g = &field.grid;
+    let s = &field.sectors[0].1;
+    let j = ((1.0 - g.corner_m[1]) / g.spacing_m).floor() as usize;
+    let k = (0..g.dims[2]).find(|&k| field.profile.factor(g.height_agl_m(0, j, k)) > 0.0).expect("a level above z0");
+    (0..g.dims[0])
+        .map(|i| (g.centre(i, j, k)[0] - H / 2.0, f64::from(s.east[g.index(i, j, k)])))
+        .filter(|(x, _)| *x > 0.0)
+        .collect()
+}
+
+#[test]
+fn behind_a_cube_the_flow_reverses_and_reattaches_within_the_published_range() {
+    let (_, field) = cube_field();
+    let line = centreline(&field);
+    assert!(line[0].1 < 0.0, "reversed flow right behind the cube: {:?}", &line[..3]);
+    // Reattachment: where u turns positive again, between the two cell centres.
+    let k = line.iter().position(|(_, u)| *u >= 0.0).expect("the flow reattaches");
+    let ((x0, u0), (x1, u1)) = (line[k - 1], line[k]);
+    let reattach_h = (x0 + (x1 - x0) * (-u0) / (u1 - u0)) / H;
+    eprintln!("built-in model: reattachment {reattach_h:.2} H behind the cube (Martinuzzi & Tropea 1993: 1.6 H)");
+    assert!((1.0..=2.5).contains(&reattach_h), "reattachment {reattach_h:.2} H");
+    // Further downstream the wake recovers towards the profile.
+    let far = line.iter().find(|(x, _)| *x > 6.0 * H).expect("a far point").1;
+    assert!(far > 0.5 * field.profile.factor(3.0), "far wake {far}");
+}
+
+#[test]
+fn the_adjusted_field_conserves_mass_and_the_first_guess_does_not() {
+    let (_, field) = cube_field();
+    let s = &field.sectors[0].1;
+    eprintln!(
+        "mass-conservation residual: first guess {:.3e}, adjusted {:.3e} ({} iterations)",
+        s.first_guess_residual, s.residual, s.iterations
+    );
+    assert!(s.first_guess_residual > 0.1, "{}", s.first_guess_residual);
+    assert!(s.residual < 1e-5, "{}", s.residual);
+}
+
+#[test]
+fn the_flow_goes_around_and_over_the_cube_faster_than_the_profile() {
+    let (_, field) = cube_field();
+    let profile = |z: f64| field.profile.factor(z);
+    // Beside the cube at mid height, and just over its roof, the air speeds up.
+    let side = field.factor_at(&Vector3::new(0.0, H / 2.0 + 3.0, H / 2.0), 270.0, H / 2.0).unwrap();
+    assert!(side.x > profile(H / 2.0), "side {side:?} vs {}", profile(H / 2.0));
+    let over = field.factor_at(&Vector3::new(0.0, 0.0, H + 3.0), 270.0, H + 3.0).unwrap();
+    assert!(over.x > profile(H + 3.0) * 0.9, "over {over:?}");
+    // Inside the cube nothing moves; far upstream the profile is untouched.
+    assert_eq!(field.factor_at(&Vector3::new(0.0, 0.0, 5.0), 270.0, 5.0).unwrap(), Vector3::zeros());
+    let upstream = field.factor_at(&Vector3::new(-140.0, 0.0, 30.0), 270.0, 30.0).unwrap();
+    assert!((upstream.x - profile(30.0)).abs() < 0.05 * profile(30.0), "{upstream:?}");
+    // A direction between sectors needs its two sectors.
+    assert!(field.factor_at(&Vector3::new(0.0, 60.0, 10.0), 280.0, 10.0).is_none());
+}
+
+#[test]
+fn the_same_world_gives_the_same_bits() {
+    let (_, a) = cube_field();
+    let (_, b) = cube_field();
+    assert_eq!(a, b);
+}
