@@ -5,7 +5,7 @@ use std::fmt::Write;
 
 use sadesim_crds::zones::AltitudeReference;
 
-use super::draw::{VIOLATION_FILL, ZONE_STROKE, drones, esc, open_svg, path_data, text};
+use super::draw::{VIOLATION_FILL, ZONE_STROKE, drones, esc, open_svg, path_data, text, title};
 use crate::report::data::{RunData, Track};
 use crate::report::model::{self, GroupStyle, M_PER_FT, ZoneShape, ft};
 
@@ -37,15 +37,7 @@ pub fn altitude(data: &RunData, styles: &[GroupStyle], zones: &[ZoneShape]) -> S
     let height = ALT_TOP + panels as f64 * (ALT_PANEL_H + ALT_GAP) + 10.0;
     let mut out = String::new();
     open_svg(&mut out, "altitude", ALT_WIDTH, height, &format!("Altitude timeline of {run}"));
-    text(
-        &mut out,
-        ALT_WIDTH / 2.0,
-        34.0,
-        24.0,
-        "middle",
-        r#"font-weight="bold""#,
-        &format!("Height above ground of run {run}, by group (thick: inside a zone)"),
-    );
+    title(&mut out, ALT_WIDTH, &format!("Height above ground of run {run}, by group (thick: inside a zone)"));
     let end_s = data
         .summary
         .as_ref()

@@ -36,6 +36,11 @@ pub(super) fn text(out: &mut String, x: f64, y: f64, size: f64, anchor: &str, ex
     );
 }
 
+/// A plot's title: bold, centred over a plot `width` pixels wide.
+pub(super) fn title(out: &mut String, width: f64, content: &str) {
+    text(out, width / 2.0, 34.0, 24.0, "middle", r#"font-weight="bold""#, content);
+}
+
 pub(super) fn halo_text(out: &mut String, x: f64, y: f64, size: f64, anchor: &str, extra: &str, content: &str) {
     let attrs = format!(r##"stroke="#ffffff" stroke-width="4" stroke-linejoin="round" paint-order="stroke" {extra}"##);
     text(out, x, y, size, anchor, &attrs, content);

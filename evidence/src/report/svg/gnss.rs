@@ -6,7 +6,7 @@
 
 use std::fmt::Write;
 
-use super::draw::{esc, open_svg, path_data, text};
+use super::draw::{esc, open_svg, path_data, text, title};
 use crate::report::data::{GnssSample, RunData};
 use crate::report::model::GroupStyle;
 
@@ -62,15 +62,7 @@ pub fn gnss(data: &RunData, styles: &[GroupStyle]) -> Option<String> {
     let height = TOP + styles.len().max(1) as f64 * group_h;
     let mut out = String::new();
     open_svg(&mut out, "gnss-timeline", WIDTH, height, &format!("GNSS timeline of {run}"));
-    text(
-        &mut out,
-        WIDTH / 2.0,
-        34.0,
-        24.0,
-        "middle",
-        r#"font-weight="bold""#,
-        &format!("GNSS of run {run} by group: satellites used, HDOP and estimate error"),
-    );
+    title(&mut out, WIDTH, &format!("GNSS of run {run} by group: satellites used, HDOP and estimate error"));
     for (g, style) in styles.iter().enumerate() {
         let group_top = TOP + g as f64 * group_h;
         text(&mut out, LEFT, group_top + 20.0, 18.0, "start", r#"font-weight="bold""#, &style.name);

@@ -4,7 +4,7 @@
 
 use std::fmt::Write;
 
-use super::draw::{esc, open_svg, path_data, text};
+use super::draw::{esc, open_svg, path_data, text, title};
 use super::map::{Footprint, MapView, close_panel, data_bounds, draw_buildings, open_panel};
 use crate::report::data::{GnssSample, RunData, Track};
 
@@ -63,15 +63,7 @@ pub fn gnss_map(data: &RunData, buildings: &[Footprint]) -> Option<String> {
     let height = TOP + PANEL_H + 110.0;
     let mut out = String::new();
     open_svg(&mut out, "gnss-map", WIDTH, height, &format!("GNSS error map of {run}"));
-    text(
-        &mut out,
-        WIDTH / 2.0,
-        34.0,
-        24.0,
-        "middle",
-        r#"font-weight="bold""#,
-        &format!("Estimate error along the tracks of run {run}"),
-    );
+    title(&mut out, WIDTH, &format!("Estimate error along the tracks of run {run}"));
     let v = MapView::fit([(WIDTH - PANEL_W) / 2.0, TOP, PANEL_W, PANEL_H], bounds, 0.04);
     let ticks = open_panel(&mut out, "gnss", "Horizontal distance of the estimate from the truth, once a second", &v);
     draw_buildings(&mut out, &v, buildings);

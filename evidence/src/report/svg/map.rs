@@ -3,7 +3,7 @@
 
 use std::fmt::Write;
 
-use super::draw::{VIOLATION_FILL, ZONE_FILL, ZONE_STROKE, drones, esc, halo_text, open_svg, path_data, text};
+use super::draw::{VIOLATION_FILL, ZONE_FILL, ZONE_STROKE, drones, esc, halo_text, open_svg, path_data, text, title};
 use crate::report::data::{RunData, Sample, Track};
 use crate::report::model::{self, GroupStyle, ZoneShape, ft};
 
@@ -99,15 +99,7 @@ pub fn map(data: &RunData, styles: &[GroupStyle], zones: &[ZoneShape], buildings
     let height = MAP_TOP + MAP_PANEL + 80.0 + legend_rows as f64 * 26.0 + 20.0;
     let mut out = String::new();
     open_svg(&mut out, "map", MAP_WIDTH, height, &format!("Flight paths of {run}"));
-    text(
-        &mut out,
-        MAP_WIDTH / 2.0,
-        34.0,
-        24.0,
-        "middle",
-        r#"font-weight="bold""#,
-        &format!("Flight paths of run {run}: {} by group, zones in pink", drones(tracks.len())),
-    );
+    title(&mut out, MAP_WIDTH, &format!("Flight paths of run {run}: {} by group, zones in pink", drones(tracks.len())));
     let Some(bounds) = data_bounds(tracks, zones) else {
         text(&mut out, MAP_WIDTH / 2.0, MAP_TOP + 100.0, 20.0, "middle", "", "No trajectory recorded and no zones");
         out.push_str("</svg>");
