@@ -11,6 +11,8 @@ mod mavlink_io;
 mod surroundings;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod urban_wind_tests;
 
 use std::sync::Arc;
 
