@@ -114,9 +114,27 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
         Command::Assets { command: AssetsCommand::Build { file, asset_cache, quiet } } => {
             assets_cmd::build(&file, asset_cache, quiet, out)
         }
-        Command::Assets { command: AssetsCommand::Show { file, png, svg, asset_cache, no_asset_cache, quiet } } => {
+        Command::Assets {
+            command:
+                AssetsCommand::Show {
+                    file,
+                    png,
+                    svg,
+                    asset_cache,
+                    no_asset_cache,
+                    quiet,
+                    wind_slice_agl,
+                    wind_png,
+                    wind_area,
+                },
+        } => {
             let cache = if no_asset_cache { assets_cmd::Cache::Off } else { assets_cmd::Cache::At(asset_cache) };
-            assets_cmd::show(&file, &png, svg.as_deref(), cache, quiet, out)
+            let wind = wind_slice_agl.map(|height_agl_m| assets_cmd::WindSliceArgs {
+                height_agl_m,
+                png: wind_png,
+                area: wind_area,
+            });
+            assets_cmd::show(&file, &png, svg.as_deref(), cache, quiet, wind.as_ref(), out)
         }
         Command::Osm { file, origin, extent_m, geojson, glb, json } => {
             let targets = osm_cmd::Targets { geojson: geojson.as_deref(), glb: glb.as_deref() };

@@ -56,6 +56,12 @@ pub enum AssetsError {
         #[source]
         source: sadesim_world::bundle::BundleError,
     },
+    #[error("urban wind field {url}: {source}")]
+    Wind {
+        url: String,
+        #[source]
+        source: crate::zarr::ZarrError,
+    },
     #[error("asset cache: no cache folder: set {CACHE_DIR_ENV}, XDG_CACHE_HOME or HOME")]
     NoCacheDir,
 }
@@ -145,9 +151,34 @@ pub fn footprint_polygon(footprint: &Footprint, frame: &LocalFrame, up_m: f64) -
 /// Archive errors (open, verify listing, upload), the world's files (unreadable, not a map
 /// or DEM) and local write errors, each naming the URL or file.
 pub fn build_assets(plan: &RunPlan, archive_url: &str, scratch: &Path) -> Result<AssetsOutcome, AssetsError> {
+    build_run_assets(plan, archive_url, scratch, |_, _| {}).map(|(world, _)| world)
+}
+
+/// [`build_assets`], and the urban wind field of a run that has one, every sector
+/// ([`crate::wind::ensure_wind`]) with `progress(done, total)` after each computed sector:
+/// what the `<run>-assets` Job does, so the run's roles load the field instead of computing
+/// it.
+///
+/// # Errors
+/// As [`build_assets`].
+pub fn build_run_assets(
+    plan: &RunPlan,
+    archive_url: &str,
+    scratch: &Path,
+    mut progress: impl FnMut(u32, u32),
+) -> Result<(AssetsOutcome, Option<crate::wind::WindOutcome>), AssetsError> {
     let key = &plan.asset_cache_key;
+    let origin = plan.spec.origin.geo();
     let build = || Ok(crate::world::load_world(&plan.spec)?);
-    ensure_bundle(key, plan.spec.origin.geo(), archive_url, scratch, build).map(|(outcome, _)| outcome)
+    let (outcome, world) = ensure_bundle(key, origin, archive_url, scratch, build)?;
+    let Some(request) = crate::wind::wind_request(&plan.spec, &world) else { return Ok((outcome, None)) };
+    let build_wind = || {
+        let mut field = sadesim_wind::UrbanWindField::new(&world, request.grid, request.sectors);
+        field.ensure_all(&world, &mut progress);
+        field
+    };
+    let (wind, _) = crate::wind::ensure_wind(key, &request, origin, archive_url, scratch, build_wind)?;
+    Ok((outcome, Some(wind)))
 }
 
 /// The world of asset cache key `key` (the planner's `asset_key`; `origin` is the run's)

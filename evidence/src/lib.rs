@@ -11,4 +11,6 @@ pub mod gltf;
 pub mod gnss;
 #[cfg(feature = "report")]
 pub mod report;
+pub mod wind;
 pub mod world;
+pub mod zarr;

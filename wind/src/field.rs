@@ -14,6 +14,11 @@ use crate::solver::adjust;
 /// Default number of inflow sectors (45° apart).
 pub const DEFAULT_SECTORS: u32 = 8;
 
+/// Version of the built-in model's numbers: part of the asset cache key of a stored field,
+/// so a change to the first guess or the solver that changes any value must bump it (a
+/// stored field of the old model is then a cache miss, not a silently different run).
+pub const DIAGNOSTIC_MODEL_VERSION: u32 = 1;
+
 /// One sector's field: the wind blowing from `direction_from_deg`, per cell, ENU, as
 /// factors of the reference wind (f32: a field is tens of megabytes; the factors need no
 /// more than 7 digits).
@@ -81,7 +86,17 @@ impl UrbanWindField {
         self.sectors.sort_by_key(|(s, _)| *s);
     }
 
-    fn sector(&self, k: u32) -> Option<&SectorField> {
+    /// Computes every sector not computed yet (what the asset cache stores, so any
+    /// direction reuses it), calling `progress(done, total)` after each.
+    pub fn ensure_all(&mut self, world: &World, mut progress: impl FnMut(u32, u32)) {
+        for k in 0..self.sector_count {
+            self.ensure_sector(world, k);
+            progress(k + 1, self.sector_count);
+        }
+    }
+
+    /// Sector `k`, when computed.
+    pub fn sector(&self, k: u32) -> Option<&SectorField> {
         self.sectors.iter().find(|(s, _)| *s == k).map(|(_, f)| f)
     }
 

@@ -334,7 +334,31 @@ pub enum AssetsCommand {
         /// No progress spinner.
         #[arg(long, short)]
         quiet: bool,
+        /// Also draw a horizontal slice of the run's urban wind field this many metres above
+        /// the ground (the scenario's wind speed and direction; needs wind among buildings).
+        #[arg(long, value_name = "METRES")]
+        wind_slice_agl: Option<f64>,
+        /// Where to write the wind slice.
+        #[arg(long, default_value = "wind-slice.png", requires = "wind_slice_agl")]
+        wind_png: PathBuf,
+        /// The slice's area, metres east and north of the origin: EAST_MIN,NORTH_MIN,EAST_MAX,NORTH_MAX
+        /// (default: the whole world).
+        #[arg(long, value_name = "E0,N0,E1,N1", requires = "wind_slice_agl", value_parser = parse_area)]
+        wind_area: Option<[f64; 4]>,
     },
+}
+
+/// `--wind-area`: four numbers, west < east and south < north.
+fn parse_area(s: &str) -> Result<[f64; 4], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|_| format!("{x:?} is not a number")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [e0, n0, e1, n1] if e0 < e1 && n0 < n1 && v.iter().all(|x| x.is_finite()) => Ok([e0, n0, e1, n1]),
+        [_, _, _, _] => Err("expected EAST_MIN < EAST_MAX and NORTH_MIN < NORTH_MAX".into()),
+        _ => Err(format!("expected four comma-separated numbers E0,N0,E1,N1, found {}", v.len())),
+    }
 }
 
 /// `sadesim archive ...`

@@ -67,6 +67,12 @@ fn world_and_plan(file: &Path, cache: Cache, quiet: bool, out: &mut dyn Write) -
     }
 }
 
+/// The cache URL an entry's URL (`<cache>/assets/<key>/world/`) is in: the wind entry goes
+/// beside the world's.
+fn cache_of(outcome: &AssetsOutcome) -> String {
+    outcome.url().split("/assets/").next().unwrap_or_default().to_string()
+}
+
 /// The world's statistics, as both commands print them.
 fn describe(world: &World, out: &mut dyn Write) -> std::io::Result<()> {
     let s = world.stats();
@@ -102,6 +108,15 @@ pub(super) fn build(file: &Path, cache: Option<String>, quiet: bool, out: &mut d
     let outcome = outcome.expect("a cache was given");
     writeln!(out, "world of run {}: {outcome}", plan.run.name)?;
     describe(&world, out)?;
+    // The cache URL the world came from, for the wind entry beside it.
+    let cache_url = cache_of(&outcome);
+    let started = std::time::Instant::now();
+    let wind = crate::runner::run_wind(&plan, &world, Some(&cache_url), !quiet && std::io::stderr().is_terminal())
+        .map_err(|source| CliError::Run { path: file.display().to_string(), source })?;
+    if let Some((Some(outcome), field)) = wind {
+        writeln!(out, "{outcome}")?;
+        writeln!(out, "  {}", sim_worker::env::describe_urban_wind(&field, started.elapsed().as_secs_f64()))?;
+    }
     Ok(Outcome::Success)
 }
 
@@ -112,6 +127,7 @@ pub(super) fn show(
     svg: Option<&Path>,
     cache: Cache,
     quiet: bool,
+    wind: Option<&WindSliceArgs>,
     out: &mut dyn Write,
 ) -> Result<Outcome, CliError> {
     let Some(Planned { outcome, world, plan }) = world_and_plan(file, cache, quiet, out)? else {
@@ -127,7 +143,7 @@ pub(super) fn show(
         write(svg, picture.as_bytes())?;
     }
     writeln!(out, "world of run {}: preview {}", plan.run.name, png.display())?;
-    if let Some(outcome) = outcome {
+    if let Some(outcome) = &outcome {
         writeln!(out, "  {outcome}")?;
     }
     describe(&world, out)?;
@@ -138,5 +154,74 @@ pub(super) fn show(
         plan.drones.len(),
         plan.spec.fleet.len()
     )?;
+    if let Some(args) = wind {
+        // The cache the world came from holds the field too (or gets it); without a cache
+        // (`--no-asset-cache`) it is computed for the run's direction only.
+        let cache = outcome.as_ref().map(cache_of);
+        wind_slice(file, &world, &plan, cache.as_deref(), quiet, args, out)?;
+    }
     Ok(Outcome::Success)
+}
+
+/// `assets show --wind-slice-agl`: what to draw and where.
+pub struct WindSliceArgs {
+    pub height_agl_m: f64,
+    pub png: std::path::PathBuf,
+    pub area: Option<[f64; 4]>,
+}
+
+/// Draws the slice of the run's field (from the cache, or computed for its direction).
+fn wind_slice(
+    file: &Path,
+    world: &World,
+    plan: &RunPlan,
+    cache: Option<&str>,
+    quiet: bool,
+    args: &WindSliceArgs,
+    out: &mut dyn Write,
+) -> Result<(), CliError> {
+    use sadesim_evidence::report::svg::{WindSlice, wind_map};
+    let path = file.display().to_string();
+    if !(args.height_agl_m.is_finite() && args.height_agl_m > 0.0) {
+        return Err(CliError::Failed(format!("--wind-slice-agl {}: expected metres above 0", args.height_agl_m)));
+    }
+    let wind = plan.spec.environment().wind.ok_or_else(|| {
+        CliError::Failed(format!("--wind-slice-agl: {path} has no spec.environment.wind: there is no wind to draw"))
+    })?;
+    let progress = !quiet && std::io::stderr().is_terminal();
+    let field = crate::runner::run_wind(plan, world, cache, progress)
+        .map_err(|source| CliError::Run { path: path.clone(), source })?
+        .map(|(_, field)| field)
+        .ok_or_else(|| {
+            CliError::Failed(format!(
+                "--wind-slice-agl: {path} has no urban wind field (no buildings, or environment.wind.urban.model is none)"
+            ))
+        })?;
+    let e = world.extent_m();
+    let slice = WindSlice {
+        field: &field,
+        direction_from_deg: wind.direction_from_deg,
+        // The field's factors are of the wind at its reference height over open ground:
+        // the scenario's wind there, by the flight's profile.
+        speed_mps: sim_worker::env::MeanWind::urban(wind.speed_mps, wind.direction_from_deg, wind.reference_height_m)
+            .speed_at_mps(field.profile.reference_height_m),
+        height_agl_m: args.height_agl_m,
+        area: args.area.unwrap_or([-e, -e, e, e]),
+        run: plan.run.name.clone(),
+    };
+    let (picture, counts) = wind_map(&slice, &sadesim_evidence::report::footprints(world));
+    let image = sadesim_evidence::report::png::render(&picture).map_err(CliError::Failed)?;
+    std::fs::write(&args.png, image)
+        .map_err(|e| CliError::Failed(format!("failed to write {}: {e}", args.png.display())))?;
+    let columns: usize = counts.iter().sum();
+    let share = |n: usize| 100.0 * n as f64 / columns.max(1) as f64;
+    writeln!(
+        out,
+        "wind slice {} m above the ground: {} ({columns} columns: {:.0} % below half the open wind, {:.0} % above 1.1x)",
+        args.height_agl_m,
+        args.png.display(),
+        share(counts[0] + counts[1]),
+        share(counts[4] + counts[5] + counts[6]),
+    )?;
+    Ok(())
 }

@@ -14,6 +14,7 @@ use sadesim_crds::plan::RunPlan;
 use sadesim_evidence::archive::is_object_store;
 use sadesim_evidence::assets::{AssetsError, AssetsOutcome, ensure_bundle};
 use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
+use sadesim_evidence::wind::WindOutcome;
 use sadesim_world::World;
 use sim_worker::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use sim_worker::coordinator::{self, CoordinatorError, ObserverError, RunObserver, ShardLink};
@@ -169,6 +170,45 @@ pub fn run_world(
     Ok((Some(outcome), world))
 }
 
+/// The urban wind field of a run that has one: from the asset cache (every sector, computed
+/// and stored on a miss, with a progress bar), or without a cache only the sectors of the
+/// run's direction, computed in memory. `None` for a run without one; the cache's outcome
+/// with a cache.
+///
+/// # Errors
+/// The cache cannot be opened or written.
+pub fn run_wind(
+    plan: &RunPlan,
+    world: &World,
+    cache: Option<&str>,
+    progress: bool,
+) -> Result<Option<(Option<WindOutcome>, sadesim_wind::UrbanWindField)>, RunError> {
+    let Some(request) = sadesim_evidence::wind::wind_request(&plan.spec, world) else { return Ok(None) };
+    let Some(cache) = cache else { return Ok(sim_worker::env::urban_wind_field(&plan.spec, world).map(|f| (None, f))) };
+    let bar = if progress { ProgressBar::new(u64::from(request.sectors)) } else { ProgressBar::hidden() };
+    bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {pos}/{len} {msg}").expect("a valid template"));
+    bar.set_message(format!("urban wind: looking in {cache}"));
+    let scratch = std::env::temp_dir().join(format!("sadesim-wind-{}", std::process::id()));
+    let build = || {
+        let mut field = sadesim_wind::UrbanWindField::new(world, request.grid, request.sectors);
+        bar.set_message(format!("urban wind: computing {} direction sectors", request.sectors));
+        field.ensure_all(world, |done, _| bar.set_position(u64::from(done)));
+        field
+    };
+    let ensured = sadesim_evidence::wind::ensure_wind(
+        &plan.asset_cache_key,
+        &request,
+        plan.spec.origin.geo(),
+        cache,
+        &scratch,
+        build,
+    );
+    bar.finish_and_clear();
+    let _ = std::fs::remove_dir_all(&scratch);
+    let (outcome, field) = ensured?;
+    Ok(Some((Some(outcome), field)))
+}
+
 /// Refuses what the local runner cannot do (yet, or with these options), naming the field.
 fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError> {
     let spec = &plan.spec;
@@ -315,6 +355,13 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     fleet.airspace_url = format!("http://{airspace_addr}");
     write_json(&out_dir, pilot::FLEET_FILE, &fleet)?;
 
+    // With a cache the field is stored there for the worker processes to load; without one
+    // they compute it themselves.
+    let wind = if options.processes && options.asset_cache.is_none() {
+        None
+    } else {
+        run_wind(&plan, &world, options.asset_cache.as_deref(), options.progress)?.map(|(_, field)| Arc::new(field))
+    };
     let world = Arc::new(world);
     write_json(&out_dir, "world.json", world.stats())?;
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
@@ -334,7 +381,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             assets.as_ref().map(AssetsOutcome::url),
         )
     } else {
-        let surroundings = sim_worker::roles::surroundings(&plan, world.clone(), sky);
+        let surroundings = sim_worker::shard::Surroundings { world: world.clone(), sky, wind };
         let links = ShardInputs { surroundings, mavlink: options.mavlink };
         run_threads(&plan, links, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };

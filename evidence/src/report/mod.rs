@@ -81,6 +81,11 @@ fn buildings(data: &RunData, world: Option<&World>) -> Vec<svg::Footprint> {
     if world.stats() != recorded {
         return Vec::new();
     }
+    footprints(world)
+}
+
+/// The world's building footprints as the maps draw them.
+pub fn footprints(world: &World) -> Vec<svg::Footprint> {
     world
         .buildings()
         .iter()

@@ -14,6 +14,7 @@ mod draw;
 mod gnss;
 mod gnss_map;
 mod map;
+mod wind_map;
 
 pub use altitude::altitude;
 #[cfg(test)]
@@ -22,3 +23,4 @@ pub use draw::{FONT, esc};
 pub use gnss::gnss;
 pub use gnss_map::gnss_map;
 pub use map::{Footprint, map};
+pub use wind_map::{ClassCounts, WindSlice, wind_map};

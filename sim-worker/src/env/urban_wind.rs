@@ -1,35 +1,25 @@
-//! Which urban wind field a run flies in: a pure decision on the spec and the world, and
-//! the field's computation (the sectors the run's wind direction blends).
+//! Which urban wind field a run flies in (the decision is `sadesim_evidence::wind::
+//! wind_request`, shared with the asset role), and the field's computation when no asset
+//! cache holds it.
 
 use sadesim_crds::SimulationRunSpec;
-use sadesim_crds::environment::UrbanWindModel;
-use sadesim_wind::{DEFAULT_SECTORS, GridSpec, UrbanWindField};
+use sadesim_evidence::wind::wind_request;
+use sadesim_wind::UrbanWindField;
 use sadesim_world::World;
 
 /// Whether the run has wind among buildings under the diagnostic model (the default): then
 /// its shards need the field.
 pub fn wants_urban_wind(spec: &SimulationRunSpec, world: &World) -> bool {
-    let Some(wind) = spec.environment().wind else { return false };
-    // `openfoam` is refused by validation before any run.
-    let model = wind.urban.as_ref().map_or(UrbanWindModel::Diagnostic, |u| u.model);
-    model == UrbanWindModel::Diagnostic && !world.buildings().is_empty()
+    wind_request(spec, world).is_some()
 }
 
-/// The run's field with the sectors of its wind direction computed; `None` when the run
-/// does not want one ([`wants_urban_wind`]). Seconds for a city (docs/performance.md).
+/// The run's field with only the sectors of its wind direction computed (what a run
+/// without an asset cache needs); `None` when the run does not want one. Seconds for a
+/// city (docs/performance.md).
 pub fn urban_wind_field(spec: &SimulationRunSpec, world: &World) -> Option<UrbanWindField> {
-    if !wants_urban_wind(spec, world) {
-        return None;
-    }
-    let wind = spec.environment().wind?;
-    let urban = wind.urban.as_ref();
-    let mut grid = GridSpec::default_for(world.extent_m());
-    if let Some(spacing_m) = urban.and_then(|u| u.spacing_m) {
-        grid.spacing_m = spacing_m;
-    }
-    let sectors = urban.and_then(|u| u.sectors).unwrap_or(DEFAULT_SECTORS);
-    let mut field = UrbanWindField::new(world, grid, sectors);
-    for (k, _) in field.sectors_for(wind.direction_from_deg) {
+    let request = wind_request(spec, world)?;
+    let mut field = UrbanWindField::new(world, request.grid, request.sectors);
+    for (k, _) in field.sectors_for(request.direction_from_deg) {
         field.ensure_sector(world, k);
     }
     Some(field)

@@ -96,15 +96,38 @@ pub fn sky(plan: &RunPlan) -> Result<Option<Arc<sadesim_gnss::RunSky>>, RoleErro
     Ok(sky.map(Arc::new))
 }
 
-/// The shard's surroundings: `world`, `sky` and the urban wind field computed from them
-/// (logged with its grid and time on stderr, the role's log).
+/// The shard's surroundings: `world`, `sky` and the urban wind field, loaded from the
+/// asset cache entry beside the world's (`assets`: the world entry's URL; the `<run>-assets`
+/// Job or the local runner stored it) or, without one, computed here. Logged on stderr
+/// (the role's log) with where it came from and what it took.
 pub fn surroundings(
     plan: &RunPlan,
     world: Arc<World>,
     sky: Option<Arc<sadesim_gnss::RunSky>>,
+    assets: Option<&str>,
 ) -> crate::shard::Surroundings {
+    use sadesim_evidence::wind::{load_wind, wind_entry_url_beside, wind_key, wind_request};
     let started = std::time::Instant::now();
-    let s = crate::shard::Surroundings::new(plan, world, sky);
+    let cached = match (wind_request(&plan.spec, &world), assets) {
+        (Some(request), Some(assets)) => {
+            let url = wind_entry_url_beside(assets, &wind_key(&plan.asset_cache_key, &request));
+            match load_wind(&url) {
+                Ok(field) => {
+                    eprintln!("urban wind: loaded from {url}");
+                    Some(Arc::new(field))
+                }
+                Err(e) => {
+                    eprintln!("urban wind: not in the asset cache ({e}); computing it here");
+                    None
+                }
+            }
+        }
+        _ => None,
+    };
+    let s = match cached {
+        Some(wind) => crate::shard::Surroundings { world, sky, wind: Some(wind) },
+        None => crate::shard::Surroundings::new(plan, world, sky),
+    };
     if let Some(field) = &s.wind {
         eprintln!("{}", crate::env::describe_urban_wind(field, started.elapsed().as_secs_f64()));
     }

@@ -58,6 +58,12 @@ pub enum ShardError {
     /// computes the field the run wants).
     #[error("the run {0} an urban wind field but the shard was given {1}")]
     WindMismatch(&'static str, &'static str),
+    /// The field given lacks a sector the run's wind direction blends (a field loaded from
+    /// a cache entry of fewer sectors, or a caller's bug).
+    #[error(
+        "the urban wind field has no sector {sector} ({direction_from_deg}°), which a wind from {wind_from_deg}° needs"
+    )]
+    WindSector { sector: u32, direction_from_deg: f64, wind_from_deg: f64 },
 }
 
 /// How a shard's drones expose MAVLink.
@@ -144,6 +150,15 @@ impl Shard {
             (true, None) => return Err(ShardError::WindMismatch("wants", "none")),
             (false, Some(_)) => return Err(ShardError::WindMismatch("does not want", "one")),
             _ => {}
+        }
+        if let (Some(field), Some(w)) = (&wind, spec.environment().wind) {
+            let wind_from_deg = w.direction_from_deg;
+            if let Some((sector, _)) =
+                field.sectors_for(wind_from_deg).into_iter().find(|(k, _)| field.sector(*k).is_none())
+            {
+                let direction_from_deg = f64::from(sector) * field.sector_step_deg();
+                return Err(ShardError::WindSector { sector, direction_from_deg, wind_from_deg });
+            }
         }
         let frame = LocalFrame::new(spec.origin.geo());
         let env_spec = spec.environment();

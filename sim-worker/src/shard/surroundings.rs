@@ -22,7 +22,9 @@ pub struct Surroundings {
 }
 
 impl Surroundings {
-    /// The surroundings of `plan` in `world` under `sky`; computes the urban wind field.
+    /// The surroundings of `plan` in `world` under `sky`; computes the urban wind field
+    /// (the sectors of the run's direction only: a run with an asset cache loads every
+    /// sector from it instead, `roles::surroundings`).
     pub fn new(plan: &RunPlan, world: Arc<World>, sky: Option<Arc<RunSky>>) -> Self {
         let wind = urban_wind_field(&plan.spec, &world).map(Arc::new);
         Self { world, sky, wind }
