@@ -24,6 +24,21 @@ pub struct DroneSummary {
     /// How the drone's GNSS receiver did in flight (absent when it never flew with one).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gnss: Option<GnssSummary>,
+    /// The wind the drone met in flight (absent in runs without wind, or when it never
+    /// flew).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wind: Option<WindSummary>,
+}
+
+/// The horizontal wind at a drone (mean wind, urban field and gusts: what its airframe
+/// felt) over the sync windows it was airborne, m/s.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, Default, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct WindSummary {
+    /// Sync windows airborne.
+    pub windows: u32,
+    pub mean_mps: f64,
+    pub max_mps: f64,
 }
 
 /// A drone's GNSS in flight (the receiver's epochs while airborne): what its receiver saw

@@ -425,23 +425,27 @@ fn drones(out: &mut String, data: &RunData, styles: &[GroupStyle]) {
         }
         m
     });
+    // The wind met, in runs with wind: where the buildings sheltered a drone or a street
+    // channelled the flow.
+    let with_wind = s.per_drone.iter().any(|d| d.wind.is_some());
+    let mut names = vec![
+        "drone",
+        "group",
+        "took off",
+        "landed",
+        "crashed",
+        "max height AGL",
+        "distance flown",
+        "waypoints",
+        "failsafes",
+        "battery left",
+        "zone stays",
+    ];
+    if with_wind {
+        names.push("wind met (mean / max)");
+    }
     out.push_str(r#"<table id="drones-table">"#);
-    header(
-        out,
-        &[
-            "drone",
-            "group",
-            "took off",
-            "landed",
-            "crashed",
-            "max height AGL",
-            "distance flown",
-            "waypoints",
-            "failsafes",
-            "battery left",
-            "zone stays",
-        ],
-    );
+    header(out, &names);
     for d in &s.per_drone {
         let _ = write!(out, r#"<tr class="{}">"#, if d.crashed { "bad" } else { "" });
         cell(out, &d.name);
@@ -455,6 +459,12 @@ fn drones(out: &mut String, data: &RunData, styles: &[GroupStyle]) {
         num(out, &d.failsafes.to_string());
         num(out, &format!("{:.0} %", d.final_battery_remaining * 100.0));
         num(out, &stays.get(&d.index).copied().unwrap_or(0).to_string());
+        if with_wind {
+            match d.wind {
+                Some(w) => num(out, &format!("{:.1} / {:.1} m/s", w.mean_mps, w.max_mps)),
+                None => cell(out, "—"),
+            }
+        }
         out.push_str("</tr>");
     }
     out.push_str("</table>");

@@ -77,6 +77,8 @@ impl Recorder {
                     index: d.index,
                     name: d.name.clone(),
                     group: d.group.clone(),
+                    // Tallied in flight in runs with wind (`summary::observe_window`).
+                    wind: plan.spec.environment().wind.map(|_| Default::default()),
                     ..Default::default()
                 })
                 .collect(),
@@ -148,6 +150,8 @@ impl Recorder {
         self.summary.pilots_released_at_s = outcome.released_at_s;
         for (d, tally) in self.summary.per_drone.iter_mut().zip(&mut self.gnss) {
             d.gnss = tally.summary();
+            // A drone that never flew met no wind.
+            d.wind = d.wind.filter(|w| w.windows > 0);
         }
         if let Some(mut csv) = self.gnss_csv.take() {
             use std::io::Write;
