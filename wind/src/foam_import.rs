@@ -52,18 +52,27 @@ pub enum ImportError {
     #[error("{file}: the case has no cell")]
     NoCells { file: String },
     /// Fluid cells of the grid have no case cell near them.
-    #[error(
-        "{file}: the case does not cover the world's wind grid: {cells} fluid grid cells have no case cell centre inside them or within {tolerance_m} m of their centre, the first at ENU ({:.1}, {:.1}, {:.1}) m; the case's cell centres span ENU {} m, the grid {} m (the case's coordinates must be the run's ENU metres)",
-        first_enu_m[0], first_enu_m[1], first_enu_m[2], show_box(case_box_m), show_box(grid_box_m)
-    )]
-    NotCovered {
-        file: String,
-        cells: usize,
-        tolerance_m: f64,
-        first_enu_m: [f64; 3],
-        case_box_m: [[f64; 3]; 2],
-        grid_box_m: [[f64; 3]; 2],
-    },
+    #[error("{0}")]
+    NotCovered(Box<Uncovered>),
+}
+
+/// The fluid grid cells a case does not cover ([`ImportError::NotCovered`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error(
+    "{file}: the case does not cover the world's wind grid: {cells} fluid grid cells have no case cell centre inside them or within {tolerance_m} m of their centre, the first at ENU ({:.1}, {:.1}, {:.1}) m; the case's cell centres span ENU {} m, the grid {} m (the case's coordinates must be the run's ENU metres)",
+    first_enu_m[0], first_enu_m[1], first_enu_m[2], show_box(case_box_m), show_box(grid_box_m)
+)]
+pub struct Uncovered {
+    /// The cell centres' file.
+    pub file: String,
+    /// How many fluid grid cells, and the first's centre (in index order), ENU metres.
+    pub cells: usize,
+    pub first_enu_m: [f64; 3],
+    /// The largest distance from a grid cell's centre to a case cell's centre, metres.
+    pub tolerance_m: f64,
+    /// Smallest and largest corner of the case's cell centres and of the grid, ENU metres.
+    pub case_box_m: [[f64; 3]; 2],
+    pub grid_box_m: [[f64; 3]; 2],
 }
 
 fn show_box(b: &[[f64; 3]; 2]) -> String {
@@ -199,14 +208,14 @@ pub fn map_onto_grid(
             }
         }
         let grid_hi = [0, 1, 2].map(|a| grid.corner_m[a] + grid.dims[a] as f64 * h);
-        return Err(ImportError::NotCovered {
+        return Err(ImportError::NotCovered(Box::new(Uncovered {
             file,
             cells: uncovered,
-            tolerance_m: h,
             first_enu_m,
+            tolerance_m: h,
             case_box_m: [lo, hi],
             grid_box_m: [grid.corner_m, grid_hi],
-        });
+        })));
     }
     let residual = mass_residual(grid, &east, &north, &up);
     let narrow = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect();
@@ -402,11 +411,11 @@ mod tests {
     fn a_case_covering_half_the_grid_is_refused_naming_the_cells_and_boxes() {
         let g = grid();
         let err = map_onto_grid(&g, &case(&g, |p| p[0] < 8.0), "CASE/100/C", SPEC).unwrap_err();
-        let ImportError::NotCovered { cells, first_enu_m, .. } = &err else { panic!("{err:?}") };
+        let ImportError::NotCovered(u) = &err else { panic!("{err:?}") };
         // The case's last centres are at x = 7 m: the grid's columns centred at x = 14 and
         // 18 m are more than one spacing away, 2 x 10 x 10 cells.
-        assert_eq!(*cells, 200, "{err}");
-        assert_eq!(*first_enu_m, [14.0, -18.0, 2.0]);
+        assert_eq!(u.cells, 200, "{err}");
+        assert_eq!(u.first_enu_m, [14.0, -18.0, 2.0]);
         let msg = err.to_string();
         assert!(
             msg.starts_with("CASE/100/C: the case does not cover the world's wind grid: 200 fluid grid cells"),
