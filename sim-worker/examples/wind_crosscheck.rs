@@ -6,7 +6,7 @@
 //! ```text
 //! cargo run --release -p sim-worker --example wind_crosscheck -- \
 //!     [--scenario examples/maps/helsinki.yaml] [--block-m 300] [--cell-m 5] \
-//!     [--direction-deg 225] [--refine 1] [--max-iterations 600] [--centre E,N] [--case DIR]
+//!     [--direction-deg 225] [--refine 1] [--max-iterations 600] [--centre E,N] [--case DIR [--reuse]]
 //! ```
 //!
 //! - World: the scenario's (its OSM extract beside it, `Helsinki.osm.pbf`). The block is a
@@ -21,10 +21,12 @@
 //! - Wind from `--direction-deg` (a sector of the default 8, so the diagnostic field is
 //!   not blended): the diagnostic sector; OpenFOAM's case of `CaseSpec::for_grid` with
 //!   `--refine` levels at the buildings and at most `--max-iterations` iterations, in
-//!   `--case` (default a temporary directory; it must not exist or be empty).
+//!   `--case` (default a temporary directory; it must not exist or be empty). With
+//!   `--reuse`, the case in `--case` is not run again, only read (same other flags).
 //! - Speed: the magnitude of the factor vector (speed / reference speed 10 m above open ground).
 //! - Correlation: Pearson's, of the two methods' speeds over the fluid cells 20-60 m above
-//!   the ground.
+//!   the ground; and of the speeds over each method's undisturbed profile at the cell's
+//!   height (what the buildings change, without the profile's growth with height).
 //! - Wake cells: fluid cells below the roof of a building that lies upwind of them within
 //!   three of its heights (walking upwind from the cell's centre in half-cell steps, the
 //!   first building whose footprint holds the point and whose roof is above the cell) and
@@ -53,6 +55,7 @@ struct Args {
     max_iterations: u32,
     centre: Option<[f64; 2]>,
     case: Option<PathBuf>,
+    reuse: bool,
 }
 
 fn args() -> Args {
@@ -65,9 +68,14 @@ fn args() -> Args {
         max_iterations: 600,
         centre: None,
         case: None,
+        reuse: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
+        if flag == "--reuse" {
+            a.reuse = true;
+            continue;
+        }
         let value = it.next().unwrap_or_else(|| panic!("{flag} needs a value"));
         let num = |v: &str| v.parse::<f64>().unwrap_or_else(|_| panic!("{flag}: not a number: {v}"));
         match flag.as_str() {
@@ -229,7 +237,11 @@ fn main() {
         .case
         .clone()
         .unwrap_or_else(|| std::env::temp_dir().join(format!("sadesim-crosscheck-{}", std::process::id())));
-    let run = run_case(&world, &spec, &case, |line| eprintln!("{line}")).unwrap_or_else(|e| panic!("{e}"));
+    let run = if a.reuse {
+        None
+    } else {
+        Some(run_case(&world, &spec, &case, |line| eprintln!("{line}")).unwrap_or_else(|e| panic!("{e}")))
+    };
     let foam = import_case_dir(
         &grid,
         &case,
@@ -239,6 +251,9 @@ fn main() {
 
     // Correlation at 20-60 m AGL.
     let (mut fa, mut da) = (Vec::new(), Vec::new());
+    // The same speeds over the undisturbed profile's at the cell's height (each method's
+    // own): what the buildings do, without the profile's growth with height.
+    let (mut fr, mut dr) = (Vec::new(), Vec::new());
     let mut fluid = 0usize;
     for k in 0..grid.dims[2] {
         for j in 0..grid.dims[1] {
@@ -248,9 +263,12 @@ fn main() {
                     continue;
                 }
                 fluid += 1;
-                if (20.0..=60.0).contains(&grid.height_agl_m(i, j, k)) {
+                let agl = grid.height_agl_m(i, j, k);
+                if (20.0..=60.0).contains(&agl) {
                     fa.push(speed(&foam, c));
                     da.push(speed(diag, c));
+                    fr.push(speed(&foam, c) / abl_factor(agl, spec.z0_m));
+                    dr.push(speed(diag, c) / FIELD_PROFILE.factor(agl));
                 }
             }
         }
@@ -277,12 +295,14 @@ fn main() {
         "tallest_m": tallest,
         "direction_from_deg": a.direction_deg,
         "grid": { "dims": grid.dims, "cell_m": grid.spacing_m, "fluid_cells": fluid },
-        "openfoam": { "cells": run.cells, "iterations": run.iterations, "converged": run.converged,
-                      "mesh_s": (run.mesh_s * 10.0).round() / 10.0, "solve_s": (run.solve_s * 10.0).round() / 10.0,
-                      "grid_mass_residual": foam.residual },
+        "openfoam": run.map(|run| serde_json::json!({ "cells": run.cells, "iterations": run.iterations,
+                      "converged": run.converged, "mesh_s": (run.mesh_s * 10.0).round() / 10.0,
+                      "solve_s": (run.solve_s * 10.0).round() / 10.0, "refine_levels": spec.refine_levels })),
+        "openfoam_grid_mass_residual": foam.residual,
         "diagnostic": { "seconds": (diagnostic_s * 10.0).round() / 10.0, "iterations": diag.iterations,
                         "mass_residual": diag.residual },
-        "speed_20_60m": { "cells": fa.len(), "correlation": r, "mean_openfoam": mean(&fa), "mean_diagnostic": mean(&da) },
+        "speed_20_60m": { "cells": fa.len(), "correlation": r, "mean_openfoam": mean(&fa), "mean_diagnostic": mean(&da),
+                          "correlation_over_profile": correlation(&fr, &dr) },
         "wake": { "cells": wake.len(), "reduction_openfoam": wake_foam, "reduction_diagnostic": wake_diag },
         "wall_s": (started.elapsed().as_secs_f64() * 10.0).round() / 10.0,
         "case": case.display().to_string(),
