@@ -1,7 +1,8 @@
 //! Cross-check of the two urban wind methods on a real city block (issue 17): the built-in
-//! diagnostic field (Röckle zones + mass-consistent adjustment) and OpenFOAM (snappyHexMesh
-//! + simpleFoam, `sadesim_wind::foam_case`) on the same wind grid over a block of the
-//! Helsinki world; prints the agreement as one JSON line. docs/wind-cfd.md has the numbers.
+//! diagnostic field (Röckle zones and the mass-consistent adjustment) and OpenFOAM
+//! (snappyHexMesh and simpleFoam, `sadesim_wind::foam_case`) on the same wind grid over a
+//! block of the Helsinki world; prints the agreement as one JSON line. docs/wind-cfd.md has
+//! the numbers.
 //!
 //! ```text
 //! cargo run --release -p sim-worker --example wind_crosscheck -- \
