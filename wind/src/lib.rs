@@ -8,11 +8,15 @@
 //! - [`solver`]: the mass-consistent adjustment that makes it divergence free;
 //! - [`field`]: per inflow sector, the adjusted field; sampling and sector blending;
 //! - [`openfoam`]: OpenFOAM ASCII vector fields (cell centres `C`, velocity `U`) of a case
-//!   computed elsewhere, read from their text.
+//!   computed elsewhere, read from their text;
+//! - [`foam_case`]: the files of an OpenFOAM case of the wind over the world's buildings;
+//! - [`foam_import`]: an OpenFOAM case's cells mapped onto the wind grid as a sector field.
 //!
 //! Pure: the world in, numbers out; the same inputs give the same bits.
 
 pub mod field;
+pub mod foam_case;
+pub mod foam_import;
 pub mod grid;
 pub mod openfoam;
 pub mod profile;

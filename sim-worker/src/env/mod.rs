@@ -7,6 +7,7 @@
 mod dryden;
 mod environment;
 mod gnss_outage;
+pub mod openfoam_run;
 mod sample;
 mod urban_wind;
 mod wind;
