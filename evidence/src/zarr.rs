@@ -3,7 +3,8 @@
 //! library on our side. Used for the sky grid (`sadesim gnss grid`) and the urban wind
 //! field of the asset cache.
 //!
-//! A group is a folder: `.zgroup`, `.zattrs` (the group's attributes, JSON), and one folder
+//! A group is a folder: `.zgroup`, `.zattrs` (the group's attributes, JSON), `.zmetadata`
+//! (all of the metadata consolidated, what `xarray.open_zarr` reads first), and one folder
 //! per array with `.zarray` (shape, chunks, dtype, compressor), `.zattrs`
 //! (`_ARRAY_DIMENSIONS`: xarray's dimension names) and its chunks. Arrays here are
 //! little-endian, C order, and chunked along their first axis only: either one chunk for the
@@ -88,7 +89,9 @@ impl ArrayOut {
     fn new(name: &str, dtype: Dtype, dims: &[&str], shape: Vec<usize>, data: Vec<u8>) -> Self {
         assert_eq!(dims.len(), shape.len(), "{name}: one dimension name per axis");
         assert_eq!(data.len(), shape.iter().product::<usize>() * dtype.size(), "{name}: data fills the shape");
-        let fill = if dtype == Dtype::U8 { json!(0) } else { json!("NaN") };
+        // No fill value for integers: xarray masks the fill value as missing (NaN), and a 0
+        // in a flag or count array is data.
+        let fill = if dtype == Dtype::U8 { Value::Null } else { json!("NaN") };
         Self {
             name: name.to_string(),
             dtype,
@@ -146,6 +149,17 @@ pub fn group_files(attrs: &Value, arrays: &[ArrayOut], compression: Compression)
             files.push((format!("{}/{s}{rest}", a.name), compress(chunk, compression)));
         }
     }
+    // Consolidated metadata (`.zmetadata`): xarray and zarr read every array's metadata in
+    // one request instead of one per file (what an object store makes slow).
+    let mut metadata = serde_json::Map::new();
+    for (path, bytes) in &files {
+        if path.ends_with(".zgroup") || path.ends_with(".zattrs") || path.ends_with(".zarray") {
+            let value: Value = serde_json::from_slice(bytes).expect("written above as JSON");
+            metadata.insert(path.clone(), value);
+        }
+    }
+    let consolidated = json!({"zarr_consolidated_format": 1, "metadata": metadata});
+    files.push((".zmetadata".to_string(), consolidated.to_string().into_bytes()));
     files
 }
 
@@ -318,6 +332,8 @@ mod tests {
         for compression in [Compression::Raw, Compression::Zlib(1)] {
             let files = sample(compression);
             assert!(files.contains_key("v/0.0.0") && files.contains_key("v/1.0.0") && files.contains_key("flags/0.0"));
+            let consolidated: Value = serde_json::from_slice(&files[".zmetadata"]).unwrap();
+            assert_eq!(consolidated["metadata"]["v/.zarray"]["chunks"], json!([1, 3, 4]));
             let mut fetch = fetcher(&files);
             assert_eq!(read_group_attrs(&mut fetch).unwrap()["spacingM"], json!(5.0));
             let v = read_array(&mut fetch, "v", Dtype::F32, 3).unwrap();

@@ -69,16 +69,9 @@ fn write_zarr(
     epoch_unix_s: f64,
     mask_deg: f64,
 ) -> std::io::Result<u64> {
+    use sadesim_evidence::zarr::{ArrayOut, Compression, group_files, write_group};
     let [nx, ny, nz] = grid.dims;
     let slices = grid.spec.slices;
-    std::fs::create_dir_all(dir)?;
-    let mut written = 0u64;
-    let mut put = |path: &Path, bytes: &[u8]| -> std::io::Result<()> {
-        std::fs::write(path, bytes)?;
-        written += bytes.len() as u64;
-        Ok(())
-    };
-    put(&dir.join(".zgroup"), json!({"zarr_format": 2}).to_string().as_bytes())?;
     let o = &run.spec.origin;
     let attrs = json!({
         "description": "SADE-SIM sky grid: per voxel and time slice, the GNSS satellites above the mask in line of sight and received only by a facade reflection, and the HDOP of those strong enough to use",
@@ -91,37 +84,14 @@ fn write_zarr(
         "epochUnixS": epoch_unix_s,
         "elevationMaskDeg": mask_deg,
     });
-    put(&dir.join(".zattrs"), attrs.to_string().as_bytes())?;
-    let dims4 = json!(["slice", "up", "north", "east"]);
-    let mut array = |name: &str,
-                     dtype: &str,
-                     fill: serde_json::Value,
-                     shape: Vec<usize>,
-                     dims: &serde_json::Value,
-                     chunks: Vec<Vec<u8>>|
-     -> std::io::Result<()> {
-        let folder = dir.join(name);
-        std::fs::create_dir_all(&folder)?;
-        let mut chunk_shape = shape.clone();
-        chunk_shape[0] = if shape.len() == 4 { 1 } else { shape[0] };
-        let meta = json!({"zarr_format": 2, "shape": shape, "chunks": chunk_shape, "dtype": dtype,
-                          "compressor": null, "fill_value": fill, "filters": null, "order": "C"});
-        put(&folder.join(".zarray"), meta.to_string().as_bytes())?;
-        put(&folder.join(".zattrs"), json!({"_ARRAY_DIMENSIONS": dims}).to_string().as_bytes())?;
-        let zeros = if shape.len() == 4 { ".0.0.0" } else { ".0.0" };
-        for (s, chunk) in chunks.iter().enumerate() {
-            put(&folder.join(format!("{s}{zeros}")), chunk)?;
-        }
-        Ok(())
-    };
-    let per_slice = nx * ny * nz;
-    let u8_slices = |v: &[u8]| v.chunks(per_slice).map(<[u8]>::to_vec).collect::<Vec<_>>();
+    let dims4 = ["slice", "up", "north", "east"];
     let shape = vec![slices, nz, ny, nx];
-    array("line_of_sight", "|u1", json!(0), shape.clone(), &dims4, u8_slices(&grid.line_of_sight))?;
-    array("reflected", "|u1", json!(0), shape.clone(), &dims4, u8_slices(&grid.reflected))?;
-    let hdop: Vec<Vec<u8>> =
-        grid.hdop.chunks(per_slice).map(|c| c.iter().flat_map(|h| h.to_le_bytes()).collect()).collect();
-    array("hdop", "<f4", json!("NaN"), shape, &dims4, hdop)?;
-    array("solid", "|u1", json!(0), vec![nz, ny, nx], &json!(["up", "north", "east"]), vec![grid.solid.clone()])?;
-    Ok(written)
+    let arrays = [
+        ArrayOut::u8("line_of_sight", &dims4, shape.clone(), grid.line_of_sight.clone()).per_slice(),
+        ArrayOut::u8("reflected", &dims4, shape.clone(), grid.reflected.clone()).per_slice(),
+        ArrayOut::f32("hdop", &dims4, shape, &grid.hdop).per_slice(),
+        ArrayOut::u8("solid", &["up", "north", "east"], vec![nz, ny, nx], grid.solid.clone()),
+    ];
+    std::fs::create_dir_all(dir)?;
+    write_group(dir, &group_files(&attrs, &arrays, Compression::Raw))
 }
