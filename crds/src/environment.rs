@@ -58,9 +58,16 @@ pub struct Wind {
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct UrbanWind {
     /// `diagnostic` (default): the built-in Röckle-type model made mass-consistent;
-    /// `none`: no building effects; `openfoam`: not supported yet (refused).
+    /// `none`: no building effects; `openfoam`: the field computed by OpenFOAM (Debian's
+    /// `openfoam`: blockMesh, snappyHexMesh over the buildings, simpleFoam with an
+    /// atmospheric boundary-layer inlet) in the asset phase for the sectors of the run's
+    /// wind direction, or imported from `case`.
     #[serde(default)]
     pub model: UrbanWindModel,
+    /// With `model: openfoam`: an OpenFOAM case computed elsewhere, imported instead of
+    /// running OpenFOAM (local runs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub case: Option<OpenFoamCase>,
     /// Edge of the field's cubic cells, metres (1..100). Default 5, coarser when the world
     /// square would be more than 200 cells across.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -71,6 +78,26 @@ pub struct UrbanWind {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 4, max = 36))]
     pub sectors: Option<u32>,
+}
+
+/// An OpenFOAM case computed elsewhere: its latest time directory holds the cell centres
+/// `C` (`postProcess -func writeCellCentres`) and the velocity `U`, ASCII, in the run's ENU
+/// frame (x east, y north, z up, metres from the origin) and m/s. It must cover the world's
+/// wind grid (docs/wind-cfd.md).
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct OpenFoamCase {
+    /// The case directory: a path, relative to the scenario file's folder.
+    #[schemars(length(min = 1, max = 4096))]
+    pub dir: String,
+    /// Where the case's wind blows from, degrees clockwise from north (0..360): the
+    /// scenario's `directionFromDeg` must be the same (a case is one direction).
+    #[schemars(range(min = 0.0, max = 360.0))]
+    pub direction_from_deg: f64,
+    /// The case's undisturbed inflow speed 10 m above open ground, m/s (0.1..100): the
+    /// field is stored as factors of it and flown at the scenario's speed.
+    #[schemars(range(min = 0.1, max = 100.0))]
+    pub reference_speed_mps: f64,
 }
 
 /// The urban wind model.

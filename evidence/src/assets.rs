@@ -62,6 +62,8 @@ pub enum AssetsError {
         #[source]
         source: crate::zarr::ZarrError,
     },
+    #[error("urban wind field: {0}")]
+    WindBuild(String),
     #[error("asset cache: no cache folder: set {CACHE_DIR_ENV}, XDG_CACHE_HOME or HOME")]
     NoCacheDir,
 }
@@ -143,41 +145,42 @@ pub fn footprint_polygon(footprint: &Footprint, frame: &LocalFrame, up_m: f64) -
     json!({"type": "Polygon", "coordinates": rings})
 }
 
-/// Builds the assets of `plan` into the archive at `archive_url` unless an entry for the
-/// plan's asset cache key is there that verifies and loads ([`ensure_bundle`]; the
-/// `<run>-assets` Job).
+/// Builds the world of `plan` into the archive at `archive_url` unless an entry for the
+/// plan's asset cache key is there that verifies and loads ([`ensure_bundle`]; the urban
+/// wind field too: [`build_run_assets`]).
 ///
 /// # Errors
 /// Archive errors (open, verify listing, upload), the world's files (unreadable, not a map
 /// or DEM) and local write errors, each naming the URL or file.
 pub fn build_assets(plan: &RunPlan, archive_url: &str, scratch: &Path) -> Result<AssetsOutcome, AssetsError> {
-    build_run_assets(plan, archive_url, scratch, |_, _| {}).map(|(world, _)| world)
+    let key = &plan.asset_cache_key;
+    let build = || Ok(crate::world::load_world(&plan.spec)?);
+    ensure_bundle(key, plan.spec.origin.geo(), archive_url, scratch, build).map(|(outcome, _)| outcome)
 }
 
-/// [`build_assets`], and the urban wind field of a run that has one, every sector
-/// ([`crate::wind::ensure_wind`]) with `progress(done, total)` after each computed sector:
-/// what the `<run>-assets` Job does, so the run's roles load the field instead of computing
-/// it.
+/// [`build_assets`], and the urban wind field of a run that has one
+/// ([`crate::wind::ensure_wind`], made by `build_wind` on a miss): what the `<run>-assets`
+/// Job does, so the run's roles load the field instead of computing it. An imported
+/// OpenFOAM case is not cached (every role reads it).
 ///
 /// # Errors
-/// As [`build_assets`].
+/// As [`build_assets`], and `build_wind`'s.
 pub fn build_run_assets(
     plan: &RunPlan,
     archive_url: &str,
     scratch: &Path,
-    mut progress: impl FnMut(u32, u32),
+    build_wind: impl FnOnce(&World, &crate::wind::WindRequest) -> Result<sadesim_wind::UrbanWindField, AssetsError>,
 ) -> Result<(AssetsOutcome, Option<crate::wind::WindOutcome>), AssetsError> {
     let key = &plan.asset_cache_key;
     let origin = plan.spec.origin.geo();
     let build = || Ok(crate::world::load_world(&plan.spec)?);
     let (outcome, world) = ensure_bundle(key, origin, archive_url, scratch, build)?;
-    let Some(request) = crate::wind::wind_request(&plan.spec, &world) else { return Ok((outcome, None)) };
-    let build_wind = || {
-        let mut field = sadesim_wind::UrbanWindField::new(&world, request.grid, request.sectors);
-        field.ensure_all(&world, &mut progress);
-        field
+    let request = crate::wind::wind_request(&plan.spec, &world);
+    let Some(request) = request.filter(|r| !matches!(r.model, crate::wind::FieldModel::Imported(_))) else {
+        return Ok((outcome, None));
     };
-    let (wind, _) = crate::wind::ensure_wind(key, &request, origin, archive_url, scratch, build_wind)?;
+    let field = || build_wind(&world, &request);
+    let (wind, _) = crate::wind::ensure_wind(key, &request, origin, archive_url, scratch, field)?;
     Ok((outcome, Some(wind)))
 }
 

@@ -45,23 +45,74 @@ pub const WIND_FORMAT_VERSION: u32 = 1;
 /// smooth flow), at a small fraction of the field's computing time.
 const COMPRESSION: Compression = Compression::Zlib(1);
 
-/// What field a run needs: the grid, the sectors around the compass, and the direction
-/// its wind blows from (whose one or two sectors a run without a cache computes).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// How the field is made.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FieldModel {
+    /// The built-in model, every sector (cheap: seconds for a city).
+    Diagnostic,
+    /// OpenFOAM over the world's buildings, the sectors of the run's direction only
+    /// (minutes per sector).
+    OpenFoam,
+    /// A case computed elsewhere, read from its folder by every role that needs it (not
+    /// cached: reading it takes seconds, and its files are the user's).
+    Imported(sadesim_crds::environment::OpenFoamCase),
+}
+
+impl FieldModel {
+    /// The `model` attribute of the stored group.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Diagnostic => "diagnostic",
+            Self::OpenFoam => "openfoam",
+            Self::Imported(_) => "openfoam-imported",
+        }
+    }
+}
+
+/// Version of the OpenFOAM case the asset phase writes (`sadesim_wind::foam_case`): part of
+/// the wind key; bump it when the mesh, the boundary conditions or the solver settings
+/// change.
+pub const OPENFOAM_CASE_VERSION: u32 = 1;
+
+/// What field a run needs: the grid, the sectors around the compass, the direction its
+/// wind blows from (whose one or two sectors a run without a cache computes) and the model.
+#[derive(Clone, Debug, PartialEq)]
 pub struct WindRequest {
     pub grid: GridSpec,
     pub sectors: u32,
     pub direction_from_deg: f64,
+    pub model: FieldModel,
 }
 
-/// The field `spec` needs in `world`: `None` without wind, without buildings, or with
-/// `environment.wind.urban.model: none` (`openfoam` is refused by validation before any
-/// run). The grid is [`GridSpec::default_for`] the world unless `spacingM` is given.
+impl WindRequest {
+    /// The sectors the field holds once built: all of them for the diagnostic model, the
+    /// run direction's for OpenFOAM (an imported case is its own single sector).
+    pub fn sectors_built(&self) -> Vec<u32> {
+        match self.model {
+            FieldModel::Diagnostic => (0..self.sectors).collect(),
+            _ => {
+                let step = 360.0 / f64::from(self.sectors);
+                let d = self.direction_from_deg.rem_euclid(360.0) / step;
+                let k0 = (d.floor() as u32) % self.sectors;
+                if d - d.floor() < 1e-9 { vec![k0] } else { vec![k0, (k0 + 1) % self.sectors] }
+            }
+        }
+    }
+}
+
+/// The field `spec` needs in `world`: `None` without wind, with `environment.wind.urban.
+/// model: none`, or without buildings (unless a case is imported). The grid is
+/// [`GridSpec::default_for`] the world unless `spacingM` is given.
 pub fn wind_request(spec: &SimulationRunSpec, world: &World) -> Option<WindRequest> {
     let wind = spec.environment().wind?;
     let urban = wind.urban.as_ref();
-    let model = urban.map_or(UrbanWindModel::Diagnostic, |u| u.model);
-    if model != UrbanWindModel::Diagnostic || world.buildings().is_empty() {
+    let model = match (urban.map_or(UrbanWindModel::Diagnostic, |u| u.model), urban.and_then(|u| u.case.clone())) {
+        (UrbanWindModel::None, _) => return None,
+        (UrbanWindModel::OpenFoam, Some(case)) => FieldModel::Imported(case),
+        (UrbanWindModel::OpenFoam, None) => FieldModel::OpenFoam,
+        (UrbanWindModel::Diagnostic, _) => FieldModel::Diagnostic,
+    };
+    if world.buildings().is_empty() && !matches!(model, FieldModel::Imported(_)) {
         return None;
     }
     let mut grid = GridSpec::default_for(world.extent_m());
@@ -69,23 +120,29 @@ pub fn wind_request(spec: &SimulationRunSpec, world: &World) -> Option<WindReque
         grid.spacing_m = spacing_m;
     }
     let sectors = urban.and_then(|u| u.sectors).unwrap_or(DEFAULT_SECTORS);
-    Some(WindRequest { grid, sectors, direction_from_deg: wind.direction_from_deg })
+    Some(WindRequest { grid, sectors, direction_from_deg: wind.direction_from_deg, model })
 }
 
 /// The wind key of the field of `request` over the world of `asset_key`: SHA-256 of what
-/// the field depends on (not the wind's speed or direction: the field is per sector and
-/// normalised).
-pub fn wind_key(asset_key: &str, request: &WindRequest) -> String {
+/// the field depends on (not the wind's speed; the direction only through the sectors an
+/// OpenFOAM field holds). `None` for an imported case, which is not cached.
+pub fn wind_key(asset_key: &str, request: &WindRequest) -> Option<String> {
+    let version = match request.model {
+        FieldModel::Diagnostic => DIAGNOSTIC_MODEL_VERSION,
+        FieldModel::OpenFoam => OPENFOAM_CASE_VERSION,
+        FieldModel::Imported(_) => return None,
+    };
     let inputs = json!({
         "assetKey": asset_key,
         "formatVersion": WIND_FORMAT_VERSION,
-        "model": "diagnostic",
-        "modelVersion": DIAGNOSTIC_MODEL_VERSION,
+        "model": request.model.name(),
+        "modelVersion": version,
         "spacingM": request.grid.spacing_m,
         "topFactor": request.grid.top_factor,
         "sectors": request.sectors,
+        "sectorsBuilt": request.sectors_built(),
     });
-    sadesim_world::sha256_hex(inputs.to_string().as_bytes())
+    Some(sadesim_world::sha256_hex(inputs.to_string().as_bytes()))
 }
 
 /// The entry folder of a wind key under an asset key: `wind-<first 16 hex digits>`.
@@ -259,8 +316,8 @@ impl std::fmt::Display for WindOutcome {
 }
 
 /// The field of `request` over the world of `asset_key` from the cache at `cache_url`:
-/// loaded from a verified entry, else computed by `build` (every sector: any later
-/// direction reuses it) and stored. What the local runner and the `<run>-assets` Job do.
+/// loaded from a verified entry, else computed by `build` (the sectors of
+/// [`WindRequest::sectors_built`]) and stored. What the local runner and the `<run>-assets` Job do.
 ///
 /// # Errors
 /// Archive errors (open, upload) and local writes, naming the URL or file. An entry that
@@ -271,10 +328,13 @@ pub fn ensure_wind(
     origin: GeoPoint,
     cache_url: &str,
     scratch: &std::path::Path,
-    build: impl FnOnce() -> UrbanWindField,
+    build: impl FnOnce() -> Result<UrbanWindField, AssetsError>,
 ) -> Result<(WindOutcome, UrbanWindField), AssetsError> {
     let archive = Archive::open(cache_url)?;
-    let folder = wind_folder(&wind_key(asset_key, request));
+    let key = wind_key(asset_key, request).ok_or_else(|| {
+        AssetsError::WindBuild("an imported OpenFOAM case is read from its folder, not cached".into())
+    })?;
+    let folder = wind_folder(&key);
     let entry = format!("{ASSETS_NAMESPACE}/{asset_key}/{folder}");
     let url = format!("{}/{entry}/", cache_url.trim_end_matches('/'));
     let replaced = match archive.verify(&entry) {
@@ -286,9 +346,9 @@ pub fn ensure_wind(
         Err(ArchiveError::NotFound { .. }) => None,
         Err(e) => Some(e.to_string()),
     };
-    let field = build();
+    let field = build()?;
     let dir = scratch.join(format!("{asset_key}-{folder}"));
-    let files = field_files(&field, origin, "diagnostic");
+    let files = field_files(&field, origin, request.model.name());
     zarr::write_group(&dir.join(WIND_ZARR), &files)
         .map_err(|source| AssetsError::Write { path: dir.display().to_string(), source })?;
     archive.upload_run(&dir, ASSETS_NAMESPACE, asset_key, &folder)?;
@@ -354,17 +414,36 @@ mod tests {
 
     #[test]
     fn the_key_changes_with_the_grid_and_sectors_but_not_the_wind_speed_or_direction() {
-        let r =
-            WindRequest { grid: GridSpec { spacing_m: 5.0, top_factor: 2.0 }, sectors: 8, direction_from_deg: 270.0 };
-        let k = wind_key("abc", &r);
-        assert_eq!(k, wind_key("abc", &WindRequest { direction_from_deg: 10.0, ..r }));
-        assert_ne!(k, wind_key("abd", &r));
-        assert_ne!(k, wind_key("abc", &WindRequest { sectors: 12, ..r }));
-        assert_ne!(k, wind_key("abc", &WindRequest { grid: GridSpec { spacing_m: 4.0, top_factor: 2.0 }, ..r }));
+        let r = WindRequest {
+            grid: GridSpec { spacing_m: 5.0, top_factor: 2.0 },
+            sectors: 8,
+            direction_from_deg: 270.0,
+            model: FieldModel::Diagnostic,
+        };
+        let key = |r: &WindRequest| wind_key("abc", r).expect("cached");
+        let k = key(&r);
+        assert_eq!(k, key(&WindRequest { direction_from_deg: 10.0, ..r.clone() }));
+        assert_ne!(Some(k.clone()), wind_key("abd", &r));
+        assert_ne!(k, key(&WindRequest { sectors: 12, ..r.clone() }));
+        assert_ne!(k, key(&WindRequest { grid: GridSpec { spacing_m: 4.0, top_factor: 2.0 }, ..r.clone() }));
         assert_eq!(
             wind_entry_url_beside("file:///c/assets/abc/world/", &k),
             format!("file:///c/assets/abc/{}/", wind_folder(&k))
         );
+        // OpenFOAM holds only the run direction's sectors: another direction is another
+        // entry unless it blends the same sectors.
+        let foam = WindRequest { model: FieldModel::OpenFoam, ..r.clone() };
+        assert_eq!(foam.sectors_built(), [6]);
+        assert_eq!(WindRequest { direction_from_deg: 280.0, ..foam.clone() }.sectors_built(), [6, 7]);
+        assert_ne!(key(&foam), k);
+        assert_ne!(key(&foam), key(&WindRequest { direction_from_deg: 280.0, ..foam.clone() }));
+        // An imported case is read from its folder, never cached.
+        let case = sadesim_crds::environment::OpenFoamCase {
+            dir: "case".into(),
+            direction_from_deg: 270.0,
+            reference_speed_mps: 10.0,
+        };
+        assert_eq!(wind_key("abc", &WindRequest { model: FieldModel::Imported(case), ..r }), None);
     }
 
     #[test]
@@ -373,12 +452,16 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         let cache = format!("file://{}", dir.display());
         let (world, _) = small();
-        let request =
-            WindRequest { grid: GridSpec { spacing_m: 5.0, top_factor: 2.0 }, sectors: 4, direction_from_deg: 270.0 };
+        let request = WindRequest {
+            grid: GridSpec { spacing_m: 5.0, top_factor: 2.0 },
+            sectors: 4,
+            direction_from_deg: 270.0,
+            model: FieldModel::Diagnostic,
+        };
         let build = || {
             let mut f = UrbanWindField::new(&world, request.grid, request.sectors);
             f.ensure_all(&world, |_, _| {});
-            f
+            Ok(f)
         };
         let scratch = dir.join("scratch");
         let (first, field) = ensure_wind("key1", &request, origin(), &cache, &scratch, build).unwrap();
@@ -389,7 +472,7 @@ mod tests {
         assert_eq!(second, WindOutcome::CacheHit { url: first.url().to_string() });
         assert_eq!(again, field);
         // A flipped byte in a chunk: the manifest catches it and the entry is rebuilt.
-        let entry = dir.join("assets/key1").join(wind_folder(&wind_key("key1", &request)));
+        let entry = dir.join("assets/key1").join(wind_folder(&wind_key("key1", &request).unwrap()));
         let chunk = entry.join("wind.zarr/east/0.0.0.0");
         let mut bytes = std::fs::read(&chunk).unwrap();
         bytes[10] ^= 1;

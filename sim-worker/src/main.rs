@@ -175,7 +175,7 @@ fn main() -> ExitCode {
                 roles::read_plan(&plan).and_then(|plan| {
                     let world = roles::world(&plan, assets.as_deref())?;
                     let sky = roles::sky(&plan)?;
-                    let surroundings = roles::surroundings(&plan, world, sky, assets.as_deref());
+                    let surroundings = roles::surroundings(&plan, world, sky, assets.as_deref())?;
                     roles::shard::run(&plan, &surroundings, shard, &coordinator, mavlink.as_ref(), timeout)
                 })
             })

@@ -14,6 +14,10 @@
 //!   `reference_speed_ms`).
 //! - Coverage: every fluid cell of the grid must have a case cell centre inside it or
 //!   within one grid spacing of its centre; the case's cells may reach beyond the grid.
+//!   Exception: fluid grid cells inside the case's extent and within two cells of a
+//!   building or the ground that the case's mesh does not reach (an enclosed courtyard,
+//!   a gap between buildings snappyHexMesh closed: it keeps only the region connected to
+//!   the inflow) are still air.
 //!
 //! # Mapping
 //! A fluid grid cell gets the mean of the case's cells whose centres fall inside it (an
@@ -149,6 +153,21 @@ pub fn map_onto_grid(
         }
     }
 
+    // The case's bounding box, and whether a grid cell is within two cells of a solid one
+    // (a wall or the ground).
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in &case.centres_m {
+        for a in 0..3 {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    let in_case_box = |p: [f64; 3]| (0..3).all(|a| p[a] >= lo[a] - h && p[a] <= hi[a] + h);
+    let near_wall = |i: usize, j: usize, k: usize| {
+        let span = |v: usize, n: usize| v.saturating_sub(2)..=(v + 2).min(n - 1);
+        span(k, nz).any(|kk| span(j, ny).any(|jj| span(i, nx).any(|ii| grid.solid[grid.index(ii, jj, kk)])))
+    };
     let scale = 1.0 / spec.reference_speed_ms;
     let n = grid.cells();
     let (mut east, mut north, mut up) = (vec![0.0f64; n], vec![0.0f64; n], vec![0.0f64; n]);
@@ -190,6 +209,11 @@ pub fn map_onto_grid(
                         north[c] = v[1] * scale;
                         up[c] = v[2] * scale;
                     }
+                    // Inside the case's extent next to buildings: air the case's mesh does
+                    // not reach, an enclosed courtyard or a gap snappyHexMesh closed, whose
+                    // cells it removes (only the region connected to the inflow is
+                    // meshed). Still air, as in a cavity; elsewhere a hole is an error.
+                    None if in_case_box(grid.centre(i, j, k)) && near_wall(i, j, k) => {}
                     None => {
                         uncovered += 1;
                         first_uncovered.get_or_insert(grid.centre(i, j, k));
@@ -199,14 +223,6 @@ pub fn map_onto_grid(
         }
     }
     if let Some(first_enu_m) = first_uncovered {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in &case.centres_m {
-            for a in 0..3 {
-                lo[a] = lo[a].min(p[a]);
-                hi[a] = hi[a].max(p[a]);
-            }
-        }
         let grid_hi = [0, 1, 2].map(|a| grid.corner_m[a] + grid.dims[a] as f64 * h);
         return Err(ImportError::NotCovered(Box::new(Uncovered {
             file,

@@ -170,43 +170,58 @@ pub fn run_world(
     Ok((Some(outcome), world))
 }
 
-/// The urban wind field of a run that has one: from the asset cache (every sector, computed
-/// and stored on a miss, with a progress bar), or without a cache only the sectors of the
-/// run's direction, computed in memory. `None` for a run without one; the cache's outcome
-/// with a cache.
+/// The urban wind field of a run that has one: from the asset cache (made and stored on a
+/// miss, with a progress bar: every sector of the built-in model, the run direction's of
+/// OpenFOAM), or without a cache only the sectors of the run's direction, made in memory
+/// (an imported OpenFOAM case is always read from its folder). `None` for a run without
+/// one; the cache's outcome with a cache.
 ///
 /// # Errors
-/// The cache cannot be opened or written.
+/// The cache cannot be opened or written; OpenFOAM or an imported case fails (naming the
+/// program or file).
 pub fn run_wind(
     plan: &RunPlan,
     world: &World,
     cache: Option<&str>,
     progress: bool,
 ) -> Result<Option<(Option<WindOutcome>, sadesim_wind::UrbanWindField)>, RunError> {
-    let Some(request) = sadesim_evidence::wind::wind_request(&plan.spec, world) else { return Ok(None) };
-    let Some(cache) = cache else { return Ok(sim_worker::env::urban_wind_field(&plan.spec, world).map(|f| (None, f))) };
-    let bar = if progress { ProgressBar::new(u64::from(request.sectors)) } else { ProgressBar::hidden() };
+    use sadesim_evidence::wind::{FieldModel, wind_request};
+    let Some(request) = wind_request(&plan.spec, world) else { return Ok(None) };
+    let total = request.sectors_built().len() as u64;
+    let bar = if progress { ProgressBar::new(total) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {pos}/{len} {msg}").expect("a valid template"));
-    bar.set_message(format!("urban wind: looking in {cache}"));
     let scratch = std::env::temp_dir().join(format!("sadesim-wind-{}", std::process::id()));
-    let build = || {
-        let mut field = sadesim_wind::UrbanWindField::new(world, request.grid, request.sectors);
-        bar.set_message(format!("urban wind: computing {} direction sectors", request.sectors));
-        field.ensure_all(world, |done, _| bar.set_position(u64::from(done)));
-        field
+    let what = match request.model {
+        FieldModel::Diagnostic => format!("computing {total} direction sectors"),
+        FieldModel::OpenFoam => format!("running OpenFOAM for {total} direction sector(s) (minutes each)"),
+        FieldModel::Imported(_) => "reading the OpenFOAM case".to_string(),
     };
-    let ensured = sadesim_evidence::wind::ensure_wind(
-        &plan.asset_cache_key,
-        &request,
-        plan.spec.origin.geo(),
-        cache,
-        &scratch,
-        build,
-    );
+    let build = || {
+        bar.set_message(format!("urban wind: {what}"));
+        sim_worker::env::build_field(world, &request, &scratch, |done, _| bar.set_position(u64::from(done)))
+            .map_err(|e| AssetsError::WindBuild(e.to_string()))
+    };
+    let made = match (cache, &request.model) {
+        (_, FieldModel::Imported(_)) | (None, FieldModel::OpenFoam) => build().map(|field| (None, field)),
+        (None, FieldModel::Diagnostic) => {
+            Ok((None, sim_worker::env::urban_wind_field(&plan.spec, world).expect("the run wants the built-in field")))
+        }
+        (Some(cache), _) => {
+            bar.set_message(format!("urban wind: looking in {cache}"));
+            sadesim_evidence::wind::ensure_wind(
+                &plan.asset_cache_key,
+                &request,
+                plan.spec.origin.geo(),
+                cache,
+                &scratch,
+                build,
+            )
+            .map(|(outcome, field)| (Some(outcome), field))
+        }
+    };
     bar.finish_and_clear();
     let _ = std::fs::remove_dir_all(&scratch);
-    let (outcome, field) = ensured?;
-    Ok(Some((Some(outcome), field)))
+    Ok(Some(made?))
 }
 
 /// Refuses what the local runner cannot do (yet, or with these options), naming the field.

@@ -40,11 +40,27 @@ pub(super) fn check_environment(spec: &SimulationRunSpec, groups: &HashSet<Strin
             p.range("spec.environment.wind.referenceHeightM", h, 1.0, 500.0);
         }
         if let Some(u) = &w.urban {
-            if u.model == crate::environment::UrbanWindModel::OpenFoam {
-                p.add(
-                    "spec.environment.wind.urban.model",
-                    "openfoam is not supported yet: use diagnostic (the built-in model) or none",
-                );
+            if let Some(case) = &u.case {
+                let base = "spec.environment.wind.urban.case";
+                if u.model != crate::environment::UrbanWindModel::OpenFoam {
+                    p.add(base, "is only allowed with model: openfoam (an imported OpenFOAM case)");
+                }
+                if case.dir.trim().is_empty() {
+                    p.add(format!("{base}.dir"), "must name the OpenFOAM case directory");
+                }
+                p.range(format!("{base}.directionFromDeg"), case.direction_from_deg, 0.0, 360.0);
+                p.range(format!("{base}.referenceSpeedMps"), case.reference_speed_mps, 0.1, 100.0);
+                // A case holds one inflow direction; flying another would be a silent lie.
+                let apart = (case.direction_from_deg - w.direction_from_deg).rem_euclid(360.0);
+                if apart.min(360.0 - apart) > 0.5 {
+                    p.add(
+                        format!("{base}.directionFromDeg"),
+                        format!(
+                            "the case's wind blows from {}° but spec.environment.wind.directionFromDeg is {}°: an imported case holds one direction; set them equal or use model: openfoam without case (OpenFOAM runs for the run's direction)",
+                            case.direction_from_deg, w.direction_from_deg
+                        ),
+                    );
+                }
             }
             if let Some(spacing) = u.spacing_m {
                 p.range("spec.environment.wind.urban.spacingM", spacing, 1.0, 100.0);

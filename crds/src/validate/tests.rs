@@ -292,3 +292,33 @@ fn a_gnss_constellation_needs_a_file_a_time_and_no_noise_figures() {
     });
     assert!(fine.is_empty(), "{fine:?}");
 }
+
+#[test]
+fn an_imported_openfoam_case_needs_model_openfoam_a_folder_and_the_runs_direction() {
+    let with_urban = |urban: serde_json::Value| {
+        problems_of(|r| {
+            r.spec.environment = Some(
+                serde_json::from_value(
+                    serde_json::json!({"wind": {"speedMps": 8, "directionFromDeg": 270, "urban": urban}}),
+                )
+                .unwrap(),
+            );
+        })
+    };
+    let found = with_urban(serde_json::json!({"model": "diagnostic",
+        "case": {"dir": " ", "directionFromDeg": 250, "referenceSpeedMps": 0}}));
+    assert_eq!(
+        found,
+        [
+            "spec.environment.wind.urban.case: is only allowed with model: openfoam (an imported OpenFOAM case)",
+            "spec.environment.wind.urban.case.dir: must name the OpenFOAM case directory",
+            "spec.environment.wind.urban.case.referenceSpeedMps: must be between 0.1 and 100, got 0",
+            "spec.environment.wind.urban.case.directionFromDeg: the case's wind blows from 250° but spec.environment.wind.directionFromDeg is 270°: an imported case holds one direction; set them equal or use model: openfoam without case (OpenFOAM runs for the run's direction)",
+        ]
+    );
+    // Within half a degree is the same direction; OpenFOAM without a case needs nothing more.
+    let fine = with_urban(serde_json::json!({"model": "openfoam",
+        "case": {"dir": "cfd/case", "directionFromDeg": 269.8, "referenceSpeedMps": 10}}));
+    assert!(fine.is_empty(), "{fine:?}");
+    assert!(with_urban(serde_json::json!({"model": "openfoam"})).is_empty());
+}

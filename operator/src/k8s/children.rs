@@ -397,6 +397,18 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
             fatal: true,
         });
     }
+    let urban = plan.spec.environment().wind.and_then(|w| w.urban);
+    if let Some(case) = urban.as_ref().and_then(|u| u.case.as_ref()) {
+        // The pods cannot see a folder on the machine that applied the run.
+        out.push(Problem {
+            field: "spec.environment.wind.urban.case".into(),
+            message: format!(
+                "{:?} is a folder on the machine that applied the run, which the pods cannot read: importing a case is local-only so far. Use model: openfoam without case: the assets Job runs OpenFOAM (in an image that has it) or finds the field that `sadesim assets build --asset-cache <the cluster's cache>` stored",
+                case.dir
+            ),
+            fatal: true,
+        });
+    }
     out.extend(config::size_problems(plan));
     match archive_url(plan, settings) {
         None => out.push(Problem {

@@ -17,6 +17,6 @@ pub use dryden::{DrydenFilter, DrydenScales, M_PER_FT, MIN_AIRSPEED_MPS, MPS_PER
 pub use environment::Environment;
 pub use gnss_outage::GnssOutageFactor;
 pub use sample::{EnvSample, EnvironmentFactor, GnssCondition, SampleContext};
-pub use urban_wind::{describe_urban_wind, urban_wind_field, wants_urban_wind};
+pub use urban_wind::{build_field, describe_urban_wind, urban_wind_field, wants_urban_wind};
 pub use wind::WindFactor;
 pub use wind_profile::{DEFAULT_REFERENCE_HEIGHT_M, MeanWind, URBAN_ROUGHNESS_LENGTH_M};

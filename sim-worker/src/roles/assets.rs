@@ -28,7 +28,11 @@ pub fn run(plan: &RunPlan, archive_url: &str, report_file: Option<&Path>) -> Res
     let progress = |done: u32, total: u32| {
         eprintln!("urban wind: sector {done} of {total} computed ({:.1} s)", started.elapsed().as_secs_f64());
     };
-    let built = sadesim_evidence::assets::build_run_assets(plan, archive_url, &scratch, progress);
+    let build_wind = |world: &sadesim_world::World, request: &sadesim_evidence::wind::WindRequest| {
+        crate::env::build_field(world, request, &scratch.join("wind"), progress)
+            .map_err(|e| sadesim_evidence::assets::AssetsError::WindBuild(e.to_string()))
+    };
+    let built = sadesim_evidence::assets::build_run_assets(plan, archive_url, &scratch, build_wind);
     let _ = std::fs::remove_dir_all(&scratch);
     let (outcome, wind) = built?;
     if let Some(wind) = wind {
@@ -77,7 +81,12 @@ mod tests {
                     direction_from_deg: 100.0,
                     reference_height_m: None,
                     turbulence: Default::default(),
-                    urban: Some(UrbanWind { model: UrbanWindModel::Diagnostic, spacing_m: None, sectors: Some(4) }),
+                    urban: Some(UrbanWind {
+                        model: UrbanWindModel::Diagnostic,
+                        case: None,
+                        spacing_m: None,
+                        sectors: Some(4),
+                    }),
                 }),
                 ..Default::default()
             });
@@ -88,10 +97,10 @@ mod tests {
         let world = crate::roles::world(&plan, Some(built.url())).expect("the bundle loads");
         // Loaded: every sector the asset role computed (a shard computing it itself would
         // have only the two that a wind from 100° blends).
-        let loaded = crate::roles::surroundings(&plan, world.clone(), None, Some(built.url()));
+        let loaded = crate::roles::surroundings(&plan, world.clone(), None, Some(built.url())).unwrap();
         let field = loaded.wind.expect("a field");
         assert_eq!(field.sectors.iter().map(|(k, _)| *k).collect::<Vec<_>>(), [0, 1, 2, 3]);
-        let computed = crate::roles::surroundings(&plan, world, None, None).wind.expect("a field");
+        let computed = crate::roles::surroundings(&plan, world, None, None).unwrap().wind.expect("a field");
         assert_eq!(computed.sectors.iter().map(|(k, _)| *k).collect::<Vec<_>>(), [1, 2]);
         // The same numbers either way.
         assert_eq!(field.sector(1), computed.sector(1));

@@ -13,6 +13,8 @@ use std::sync::Arc;
 use sadesim_crds::plan::{PLAN_FORMAT_VERSION, RunPlan};
 use sadesim_world::World;
 
+use crate::env::urban_wind_field;
+
 /// Why a role could not start.
 #[derive(Debug, thiserror::Error)]
 pub enum RoleError {
@@ -52,6 +54,9 @@ pub enum RoleError {
     /// The run's GNSS constellation cannot be read (its orbit file, its epoch).
     #[error(transparent)]
     Sky(#[from] sadesim_evidence::gnss::SkyReadError),
+    /// The run's urban wind field cannot be made (OpenFOAM, an imported case).
+    #[error("urban wind field: {0}")]
+    Wind(String),
 }
 
 /// The run's world, for every role that needs it (shards fly in it, the coordinator
@@ -98,40 +103,56 @@ pub fn sky(plan: &RunPlan) -> Result<Option<Arc<sadesim_gnss::RunSky>>, RoleErro
 
 /// The shard's surroundings: `world`, `sky` and the urban wind field, loaded from the
 /// asset cache entry beside the world's (`assets`: the world entry's URL; the `<run>-assets`
-/// Job or the local runner stored it) or, without one, computed here. Logged on stderr
-/// (the role's log) with where it came from and what it took.
+/// Job or the local runner stored it) or, without one, made here (an imported OpenFOAM
+/// case is always read here). Logged on stderr (the role's log) with where it came from
+/// and what it took.
+///
+/// # Errors
+/// An OpenFOAM field cannot be made (not installed, a program failing, a case that does not
+/// read or cover the grid).
 pub fn surroundings(
     plan: &RunPlan,
     world: Arc<World>,
     sky: Option<Arc<sadesim_gnss::RunSky>>,
     assets: Option<&str>,
-) -> crate::shard::Surroundings {
+) -> Result<crate::shard::Surroundings, RoleError> {
     use sadesim_evidence::wind::{load_wind, wind_entry_url_beside, wind_key, wind_request};
     let started = std::time::Instant::now();
-    let cached = match (wind_request(&plan.spec, &world), assets) {
-        (Some(request), Some(assets)) => {
-            let url = wind_entry_url_beside(assets, &wind_key(&plan.asset_cache_key, &request));
+    let Some(request) = wind_request(&plan.spec, &world) else {
+        return Ok(crate::shard::Surroundings { world, sky, wind: None });
+    };
+    let cached = match (wind_key(&plan.asset_cache_key, &request), assets) {
+        (Some(key), Some(assets)) => {
+            let url = wind_entry_url_beside(assets, &key);
             match load_wind(&url) {
                 Ok(field) => {
                     eprintln!("urban wind: loaded from {url}");
-                    Some(Arc::new(field))
+                    Some(field)
                 }
                 Err(e) => {
-                    eprintln!("urban wind: not in the asset cache ({e}); computing it here");
+                    eprintln!("urban wind: not in the asset cache ({e}); making it here");
                     None
                 }
             }
         }
         _ => None,
     };
-    let s = match cached {
-        Some(wind) => crate::shard::Surroundings { world, sky, wind: Some(wind) },
-        None => crate::shard::Surroundings::new(plan, world, sky),
+    let field = match cached {
+        Some(field) => field,
+        None => match urban_wind_field(&plan.spec, &world) {
+            Some(field) => field,
+            None => {
+                let scratch = std::env::temp_dir().join(format!("sadesim-wind-{}", std::process::id()));
+                let built = crate::env::build_field(&world, &request, &scratch, |done, total| {
+                    eprintln!("urban wind: sector {done} of {total} made");
+                });
+                let _ = std::fs::remove_dir_all(&scratch);
+                built.map_err(|e| RoleError::Wind(e.to_string()))?
+            }
+        },
     };
-    if let Some(field) = &s.wind {
-        eprintln!("{}", crate::env::describe_urban_wind(field, started.elapsed().as_secs_f64()));
-    }
-    s
+    eprintln!("{}", crate::env::describe_urban_wind(&field, started.elapsed().as_secs_f64()));
+    Ok(crate::shard::Surroundings { world, sky, wind: Some(Arc::new(field)) })
 }
 
 /// Reads a RunPlan written by the planner (`plan.json`).

@@ -171,7 +171,7 @@ fn a_street_along_the_wind_channels_it_and_one_across_it_shelters() {
 
 #[test]
 fn without_the_urban_model_every_drone_meets_the_same_profile() {
-    let h = hovers(Some(UrbanWind { model: UrbanWindModel::None, spacing_m: None, sectors: None }));
+    let h = hovers(Some(UrbanWind { model: UrbanWindModel::None, case: None, spacing_m: None, sectors: None }));
     let open = h[1].wind_mps;
     for (name, hover) in ["lee", "open", "along", "across"].iter().zip(&h) {
         assert!((hover.wind_mps - open).abs() < 0.02 * open, "{name}: {:.2} vs {open:.2}", hover.wind_mps);

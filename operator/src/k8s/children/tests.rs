@@ -611,3 +611,24 @@ fn shards_load_the_world_bundle_the_assets_job_stores_when_there_is_an_object_st
     let local = container(&children(&run, &plan, &ClusterSettings::default(), Stage::ALL), "test-run-shard");
     assert!(!local.args.unwrap_or_default().iter().any(|a| a == "--assets"));
 }
+
+#[test]
+fn an_imported_openfoam_case_is_a_local_folder_the_pods_cannot_read() {
+    use sadesim_crds::environment::{Environment, OpenFoamCase, UrbanWind, UrbanWindModel, Wind};
+    let mut run = piloted(1);
+    let wind = |case: Option<OpenFoamCase>| Wind {
+        speed_mps: 8.0,
+        direction_from_deg: 270.0,
+        reference_height_m: None,
+        turbulence: Default::default(),
+        urban: Some(UrbanWind { model: UrbanWindModel::OpenFoam, case, spacing_m: None, sectors: None }),
+    };
+    let case = OpenFoamCase { dir: "/home/me/case".into(), direction_from_deg: 270.0, reference_speed_mps: 10.0 };
+    run.spec.environment = Some(Environment { wind: Some(wind(Some(case))), ..Default::default() });
+    let p = problems(&planned(&run), &s3());
+    let found = p.iter().find(|p| p.field == "spec.environment.wind.urban.case").expect("refused");
+    assert!(found.fatal && found.message.contains("\"/home/me/case\""), "{found:?}");
+    // OpenFOAM in the assets phase is not refused: the Job runs it or finds it cached.
+    run.spec.environment = Some(Environment { wind: Some(wind(None)), ..Default::default() });
+    assert!(!problems(&planned(&run), &s3()).iter().any(|p| p.field.starts_with("spec.environment")));
+}
