@@ -17,7 +17,7 @@ pub const DEFAULT_SECTORS: u32 = 8;
 /// Version of the built-in model's numbers: part of the asset cache key of a stored field,
 /// so a change to the first guess or the solver that changes any value must bump it (a
 /// stored field of the old model is then a cache miss, not a silently different run).
-pub const DIAGNOSTIC_MODEL_VERSION: u32 = 1;
+pub const DIAGNOSTIC_MODEL_VERSION: u32 = 2;
 
 /// One sector's field: the wind blowing from `direction_from_deg`, per cell, ENU, as
 /// factors of the reference wind (f32: a field is tens of megabytes; the factors need no

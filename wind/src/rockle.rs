@@ -9,15 +9,22 @@
 //!   building's width behind the downwind face, reversed flow
 //!   `u = -u_H (1 - d / d_c)^2` where `d` is the distance behind the face and `d_c` the
 //!   cavity's length at that height and offset;
-//! - **far wake**: out to three cavity lengths, the deficit `u = u0(z) (1 - (d_c / d)^1.5)`.
+//! - **far wake**: out to three cavity lengths, the deficit `u = u0(z) (1 - (d_c / d)^1.5)`;
+//! - **rooftop recirculation** (Wilson 1979's scaling, as QUIC-URB uses it): the flow
+//!   separates at the roof's upwind edge into a bubble of length `L_c = 0.9 R` and height
+//!   `H_c = 0.22 R` over the roof, `R = B_s^(2/3) B_l^(1/3)` (`B_s`, `B_l` the smaller and
+//!   larger of `H` and `W`), cut off where the roof ends; inside, reversed flow
+//!   `u = -u_H (1 - Δz / z_c(x)) / 2`, `Δz` the height over the roof and `z_c(x)` the
+//!   bubble's height at `x` from the edge (an ellipse).
 //!
 //! `L` is the building's length along the wind, `W` its width across it and `H` its height
 //! (the extent of its footprint projected on the wind's axes: an oblique or irregular
 //! building is its bounding rectangle in the wind frame). Where zones of several buildings
 //! overlap the lowest streamwise wind wins (a cavity inside another's wake stays a
-//! cavity), so the guess does not depend on the order of the buildings. Rooftop separation
-//! and the street-canyon vortex of later QUIC versions are not modelled: a canyon narrower
-//! than the cavity gets the upwind building's reversed flow, cut off by the next facade.
+//! cavity), so the guess does not depend on the order of the buildings. The street-canyon
+//! vortex of later QUIC versions is not modelled: a canyon narrower than the cavity gets the
+//! upwind building's reversed flow, cut off by the next facade, and the adjustment supplies
+//! the vertical motion.
 //! The guess is not mass-consistent; [`crate::solver`] makes it so.
 
 use sadesim_world::World;
@@ -74,6 +81,13 @@ impl Obstacle {
     fn front_length_m(&self) -> f64 {
         let (w, h) = (self.width_m(), self.height_m);
         2.0 * w / (1.0 + 0.8 * w / h)
+    }
+
+    /// Rooftop bubble length `L_c` and height `H_c`, metres (Wilson 1979).
+    fn rooftop_m(&self) -> (f64, f64) {
+        let (w, h) = (self.width_m(), self.height_m);
+        let r = w.min(h).powf(2.0 / 3.0) * w.max(h).powf(1.0 / 3.0);
+        (0.9 * r, 0.22 * r)
     }
 
     /// Cavity length `L_R`, metres (Fackrell 1984, as Röckle and QUIC use it).
@@ -139,7 +153,8 @@ fn apply_zones(grid: &WindGrid, axes: WindAxes, profile: &LogProfile, o: &Obstac
     let cell = |v: f64, corner: f64, n: usize| (((v - corner) / h).floor().max(0.0) as usize).min(n);
     let (i0, i1) = (cell(box_en[0], grid.corner_m[0], nx), cell(box_en[2], grid.corner_m[0], nx - 1) + 1);
     let (j0, j1) = (cell(box_en[1], grid.corner_m[1], ny), cell(box_en[3], grid.corner_m[1], ny - 1) + 1);
-    let k1 = cell(o.base_up_m + o.height_m, grid.corner_m[2], nz - 1) + 1;
+    let (lc, hc) = o.rooftop_m();
+    let k1 = cell(o.base_up_m + o.height_m + hc, grid.corner_m[2], nz - 1) + 1;
     let k0 = cell(o.base_up_m, grid.corner_m[2], nz);
     for k in k0..k1 {
         for j in j0..j1 {
@@ -152,10 +167,16 @@ fn apply_zones(grid: &WindGrid, axes: WindAxes, profile: &LogProfile, o: &Obstac
                 let (s, t) = axes.project(e, n);
                 let z = (up - o.base_up_m) / o.height_m;
                 let y = (t - o.t_centre) / o.half_width;
-                if !(0.0..=1.0).contains(&z) || y.abs() > 1.0 {
+                if z < 0.0 || y.abs() > 1.0 {
                     continue;
                 }
-                let guess = if s < o.s_front {
+                let guess = if z > 1.0 {
+                    // Over the roof: the bubble from the upwind edge, within the roof.
+                    let (x, dz) = (s - o.s_front, up - o.base_up_m - o.height_m);
+                    let half = lc / 2.0;
+                    let z_c = hc * (1.0 - ((x - half) / half).powi(2)).max(0.0).sqrt();
+                    if s <= o.s_back && x >= 0.0 && dz < z_c { Some(-0.5 * u_roof * (1.0 - dz / z_c)) } else { None }
+                } else if s < o.s_front {
                     // The front eddy: an ellipsoid 0.6 H high.
                     let zf = z / 0.6;
                     let reach = lf * ((1.0 - zf * zf).max(0.0) * (1.0 - y * y)).sqrt();
@@ -208,5 +229,8 @@ mod tests {
         let wide = Obstacle { half_width: 20.0, ..cube };
         assert!(long.cavity_length_m() < cube.cavity_length_m());
         assert!(wide.cavity_length_m() > cube.cavity_length_m());
+        // Rooftop bubble of a cube: R = H, so 0.9 H long and 0.22 H high.
+        let (lc, hc) = cube.rooftop_m();
+        assert!((lc - 9.0).abs() < 1e-9 && (hc - 2.2).abs() < 1e-9);
     }
 }
