@@ -6,6 +6,9 @@
 //! `sadesim bench --recording` alternates runs with `spec.recording` off (no
 //! `recording.mcap`, no ULogs) and on, and reports what the recordings cost.
 //!
+//! `sadesim bench --urban-wind` alternates runs with the urban wind field off
+//! (`environment.wind.urban.model: none`, the plain log profile) and on (the default).
+//!
 //! `sadesim bench --airspace` measures the airspace authority's HTTP API instead: the
 //! service with the Chicago case study's zone and fleet on 127.0.0.1, under an open-loop
 //! load of entry requests, `GET /zones` and `GET /events` (see [`airspace_load`]).
@@ -31,7 +34,7 @@ spec:
   clock: {mode: asFastAsPossible}
   seed: 1
   environment:
-    wind: {speedMps: 5, directionFromDeg: 270, turbulence: light}
+    wind: {speedMps: 5, directionFromDeg: 270, turbulence: light{urban}}
     gnss: {gnss}
   sharding: {dronesPerShard: {per_shard}}
   recording: {mcap: {mcap}, ulog: {ulog}}
@@ -118,6 +121,8 @@ pub struct BenchResult {
     pub recordings: Recordings,
     /// The ranging GNSS receiver was on.
     pub urban_gnss: bool,
+    /// The urban wind field was on (the default; off: `urban: {model: none}`).
+    pub urban_wind: bool,
     /// Drone-steps (drones x physics steps) per wall second.
     pub drone_steps_per_s: f64,
     pub report: RunReport,
@@ -136,6 +141,9 @@ pub struct Variant {
     /// The ranging GNSS receiver (urban GNSS) under the synthetic GPS + Galileo
     /// constellation, instead of the statistical receiver.
     pub urban_gnss: bool,
+    /// The urban wind field over the city's buildings (the default, `urban: {model:
+    /// diagnostic}`); `false` flies the plain log profile (`urban: {model: none}`).
+    pub urban_wind: bool,
 }
 
 pub fn run(
@@ -145,11 +153,12 @@ pub fn run(
     out_root: std::path::PathBuf,
     variant: Variant,
 ) -> Result<BenchResult, RunError> {
-    let Variant { mavlink, recordings, urban_gnss } = variant;
+    let Variant { mavlink, recordings, urban_gnss, urban_wind } = variant;
     // Urban GNSS under the built-in nominal GPS + Galileo constellation (no file).
     let gnss = if urban_gnss { "{rateHz: 5, constellation: {}}" } else { "{rateHz: 5}" };
     let text = SCENARIO
         .replace("{gnss}", gnss)
+        .replace("{urban}", if urban_wind { "" } else { ", urban: {model: none}" })
         .replace("{mcap}", &recordings.mcap.to_string())
         .replace("{ulog}", &recordings.ulog.to_string())
         .replace("{drones}", &drones.to_string())
@@ -174,6 +183,7 @@ pub fn run(
         mavlink,
         recordings,
         urban_gnss,
+        urban_wind,
         report,
     })
 }

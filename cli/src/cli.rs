@@ -77,12 +77,23 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             let clean = report.errors == 0 && report.answered == report.requests;
             Ok(if clean { Outcome::Success } else { Outcome::Problems })
         }
-        Command::Bench { drones, seconds, drones_per_shard, mavlink, recording, urban_gnss, repeat, .. } => {
+        Command::Bench {
+            drones,
+            seconds,
+            drones_per_shard,
+            mavlink,
+            recording,
+            urban_gnss,
+            urban_wind,
+            repeat,
+            ..
+        } => {
             use crate::bench::pairs::Comparison;
-            let comparison = match (mavlink, recording, urban_gnss) {
-                (true, _, _) => Comparison::Mavlink,
-                (_, Some(set), _) => Comparison::Recording(set),
-                (_, _, true) => Comparison::UrbanGnss,
+            let comparison = match (mavlink, recording, urban_gnss, urban_wind) {
+                (true, ..) => Comparison::Mavlink,
+                (_, Some(set), ..) => Comparison::Recording(set),
+                (_, _, true, _) => Comparison::UrbanGnss,
+                (.., true) => Comparison::UrbanWind,
                 _ => Comparison::None,
             };
             crate::bench::pairs::run_pairs(drones, seconds, drones_per_shard, comparison, repeat, out)

@@ -35,6 +35,31 @@ pub struct SectorField {
     pub iterations: usize,
 }
 
+/// The one or two sectors a wind direction blends, with their weights (sector index,
+/// weight); a slice of them by `Deref`, and iterable by value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SectorBlend {
+    sectors: [(u32, f64); 2],
+    len: usize,
+}
+
+impl std::ops::Deref for SectorBlend {
+    type Target = [(u32, f64)];
+
+    fn deref(&self) -> &[(u32, f64)] {
+        &self.sectors[..self.len]
+    }
+}
+
+impl IntoIterator for SectorBlend {
+    type Item = (u32, f64);
+    type IntoIter = std::iter::Take<std::array::IntoIter<(u32, f64), 2>>;
+
+    fn into_iter(self) -> Self::IntoIter {
+        self.sectors.into_iter().take(self.len)
+    }
+}
+
 /// The field of a world: its grid and the sectors computed so far (a run computes the one
 /// or two its direction needs; an asset build may compute all).
 #[derive(Clone, Debug, PartialEq)]
@@ -64,15 +89,19 @@ impl UrbanWindField {
     }
 
     /// The sectors a wind from `direction_from_deg` blends and their weights (one sector
-    /// when it is exactly on one).
-    pub fn sectors_for(&self, direction_from_deg: f64) -> Vec<(u32, f64)> {
+    /// when it is exactly on one). No allocation: the flight samples it per drone.
+    pub fn sectors_for(&self, direction_from_deg: f64) -> SectorBlend {
         let step = self.sector_step_deg();
         let d = direction_from_deg.rem_euclid(360.0) / step;
         let k0 = d.floor();
         let w = d - k0;
         let k0 = (k0 as u32) % self.sector_count;
         let k1 = (k0 + 1) % self.sector_count;
-        if w < 1e-9 { vec![(k0, 1.0)] } else { vec![(k0, 1.0 - w), (k1, w)] }
+        if w < 1e-9 {
+            SectorBlend { sectors: [(k0, 1.0), (k0, 0.0)], len: 1 }
+        } else {
+            SectorBlend { sectors: [(k0, 1.0 - w), (k1, w)], len: 2 }
+        }
     }
 
     /// Computes sector `k` over `world` (the world the grid was laid over) unless it is there.
@@ -112,16 +141,19 @@ impl UrbanWindField {
         let (fx, fy, fz) = (f(pos.x, g.corner_m[0]), f(pos.y, g.corner_m[1]), f(pos.z, g.corner_m[2]));
         let outside = fx < -0.5 || fy < -0.5 || fx > nx as f64 - 0.5 || fy > ny as f64 - 0.5 || pos.z >= g.top_up_m();
         let mut out = Vector3::zeros();
-        for (k, w) in self.sectors_for(direction_from_deg) {
-            let s = self.sector(k)?;
-            let v = if outside {
+        // Two loops rather than a branch inside one: the profile's logarithms are only
+        // computed outside the grid (the same values either way).
+        if outside {
+            let u = self.profile.factor(height_agl_m);
+            for (k, w) in self.sectors_for(direction_from_deg) {
+                self.sector(k)?;
                 let axes = WindAxes::from_deg(f64::from(k) * self.sector_step_deg());
-                let u = self.profile.factor(height_agl_m);
-                Vector3::new(axes.downwind[0] * u, axes.downwind[1] * u, 0.0)
-            } else {
-                trilinear(g, s, fx, fy, fz.max(-0.5))
-            };
-            out += v * w;
+                out += Vector3::new(axes.downwind[0] * u, axes.downwind[1] * u, 0.0) * w;
+            }
+        } else {
+            for (k, w) in self.sectors_for(direction_from_deg) {
+                out += trilinear(g, self.sector(k)?, fx, fy, fz.max(-0.5)) * w;
+            }
         }
         Some(out)
     }

@@ -23,7 +23,7 @@ pub mod profile;
 pub mod rockle;
 pub mod solver;
 
-pub use field::{DEFAULT_SECTORS, DIAGNOSTIC_MODEL_VERSION, SectorField, UrbanWindField};
+pub use field::{DEFAULT_SECTORS, DIAGNOSTIC_MODEL_VERSION, SectorBlend, SectorField, UrbanWindField};
 pub use grid::{GridSpec, WindGrid};
 
 #[cfg(test)]

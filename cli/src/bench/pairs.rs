@@ -16,11 +16,15 @@ pub enum Comparison {
     Recording(super::RecordingSet),
     /// The statistical GNSS receiver / the ranging receiver among the buildings.
     UrbanGnss,
+    /// The plain log wind profile (`urban: {model: none}`) / the urban wind field (the
+    /// default).
+    UrbanWind,
 }
 use crate::cli::{CliError, Outcome, count};
 
 /// Runs the throughput benchmark (`sadesim bench` without `--airspace`) and writes its
-/// report to `out`: each run, then with `mavlink` or `recording` the paired comparison.
+/// report to `out`: each run, then with a comparison the paired costs and each variant's
+/// drone-steps/s.
 ///
 /// # Errors
 /// A run that could not start or finish ([`CliError::Run`]), or a failed write.
@@ -47,10 +51,15 @@ pub fn run_pairs(
         let (with_mavlink, recordings) = (variant.mavlink, variant.recordings);
         writeln!(
             out,
-            "bench{}{}{}: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall{} = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
+            "bench{}{}{}{}: {} in {} at 1000 Hz: {:.0} s simulated in {:.2} s wall{} = {:.0} drone-steps/s (real-time factor {:.1}, {} cores available)",
             if with_mavlink { " (MAVLink on)" } else { "" },
             if recording.is_some() { format!(" ({})", recordings.label()) } else { String::new() },
             if variant.urban_gnss { " (urban GNSS)" } else { "" },
+            match (comparison, variant.urban_wind) {
+                (Comparison::UrbanWind, true) => " (urban wind field)",
+                (Comparison::UrbanWind, false) => " (urban wind off)",
+                _ => "",
+            },
             count(result.drones as usize, "drone"),
             count(result.shards as usize, "shard"),
             result.sim_time_s,
@@ -79,11 +88,13 @@ pub fn run_pairs(
         Comparison::Mavlink => Some("MAVLink cost".to_string()),
         Comparison::Recording(set) => Some(format!("Recording cost ({})", set.recordings().label())),
         Comparison::UrbanGnss => Some("Urban GNSS cost".to_string()),
+        Comparison::UrbanWind => Some("Urban wind cost".to_string()),
         Comparison::None => None,
     };
     let is_on = |r: &BenchResult| match comparison {
         Comparison::Mavlink => r.mavlink,
         Comparison::UrbanGnss => r.urban_gnss,
+        Comparison::UrbanWind => r.urban_wind,
         _ => r.recordings != Recordings::NONE,
     };
     if let Some(label) = label {
@@ -106,6 +117,17 @@ pub fn run_pairs(
             crate::bench::paired_cost_percent(&wall).map(|c| format!("{c:+.1} % wall time")).unwrap_or_default(),
             crate::bench::paired_cost_percent(&cpu).map(|c| format!(", {c:+.1} % CPU time")).unwrap_or_default()
         )?;
+        // Throughput of each variant and their ratio, on / off, per pair (the figure a
+        // throughput budget such as "at most 10 % slower" is checked against).
+        let rates = pairs(&|r: &BenchResult| Some(r.drone_steps_per_s));
+        if let Some(ratio) = crate::bench::median(rates.iter().map(|(off, on)| on / off.max(1e-9)).collect()) {
+            let off = crate::bench::median(rates.iter().map(|p| p.0).collect()).unwrap_or_default();
+            let on = crate::bench::median(rates.iter().map(|p| p.1).collect()).unwrap_or_default();
+            writeln!(
+                out,
+                "{label}: {off:.0} drone-steps/s off, {on:.0} on (medians); on / off {ratio:.3} (median of the pairs' ratios)"
+            )?;
+        }
         // Within each run: the recorder's CPU time on the recordings against the
         // rest of the process's CPU time (the simulation), immune to the drift
         // between runs that the pairs above suffer from.
@@ -127,7 +149,7 @@ pub fn run_pairs(
 /// (off, on) pairs, every other one "on" first; otherwise one run with MAVLink off and
 /// every recording.
 fn schedule(comparison: Comparison, repeat: u32) -> Vec<Variant> {
-    let base = Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false };
+    let base = Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true };
     // The (off, on) variants a comparison alternates; `None` for a single run.
     let compared: Option<[Variant; 2]> = match comparison {
         Comparison::Mavlink => Some([base, Variant { mavlink: true, ..base }]),
@@ -135,6 +157,7 @@ fn schedule(comparison: Comparison, repeat: u32) -> Vec<Variant> {
             Some([Variant { recordings: Recordings::NONE, ..base }, Variant { recordings: set.recordings(), ..base }])
         }
         Comparison::UrbanGnss => Some([base, Variant { urban_gnss: true, ..base }]),
+        Comparison::UrbanWind => Some([Variant { urban_wind: false, ..base }, base]),
         Comparison::None => None,
     };
     match compared {
@@ -155,7 +178,7 @@ mod tests {
     use super::*;
     use crate::bench::RecordingSet;
 
-    const BASE: Variant = Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false };
+    const BASE: Variant = Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true };
 
     #[test]
     fn mavlink_pairs_alternate_which_variant_runs_first() {
@@ -174,6 +197,13 @@ mod tests {
     fn urban_gnss_pairs_change_only_the_receiver() {
         let on = Variant { urban_gnss: true, ..BASE };
         assert_eq!(schedule(Comparison::UrbanGnss, 2), vec![BASE, on, on, BASE]);
+    }
+
+    #[test]
+    fn urban_wind_pairs_change_only_the_field() {
+        // The benchmark flies in the field by default: "off" is the plain profile.
+        let off = Variant { urban_wind: false, ..BASE };
+        assert_eq!(schedule(Comparison::UrbanWind, 3), vec![off, BASE, BASE, off, off, BASE]);
     }
 
     #[test]

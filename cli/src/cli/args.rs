@@ -66,12 +66,17 @@ pub enum Command {
         /// cost as a ratio of the statistical receiver's run.
         #[arg(long, conflicts_with_all = ["mavlink", "recording"])]
         urban_gnss: bool,
+        /// Also run with the urban wind field off (`environment.wind.urban.model: none`, the
+        /// plain log profile) and report what the field (on by default) costs: each
+        /// variant's drone-steps/s and their ratio.
+        #[arg(long, conflicts_with_all = ["mavlink", "recording", "urban_gnss", "airspace"])]
+        urban_wind: bool,
         /// Also run with `spec.recording` off (no recording.mcap, no ULogs) and report the CPU
         /// cost of the recordings as a ratio of the run without: `all` (default) turns both on
         /// in the other runs, `mcap` or `ulog` one of them.
         #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "all", conflicts_with_all = ["mavlink", "airspace"])]
         recording: Option<crate::bench::RecordingSet>,
-        /// With --mavlink or --recording: run this many back-to-back pairs of the two
+        /// With a comparison (--mavlink, --recording, --urban-gnss, --urban-wind): run this many back-to-back pairs of the two
         /// variants (every other pair "on" first) and report the median ratio of the pairs
         /// (this machine's speed drifts by tens of percent between minutes).
         #[arg(long, default_value_t = 3)]

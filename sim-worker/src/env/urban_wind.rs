@@ -73,14 +73,18 @@ pub fn urban_wind_field(spec: &SimulationRunSpec, world: &World) -> Option<Urban
 }
 
 /// One line for logs: the field's grid, its sectors, their mass-conservation residual and
-/// how long it took.
+/// solver iterations, and how long it took.
 pub fn describe_urban_wind(field: &UrbanWindField, seconds: f64) -> String {
     let [nx, ny, nz] = field.grid.dims;
     let sectors: Vec<String> = field.sectors.iter().map(|(_, s)| format!("{:.0}°", s.direction_from_deg)).collect();
     let residual = field.sectors.iter().map(|(_, s)| s.residual).fold(0.0, f64::max);
+    let iterations = field.sectors.iter().map(|(_, s)| s.iterations);
+    let (fewest, most) = (iterations.clone().min().unwrap_or(0), iterations.max().unwrap_or(0));
+    let iterations = if fewest == most { format!("{most}") } else { format!("{fewest}-{most}") };
     format!(
-        "urban wind: {nx}x{ny}x{nz} cells of {} m, sectors {} (mass residual {residual:.1e}) in {seconds:.1} s",
+        "urban wind: {nx}x{ny}x{nz} cells of {} m ({} cells), sectors {} (mass residual {residual:.1e}, {iterations} CG iterations) in {seconds:.1} s",
         field.grid.spacing_m,
+        field.grid.cells(),
         sectors.join(", ")
     )
 }

@@ -28,6 +28,9 @@ pub struct WindFactor {
     drones: Vec<DroneGust>,
     /// The wind around the buildings, replacing the plain profile where it has cells.
     urban: Option<Arc<UrbanWindField>>,
+    /// The mean wind at the field's reference height, m/s: what its factors multiply
+    /// (computed once, not per sample).
+    urban_reference_mps: f64,
 }
 
 /// In a wake the gusts grow: the turbulence scale is multiplied by `1 + deficit`, where the
@@ -50,7 +53,8 @@ impl WindFactor {
     /// `urban` is the run's field when it has one (`env::urban_wind_field`).
     pub fn from_spec(wind: &Wind, seed: u64, drone_global_indices: &[u32], urban: Option<Arc<UrbanWindField>>) -> Self {
         let mean = MeanWind::urban(wind.speed_mps, wind.direction_from_deg, wind.reference_height_m);
-        Self { urban, ..Self::new(mean, wind.turbulence, seed, drone_global_indices) }
+        let urban_reference_mps = urban.as_ref().map_or(0.0, |f| mean.speed_at_mps(f.profile.reference_height_m));
+        Self { urban, urban_reference_mps, ..Self::new(mean, wind.turbulence, seed, drone_global_indices) }
     }
 
     pub fn new(mean: MeanWind, turbulence: Turbulence, seed: u64, drone_global_indices: &[u32]) -> Self {
@@ -62,7 +66,7 @@ impl WindFactor {
                 gust_enu_mps: Vector3::zeros(),
             })
             .collect();
-        Self { mean, w20_mps: wind_speed_at_20ft_mps(turbulence), drones, urban: None }
+        Self { mean, w20_mps: wind_speed_at_20ft_mps(turbulence), drones, urban: None, urban_reference_mps: 0.0 }
     }
 
     /// Gust at the drone, world ENU, m/s; steps the drone's filter once per new `time_s`.
@@ -92,7 +96,7 @@ impl WindFactor {
     /// ground (the field's reference), and the wake gain.
     fn mean_and_gust_gain(&self, ctx: &SampleContext) -> (Vector3<f64>, f64) {
         let Some(field) = &self.urban else { return (self.mean.velocity_enu_mps(ctx.height_agl_m), 1.0) };
-        let reference_mps = self.mean.speed_at_mps(field.profile.reference_height_m);
+        let reference_mps = self.urban_reference_mps;
         let factor = field
             .factor_at(&ctx.position_enu_m, self.mean.direction_from_deg, ctx.height_agl_m)
             .expect("urban_wind_field computed the sectors of the run's direction");
