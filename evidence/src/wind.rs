@@ -90,12 +90,10 @@ impl WindRequest {
     pub fn sectors_built(&self) -> Vec<u32> {
         match self.model {
             FieldModel::Diagnostic => (0..self.sectors).collect(),
-            _ => {
-                let step = 360.0 / f64::from(self.sectors);
-                let d = self.direction_from_deg.rem_euclid(360.0) / step;
-                let k0 = (d.floor() as u32) % self.sectors;
-                if d - d.floor() < 1e-9 { vec![k0] } else { vec![k0, (k0 + 1) % self.sectors] }
-            }
+            _ => sadesim_wind::field::SectorBlend::of(self.sectors, self.direction_from_deg)
+                .into_iter()
+                .map(|(k, _)| k)
+                .collect(),
         }
     }
 }

@@ -43,6 +43,24 @@ pub struct SectorBlend {
     len: usize,
 }
 
+impl SectorBlend {
+    /// The sectors of `sector_count` around the compass that a wind from
+    /// `direction_from_deg` blends, and their weights (one sector when it is exactly on
+    /// one): what a field needs before any sector is computed.
+    pub fn of(sector_count: u32, direction_from_deg: f64) -> Self {
+        let d = direction_from_deg.rem_euclid(360.0) / (360.0 / f64::from(sector_count));
+        let k0 = d.floor();
+        let w = d - k0;
+        let k0 = (k0 as u32) % sector_count;
+        let k1 = (k0 + 1) % sector_count;
+        if w < 1e-9 {
+            SectorBlend { sectors: [(k0, 1.0), (k0, 0.0)], len: 1 }
+        } else {
+            SectorBlend { sectors: [(k0, 1.0 - w), (k1, w)], len: 2 }
+        }
+    }
+}
+
 impl std::ops::Deref for SectorBlend {
     type Target = [(u32, f64)];
 
@@ -91,17 +109,7 @@ impl UrbanWindField {
     /// The sectors a wind from `direction_from_deg` blends and their weights (one sector
     /// when it is exactly on one). No allocation: the flight samples it per drone.
     pub fn sectors_for(&self, direction_from_deg: f64) -> SectorBlend {
-        let step = self.sector_step_deg();
-        let d = direction_from_deg.rem_euclid(360.0) / step;
-        let k0 = d.floor();
-        let w = d - k0;
-        let k0 = (k0 as u32) % self.sector_count;
-        let k1 = (k0 + 1) % self.sector_count;
-        if w < 1e-9 {
-            SectorBlend { sectors: [(k0, 1.0), (k0, 0.0)], len: 1 }
-        } else {
-            SectorBlend { sectors: [(k0, 1.0 - w), (k1, w)], len: 2 }
-        }
+        SectorBlend::of(self.sector_count, direction_from_deg)
     }
 
     /// Computes sector `k` over `world` (the world the grid was laid over) unless it is there.
