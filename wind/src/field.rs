@@ -17,7 +17,7 @@ pub const DEFAULT_SECTORS: u32 = 8;
 /// Version of the built-in model's numbers: part of the asset cache key of a stored field,
 /// so a change to the first guess or the solver that changes any value must bump it (a
 /// stored field of the old model is then a cache miss, not a silently different run).
-pub const DIAGNOSTIC_MODEL_VERSION: u32 = 2;
+pub const DIAGNOSTIC_MODEL_VERSION: u32 = 3;
 
 /// One sector's field: the wind blowing from `direction_from_deg`, per cell, ENU, as
 /// factors of the reference wind (f32: a field is tens of megabytes; the factors need no
@@ -170,11 +170,10 @@ impl UrbanWindField {
 /// One sector: the first guess, adjusted.
 fn sector(world: &World, grid: &WindGrid, direction_from_deg: f64, profile: &LogProfile) -> SectorField {
     let axes = WindAxes::from_deg(direction_from_deg);
-    let streamwise = first_guess(world, grid, axes, profile);
-    let east: Vec<f64> = streamwise.iter().map(|u| u * axes.downwind[0]).collect();
-    let north: Vec<f64> = streamwise.iter().map(|u| u * axes.downwind[1]).collect();
-    let up = vec![0.0; streamwise.len()];
-    let a = adjust(grid, &east, &north, &up);
+    let guess = first_guess(world, grid, axes, profile);
+    let east: Vec<f64> = guess.streamwise.iter().map(|u| u * axes.downwind[0]).collect();
+    let north: Vec<f64> = guess.streamwise.iter().map(|u| u * axes.downwind[1]).collect();
+    let a = adjust(grid, &east, &north, &guess.up);
     let narrow = |v: Vec<f64>| v.into_iter().map(|x| x as f32).collect();
     SectorField {
         direction_from_deg,

@@ -21,10 +21,20 @@
 //! (the extent of its footprint projected on the wind's axes: an oblique or irregular
 //! building is its bounding rectangle in the wind frame). Where zones of several buildings
 //! overlap the lowest streamwise wind wins (a cavity inside another's wake stays a
-//! cavity), so the guess does not depend on the order of the buildings. The street-canyon
-//! vortex of later QUIC versions is not modelled: a canyon narrower than the cavity gets the
-//! upwind building's reversed flow, cut off by the next facade, and the adjustment supplies
-//! the vertical motion.
+//! cavity), so the guess does not depend on the order of the buildings.
+//!
+//! - **street canyon** (Röckle 1990's vortex with Singh et al. 2008's criterion, as
+//!   QUIC-URB and QES-Winds apply it): where another building's facade stands across the
+//!   wind less than the cavity length `L_R` behind a building's downwind face (skimming
+//!   flow), the cells between them below both roofs hold a vortex instead of the cavity:
+//!   `u = -u_H (x / (S/2)) ((S - x) / (S/2))` along the wind and
+//!   `w = -u_H |(1 - x / (S/2)) / 2| (1 - (S - x) / (S/2))` upward, `x` the distance from
+//!   the upwind building's back wall and `S` the gap at that cell (found by marching
+//!   downwind through the grid at the cell's height, so a lower downwind building gives a
+//!   canyon only up to its roof). The air rises along the upwind building's back wall,
+//!   returns against the wind near the street and sinks along the downwind facade. Where
+//!   canyons of several buildings claim a cell the one of the nearest back wall wins.
+//!
 //! The guess is not mass-consistent; [`crate::solver`] makes it so.
 
 use sadesim_world::World;
@@ -97,9 +107,19 @@ impl Obstacle {
     }
 }
 
-/// The streamwise first guess per cell for one wind direction: the log profile, with each
-/// building's zones applied (solid cells 0). Multiply by the axes' `downwind` for the vector.
-pub fn first_guess(world: &World, grid: &WindGrid, axes: WindAxes, profile: &LogProfile) -> Vec<f64> {
+/// The first guess for one wind direction, per cell (0 in solid cells).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FirstGuess {
+    /// Along the wind (multiply by the axes' `downwind` for east and north), as a factor of
+    /// the reference wind.
+    pub streamwise: Vec<f64>,
+    /// Upward, the same factor: zero but in street canyons.
+    pub up: Vec<f64>,
+}
+
+/// The first guess for one wind direction: the log profile, with each building's zones
+/// applied, then the street-canyon vortices.
+pub fn first_guess(world: &World, grid: &WindGrid, axes: WindAxes, profile: &LogProfile) -> FirstGuess {
     let [nx, ny, nz] = grid.dims;
     let mut u = vec![0.0; grid.cells()];
     for k in 0..nz {
@@ -112,23 +132,130 @@ pub fn first_guess(world: &World, grid: &WindGrid, axes: WindAxes, profile: &Log
             }
         }
     }
-    for b in world.buildings() {
+    let obstacles: Vec<Obstacle> = world.buildings().iter().map(|b| Obstacle::of(b, axes)).collect();
+    for o in &obstacles {
+        apply_zones(grid, axes, profile, o, &mut u);
+    }
+    let mut canyon = Canyons { up: vec![0.0; grid.cells()], back_wall_m: vec![f64::INFINITY; grid.cells()] };
+    for o in &obstacles {
+        apply_canyon(grid, axes, profile, o, &mut u, &mut canyon);
+    }
+    FirstGuess { streamwise: u, up: canyon.up }
+}
+
+impl Obstacle {
+    /// A building's bounding rectangle in the wind frame.
+    fn of(b: &sadesim_world::Building, axes: WindAxes) -> Self {
         let (mut s0, mut s1, mut t0, mut t1) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
         for [e, n] in b.footprint().outer() {
             let (s, t) = axes.project(*e, *n);
             (s0, s1, t0, t1) = (s0.min(s), s1.max(s), t0.min(t), t1.max(t));
         }
-        let o = Obstacle {
+        Obstacle {
             s_front: s0,
             s_back: s1,
             t_centre: (t0 + t1) / 2.0,
             half_width: (t1 - t0) / 2.0,
             base_up_m: b.base_up_m(),
             height_m: b.height_m(),
-        };
-        apply_zones(grid, axes, profile, &o, &mut u);
+        }
     }
-    u
+}
+
+/// The street-canyon pass's state: the vertical first guess, and per cell the distance
+/// from the back wall of the canyon that set it (the nearest wins).
+struct Canyons {
+    up: Vec<f64>,
+    back_wall_m: Vec<f64>,
+}
+
+/// The grid cells of a rectangle in the wind frame (`s` along, `t` across), as index
+/// ranges `(i0..i1, j0..j1)` of the rectangle's bounds in ENU.
+fn cells_of(grid: &WindGrid, axes: WindAxes, (s_lo, s_hi): (f64, f64), (t_lo, t_hi): (f64, f64)) -> [usize; 4] {
+    let mut box_en = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
+    for (s, t) in [(s_lo, t_lo), (s_lo, t_hi), (s_hi, t_lo), (s_hi, t_hi)] {
+        let e = s * axes.downwind[0] + t * axes.across[0];
+        let n = s * axes.downwind[1] + t * axes.across[1];
+        box_en = [box_en[0].min(e), box_en[1].min(n), box_en[2].max(e), box_en[3].max(n)];
+    }
+    let [nx, ny, _] = grid.dims;
+    let (i0, i1) = (grid_cell(grid, box_en[0], 0, nx), grid_cell(grid, box_en[2], 0, nx - 1) + 1);
+    let (j0, j1) = (grid_cell(grid, box_en[1], 1, ny), grid_cell(grid, box_en[3], 1, ny - 1) + 1);
+    [i0, i1, j0, j1]
+}
+
+/// The cell index along `axis` holding coordinate `v` (metres), clamped to `0..=max`.
+fn grid_cell(grid: &WindGrid, v: f64, axis: usize, max: usize) -> usize {
+    (((v - grid.corner_m[axis]) / grid.spacing_m).floor().max(0.0) as usize).min(max)
+}
+
+/// Puts the street-canyon vortex in the cells behind `o` where another building's facade
+/// closes the gap within the cavity length (see the module's notes).
+fn apply_canyon(
+    grid: &WindGrid,
+    axes: WindAxes,
+    profile: &LogProfile,
+    o: &Obstacle,
+    u: &mut [f64],
+    canyon: &mut Canyons,
+) {
+    if o.half_width <= 0.0 || o.height_m <= 0.0 {
+        return;
+    }
+    let lr = o.cavity_length_m();
+    let u_roof = profile.factor(o.height_m);
+    let h = grid.spacing_m;
+    let [nx, ny, nz] = grid.dims;
+    let [i0, i1, j0, j1] =
+        cells_of(grid, axes, (o.s_back, o.s_back + lr), (o.t_centre - o.half_width, o.t_centre + o.half_width));
+    let k0 = grid_cell(grid, o.base_up_m, 2, nz);
+    let k1 = grid_cell(grid, o.base_up_m + o.height_m, 2, nz - 1) + 1;
+    // A building cell (not ground) at the column of point (e, n) and level k, if in the grid.
+    let building_at = |e: f64, n: f64, k: usize| -> Option<bool> {
+        let (fi, fj) = ((e - grid.corner_m[0]) / h, (n - grid.corner_m[1]) / h);
+        if fi < 0.0 || fj < 0.0 || fi >= nx as f64 || fj >= ny as f64 {
+            return None;
+        }
+        let (i, j) = (fi as usize, fj as usize);
+        let up = grid.corner_m[2] + (k as f64 + 0.5) * h;
+        Some(grid.solid[grid.index(i, j, k)] && up >= grid.ground_up_m[j * nx + i])
+    };
+    for k in k0..k1 {
+        for j in j0..j1 {
+            for i in i0..i1 {
+                let c = grid.index(i, j, k);
+                if grid.solid[c] {
+                    continue;
+                }
+                let [e, n, up] = grid.centre(i, j, k);
+                let (s, t) = axes.project(e, n);
+                let (x, z) = (s - o.s_back, (up - o.base_up_m) / o.height_m);
+                if x <= 0.0 || x > lr || z <= 0.0 || z > 1.0 || (t - o.t_centre).abs() > o.half_width {
+                    continue;
+                }
+                // March downwind at this level, half a cell a step, for the next facade.
+                let mut r = 0.5 * h;
+                let gap = loop {
+                    if x + r > lr {
+                        break None;
+                    }
+                    match building_at(e + r * axes.downwind[0], n + r * axes.downwind[1], k) {
+                        None => break None,
+                        Some(true) => break Some(x + r),
+                        Some(false) => r += 0.5 * h,
+                    }
+                };
+                let Some(gap) = gap else { continue };
+                if x >= canyon.back_wall_m[c] {
+                    continue;
+                }
+                let half = 0.5 * gap;
+                canyon.back_wall_m[c] = x;
+                u[c] = -u_roof * (x / half) * ((gap - x) / half);
+                canyon.up[c] = -u_roof * (0.5 * (1.0 - x / half)).abs() * (1.0 - (gap - x) / half);
+            }
+        }
+    }
 }
 
 /// Lowers `u` in the obstacle's front eddy, cavity and far wake.
@@ -139,23 +266,16 @@ fn apply_zones(grid: &WindGrid, axes: WindAxes, profile: &LogProfile, o: &Obstac
     let (lf, lr) = (o.front_length_m(), o.cavity_length_m());
     // Wind at roof height over the building's ground, the cavity's return flow scale.
     let u_roof = profile.factor(o.height_m);
-    // The zones' box in the wind frame, then in ENU (its four corners' bounds).
-    let (s_lo, s_hi) = (o.s_front - lf, o.s_back + 3.0 * lr);
-    let (t_lo, t_hi) = (o.t_centre - o.half_width, o.t_centre + o.half_width);
-    let mut box_en = [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY];
-    for (s, t) in [(s_lo, t_lo), (s_lo, t_hi), (s_hi, t_lo), (s_hi, t_hi)] {
-        let e = s * axes.downwind[0] + t * axes.across[0];
-        let n = s * axes.downwind[1] + t * axes.across[1];
-        box_en = [box_en[0].min(e), box_en[1].min(n), box_en[2].max(e), box_en[3].max(n)];
-    }
-    let h = grid.spacing_m;
-    let [nx, ny, nz] = grid.dims;
-    let cell = |v: f64, corner: f64, n: usize| (((v - corner) / h).floor().max(0.0) as usize).min(n);
-    let (i0, i1) = (cell(box_en[0], grid.corner_m[0], nx), cell(box_en[2], grid.corner_m[0], nx - 1) + 1);
-    let (j0, j1) = (cell(box_en[1], grid.corner_m[1], ny), cell(box_en[3], grid.corner_m[1], ny - 1) + 1);
+    let [i0, i1, j0, j1] = cells_of(
+        grid,
+        axes,
+        (o.s_front - lf, o.s_back + 3.0 * lr),
+        (o.t_centre - o.half_width, o.t_centre + o.half_width),
+    );
+    let nz = grid.dims[2];
     let (lc, hc) = o.rooftop_m();
-    let k1 = cell(o.base_up_m + o.height_m + hc, grid.corner_m[2], nz - 1) + 1;
-    let k0 = cell(o.base_up_m, grid.corner_m[2], nz);
+    let k1 = grid_cell(grid, o.base_up_m + o.height_m + hc, 2, nz - 1) + 1;
+    let k0 = grid_cell(grid, o.base_up_m, 2, nz);
     for k in k0..k1 {
         for j in j0..j1 {
             for i in i0..i1 {

@@ -114,3 +114,63 @@ fn over_the_roof_the_flow_separates_at_the_upwind_edge() {
     let over = field.factor_at(&Vector3::new(-5.0, 0.0, H + 5.0), 270.0, H + 5.0).unwrap();
     assert!(over.x > 0.9 * field.profile.factor(H + 5.0), "over {over:?}");
 }
+
+/// A slab `H` high, 60 m wide across a wind from the west (north -30 to 30 m) and 10 m
+/// deep, its west face at `west` metres east.
+fn slab(west: f64) -> Building {
+    let footprint =
+        Footprint::new(vec![[west, -30.0], [west + 10.0, -30.0], [west + 10.0, 30.0], [west, 30.0]], vec![]).unwrap();
+    Building::new(footprint, 0.0, H).unwrap()
+}
+
+/// Two slabs 20 m high, 60 m wide across a wind from the west and 10 m deep, with a street
+/// 16 m wide between them (a skimming-flow canyon: the gap is well inside the upwind
+/// slab's cavity, 77 m), on 2 m cells; and the adjusted field.
+fn canyon_field() -> UrbanWindField {
+    // The street: east 0 (the upwind slab's back wall) to east 16 (the downwind facade).
+    let world = World::of_buildings(150.0, vec![slab(-10.0), slab(16.0)]);
+    let mut field = UrbanWindField::new(&world, GridSpec { spacing_m: CELL, top_factor: 2.0 }, 8);
+    field.ensure_sector(&world, 6);
+    field
+}
+
+#[test]
+fn in_a_street_canyon_the_air_turns_in_a_vortex() {
+    let field = canyon_field();
+    let at = |east: f64, up: f64| field.factor_at(&Vector3::new(east, 1.0, up), 270.0, up).unwrap();
+    let open = field.profile.factor(H);
+    // Up the upwind slab's back wall, against the wind near the street, down the downwind
+    // facade, with the wind at the roofs forward: one vortex turning with the wind.
+    let (rise, street, sink, roof) = (at(3.0, 11.0), at(8.0, 3.0), at(13.0, 11.0), at(8.0, H + 6.0));
+    eprintln!(
+        "street canyon (factors of the reference wind; open {open:.2} at {H} m): \
+         back wall {rise:.2?}, street {street:.2?}, facade {sink:.2?}, over the roofs {roof:.2?}"
+    );
+    // (Without the vortex, the cavity's reversed flow cut off by the facade, the adjustment
+    // alone gives 0.14 of the open wind up and down the walls and 0.06 against it.)
+    assert!(rise.z > 0.2 * open, "rising along the back wall: {rise:?}");
+    assert!(sink.z < -0.2 * open, "sinking along the downwind facade: {sink:?}");
+    assert!(street.x < -0.15 * open, "against the wind near the street: {street:?}");
+    assert!(roof.x > 0.5 * open, "forward over the roofs: {roof:?}");
+    // Mass-consistent all the same.
+    let s = &field.sectors[0].1;
+    assert!(s.residual < 1e-5, "{}", s.residual);
+}
+
+#[test]
+fn a_gap_wider_than_the_cavity_is_no_canyon() {
+    // The vortex is the only source of vertical wind in the first guess: with the downwind
+    // slab 16 m behind there is one, with it 120 m behind (beyond the upwind slab's 77 m
+    // cavity) there is none: that street is the cavity and wake of an isolated building.
+    let vertical_cells = |gap: f64| {
+        let world = World::of_buildings(150.0, vec![slab(-10.0), slab(gap)]);
+        let grid = WindGrid::over(&world, GridSpec { spacing_m: CELL, top_factor: 2.0 });
+        let guess = rockle::first_guess(&world, &grid, rockle::WindAxes::from_deg(270.0), &profile::FIELD_PROFILE);
+        guess.up.iter().filter(|w| **w != 0.0).count()
+    };
+    let (narrow, wide) = (vertical_cells(16.0), vertical_cells(120.0));
+    // 16 m x 60 m x 20 m of street is 7 x 30 x 10 cells of 2 m (the cells whose centres lie
+    // inside), all of them in the vortex.
+    assert!(narrow >= 7 * 30 * 10, "{narrow} cells");
+    assert_eq!(wide, 0);
+}
