@@ -8,6 +8,10 @@ pub struct OperatorArgs {
     /// Image of sim-worker (assets, shard, coordinator, router and renderer roles).
     #[arg(long, env = "SADESIM_WORKER_IMAGE", default_value = "ghcr.io/sadesim/sim-worker:0.1.0")]
     pub worker_image: String,
+    /// Image of sim-worker with OpenFOAM (images/sim-worker-openfoam.Dockerfile): the assets
+    /// Job of runs whose `environment.wind.urban.model` is `openfoam`.
+    #[arg(long, env = "SADESIM_OPENFOAM_IMAGE", default_value = "ghcr.io/sadesim/sim-worker-openfoam:0.1.0")]
+    pub openfoam_image: String,
     /// Archive URL for runs without spec.archive (s3://bucket/prefix, gs://..., az://...).
     #[arg(long, env = "SADESIM_DEFAULT_ARCHIVE_URL")]
     pub default_archive_url: Option<String>,
@@ -47,6 +51,7 @@ impl OperatorArgs {
         crate::k8s::controller::OperatorOptions {
             settings: crate::k8s::children::ClusterSettings {
                 worker_image: self.worker_image,
+                openfoam_image: self.openfoam_image,
                 default_archive_url: self.default_archive_url.filter(|u| !u.is_empty()),
                 object_store_secret: self.object_store_secret.filter(|s| !s.is_empty()),
                 router_service_type: self.router_service_type,

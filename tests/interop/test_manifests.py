@@ -120,11 +120,14 @@ def test_the_chart_configures_the_operator_with_the_contract_env_only():
     container = deployment["spec"]["template"]["spec"]["containers"][0]
     env = {e["name"]: e.get("value") for e in container["env"]}
     assert set(env) == {
-        "SADESIM_WORKER_IMAGE", "SADESIM_DEFAULT_ARCHIVE_URL", "SADESIM_OBJECT_STORE_SECRET",
+        "SADESIM_WORKER_IMAGE", "SADESIM_OPENFOAM_IMAGE", "SADESIM_DEFAULT_ARCHIVE_URL", "SADESIM_OBJECT_STORE_SECRET",
         "SADESIM_ROUTER_SERVICE_TYPE", "SADESIM_KUEUE", "SADESIM_MAX_CONCURRENT_RUNS", "SADESIM_METRICS_ADDR",
         "SADESIM_LEADER_ELECTION", "POD_NAMESPACE", "POD_NAME",
     }
     assert env["SADESIM_KUEUE"] == "true" and env["SADESIM_METRICS_ADDR"] == "0.0.0.0:8080"
+    # The assets Job of an OpenFOAM run takes the image with OpenFOAM, same tag as the worker's.
+    assert env["SADESIM_OPENFOAM_IMAGE"].startswith("ghcr.io/sadesim/sim-worker-openfoam:")
+    assert env["SADESIM_OPENFOAM_IMAGE"].split(":")[1] == env["SADESIM_WORKER_IMAGE"].split(":")[1]
     # The image's entrypoint is the operator binary itself (images/operator.Dockerfile).
     assert "args" not in container and "command" not in container
     assert container["livenessProbe"]["httpGet"]["path"] == "/healthz"

@@ -38,3 +38,7 @@ app.kubernetes.io/component: operator
 {{- define "sadesim.workerImage" -}}
 {{- printf "%s:%s" .Values.workerImage.repository (default .Chart.AppVersion .Values.workerImage.tag) -}}
 {{- end -}}
+
+{{- define "sadesim.openfoamImage" -}}
+{{- printf "%s:%s" .Values.openfoamImage.repository (default .Chart.AppVersion .Values.openfoamImage.tag) -}}
+{{- end -}}

@@ -142,6 +142,10 @@ pub struct ClusterSettings {
     /// Image of `sim-worker` (assets, shard, coordinator, router, renderer roles). It also
     /// holds `sadesim`, which the coordinator pod runs to upload the run folder.
     pub worker_image: String,
+    /// The worker image with OpenFOAM installed (images/sim-worker-openfoam.Dockerfile): the
+    /// assets Job uses it when the run's urban wind model is `openfoam`, because that Job
+    /// runs OpenFOAM over the world's buildings. Every other pod keeps `worker_image`.
+    pub openfoam_image: String,
     /// Archive URL used when `spec.archive` is absent (e.g. `s3://sadesim-runs`).
     pub default_archive_url: Option<String>,
     /// Secret whose keys become environment variables of roles that write the archive
@@ -157,6 +161,7 @@ impl Default for ClusterSettings {
     fn default() -> Self {
         Self {
             worker_image: "ghcr.io/sadesim/sim-worker:0.1.0".into(),
+            openfoam_image: "ghcr.io/sadesim/sim-worker-openfoam:0.1.0".into(),
             default_archive_url: None,
             object_store_secret: None,
             router_service_type: "ClusterIP".into(),
@@ -403,7 +408,7 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
         out.push(Problem {
             field: "spec.environment.wind.urban.case".into(),
             message: format!(
-                "{:?} is a folder on the machine that applied the run, which the pods cannot read: importing a case is local-only so far. Use model: openfoam without case: the assets Job runs OpenFOAM (in an image that has it) or finds the field that `sadesim assets build --asset-cache <the cluster's cache>` stored",
+                "{:?} is a folder on the machine that applied the run, which the pods cannot read: importing a case is local-only so far. Use model: openfoam without case: the assets Job runs OpenFOAM (in the operator's OpenFOAM image, images/sim-worker-openfoam.Dockerfile) or finds the field that `sadesim assets build --asset-cache <the cluster's cache>` stored",
                 case.dir
             ),
             fatal: true,

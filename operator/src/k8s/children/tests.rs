@@ -632,3 +632,34 @@ fn an_imported_openfoam_case_is_a_local_folder_the_pods_cannot_read() {
     run.spec.environment = Some(Environment { wind: Some(wind(None)), ..Default::default() });
     assert!(!problems(&planned(&run), &s3()).iter().any(|p| p.field.starts_with("spec.environment")));
 }
+
+/// The assets Job of an OpenFOAM run runs OpenFOAM, so it takes the image that has it; every
+/// other pod of that run, and the assets Job of any other run, the small worker image.
+#[test]
+fn the_assets_job_of_an_openfoam_run_uses_the_openfoam_image() {
+    use sadesim_crds::environment::{Environment, UrbanWind, UrbanWindModel, Wind};
+    let settings = ClusterSettings { openfoam_image: "registry.example/foam:7".into(), ..s3() };
+    let image_of = |run: &SimulationRun, name: &str| {
+        container(&children(run, &planned(run), &settings, Stage::ALL), name).image.unwrap()
+    };
+    let mut run = piloted(1);
+    assert_eq!(image_of(&run, "test-run-assets"), settings.worker_image);
+    for (model, assets_image) in [
+        (UrbanWindModel::OpenFoam, "registry.example/foam:7"),
+        (UrbanWindModel::Diagnostic, settings.worker_image.as_str()),
+        (UrbanWindModel::None, settings.worker_image.as_str()),
+    ] {
+        let urban = UrbanWind { model, case: None, spacing_m: None, sectors: None };
+        let wind = Wind {
+            speed_mps: 8.0,
+            direction_from_deg: 270.0,
+            reference_height_m: None,
+            turbulence: Default::default(),
+            urban: Some(urban),
+        };
+        run.spec.environment = Some(Environment { wind: Some(wind), ..Default::default() });
+        assert_eq!(image_of(&run, "test-run-assets"), assets_image, "{model:?}");
+        assert_eq!(image_of(&run, "test-run-shard"), settings.worker_image, "{model:?}");
+        assert_eq!(image_of(&run, "test-run-coordinator"), settings.worker_image, "{model:?}");
+    }
+}

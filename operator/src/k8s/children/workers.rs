@@ -84,6 +84,9 @@ pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
         TERMINATION_LOG.into(),
     ];
     let mut container = worker_container(ctx, Role::Assets, strings(&[SIM_WORKER]), args, ctx.plan.resources.assets);
+    if runs_openfoam(ctx.plan) {
+        container.image = Some(ctx.settings.openfoam_image.clone());
+    }
     container.env_from = ctx.object_store_env();
     container.termination_message_path = Some(TERMINATION_LOG.into());
     let spec = pod_spec(vec![container], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Never");
@@ -100,6 +103,13 @@ pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
         }),
         ..Default::default()
     })
+}
+
+/// Whether the run's assets phase runs OpenFOAM (`environment.wind.urban.model: openfoam`;
+/// an imported `case` is refused on a cluster, see [`super::problems`]).
+fn runs_openfoam(plan: &sadesim_crds::plan::RunPlan) -> bool {
+    let urban = plan.spec.environment().wind.and_then(|w| w.urban);
+    urban.is_some_and(|u| u.model == sadesim_crds::environment::UrbanWindModel::OpenFoam)
 }
 
 /// `<run>-airspace`: the coordinator's shard link and airspace API. Not-ready addresses are
