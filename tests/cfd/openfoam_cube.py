@@ -3,10 +3,13 @@
 runs it, and prints the recirculation (reattachment) length behind the cube.
 
     python tests/cfd/openfoam_cube.py OUTDIR [--cells-per-h 14] [--max-iterations 2000]
+    python tests/cfd/openfoam_cube.py OUTDIR --unsteady [--model v2f] [--cells-per-h 10]
+        [--max-co 3] [--outer-correctors 2] [--spin-up 30] [--window 60]
 
 Prints one JSON line: {"reattachment_H", "cells", "iterations", "converged",
-"residuals", "wall_s", "openfoam"}. Exit status 0 means the run finished and a
-reattachment point was found; the solver's logs stay in OUTDIR/case/log.*.
+"residuals", "wall_s", "openfoam"}; with --unsteady also "unsteady": true, the model,
+the averaging window and the shedding seen at a probe (below). Exit status 0 means the run
+finished and a reattachment point was found; the solver's logs stay in OUTDIR/case/log.*.
 
 Reference: Martinuzzi, R. & Tropea, C. (1993), "The flow around surface-mounted, prismatic
 obstacles placed in a fully developed channel flow", J. Fluids Eng. 115(1), 85-92: a cube
@@ -58,6 +61,34 @@ x in [0, 1], y in [-0.5, 0.5], z in [0, 1]):
   cube's centreline) and nearest the ground (the first cell centre, z = H/2N), the last
   point behind the leeward face where U_x < 0; the zero crossing between it and the next
   cell downstream is interpolated linearly. Measured from the leeward face, in H.
+
+Unsteady RANS (--unsteady), for the shedding that steady RANS lacks:
+
+- Domain: the full channel, y from -3.5H to 3.5H (the half mesh mirrored, symmetry
+  planes only at the two sides): shedding is antisymmetric about y = 0.
+- Start: the steady solution above (simpleFoam, standard k-epsilon, on the full mesh)
+  becomes time 0, so the spin-up starts from a bubble of the right size. The fields the
+  unsteady model has and k-epsilon has not are derived from it (v2 = 2/3 k, f = 0,
+  omega = epsilon / (C_mu k)). A steady solution on a mirrored mesh is symmetric, and only
+  round-off would break the symmetry; a lateral velocity of 0.1 m/s in the wake (2H to 5H
+  downstream of the cube's front, |y| < 1.5H, z < 1.5H) at time 0 kicks the
+  antisymmetric mode instead.
+- Solver: pimpleFoam, second-order backward time stepping, linearUpwind as the steady
+  case, the time step set by the Courant number (adjustTimeStep, --max-co, default 3) with
+  --outer-correctors (default 2) PIMPLE outer iterations a step, SIMPLEC pressure
+  correction and under-relaxation 0.9 on all but the last outer iteration.
+- Turbulence: --model v2f (Durbin's, with v2WallFunction and fWallFunction), kEpsilon or
+  kOmegaSST; the model constants are OpenFOAM's defaults.
+- Mean: fieldAverage accumulates UMean from --spin-up (s) over --window (s), weighted by
+  the time step. With a bulk velocity of 1 m/s and H = 1 m, a Strouhal number near 0.1
+  is a period near 10 s. UMean is written at the window's middle and end, so the means
+  over its first and second halves both follow; their reattachments show whether the
+  mean has settled. The reattachment is computed from UMean as the steady case's from U,
+  on the cell row nearest y = 0 on the side y > 0 (y = H/2N, the same row as the half
+  domain's; N is even) and, as a check, on its mirror y = -H/2N.
+- Shedding: a probe 2H behind the leeward face on the centreline at z = H/2 records U
+  every step; the lateral velocity U_y there is zero in a symmetric flow. Its period is
+  the mean interval between upward crossings of its mean over the window.
 
 OpenFOAM: Debian's `openfoam` package (v1912), run with one process. The environment is
 its etc/bashrc's minimum, WM_PROJECT_DIR (default /usr/share/openfoam, Debian's path).
@@ -536,6 +567,11 @@ def prepare_transient(case, model, t_end, spin_up, window, max_co, outer, n_h):
     # A first step at Courant number ~0.5 with the fastest flow ~1.5 U_BULK; adjustTimeStep
     # then grows it to max_co.
     dt0 = 0.5 * (H / n_h) / (1.5 * U_BULK)
+    # Writes fall on multiples of the write interval: the largest one (to the millisecond)
+    # that hits the window's middle and its end, where UMean is read.
+    write_ms = math.gcd(round(1000 * spin_up), round(500 * window))
+    if write_ms == 0:
+        raise SystemExit("--window must be at least 2 ms")
     px, py, pz = PROBE
     (case / "system" / "controlDict").write_text(foam_file("dictionary", "controlDict", f"""application pimpleFoam;
 startFrom startTime;
@@ -547,7 +583,7 @@ adjustTimeStep yes;
 maxCo {max_co:g};
 maxDeltaT 1;
 writeControl adjustableRunTime;
-writeInterval {0.5 * window:g};
+writeInterval {write_ms / 1000:g};
 purgeWrite 0;
 writeFormat ascii;
 writePrecision 8;
