@@ -3,10 +3,13 @@
 runs it, and prints the recirculation (reattachment) length behind the cube.
 
     python tests/cfd/openfoam_cube.py OUTDIR [--cells-per-h 14] [--max-iterations 2000]
+    python tests/cfd/openfoam_cube.py OUTDIR --unsteady [--model kOmegaSST] [--cells-per-h 10]
+        [--max-co 3] [--outer-correctors 2] [--spin-up 60] [--window 60]
 
 Prints one JSON line: {"reattachment_H", "cells", "iterations", "converged",
-"residuals", "wall_s", "openfoam"}. Exit status 0 means the run finished and a
-reattachment point was found; the solver's logs stay in OUTDIR/case/log.*.
+"residuals", "wall_s", "openfoam"}; with --unsteady also "unsteady": true, the model,
+the averaging window and the shedding seen at a probe (below). Exit status 0 means the run
+finished and a reattachment point was found; the solver's logs stay in OUTDIR/case/log.*.
 
 Reference: Martinuzzi, R. & Tropea, C. (1993), "The flow around surface-mounted, prismatic
 obstacles placed in a fully developed channel flow", J. Fluids Eng. 115(1), 85-92: a cube
@@ -58,6 +61,37 @@ x in [0, 1], y in [-0.5, 0.5], z in [0, 1]):
   cube's centreline) and nearest the ground (the first cell centre, z = H/2N), the last
   point behind the leeward face where U_x < 0; the zero crossing between it and the next
   cell downstream is interpolated linearly. Measured from the leeward face, in H.
+
+Unsteady RANS (--unsteady), for the shedding that steady RANS lacks:
+
+- Domain: the full channel, y from -3.5H to 3.5H (the half mesh mirrored, symmetry
+  planes only at the two sides): shedding is antisymmetric about y = 0.
+- Start: the steady solution above (simpleFoam, standard k-epsilon, on the full mesh)
+  becomes time 0, so the spin-up starts from a bubble of the right size. The fields the
+  unsteady model has and k-epsilon has not are derived from it (v2 = 2/3 k, f = 0,
+  omega = epsilon / (C_mu k)). A steady solution on a mirrored mesh is symmetric, and only
+  round-off would break the symmetry; a lateral velocity of 0.1 m/s in the wake (2H to 5H
+  downstream of the cube's front, |y| < 1.5H, z < 1.5H) at time 0 kicks the
+  antisymmetric mode instead.
+- Solver: pimpleFoam, second-order backward time stepping, linearUpwind as the steady
+  case, the time step set by the Courant number (adjustTimeStep, --max-co, default 3) with
+  --outer-correctors (default 2) PIMPLE outer iterations a step, SIMPLEC pressure
+  correction and under-relaxation 0.9 on all but the last outer iteration.
+- Turbulence: --model kOmegaSST (the default), v2f (Durbin's, with v2WallFunction and
+  fWallFunction) or kEpsilon; the model constants are OpenFOAM's defaults. Of the three,
+  only k-omega SST sheds strongly at 10 cells per H (docs/wind-cfd.md has the numbers):
+  standard k-epsilon damps the kick, v2f with wall functions sheds weakly.
+- Mean: fieldAverage accumulates UMean from --spin-up (s) over --window (s), weighted by
+  the time step. With a bulk velocity of 1 m/s and H = 1 m, a Strouhal number near 0.1
+  is a period near 10 s; k-omega SST's shedding grows to its full amplitude by about 80 s,
+  hence the default 60 s of spin-up and 60 s (six periods) of averaging. UMean is written at the window's middle and end, so the means
+  over its first and second halves both follow; their reattachments show whether the
+  mean has settled. The reattachment is computed from UMean as the steady case's from U,
+  on the cell row nearest y = 0 on the side y >= 0 (y = H/2N for an even N, the same row
+  as the half domain's) and, as a check, on its mirror (y = -H/2N).
+- Shedding: a probe 2H behind the leeward face on the centreline at z = H/2 records U
+  every step; the lateral velocity U_y there is zero in a symmetric flow. Its period is
+  the mean interval between upward crossings of its mean over the window.
 
 OpenFOAM: Debian's `openfoam` package (v1912), run with one process. The environment is
 its etc/bashrc's minimum, WM_PROJECT_DIR (default /usr/share/openfoam, Debian's path).
@@ -136,41 +170,58 @@ def graded(length, fine, max_growth, fine_at_start):
     return n, (ratio if fine_at_start else 1.0 / ratio)
 
 
-def block_mesh_dict(n_h):
-    """blockMeshDict: the half channel cut into 3 x 2 x 2 blocks, the cube's block left out."""
+def block_mesh_dict(n_h, full=False):
+    """blockMeshDict: the half channel cut into 3 x 2 x 2 blocks, the cube's block left out;
+    with `full`, the whole channel (y from -HALF_WIDTH to HALF_WIDTH) in 3 x 3 x 2 blocks,
+    mirrored about y = 0, with no centre plane: vortex shedding is antisymmetric, so an
+    unsteady run cannot use the symmetry plane.
+    """
     h = H / n_h
     xs = [-UPSTREAM, 0.0, H, H + DOWNSTREAM]
-    ys = [0.0, 0.5 * H, HALF_WIDTH]
     zs = [0.0, H, CHANNEL]
     # Cells and expansion ratio of each segment between consecutive coordinates.
     xseg = [graded(UPSTREAM, h, GROWTH, False), (n_h, 1.0), graded(DOWNSTREAM, h, GROWTH_DOWNSTREAM, True)]
-    yseg = [(max(1, round(0.5 * n_h)), 1.0), graded(HALF_WIDTH - 0.5 * H, h, GROWTH, True)]
+    side = graded(HALF_WIDTH - 0.5 * H, h, GROWTH, True)
+    if full:
+        ys = [-HALF_WIDTH, -0.5 * H, 0.5 * H, HALF_WIDTH]
+        # The far side grows away from the cube too: the same segment, graded the other way.
+        yseg = [(side[0], 1.0 / side[1]), (n_h, 1.0), side]
+        cube = (1, 1, 0)
+    else:
+        ys = [0.0, 0.5 * H, HALF_WIDTH]
+        yseg = [(max(1, round(0.5 * n_h)), 1.0), side]
+        cube = (1, 0, 0)
     zseg = [(n_h, 1.0), (n_h, 1.0)]
-    cube = (1, 0, 0)
+    nj_blocks = len(ys) - 1
+    per_layer = 4 * len(ys)  # vertices in one z plane
 
     def vid(i, j, k):
-        return i + 4 * (j + 3 * k)
+        return i + 4 * (j + len(ys) * k)
 
     vertices = [f"    ({x:g} {y:g} {z:g})" for z in zs for y in ys for x in xs]
     blocks = []
+    # The side at y = HALF_WIDTH; in the full domain sideNeg is the one at y = -HALF_WIDTH
+    # (a symmetryPlane patch must be planar).
     patches = {"inlet": [], "outlet": [], "ground": [], "lid": [], "centre": [], "side": [], "cube": []}
+    if full:
+        patches["sideNeg"] = []
     # Outward faces of a hex by its local vertices (OpenFOAM's hex model), with the
     # neighbouring block's offset and the boundary patch if that neighbour is outside.
     faces = [
         ((0, 4, 7, 3), (-1, 0, 0), "inlet"),
         ((1, 2, 6, 5), (1, 0, 0), "outlet"),
-        ((0, 1, 5, 4), (0, -1, 0), "centre"),
+        ((0, 1, 5, 4), (0, -1, 0), "sideNeg" if full else "centre"),
         ((3, 7, 6, 2), (0, 1, 0), "side"),
         ((0, 3, 2, 1), (0, 0, -1), "ground"),
         ((4, 5, 6, 7), (0, 0, 1), "lid"),
     ]
     for k in range(2):
-        for j in range(2):
+        for j in range(nj_blocks):
             for i in range(3):
                 if (i, j, k) == cube:
                     continue
                 corners = [vid(i, j, k), vid(i + 1, j, k), vid(i + 1, j + 1, k), vid(i, j + 1, k)]
-                corners += [c + 12 for c in corners]
+                corners += [c + per_layer for c in corners]
                 (nx, gx), (ny, gy), (nz, gz) = xseg[i], yseg[j], zseg[k]
                 blocks.append(
                     f"    hex ({' '.join(map(str, corners))}) ({nx} {ny} {nz}) "
@@ -180,18 +231,21 @@ def block_mesh_dict(n_h):
                     ni, nj, nk = i + di, j + dj, k + dk
                     if (ni, nj, nk) == cube:
                         patch = "cube"
-                    elif 0 <= ni < 3 and 0 <= nj < 2 and 0 <= nk < 2:
+                    elif 0 <= ni < 3 and 0 <= nj < nj_blocks and 0 <= nk < 2:
                         continue  # an internal face between two blocks
                     else:
                         patch = outside
                     patches[patch].append("(" + " ".join(str(corners[v]) for v in local) + ")")
+    if full:
+        del patches["centre"]
     kinds = {"inlet": "patch", "outlet": "patch", "ground": "wall", "lid": "wall", "cube": "wall",
-             "centre": "symmetryPlane", "side": "symmetryPlane"}
+             "centre": "symmetryPlane", "side": "symmetryPlane", "sideNeg": "symmetryPlane"}
     boundary = []
     for name, fs in patches.items():
         boundary.append(f"    {name}\n    {{\n        type {kinds[name]};\n        faces\n        (\n"
                         + "".join(f"            {f}\n" for f in fs) + "        );\n    }")
-    cells = sum(a[0] * b[0] * c[0] for a in xseg for b in yseg for c in zseg) - n_h * yseg[0][0] * n_h
+    cells = (sum(a[0] * b[0] * c[0] for a in xseg for b in yseg for c in zseg)
+             - xseg[cube[0]][0] * yseg[cube[1]][0] * zseg[cube[2]][0])
     text = (f"scale 1;\n\nvertices\n(\n{chr(10).join(vertices)}\n);\n\nblocks\n(\n{chr(10).join(blocks)}\n);\n\n"
             f"edges ();\n\nboundary\n(\n{chr(10).join(boundary)}\n);\n\nmergePatchPairs ();\n")
     return foam_file("dictionary", "blockMeshDict", text), cells
@@ -225,10 +279,12 @@ def table(rows, column, vector=False):
     return "table (" + " ".join(entries) + ")"
 
 
-def write_case(case, n_h, max_iterations):
+def write_case(case, n_h, max_iterations, full=False):
+    """The steady case (simpleFoam, standard k-epsilon) on the half domain, or with `full`
+    on the whole one (the start of an unsteady run)."""
     for d in ("0", "constant", "system"):
         (case / d).mkdir(parents=True, exist_ok=True)
-    mesh, cells = block_mesh_dict(n_h)
+    mesh, cells = block_mesh_dict(n_h, full)
     (case / "system" / "blockMeshDict").write_text(mesh)
     rows, _ = inlet_profiles()
     k_mid = rows[len(rows) // 2][2]
@@ -238,7 +294,7 @@ def write_case(case, n_h, max_iterations):
         return f"type fixedProfile; profile {table_text}; direction (0 0 1); origin 0;"
 
     walls = {"ground", "lid", "cube"}
-    symmetric = "centre|side"
+    symmetric = "side|sideNeg" if full else "centre|side"
 
     def field(cls, obj, dims, internal, inlet, wall, outlet):
         parts = [f"dimensions {dims};\n\ninternalField uniform {internal};\n\nboundaryField\n{{\n",
@@ -376,15 +432,20 @@ def openfoam_version(case):
     return f"v{m.group(1)}" if m else "unknown"
 
 
-def reattachment_length(centres, velocity):
+def reattachment_length(centres, velocity, side=1.0):
     """Distance from the leeward face (x = H) to where U_x turns positive along the cube's
     centreline (the cell row nearest y = 0) at the first cell centre above the ground, in H.
     None when the flow is not reversed behind the cube.
+
+    The row is the one nearest y = 0 on the side y >= 0 (side = 1), or y <= 0 (side = -1):
+    with an even number of cells across the cube there is no row on y = 0 in the full
+    domain, and the half domain's row is the first one, at y = H/2N.
     """
-    y_row = centres[:, 1].min()
+    ys = side * centres[:, 1]
+    y_row = ys[ys > -1e-9 * H].min()
     z_row = centres[:, 2].min()
     tol = 1e-6 * H
-    row = (np.abs(centres[:, 1] - y_row) < tol) & (np.abs(centres[:, 2] - z_row) < tol) & (centres[:, 0] > H)
+    row = (np.abs(ys - y_row) < tol) & (np.abs(centres[:, 2] - z_row) < tol) & (centres[:, 0] > H)
     x = centres[row, 0]
     ux = velocity[row, 0]
     order = np.argsort(x)
@@ -400,12 +461,328 @@ def reattachment_length(centres, velocity):
     return (x0 - H) / H
 
 
+# --- Unsteady RANS (--unsteady) -------------------------------------------------------------
+
+# Turbulence models the unsteady run accepts, with the fields each solves besides U and p.
+TRANSIENT_MODELS = {
+    "v2f": ("k", "epsilon", "v2", "f"),
+    "kEpsilon": ("k", "epsilon"),
+    "kOmegaSST": ("k", "omega"),
+}
+# The probe whose lateral velocity shows the shedding: 2H behind the leeward face, on the
+# centreline (a hair off y = 0, which is a cell face), at half the cube's height. U_y there
+# is zero in a symmetric flow and oscillates at the shedding frequency when vortices shed.
+PROBE = (H + 2.0 * H, 1e-3 * H, 0.5 * H)
+# The lateral velocity put into the wake at the start, m/s: an antisymmetric kick, so that
+# shedding need not wait for round-off to break the mirrored mesh's symmetry.
+KICK_UY = 0.1 * U_BULK
+
+
+def internal_field_span(text):
+    """(start, end) of a field file's `internalField ... ;` entry."""
+    m = re.search(r"internalField\s+(uniform\s+[^;]*|nonuniform\s+List<\w+>\s*\d+\s*\(.*?\n\)\s*);", text, re.S)
+    if not m:
+        raise SystemExit("no internalField entry")
+    return m.start(), m.end()
+
+
+def read_scalar_field(path):
+    """An ASCII volScalarField's internal field as an (N,) array."""
+    text = path.read_text()
+    m = re.search(r"internalField\s+nonuniform\s+List<scalar>\s*(\d+)\s*\((.*?)\n\)\s*;", text, re.S)
+    if not m:
+        raise SystemExit(f"{path}: expected 'internalField nonuniform List<scalar> N (' (an ASCII field)")
+    arr = np.array(m.group(2).split(), dtype=float)
+    if arr.shape != (int(m.group(1)),) or not np.all(np.isfinite(arr)):
+        raise SystemExit(f"{path}: expected {m.group(1)} finite scalars, read {arr.shape}")
+    return arr
+
+
+def nonuniform(values):
+    """An internalField entry for an (N,) or (N, 3) array."""
+    if values.ndim == 1:
+        body = "\n".join(f"{v:.8g}" for v in values)
+        kind = "scalar"
+    else:
+        body = "\n".join(f"({a:.8g} {b:.8g} {c:.8g})" for a, b, c in values)
+        kind = "vector"
+    return f"internalField nonuniform List<{kind}> {len(values)}\n(\n{body}\n)\n;"
+
+
+def prepare_transient(case, model, t_end, spin_up, window, max_co, outer, n_h):
+    """Turns the converged steady case into the start of a pimpleFoam run.
+
+    The steady solution (its last iteration's folder) becomes time 0; the fields of the
+    chosen model that standard k-epsilon does not have are derived from it (v2 = 2/3 k,
+    isotropic; f = 0; omega = epsilon / (C_mu k)); U gets an antisymmetric lateral kick in
+    the wake (KICK_UY behind the cube, 1H to 4H downstream of the leeward face, below
+    1.5H and within 1.5H of the centreline).
+    """
+    steady = max((d for d in case.iterdir() if re.fullmatch(r"\d+", d.name) and d.name != "0"),
+                 key=lambda d: int(d.name))
+    shutil.rmtree(case / "0")
+    shutil.rmtree(steady / "uniform", ignore_errors=True)
+    steady.rename(case / "0")
+    zero = case / "0"
+
+    centres = read_vector_field(zero / "C")
+    u_text = (zero / "U").read_text()
+    velocity = read_vector_field(zero / "U")
+    x, y, z = centres[:, 0], centres[:, 1], centres[:, 2]
+    wake = (x > 2.0 * H) & (x < 5.0 * H) & (np.abs(y) < 1.5 * H) & (z < 1.5 * H)
+    velocity[wake, 1] += KICK_UY
+    a, b = internal_field_span(u_text)
+    (zero / "U").write_text(u_text[:a] + nonuniform(velocity) + u_text[b:])
+
+    k = read_scalar_field(zero / "k")
+    eps = read_scalar_field(zero / "epsilon")
+    rows, _ = inlet_profiles()
+    walls = '"(ground|lid|cube)"'
+
+    def profile(column, scale=1.0):
+        return ("type fixedProfile; profile table ("
+                + " ".join(f"({r[0]:.6g} {scale * r[column]:.6g})" for r in rows)
+                + "); direction (0 0 1); origin 0;")
+
+    def scalar(obj, dims, values, inlet, wall, outlet):
+        text = foam_file("volScalarField", obj, f"dimensions {dims};\n\n{nonuniform(values)}\n\nboundaryField\n{{\n"
+                         f"    inlet {{ {inlet} }}\n    outlet {{ {outlet} }}\n    {walls} {{ {wall} }}\n"
+                         "    \"(side|sideNeg)\" { type symmetryPlane; }\n}\n")
+        (zero / obj).write_text(text)
+
+    v2_mid = 2.0 / 3.0 * rows[len(rows) // 2][2]
+    scalar("v2", "[0 2 -2 0 0 0 0]", 2.0 / 3.0 * k, profile(2, 2.0 / 3.0),
+           f"type v2WallFunction; value uniform {v2_mid:.6g};",
+           f"type inletOutlet; inletValue uniform {v2_mid:.6g}; value uniform {v2_mid:.6g};")
+    scalar("f", "[0 0 -1 0 0 0 0]", np.zeros_like(k), "type zeroGradient;",
+           "type fWallFunction; value uniform 0;", "type zeroGradient;")
+    omega_rows = [(r[0], r[1], r[2], r[3] / (C_MU * r[2])) for r in rows]
+    omega_mid = omega_rows[len(rows) // 2][3]
+    scalar("omega", "[0 0 -1 0 0 0 0]", eps / (C_MU * k),
+           "type fixedProfile; profile table (" + " ".join(f"({r[0]:.6g} {r[3]:.6g})" for r in omega_rows)
+           + "); direction (0 0 1); origin 0;",
+           f"type omegaWallFunction; value uniform {omega_mid:.6g};",
+           f"type inletOutlet; inletValue uniform {omega_mid:.6g}; value uniform {omega_mid:.6g};")
+
+    (case / "constant" / "turbulenceProperties").write_text(foam_file(
+        "dictionary", "turbulenceProperties",
+        f"simulationType RAS;\nRAS\n{{\n    RASModel {model};\n    turbulence on;\n    printCoeffs on;\n}}\n"))
+    # A first step at Courant number ~0.5 with the fastest flow ~1.5 U_BULK; adjustTimeStep
+    # then grows it to max_co.
+    dt0 = 0.5 * (H / n_h) / (1.5 * U_BULK)
+    # Writes fall on multiples of the write interval: the largest one (to the millisecond)
+    # that hits the window's middle and its end, where UMean is read.
+    write_ms = math.gcd(round(1000 * spin_up), round(500 * window))
+    if write_ms == 0:
+        raise SystemExit("--window must be at least 2 ms")
+    px, py, pz = PROBE
+    (case / "system" / "controlDict").write_text(foam_file("dictionary", "controlDict", f"""application pimpleFoam;
+startFrom startTime;
+startTime 0;
+stopAt endTime;
+endTime {t_end:g};
+deltaT {dt0:.6g};
+adjustTimeStep yes;
+maxCo {max_co:g};
+maxDeltaT 1;
+writeControl adjustableRunTime;
+writeInterval {write_ms / 1000:g};
+purgeWrite 0;
+writeFormat ascii;
+writePrecision 8;
+writeCompression off;
+timeFormat general;
+timePrecision 8;
+runTimeModifiable false;
+functions
+{{
+    average
+    {{
+        type fieldAverage;
+        libs ("libfieldFunctionObjects.so");
+        timeStart {spin_up:g};
+        writeControl writeTime;
+        fields ( U {{ mean on; prime2Mean off; base time; }} );
+    }}
+    probes
+    {{
+        type probes;
+        libs ("libsampling.so");
+        writeControl timeStep;
+        writeInterval 1;
+        fields (U);
+        probeLocations (({px:g} {py:g} {pz:g}));
+    }}
+}}
+"""))
+    fields = "|".join(TRANSIENT_MODELS[model])
+    # f's equation is elliptic: no convection term.
+    convection = "".join(f"    div(phi,{f}) Gauss linearUpwind grad({f});\n"
+                         for f in TRANSIENT_MODELS[model] if f != "f")
+    (case / "system" / "fvSchemes").write_text(foam_file("dictionary", "fvSchemes", f"""ddtSchemes {{ default backward; }}
+gradSchemes {{ default Gauss linear; grad(U) cellLimited Gauss linear 1; }}
+divSchemes
+{{
+    default none;
+    div(phi,U) Gauss linearUpwind grad(U);
+{convection}    div((nuEff*dev2(T(grad(U))))) Gauss linear;
+}}
+laplacianSchemes {{ default Gauss linear corrected; }}
+interpolationSchemes {{ default linear; }}
+snGradSchemes {{ default corrected; }}
+wallDist {{ method meshWave; }}
+"""))
+    (case / "system" / "fvSolution").write_text(foam_file("dictionary", "fvSolution", f"""solvers
+{{
+    p {{ solver GAMG; smoother GaussSeidel; tolerance 1e-6; relTol 0.05; }}
+    pFinal {{ $p; relTol 0; }}
+    "(U|{fields})" {{ solver smoothSolver; smoother symGaussSeidel; tolerance 1e-7; relTol 0.1; }}
+    "(U|{fields})Final" {{ $U; relTol 0; }}
+}}
+PIMPLE
+{{
+    momentumPredictor yes;
+    consistent yes;
+    nOuterCorrectors {outer};
+    nCorrectors 2;
+    nNonOrthogonalCorrectors 0;
+}}
+relaxationFactors
+{{
+    equations {{ ".*" 0.9; ".*Final" 1; }}
+}}
+"""))
+
+
+def probe_series(case):
+    """(t, U) at PROBE from the probes function object's output."""
+    path = case / "postProcessing" / "probes" / "0" / "U"
+    t, u = [], []
+    for line in path.read_text().splitlines():
+        m = re.match(r"\s*([0-9.eE+-]+)\s+\(([^)]*)\)", line)
+        if m:
+            t.append(float(m.group(1)))
+            u.append([float(c) for c in m.group(2).split()])
+    return np.array(t), np.array(u)
+
+
+def shedding(t, uy):
+    """Period (s) and amplitude (standard deviation, m/s) of the lateral velocity at the probe
+    over the samples given: the mean interval between upward crossings of its mean, linearly
+    interpolated. Period None with fewer than three crossings."""
+    d = uy - uy.mean()
+    up = np.nonzero((d[:-1] < 0.0) & (d[1:] >= 0.0))[0]
+    crossings = t[up] + (t[up + 1] - t[up]) * (-d[up]) / (d[up + 1] - d[up])
+    period = (crossings[-1] - crossings[0]) / (len(crossings) - 1) if len(crossings) >= 3 else None
+    return period, float(d.std()), len(crossings)
+
+
+def time_dirs(case):
+    """The case's time folders by time, 0 excluded."""
+    out = {}
+    for d in case.iterdir():
+        if re.fullmatch(r"\d+(\.\d+)?(e[+-]?\d+)?", d.name) and float(d.name) > 0:
+            out[float(d.name)] = d
+    return dict(sorted(out.items()))
+
+
+def pimple_log(case):
+    """(time steps, mean and last deltaT, largest Courant number of the last step) from
+    log.pimpleFoam."""
+    text = (case / "log.pimpleFoam").read_text()
+    dts = [float(v) for v in re.findall(r"^deltaT = ([0-9.eE+-]+)$", text, re.M)]
+    cos = re.findall(r"^Courant Number mean: [0-9.eE+-]+ max: ([0-9.eE+-]+)$", text, re.M)
+    return len(dts), (float(np.mean(dts)) if dts else None), (dts[-1] if dts else None), \
+        (float(cos[-1]) if cos else None)
+
+
+def run_unsteady(args, case, start):
+    """--unsteady: the steady solution on the full domain, then pimpleFoam from it, averaging
+    U over the window [spin-up, spin-up + window]. Returns the JSON result."""
+    full_cells = write_case(case, args.cells_per_h, args.max_iterations, full=True)
+    run(case, "blockMesh")
+    run(case, "simpleFoam")
+    run(case, "postProcess", "-func", "writeCellCentres", "-latestTime")
+    steady_s = time.monotonic() - start
+    steady = max((d for d in case.iterdir() if re.fullmatch(r"\d+", d.name) and d.name != "0"),
+                 key=lambda d: int(d.name))
+    centres = read_vector_field(steady / "C")
+    steady_u = read_vector_field(steady / "U")
+    iterations, converged, residuals = solver_log(case)
+    t_end = args.spin_up + args.window
+    prepare_transient(case, args.model, t_end, args.spin_up, args.window, args.max_co,
+                      args.outer_correctors, args.cells_per_h)
+    run(case, "pimpleFoam")
+    wall_s = time.monotonic() - start
+
+    times = time_dirs(case)
+    t_last = max(times)
+    if abs(t_last - t_end) > 1e-6 * t_end or not (times[t_last] / "UMean").exists():
+        raise SystemExit(f"pimpleFoam ended at {t_last} s without UMean, not at {t_end} s")
+    u_mean = read_vector_field(times[t_last] / "UMean")
+    # The mean over the window's first half is UMean written at its middle (fieldAverage
+    # weights by the time step); the second half's follows from the whole window's.
+    mids = [t for t in times if args.spin_up < t < t_last and (times[t] / "UMean").exists()]
+    halves = None
+    if mids:
+        t_mid = min(mids, key=lambda t: abs(t - (args.spin_up + 0.5 * args.window)))
+        first = read_vector_field(times[t_mid] / "UMean")
+        second = (u_mean * (t_last - args.spin_up) - first * (t_mid - args.spin_up)) / (t_last - t_mid)
+        halves = {"split_s": t_mid,
+                  "first_half_H": reattachment_length(centres, first),
+                  "second_half_H": reattachment_length(centres, second)}
+    t, u = probe_series(case)
+    averaged = t >= args.spin_up
+    period, amplitude, crossings = shedding(t[averaged], u[averaged, 1])
+    steps, dt_mean, dt_last, co_last = pimple_log(case)
+    return {
+        "reattachment_H": reattachment_length(centres, u_mean),
+        "reattachment_mirror_H": reattachment_length(centres, u_mean, side=-1.0),
+        "halves": halves,
+        "steady_reattachment_H": reattachment_length(centres, steady_u),
+        "cells": full_cells,
+        "cells_per_h": args.cells_per_h,
+        "iterations": iterations,
+        "converged": converged,
+        "residuals": residuals,
+        "residual_targets": RESIDUAL_TARGETS,
+        "unsteady": True,
+        "model": args.model,
+        "window_s": [args.spin_up, t_last],
+        "time_steps": steps,
+        "max_co": args.max_co,
+        "outer_correctors": args.outer_correctors,
+        "delta_t_mean_s": dt_mean,
+        "delta_t_last_s": dt_last,
+        "courant_last": co_last,
+        "probe": list(PROBE),
+        "shedding_period_s": period,
+        "strouhal": (H / (period * U_BULK)) if period else None,
+        "probe_uy_std": amplitude,
+        "probe_uy_crossings": crossings,
+        "steady_wall_s": round(steady_s, 1),
+        "wall_s": round(wall_s, 1),
+        "openfoam": openfoam_version(case),
+    }
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("outdir", type=pathlib.Path, help="folder for the case (case/ is replaced)")
-    parser.add_argument("--cells-per-h", type=int, default=14, help="cells per cube height near the cube")
+    parser.add_argument("--cells-per-h", type=int, default=None,
+                        help="cells per cube height near the cube (14; 10 with --unsteady)")
     parser.add_argument("--max-iterations", type=int, default=2000, help="SIMPLE iterations at most")
+    parser.add_argument("--unsteady", action="store_true",
+                        help="then unsteady RANS (pimpleFoam) on the full domain, from the steady solution")
+    parser.add_argument("--model", choices=sorted(TRANSIENT_MODELS), default="kOmegaSST",
+                        help="turbulence model of the unsteady run")
+    parser.add_argument("--max-co", type=float, default=3.0, help="largest Courant number (unsteady)")
+    parser.add_argument("--outer-correctors", type=int, default=2, help="PIMPLE outer correctors (unsteady)")
+    parser.add_argument("--spin-up", type=float, default=60.0, help="s simulated before averaging (unsteady)")
+    parser.add_argument("--window", type=float, default=60.0, help="s of averaging (unsteady)")
     args = parser.parse_args()
+    if args.cells_per_h is None:
+        args.cells_per_h = 10 if args.unsteady else 14
 
     if shutil.which("simpleFoam") is None:
         raise SystemExit("simpleFoam not found: install OpenFOAM (Debian: apt-get install openfoam)")
@@ -414,6 +791,12 @@ def main():
         shutil.rmtree(case)
     case.mkdir(parents=True)
     start = time.monotonic()
+    if args.unsteady:
+        result = run_unsteady(args, case, start)
+        print(json.dumps(result))
+        if result["reattachment_H"] is None:
+            sys.exit("no reversed flow behind the cube")
+        return
     write_case(case, args.cells_per_h, args.max_iterations)
     run(case, "blockMesh")
     run(case, "simpleFoam")
