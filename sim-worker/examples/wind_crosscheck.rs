@@ -39,6 +39,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use sadesim_wind::compare::correlation;
 use sadesim_wind::foam_case::{CaseSpec, REFERENCE_HEIGHT_M};
 use sadesim_wind::foam_import::ImportSpec;
 use sadesim_wind::profile::FIELD_PROFILE;
@@ -139,15 +140,6 @@ fn weight(buildings: &[Building]) -> f64 {
 
 fn speed(s: &SectorField, c: usize) -> f64 {
     (f64::from(s.east[c]).powi(2) + f64::from(s.north[c]).powi(2) + f64::from(s.up[c]).powi(2)).sqrt()
-}
-
-fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len() as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
-    let va: f64 = a.iter().map(|x| (x - ma).powi(2)).sum();
-    let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();
-    cov / (va * vb).sqrt()
 }
 
 /// The wake cells of the module's documentation.

@@ -4,6 +4,7 @@
 //! same grid. Skipped, saying why, where OpenFOAM is not installed
 //! (`bash tests/install-tools.sh` installs Debian's openfoam).
 
+use sadesim_wind::compare::correlation;
 use sadesim_wind::{GridSpec, UrbanWindField};
 use sadesim_world::{Building, Footprint, World};
 use sim_worker::env::openfoam_run::{check_installed, compute_sector};
@@ -67,14 +68,4 @@ fn openfoam_wind_around_a_cube_has_a_wake_and_agrees_with_the_diagnostic_field()
     eprintln!("correlation of speed, OpenFOAM vs diagnostic, {} cells 5-40 m AGL: {r:.3}", a.len());
     assert!(r > 0.5, "correlation {r}");
     let _ = std::fs::remove_dir_all(&case);
-}
-
-/// Pearson's correlation coefficient.
-fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len() as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
-    let va: f64 = a.iter().map(|x| (x - ma).powi(2)).sum();
-    let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();
-    cov / (va * vb).sqrt()
 }

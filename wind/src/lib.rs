@@ -6,6 +6,7 @@
 //! - [`profile`]: the undisturbed log profile the field is a factor of;
 //! - [`rockle`]: the diagnostic first guess (upwind displacement, cavity, wake);
 //! - [`solver`]: the mass-consistent adjustment that makes it divergence free;
+//! - [`compare`]: measures comparing two fields (correlation);
 //! - [`field`]: per inflow sector, the adjusted field; sampling and sector blending;
 //! - [`openfoam`]: OpenFOAM ASCII vector fields (cell centres `C`, velocity `U`) of a case
 //!   computed elsewhere, read from their text;
@@ -14,6 +15,7 @@
 //!
 //! Pure: the world in, numbers out; the same inputs give the same bits.
 
+pub mod compare;
 pub mod field;
 pub mod foam_case;
 pub mod foam_import;

@@ -51,6 +51,19 @@ impl<T: Clone> Faces<T> {
             z: vec![v; nx * ny * (nz + 1)],
         }
     }
+
+    /// The faces across `axis` (0 x, 1 y, 2 z).
+    fn axis(&self, axis: usize) -> &[T] {
+        [&self.x, &self.y, &self.z][axis]
+    }
+
+    fn axis_mut(&mut self, axis: usize) -> &mut [T] {
+        match axis {
+            0 => &mut self.x,
+            1 => &mut self.y,
+            _ => &mut self.z,
+        }
+    }
 }
 
 struct Mac<'a> {
@@ -69,8 +82,32 @@ impl Mac<'_> {
     fn zf(&self, i: usize, j: usize, k: usize) -> usize {
         (k * self.ny + j) * self.nx + i
     }
-    fn solid(&self, i: usize, j: usize, k: usize) -> bool {
+    fn solid(&self, [i, j, k]: [usize; 3]) -> bool {
         self.g.solid[self.g.index(i, j, k)]
+    }
+
+    /// Visits every face, axis by axis, with its index in that axis's array of [`Faces`]
+    /// and the cells on its − and + sides (`None` outside the grid).
+    fn each_face(&self, mut visit: impl FnMut(usize, usize, Option<[usize; 3]>, Option<[usize; 3]>)) {
+        let dims = self.g.dims;
+        for axis in 0..3 {
+            let mut ext = dims;
+            ext[axis] += 1;
+            for k in 0..ext[2] {
+                for j in 0..ext[1] {
+                    for i in 0..ext[0] {
+                        let p = [i, j, k];
+                        let face = [self.xf(i, j, k), self.yf(i, j, k), self.zf(i, j, k)][axis];
+                        let below = (p[axis] > 0).then(|| {
+                            let mut q = p;
+                            q[axis] -= 1;
+                            q
+                        });
+                        visit(axis, face, below, (p[axis] < dims[axis]).then_some(p));
+                    }
+                }
+            }
+        }
     }
 
     /// Net outflow of cell `(i, j, k)` over its faces, per unit face area (m/s).
@@ -193,20 +230,20 @@ impl Stencil {
 /// Adjusts the cell-centred first guess (`east`, `north`, `up` per cell) to a
 /// divergence-free field over `grid`.
 pub fn adjust(grid: &WindGrid, east: &[f64], north: &[f64], up: &[f64]) -> Adjusted {
-    let [nx, ny, nz] = grid.dims;
+    let [nx, ny, _] = grid.dims;
     let m = Mac { g: grid, nx, ny };
     let h = grid.spacing_m;
     // Faces from the guess: the mean of the two cells (the inner cell's value on the
     // domain's boundary), 0 on walls.
-    let face_kind = |a: Option<(usize, usize, usize)>, b: Option<(usize, usize, usize)>| -> Face {
-        match (a.map(|(i, j, k)| m.solid(i, j, k)), b.map(|(i, j, k)| m.solid(i, j, k))) {
+    let face_kind = |a: Option<[usize; 3]>, b: Option<[usize; 3]>| -> Face {
+        match (a.map(|c| m.solid(c)), b.map(|c| m.solid(c))) {
             (Some(false), Some(false)) => Face::Inner,
             (None, Some(false)) | (Some(false), None) => Face::Open,
             _ => Face::Wall,
         }
     };
-    let value = |v: &[f64], a: Option<(usize, usize, usize)>, b: Option<(usize, usize, usize)>| -> f64 {
-        let at = |c: Option<(usize, usize, usize)>| c.map(|(i, j, k)| v[grid.index(i, j, k)]);
+    let value = |v: &[f64], a: Option<[usize; 3]>, b: Option<[usize; 3]>| -> f64 {
+        let at = |c: Option<[usize; 3]>| c.map(|[i, j, k]| v[grid.index(i, j, k)]);
         match (at(a), at(b)) {
             (Some(x), Some(y)) => 0.5 * (x + y),
             (Some(x), None) | (None, Some(x)) => x,
@@ -215,35 +252,13 @@ pub fn adjust(grid: &WindGrid, east: &[f64], north: &[f64], up: &[f64]) -> Adjus
     };
     let mut kinds = Faces::filled(grid.dims, Face::Wall);
     let mut f = Faces::filled(grid.dims, 0.0);
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..=nx {
-                let (a, b) = ((i > 0).then(|| (i - 1, j, k)), (i < nx).then_some((i, j, k)));
-                let kind = face_kind(a, b);
-                kinds.x[m.xf(i, j, k)] = kind;
-                f.x[m.xf(i, j, k)] = if kind == Face::Wall { 0.0 } else { value(east, a, b) };
-            }
-        }
-        for j in 0..=ny {
-            for i in 0..nx {
-                let (a, b) = ((j > 0).then(|| (i, j - 1, k)), (j < ny).then_some((i, j, k)));
-                let kind = face_kind(a, b);
-                kinds.y[m.yf(i, j, k)] = kind;
-                f.y[m.yf(i, j, k)] = if kind == Face::Wall { 0.0 } else { value(north, a, b) };
-            }
-        }
-    }
-    for k in 0..=nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let (a, b) = ((k > 0).then(|| (i, j, k - 1)), (k < nz).then_some((i, j, k)));
-                // The ground (k = 0) is a wall, the top is open.
-                let kind = if k == 0 { Face::Wall } else { face_kind(a, b) };
-                kinds.z[m.zf(i, j, k)] = kind;
-                f.z[m.zf(i, j, k)] = if kind == Face::Wall { 0.0 } else { value(up, a, b) };
-            }
-        }
-    }
+    let components = [east, north, up];
+    m.each_face(|axis, face, below, above| {
+        // The ground (the bottom z faces) is a wall, the top is open.
+        let kind = if axis == 2 && below.is_none() { Face::Wall } else { face_kind(below, above) };
+        kinds.axis_mut(axis)[face] = kind;
+        f.axis_mut(axis)[face] = if kind == Face::Wall { 0.0 } else { value(components[axis], below, above) };
+    });
     let fluid: Vec<usize> = (0..grid.cells()).filter(|&c| !grid.solid[c]).collect();
     let ijk = |c: usize| (c % nx, (c / nx) % ny, c / (nx * ny));
     let first_guess_residual = fluid
@@ -330,29 +345,10 @@ pub fn adjust(grid: &WindGrid, east: &[f64], north: &[f64], up: &[f64]) -> Adjus
             _ => 0.0,
         }
     };
-    let cell = |i: usize, j: usize, k: usize| grid.index(i, j, k);
-    for k in 0..nz {
-        for j in 0..ny {
-            for i in 0..=nx {
-                let face = m.xf(i, j, k);
-                f.x[face] += grad((i > 0).then(|| cell(i - 1, j, k)), (i < nx).then(|| cell(i, j, k)), kinds.x[face]);
-            }
-        }
-        for j in 0..=ny {
-            for i in 0..nx {
-                let face = m.yf(i, j, k);
-                f.y[face] += grad((j > 0).then(|| cell(i, j - 1, k)), (j < ny).then(|| cell(i, j, k)), kinds.y[face]);
-            }
-        }
-    }
-    for k in 0..=nz {
-        for j in 0..ny {
-            for i in 0..nx {
-                let face = m.zf(i, j, k);
-                f.z[face] += grad((k > 0).then(|| cell(i, j, k - 1)), (k < nz).then(|| cell(i, j, k)), kinds.z[face]);
-            }
-        }
-    }
+    let cell = |[i, j, k]: [usize; 3]| grid.index(i, j, k);
+    m.each_face(|axis, face, below, above| {
+        f.axis_mut(axis)[face] += grad(below.map(cell), above.map(cell), kinds.axis(axis)[face]);
+    });
     let residual = fluid
         .iter()
         .map(|&c| {
