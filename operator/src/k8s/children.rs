@@ -414,6 +414,18 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
             fatal: true,
         });
     }
+    if let Some(queue) = &plan.spec.queue
+        && !settings.kueue
+    {
+        // Running it anyway would bypass the quota the team asked to be admitted under.
+        out.push(Problem {
+            field: "spec.queue".into(),
+            message: format!(
+                "names the Kueue LocalQueue {queue:?}, but this operator's Kueue integration is off (Helm value kueue.enabled=false, SADESIM_KUEUE): the run would not be queued. Remove spec.queue to run under the operator's own admission, or install Kueue and enable the integration"
+            ),
+            fatal: true,
+        });
+    }
     out.extend(config::size_problems(plan));
     match archive_url(plan, settings) {
         None => out.push(Problem {

@@ -663,3 +663,23 @@ fn the_assets_job_of_an_openfoam_run_uses_the_openfoam_image() {
         assert_eq!(image_of(&run, "test-run-coordinator"), settings.worker_image, "{model:?}");
     }
 }
+
+/// `spec.queue` on an operator without Kueue is refused (Valid=False), not ignored: the run
+/// would otherwise bypass the quota its team asked to be admitted under.
+#[test]
+fn a_queue_without_the_kueue_integration_is_refused_naming_the_field() {
+    let mut run = piloted(1);
+    run.spec.queue = Some("team-a".into());
+    let plan = planned(&run);
+    let off = problems(&plan, &s3());
+    let found = off.iter().find(|p| p.field == "spec.queue").expect("refused");
+    assert!(
+        found.fatal && found.message.contains("\"team-a\"") && found.message.contains("kueue.enabled"),
+        "{found:?}"
+    );
+    let on = ClusterSettings { kueue: true, ..s3() };
+    assert!(!problems(&plan, &on).iter().any(|p| p.field == "spec.queue"));
+    // Without spec.queue nothing is said either way.
+    run.spec.queue = None;
+    assert!(!problems(&planned(&run), &s3()).iter().any(|p| p.field == "spec.queue"));
+}
