@@ -244,6 +244,19 @@ fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError>
     Ok(())
 }
 
+/// What the scenario asks that only a cluster does, said rather than silently dropped: the
+/// same file runs locally and on Kubernetes (GitOps), so these fields are valid here but
+/// have no local effect.
+fn cluster_only_notices(plan: &RunPlan) -> Vec<String> {
+    let mut out = Vec::new();
+    if let Some(queue) = &plan.spec.queue {
+        out.push(format!(
+            "spec.queue: the Kueue LocalQueue {queue:?} admits the run on Kubernetes only; this local run starts at once"
+        ));
+    }
+    out
+}
+
 /// `YYYYMMDDTHHMMSSZ` for a UNIX time (UTC), for folder names that sort by time.
 fn utc_stamp(t: SystemTime) -> String {
     let secs = t.duration_since(UNIX_EPOCH).unwrap_or_default().as_secs();
@@ -343,6 +356,9 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     let (assets, world) = run_world(run, &world_data, options.asset_cache.as_deref(), options.progress)?;
     let plan = planner::plan_in(run, &world_data, &world)?;
     check_supported(&plan, options)?;
+    for notice in cluster_only_notices(&plan) {
+        eprintln!("note: {notice}");
+    }
     // The orbit file is read before anything is written: a bad one fails the run at once.
     let sky = sadesim_evidence::gnss::load_sky(&plan.spec)?.map(Arc::new);
     let base = out_root(&plan, options).join(&plan.run.name);
@@ -547,5 +563,18 @@ mod tests {
         assert_eq!(utc_stamp(UNIX_EPOCH), "19700101T000000Z");
         assert_eq!(utc_stamp(UNIX_EPOCH + Duration::from_secs(951_782_400)), "20000229T000000Z");
         assert_eq!(utc_stamp(UNIX_EPOCH + Duration::from_secs(1_795_302_123)), "20261121T230203Z");
+    }
+
+    #[test]
+    fn a_queue_is_said_to_apply_on_kubernetes_only() {
+        use sadesim_crds::fixtures::RunBuilder;
+        let plan_with = |queue: Option<&str>| {
+            let run = RunBuilder::test().with(|r| r.spec.queue = queue.map(String::from)).build();
+            sadesim_planner::plan(&run).unwrap()
+        };
+        let notices = cluster_only_notices(&plan_with(Some("team-a")));
+        assert_eq!(notices.len(), 1);
+        assert!(notices[0].starts_with("spec.queue: the Kueue LocalQueue \"team-a\""), "{notices:?}");
+        assert!(cluster_only_notices(&plan_with(None)).is_empty());
     }
 }
