@@ -189,6 +189,29 @@ fn grid_cell(grid: &WindGrid, v: f64, axis: usize, max: usize) -> usize {
     (((v - grid.corner_m[axis]) / grid.spacing_m).floor().max(0.0) as usize).min(max)
 }
 
+/// Visits the fluid cells of columns `[i0, i1, j0, j1]` (from [`cells_of`]) and levels
+/// `k0..k1`, in index order, with the cell's index into the grid's arrays, its `[i, j, k]`,
+/// its centre (ENU, metres) and the centre projected on the wind's axes `(s, t)`.
+fn each_fluid_cell(
+    grid: &WindGrid,
+    axes: WindAxes,
+    [i0, i1, j0, j1]: [usize; 4],
+    (k0, k1): (usize, usize),
+    mut visit: impl FnMut(usize, [usize; 3], [f64; 3], (f64, f64)),
+) {
+    for k in k0..k1 {
+        for j in j0..j1 {
+            for i in i0..i1 {
+                let c = grid.index(i, j, k);
+                if !grid.solid[c] {
+                    let centre = grid.centre(i, j, k);
+                    visit(c, [i, j, k], centre, axes.project(centre[0], centre[1]));
+                }
+            }
+        }
+    }
+}
+
 /// Puts the street-canyon vortex in the cells behind `o` where another building's facade
 /// closes the gap within the cavity length (see the module's notes).
 fn apply_canyon(
@@ -206,7 +229,7 @@ fn apply_canyon(
     let u_roof = profile.factor(o.height_m);
     let h = grid.spacing_m;
     let [nx, ny, nz] = grid.dims;
-    let [i0, i1, j0, j1] =
+    let columns =
         cells_of(grid, axes, (o.s_back, o.s_back + lr), (o.t_centre - o.half_width, o.t_centre + o.half_width));
     let k0 = grid_cell(grid, o.base_up_m, 2, nz);
     let k1 = grid_cell(grid, o.base_up_m + o.height_m, 2, nz - 1) + 1;
@@ -220,42 +243,33 @@ fn apply_canyon(
         let up = grid.corner_m[2] + (k as f64 + 0.5) * h;
         Some(grid.solid[grid.index(i, j, k)] && up >= grid.ground_up_m[j * nx + i])
     };
-    for k in k0..k1 {
-        for j in j0..j1 {
-            for i in i0..i1 {
-                let c = grid.index(i, j, k);
-                if grid.solid[c] {
-                    continue;
-                }
-                let [e, n, up] = grid.centre(i, j, k);
-                let (s, t) = axes.project(e, n);
-                let (x, z) = (s - o.s_back, (up - o.base_up_m) / o.height_m);
-                if x <= 0.0 || x > lr || z <= 0.0 || z > 1.0 || (t - o.t_centre).abs() > o.half_width {
-                    continue;
-                }
-                // March downwind at this level, half a cell a step, for the next facade.
-                let mut r = 0.5 * h;
-                let gap = loop {
-                    if x + r > lr {
-                        break None;
-                    }
-                    match building_at(e + r * axes.downwind[0], n + r * axes.downwind[1], k) {
-                        None => break None,
-                        Some(true) => break Some(x + r),
-                        Some(false) => r += 0.5 * h,
-                    }
-                };
-                let Some(gap) = gap else { continue };
-                if x >= canyon.back_wall_m[c] {
-                    continue;
-                }
-                let half = 0.5 * gap;
-                canyon.back_wall_m[c] = x;
-                u[c] = -u_roof * (x / half) * ((gap - x) / half);
-                canyon.up[c] = -u_roof * (0.5 * (1.0 - x / half)).abs() * (1.0 - (gap - x) / half);
-            }
+    each_fluid_cell(grid, axes, columns, (k0, k1), |c, [_, _, k], [e, n, up], (s, t)| {
+        let (x, z) = (s - o.s_back, (up - o.base_up_m) / o.height_m);
+        if x <= 0.0 || x > lr || z <= 0.0 || z > 1.0 || (t - o.t_centre).abs() > o.half_width {
+            return;
         }
-    }
+        // A nearer back wall's canyon already holds the cell: no need to march.
+        if x >= canyon.back_wall_m[c] {
+            return;
+        }
+        // March downwind at this level, half a cell a step, for the next facade.
+        let mut r = 0.5 * h;
+        let gap = loop {
+            if x + r > lr {
+                break None;
+            }
+            match building_at(e + r * axes.downwind[0], n + r * axes.downwind[1], k) {
+                None => break None,
+                Some(true) => break Some(x + r),
+                Some(false) => r += 0.5 * h,
+            }
+        };
+        let Some(gap) = gap else { return };
+        let half = 0.5 * gap;
+        canyon.back_wall_m[c] = x;
+        u[c] = -u_roof * (x / half) * ((gap - x) / half);
+        canyon.up[c] = -u_roof * (0.5 * (1.0 - x / half)).abs() * (1.0 - (gap - x) / half);
+    });
 }
 
 /// Lowers `u` in the obstacle's front eddy, cavity and far wake.
@@ -266,7 +280,7 @@ fn apply_zones(grid: &WindGrid, axes: WindAxes, profile: &LogProfile, o: &Obstac
     let (lf, lr) = (o.front_length_m(), o.cavity_length_m());
     // Wind at roof height over the building's ground, the cavity's return flow scale.
     let u_roof = profile.factor(o.height_m);
-    let [i0, i1, j0, j1] = cells_of(
+    let columns = cells_of(
         grid,
         axes,
         (o.s_front - lf, o.s_back + 3.0 * lr),
@@ -276,51 +290,41 @@ fn apply_zones(grid: &WindGrid, axes: WindAxes, profile: &LogProfile, o: &Obstac
     let (lc, hc) = o.rooftop_m();
     let k1 = grid_cell(grid, o.base_up_m + o.height_m + hc, 2, nz - 1) + 1;
     let k0 = grid_cell(grid, o.base_up_m, 2, nz);
-    for k in k0..k1 {
-        for j in j0..j1 {
-            for i in i0..i1 {
-                let c = grid.index(i, j, k);
-                if grid.solid[c] {
-                    continue;
-                }
-                let [e, n, up] = grid.centre(i, j, k);
-                let (s, t) = axes.project(e, n);
-                let z = (up - o.base_up_m) / o.height_m;
-                let y = (t - o.t_centre) / o.half_width;
-                if z < 0.0 || y.abs() > 1.0 {
-                    continue;
-                }
-                let guess = if z > 1.0 {
-                    // Over the roof: the bubble from the upwind edge, within the roof.
-                    let (x, dz) = (s - o.s_front, up - o.base_up_m - o.height_m);
-                    let half = lc / 2.0;
-                    let z_c = hc * (1.0 - ((x - half) / half).powi(2)).max(0.0).sqrt();
-                    if s <= o.s_back && x >= 0.0 && dz < z_c { Some(-0.5 * u_roof * (1.0 - dz / z_c)) } else { None }
-                } else if s < o.s_front {
-                    // The front eddy: an ellipsoid 0.6 H high.
-                    let zf = z / 0.6;
-                    let reach = lf * ((1.0 - zf * zf).max(0.0) * (1.0 - y * y)).sqrt();
-                    if o.s_front - s <= reach { Some(0.0) } else { None }
-                } else if s > o.s_back {
-                    let d = s - o.s_back;
-                    let d_c = lr * ((1.0 - z * z) * (1.0 - y * y)).sqrt();
-                    if d <= d_c {
-                        let r = 1.0 - d / d_c;
-                        Some(-u_roof * r * r)
-                    } else if d <= 3.0 * d_c {
-                        Some(profile.factor(grid.height_agl_m(i, j, k)) * (1.0 - (d_c / d).powf(1.5)))
-                    } else {
-                        None
-                    }
-                } else {
-                    None
-                };
-                if let Some(g) = guess {
-                    u[c] = u[c].min(g);
-                }
-            }
+    each_fluid_cell(grid, axes, columns, (k0, k1), |c, [i, j, k], [_, _, up], (s, t)| {
+        let z = (up - o.base_up_m) / o.height_m;
+        let y = (t - o.t_centre) / o.half_width;
+        if z < 0.0 || y.abs() > 1.0 {
+            return;
         }
-    }
+        let guess = if z > 1.0 {
+            // Over the roof: the bubble from the upwind edge, within the roof.
+            let (x, dz) = (s - o.s_front, up - o.base_up_m - o.height_m);
+            let half = lc / 2.0;
+            let z_c = hc * (1.0 - ((x - half) / half).powi(2)).max(0.0).sqrt();
+            if s <= o.s_back && x >= 0.0 && dz < z_c { Some(-0.5 * u_roof * (1.0 - dz / z_c)) } else { None }
+        } else if s < o.s_front {
+            // The front eddy: an ellipsoid 0.6 H high.
+            let zf = z / 0.6;
+            let reach = lf * ((1.0 - zf * zf).max(0.0) * (1.0 - y * y)).sqrt();
+            if o.s_front - s <= reach { Some(0.0) } else { None }
+        } else if s > o.s_back {
+            let d = s - o.s_back;
+            let d_c = lr * ((1.0 - z * z) * (1.0 - y * y)).sqrt();
+            if d <= d_c {
+                let r = 1.0 - d / d_c;
+                Some(-u_roof * r * r)
+            } else if d <= 3.0 * d_c {
+                Some(profile.factor(grid.height_agl_m(i, j, k)) * (1.0 - (d_c / d).powf(1.5)))
+            } else {
+                None
+            }
+        } else {
+            None
+        };
+        if let Some(g) = guess {
+            u[c] = u[c].min(g);
+        }
+    });
 }
 
 #[cfg(test)]
