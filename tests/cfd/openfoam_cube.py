@@ -284,7 +284,7 @@ def write_case(case, n_h, max_iterations, full=False):
     on the whole one (the start of an unsteady run)."""
     for d in ("0", "constant", "system"):
         (case / d).mkdir(parents=True, exist_ok=True)
-    mesh, cells = block_mesh_dict(n_h, full)
+    mesh, _ = block_mesh_dict(n_h, full)
     (case / "system" / "blockMeshDict").write_text(mesh)
     rows, _ = inlet_profiles()
     k_mid = rows[len(rows) // 2][2]
@@ -371,7 +371,6 @@ relaxationFactors
     equations {{ U 0.9; ".*" 0.7; }}
 }}
 """))
-    return cells
 
 
 def openfoam_env():
@@ -696,19 +695,25 @@ def pimple_log(case):
         (float(cos[-1]) if cos else None)
 
 
-def run_unsteady(args, case, start):
-    """--unsteady: the steady solution on the full domain, then pimpleFoam from it, averaging
-    U over the window [spin-up, spin-up + window]. Returns the JSON result."""
-    full_cells = write_case(case, args.cells_per_h, args.max_iterations, full=True)
+def run_steady(case, n_h, max_iterations, full=False):
+    """Writes and runs the steady case (blockMesh, simpleFoam, the cell centres) in `case`.
+    Returns the latest time's cell centres and U, and the solver log's (iterations,
+    converged, residuals)."""
+    write_case(case, n_h, max_iterations, full=full)
     run(case, "blockMesh")
     run(case, "simpleFoam")
     run(case, "postProcess", "-func", "writeCellCentres", "-latestTime")
-    steady_s = time.monotonic() - start
-    steady = max((d for d in case.iterdir() if re.fullmatch(r"\d+", d.name) and d.name != "0"),
+    latest = max((d for d in case.iterdir() if re.fullmatch(r"\d+", d.name) and d.name != "0"),
                  key=lambda d: int(d.name))
-    centres = read_vector_field(steady / "C")
-    steady_u = read_vector_field(steady / "U")
-    iterations, converged, residuals = solver_log(case)
+    return read_vector_field(latest / "C"), read_vector_field(latest / "U"), solver_log(case)
+
+
+def run_unsteady(args, case, start):
+    """--unsteady: the steady solution on the full domain, then pimpleFoam from it, averaging
+    U over the window [spin-up, spin-up + window]. Returns the JSON result."""
+    centres, steady_u, (iterations, converged, residuals) = run_steady(
+        case, args.cells_per_h, args.max_iterations, full=True)
+    steady_s = time.monotonic() - start
     t_end = args.spin_up + args.window
     prepare_transient(case, args.model, t_end, args.spin_up, args.window, args.max_co,
                       args.outer_correctors, args.cells_per_h)
@@ -740,7 +745,7 @@ def run_unsteady(args, case, start):
         "reattachment_mirror_H": reattachment_length(centres, u_mean, side=-1.0),
         "halves": halves,
         "steady_reattachment_H": reattachment_length(centres, steady_u),
-        "cells": full_cells,
+        "cells": len(centres),
         "cells_per_h": args.cells_per_h,
         "iterations": iterations,
         "converged": converged,
@@ -797,17 +802,9 @@ def main():
         if result["reattachment_H"] is None:
             sys.exit("no reversed flow behind the cube")
         return
-    write_case(case, args.cells_per_h, args.max_iterations)
-    run(case, "blockMesh")
-    run(case, "simpleFoam")
-    run(case, "postProcess", "-func", "writeCellCentres", "-latestTime")
+    centres, velocity, (iterations, converged, residuals) = run_steady(
+        case, args.cells_per_h, args.max_iterations)
     wall_s = time.monotonic() - start
-
-    latest = max((d for d in case.iterdir() if re.fullmatch(r"\d+", d.name) and d.name != "0"),
-                 key=lambda d: int(d.name))
-    centres = read_vector_field(latest / "C")
-    velocity = read_vector_field(latest / "U")
-    iterations, converged, residuals = solver_log(case)
     result = {
         "reattachment_H": reattachment_length(centres, velocity),
         "cells": len(centres),
