@@ -53,8 +53,8 @@ pub fn build_field(
     Ok(field)
 }
 
-/// Whether the run has wind among buildings under the diagnostic model (the default): then
-/// its shards need the field.
+/// Whether the run has wind among buildings under any urban model (built-in, OpenFOAM or
+/// an imported case): then its shards need the field.
 pub fn wants_urban_wind(spec: &SimulationRunSpec, world: &World) -> bool {
     wind_request(spec, world).is_some()
 }
