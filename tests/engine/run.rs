@@ -236,10 +236,27 @@ fn flying_into_a_building_is_a_crash_event_and_the_run_goes_on() {
 }
 
 #[test]
-fn rendering_is_refused_as_not_supported_yet() {
+fn the_live_view_leaves_the_run_unchanged() {
+    // The view only reads the coordinator's windows: the same seed flies the same bits
+    // with it on or off (the browser side is tested in tests/interop/test_view.py).
+    let with_view = |on: bool| {
+        let mut r = scenario(2, 2);
+        r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: on });
+        r
+    };
+    let root = out_root("view-unchanged");
+    let off = run(&with_view(false), &root.join("off"), false).unwrap();
+    let on = run(&with_view(true), &root.join("on"), false).unwrap();
+    assert_eq!(bytes(&on.out_dir, "trajectory.csv"), bytes(&off.out_dir, "trajectory.csv"));
+    assert_eq!(bytes(&on.out_dir, "events.jsonl"), bytes(&off.out_dir, "events.jsonl"));
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
+fn the_live_view_with_worker_processes_is_refused_naming_the_field() {
     let r =
         RunBuilder::test().with(|r| r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true })).build();
-    let err = run(&r, &out_root("unsupported"), false).unwrap_err();
+    let err = run(&r, &out_root("view-processes"), true).unwrap_err();
     assert!(matches!(err, RunError::NotSupported(_)), "{err}");
-    assert!(err.to_string().contains("spec.rendering.enabled: the renderer is not built yet"), "{err}");
+    assert!(err.to_string().contains("spec.rendering.enabled with --processes"), "{err}");
 }

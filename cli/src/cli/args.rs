@@ -155,6 +155,22 @@ pub enum Command {
         /// Run folder (`runs/<run>/<UTC time>/`, or one fetched with `archive get`).
         run_dir: PathBuf,
     },
+    /// Replay a recorded run in the browser: the live view's page on the run's
+    /// recording.mcap, events.jsonl and world, with a timeline to play, pause and scrub.
+    ///
+    /// RUN is a local run folder (`runs/<run>/<UTC time>/`) or an archived one
+    /// (`s3://bucket/prefix/<namespace>/<run>/<uid>`, ...; each file is checked against the
+    /// run's manifest). Serves until Ctrl-C.
+    View {
+        /// Run folder or archive URL.
+        run: String,
+        /// Address to serve the page on.
+        #[arg(long, default_value = "127.0.0.1:8490")]
+        listen: std::net::SocketAddr,
+        /// Frames per simulated second the timeline steps through (0 < rate <= 1000).
+        #[arg(long, default_value_t = 20.0)]
+        rate: f64,
+    },
     /// Print the Kubernetes objects the operator would create for each run in FILE (YAML,
     /// one document per object), for review in GitOps pull requests.
     Manifests {

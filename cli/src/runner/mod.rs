@@ -232,9 +232,17 @@ fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError>
         return Err(RunError::NeedsMavlink { groups: external.join(", ") });
     }
     if spec.rendering().enabled {
-        return Err(RunError::NotSupported(
-            "spec.rendering.enabled: the renderer is not built yet; set it to false".into(),
-        ));
+        if !sim_worker::view::server::has_three() {
+            return Err(RunError::NotSupported(format!(
+                "spec.rendering.enabled: {}",
+                sim_worker::view::server::NO_THREE
+            )));
+        }
+        if options.processes {
+            return Err(RunError::NotSupported(
+                "spec.rendering.enabled with --processes: the live view runs in-process only; drop --processes".into(),
+            ));
+        }
     }
     // Object stores are written at the end of the run: a bad URL or store configuration
     // (credentials, account) fails now, not after the run.
@@ -303,6 +311,8 @@ struct Progress<'a> {
     pilot_error: Option<PilotError>,
     /// The pilot exited and `onExit` is `endRun`.
     pilot_exited: bool,
+    /// The live view's publisher (`spec.rendering.enabled`).
+    view: Option<sim_worker::view::Publisher>,
 }
 
 impl RunObserver for Progress<'_> {
@@ -310,6 +320,9 @@ impl RunObserver for Progress<'_> {
         // Recorded (and flushed) first: a pilot that starts now finds `pilotsReleased` in
         // events.jsonl.
         self.recorder.on_window(time_s, drones, events)?;
+        if let Some(view) = &mut self.view {
+            view.on_window(time_s, drones, events);
+        }
         if let Some(pilot) = self.pilot.as_deref_mut() {
             pilot.advance(time_s);
             if events.iter().any(|e| matches!(e.kind, EventKind::PilotsReleased))
@@ -395,6 +408,17 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     };
     let world = Arc::new(world);
     write_json(&out_dir, "world.json", world.stats())?;
+    // The live view is up before the run starts, so a browser opened on the printed URL
+    // sees the drones from the first window.
+    let live_view = match plan.spec.rendering().enabled {
+        true => {
+            let bind = std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http));
+            let view = sim_worker::view::serve_live(&plan, &world, bind).map_err(RunError::Worker)?;
+            eprintln!("live view: {}", view.server.url());
+            Some(view)
+        }
+        false => None,
+    };
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));
     bar.enable_steady_tick(Duration::from_millis(200));
@@ -413,7 +437,8 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         )
     } else {
         let surroundings = sim_worker::shard::Surroundings { world: world.clone(), sky, wind };
-        let links = ShardInputs { surroundings, mavlink: options.mavlink };
+        let view = live_view.as_ref().map(|v| v.feed.clone());
+        let links = ShardInputs { surroundings, mavlink: options.mavlink, view };
         run_threads(&plan, links, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
     bar.finish_and_clear();
@@ -484,12 +509,14 @@ fn start_routers(plan: &RunPlan) -> Result<Vec<RouterHandle>, RunError> {
         .collect()
 }
 
-/// What the in-process shards fly in and with.
+/// What the in-process roles fly in and with, and who watches.
 struct ShardInputs {
     /// The world, the GNSS sky and the urban wind field.
     surroundings: sim_worker::shard::Surroundings,
     /// Whether the drones get MAVLink endpoints.
     mavlink: bool,
+    /// The live view's feed (`spec.rendering.enabled`).
+    view: Option<Arc<sim_worker::view::Feed>>,
 }
 
 /// Every role in this process: one thread per shard, the coordinator on this thread, the
@@ -503,7 +530,7 @@ fn run_threads(
     pilot: Option<&mut Supervisor>,
     airspace: &mut Airspace,
 ) -> Result<RunSummary, RunError> {
-    let ShardInputs { surroundings, mavlink } = inputs;
+    let ShardInputs { surroundings, mavlink, view } = inputs;
     let world = &surroundings.world;
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
@@ -525,6 +552,7 @@ fn run_threads(
         pilot,
         pilot_error: None,
         pilot_exited: false,
+        view: view.map(sim_worker::view::Publisher::new),
     };
     let outcome = coordinator::run(plan, &mut links, &mut WithAirspace::new(airspace, &mut progress), stop);
     let pilot_error = progress.pilot_error.take();

@@ -54,7 +54,7 @@ pub struct Report {
 /// The run's world when the caller does not have it (`sadesim report` on a folder): the
 /// bundle of the plan's asset cache key in the local asset cache, else built from the plan
 /// and the files it names; `None` when neither works (a map without buildings).
-fn find_world(plan: &sadesim_crds::plan::RunPlan) -> Option<World> {
+pub fn find_world(plan: &sadesim_crds::plan::RunPlan) -> Option<World> {
     let cache = crate::assets::local_cache_url(&|k| std::env::var(k).ok()).ok();
     let cached =
         cache.and_then(|url| crate::assets::load_bundle(&crate::assets::entry_url(&url, &plan.asset_cache_key)).ok());

@@ -37,7 +37,7 @@
 //! threads), so a recording depends only on the run, not on the machine.
 
 mod json;
-mod messages;
+pub(crate) mod messages;
 pub mod protobuf;
 mod scene;
 pub mod schemas;

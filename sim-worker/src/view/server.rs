@@ -1,0 +1,212 @@
+//! The view's HTTP server: the page, three.js, the scene, the world model, and either the
+//! live stream (Server-Sent Events) or a recorded run's frames.
+//!
+//! Routes:
+//!
+//! | path | what |
+//! |---|---|
+//! | `/` | the page (`web/index.html`) |
+//! | `/app.js` | the page's code |
+//! | `/vendor/three/...` | three.js from npm, embedded at build time |
+//! | `/scene.json` | [`super::scene::Scene`] |
+//! | `/world.glb` | the bundle's glTF (404 when the run has none) |
+//! | `/live` | live runs: `text/event-stream`, events `frame` and `event` (and `lagged`) |
+//! | `/replay.json` | replays: every frame and event of the recording |
+//! | `/healthz` | `ok` (Kubernetes probes) |
+//!
+//! Why Server-Sent Events rather than a WebSocket: the stream goes one way (the simulation
+//! to the browser), EventSource reconnects by itself, and it is plain HTTP/1 that every
+//! proxy and `kubectl port-forward` passes; nothing needs a frame protocol of its own.
+
+use std::convert::Infallible;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::Router;
+use axum::extract::{Path, State};
+use axum::http::{StatusCode, header};
+use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use futures_util::stream::{self, Stream, StreamExt};
+use tokio::sync::broadcast::error::RecvError;
+
+use super::feed::{Feed, Subscription};
+
+mod files {
+    include!(concat!(env!("OUT_DIR"), "/three_files.rs"));
+}
+
+pub use files::THREE_VERSION;
+
+const INDEX_HTML: &str = include_str!("../../web/index.html");
+const APP_JS: &str = include_str!("../../web/app.js");
+
+/// Whether this build carries three.js (see `build.rs`): without it the view cannot draw,
+/// and a run asking for it is refused.
+pub fn has_three() -> bool {
+    cfg!(sadesim_three)
+}
+
+/// The "not supported" text for a build without three.js.
+pub const NO_THREE: &str = "this build has no three.js for the live view (npm was not available when sim-worker was built): run `npm ci --prefix sim-worker/web` and rebuild";
+
+/// Where the moving part of the view comes from.
+#[derive(Clone, Debug)]
+pub enum Source {
+    /// A running simulation.
+    Live(Arc<Feed>),
+    /// A recorded run: the JSON of [`super::replay::Replay`].
+    Replay(Arc<Vec<u8>>),
+}
+
+/// What the server serves.
+#[derive(Clone, Debug)]
+pub struct Content {
+    /// `/scene.json`.
+    pub scene_json: Arc<Vec<u8>>,
+    /// `/world.glb`.
+    pub world_glb: Option<Arc<Vec<u8>>>,
+    pub source: Source,
+}
+
+/// A running view server; stops when dropped (or with [`ViewHandle::stop`]).
+#[derive(Debug)]
+pub struct ViewHandle {
+    pub addr: SocketAddr,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl ViewHandle {
+    /// The page's URL (`http://host:port/`).
+    pub fn url(&self) -> String {
+        format!("http://{}/", self.addr)
+    }
+
+    /// Stops serving: open streams end, the thread is joined.
+    pub fn stop(mut self) {
+        self.shutdown();
+    }
+
+    fn shutdown(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            let _ = stop.send(());
+        }
+        if let Some(thread) = self.thread.take() {
+            let _ = thread.join();
+        }
+    }
+}
+
+impl Drop for ViewHandle {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+/// Serves `content` on `bind` from a thread of its own (one tokio current-thread runtime:
+/// the server's work is copying bytes, and the simulation keeps the cores).
+///
+/// # Errors
+/// The address cannot be bound, or the thread cannot start.
+pub fn start(bind: SocketAddr, content: Content) -> std::io::Result<ViewHandle> {
+    let listener = std::net::TcpListener::bind(bind)?;
+    listener.set_nonblocking(true)?;
+    let addr = listener.local_addr()?;
+    let runtime = tokio::runtime::Builder::new_current_thread().enable_io().enable_time().build()?;
+    let listener = {
+        let _context = runtime.enter();
+        tokio::net::TcpListener::from_std(listener)?
+    };
+    let app = router(content);
+    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
+    let thread = std::thread::Builder::new().name("view-http".into()).spawn(move || {
+        runtime.block_on(async move {
+            let server = tokio::spawn(async move { axum::serve(listener, app).await });
+            let _ = stop_rx.await;
+            server.abort();
+        });
+    })?;
+    Ok(ViewHandle { addr, stop: Some(stop_tx), thread: Some(thread) })
+}
+
+fn router(content: Content) -> Router {
+    Router::new()
+        .route("/", get(|| async { ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], INDEX_HTML) }))
+        .route("/app.js", get(|| async { ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], APP_JS) }))
+        .route("/vendor/three/{*path}", get(vendor))
+        .route("/scene.json", get(scene))
+        .route("/world.glb", get(world))
+        .route("/live", get(live))
+        .route("/replay.json", get(replay))
+        .route("/healthz", get(|| async { "ok" }))
+        .with_state(content)
+}
+
+async fn vendor(Path(path): Path<String>) -> Response {
+    match files::THREE_FILES.iter().find(|(p, _)| *p == path) {
+        Some((p, bytes)) => {
+            let kind = if p.ends_with(".js") { "text/javascript; charset=utf-8" } else { "text/plain; charset=utf-8" };
+            ([(header::CONTENT_TYPE, kind), (header::CACHE_CONTROL, "max-age=86400")], *bytes).into_response()
+        }
+        None => (StatusCode::NOT_FOUND, format!("no /vendor/three/{path} in this build")).into_response(),
+    }
+}
+
+async fn scene(State(c): State<Content>) -> Response {
+    ([(header::CONTENT_TYPE, "application/json")], c.scene_json.as_ref().clone()).into_response()
+}
+
+async fn world(State(c): State<Content>) -> Response {
+    match c.world_glb {
+        Some(glb) => ([(header::CONTENT_TYPE, "model/gltf-binary")], glb.as_ref().clone()).into_response(),
+        None => (StatusCode::NOT_FOUND, "this run has no world model").into_response(),
+    }
+}
+
+async fn replay(State(c): State<Content>) -> Response {
+    match c.source {
+        Source::Replay(json) => ([(header::CONTENT_TYPE, "application/json")], json.as_ref().clone()).into_response(),
+        Source::Live(_) => (StatusCode::NOT_FOUND, "a live run: the stream is /live").into_response(),
+    }
+}
+
+async fn live(State(c): State<Content>) -> Response {
+    match c.source {
+        Source::Live(feed) => Sse::new(stream_of(feed.subscribe()))
+            .keep_alive(KeepAlive::new().interval(Duration::from_secs(10)))
+            .into_response(),
+        Source::Replay(_) => (StatusCode::NOT_FOUND, "a recorded run: the frames are /replay.json").into_response(),
+    }
+}
+
+/// One browser's stream: the backlog of events, the current frame, then frames and events
+/// as they come. Each browser's stream is polled by its own connection task, so a slow one
+/// holds only itself.
+fn stream_of(sub: Subscription) -> impl Stream<Item = Result<SseEvent, Infallible>> {
+    let Subscription { backlog, mut frames, events } = sub;
+    let current = frames.borrow_and_update().clone();
+    let first = stream::iter(
+        backlog
+            .into_iter()
+            .map(|e| SseEvent::default().event("event").data(&*e))
+            .chain(current.map(|f| SseEvent::default().event("frame").data(&*f))),
+    );
+    let frames = stream::unfold(frames, |mut rx| async move {
+        rx.changed().await.ok()?;
+        let frame = rx.borrow_and_update().clone();
+        Some((frame.map(|f| SseEvent::default().event("frame").data(&*f)), rx))
+    })
+    .filter_map(|e| async move { e });
+    let events = stream::unfold(events, |mut rx| async move {
+        let event = match rx.recv().await {
+            Ok(e) => SseEvent::default().event("event").data(&*e),
+            Err(RecvError::Lagged(n)) => SseEvent::default().event("lagged").data(n.to_string()),
+            Err(RecvError::Closed) => return None,
+        };
+        Some((event, rx))
+    });
+    first.chain(stream::select(frames, events)).map(Ok)
+}

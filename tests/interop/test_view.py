@@ -1,0 +1,206 @@
+"""The live 3D view and the replay, in a real browser (Debian's Chromium driven by npm
+playwright-core, WebGL on SwiftShader): the tests read the screenshots' pixels.
+
+- Live: the quickstart with `rendering.enabled` shows the museum zone as a pink volume
+  where the zone projects, and a drone marker that moves between two screenshots.
+- Replay: `sadesim view` on that run's folder scrubs to a time and draws the drones where
+  `trajectory.csv` says they were then (and not where they were 5 s later).
+
+Screenshots are kept in the test's temporary folder (printed on failure).
+"""
+import csv
+import json
+import math
+import os
+import pathlib
+import re
+import select
+import signal
+import subprocess
+import time
+
+import pytest
+import yaml
+from PIL import Image
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+DRIVER = REPO / "tests" / "browser" / "drive.mjs"
+CHROMIUM = "/usr/bin/chromium"
+# The scouts' group colour (the first of sim-worker's GROUP_COLOURS) and the zones' pink.
+SCOUTS = (0x4E, 0x79, 0xA7)
+# A camera over Grant Park looking north-west: the museum zone in the foreground, the
+# scouts over Millennium Park behind it (ENU metres from the run origin).
+EYE = [260.0, -320.0, 260.0]
+TARGET = [40.0, 160.0, 20.0]
+# The museum zone of examples/quickstart.yaml: its centroid half-way up its 60 m.
+ZONE_CENTRE = None  # from /scene.json, see zone_centre()
+
+pytestmark = pytest.mark.skipif(not pathlib.Path(CHROMIUM).exists(), reason="needs Debian's chromium (tests/install-tools.sh)")
+
+
+def read_line_matching(proc, pattern, timeout_s):
+    """The first match of `pattern` in the process's stderr+stdout lines, within `timeout_s`."""
+    deadline = time.monotonic() + timeout_s
+    seen = []
+    while time.monotonic() < deadline:
+        ready, _, _ = select.select([proc.stdout], [], [], 0.5)
+        if not ready:
+            if proc.poll() is not None:
+                break
+            continue
+        line = proc.stdout.readline()
+        if not line:
+            break
+        seen.append(line)
+        m = re.search(pattern, line)
+        if m:
+            return m
+    raise AssertionError(f"no line matching {pattern!r} within {timeout_s} s; got: {''.join(seen)[-2000:]}")
+
+
+def drive(tmp_path, url, steps):
+    config = tmp_path / f"steps-{len(list(tmp_path.glob('steps-*')))}.json"
+    config.write_text(json.dumps({"url": url, "outDir": str(tmp_path), "steps": steps}))
+    done = subprocess.run(["node", str(DRIVER), str(config)], capture_output=True, text=True, timeout=240)
+    assert done.returncode == 0, f"the browser driver failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    errors = [line for line in report["console"] if line.startswith(("pageerror", "error"))]
+    assert not errors, f"the page reported errors: {errors}"
+    return report["results"]
+
+
+def colour_count(image, pixel, colour, half=6, tolerance=40):
+    """Pixels within `half` px of `pixel` whose every channel is within `tolerance` of `colour`."""
+    x0, y0 = round(pixel[0]), round(pixel[1])
+    n = 0
+    for y in range(y0 - half, y0 + half + 1):
+        for x in range(x0 - half, x0 + half + 1):
+            if 0 <= x < image.width and 0 <= y < image.height:
+                p = image.getpixel((x, y))
+                if all(abs(p[k] - colour[k]) <= tolerance for k in range(3)):
+                    n += 1
+    return n
+
+
+def pink_fraction(image, pixel, half=5):
+    """The share of pixels near `pixel` tinted by the zones' translucent pink (red and blue
+    well above green; the city's greys and greens are not)."""
+    x0, y0 = round(pixel[0]), round(pixel[1])
+    pixels = [image.getpixel((x, y)) for y in range(y0 - half, y0 + half + 1) for x in range(x0 - half, x0 + half + 1)]
+    return sum(1 for r, g, b, *_ in pixels if r - g > 30 and b - g > 5) / len(pixels)
+
+
+def zone_points(scene):
+    """The museum zone's centroid half-way up, and a point as high 150 m east of the zone."""
+    zone = next(z for z in scene["zones"] if z["name"] == "museum")
+    c = zone["corners"]
+    e = sum(p[0] for p in c) / len(c)
+    n = sum(p[1] for p in c) / len(c)
+    u = sum((p[2] + p[3]) / 2 for p in c) / len(c)
+    east_edge = max(p[0] for p in c)
+    return [e, n, u], [east_edge + 150.0, n, u]
+
+
+@pytest.fixture(scope="module")
+def live(sadesim, tmp_path_factory):
+    """The quickstart with the live view, at 2x real time for 40 simulated seconds."""
+    tmp = tmp_path_factory.mktemp("view")
+    doc = yaml.safe_load((REPO / "examples" / "quickstart.yaml").read_text())
+    doc["spec"]["duration"] = "40s"
+    doc["spec"]["clock"] = {"mode": "scaled", "factor": 2}
+    doc["spec"]["rendering"] = {"enabled": True}
+    scenario = tmp / "quickstart-view.yaml"
+    scenario.write_text(yaml.safe_dump(doc))
+    proc = subprocess.Popen(
+        [sadesim, "run", str(scenario), "--out", str(tmp / "runs")],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp,
+        env={**os.environ, "SADESIM_CACHE_DIR": str(tmp / "cache")},
+    )
+    try:
+        url = read_line_matching(proc, r"live view: (http://\S+)", 300).group(1)
+        yield {"url": url, "proc": proc, "tmp": tmp}
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=120)
+
+
+def test_the_live_view_shows_the_zone_and_moving_drones(live, tmp_path):
+    import urllib.request
+
+    scene = json.load(urllib.request.urlopen(live["url"] + "scene.json"))
+    assert scene["mode"] == "live" and scene["worldModel"]
+    zone_centre, beside_zone = zone_points(scene)
+    results = drive(tmp_path, live["url"], [
+        {"waitFor": "window.sadesimView && window.sadesimView.ready && window.sadesimView.frames > 0", "timeoutMs": 90000},
+        # Airborne and cruising.
+        {"waitFor": "window.sadesimView.time > 14", "timeoutMs": 90000},
+        {"eval": f"window.sadesimView.lookAt({EYE}, {TARGET})"},
+        {"shot": "live-1", "project": [zone_centre, beside_zone]},
+        {"sleepMs": 2500},
+        {"shot": "live-2", "project": [zone_centre, beside_zone]},
+    ])
+    first, second = results[-3], results[-1]
+    print("screenshots:", first["path"], second["path"])
+    assert second["time"] > first["time"], "the stream moved on between the screenshots"
+    for shot in (first, second):
+        image = Image.open(shot["path"]).convert("RGB")
+        centre, beside = shot["points"]
+        assert pink_fraction(image, centre["pixel"]) > 0.8, f"no zone pink at the zone's pixel {centre['pixel']}"
+        assert pink_fraction(image, beside["pixel"]) < 0.2, f"pink 150 m east of the zone at {beside['pixel']}"
+    image1 = Image.open(first["path"]).convert("RGB")
+    image2 = Image.open(second["path"]).convert("RGB")
+    moved = []
+    for d1, d2 in zip(first["drones"], second["drones"]):
+        p1, p2 = d1["pixel"], d2["pixel"]
+        assert colour_count(image1, p1, SCOUTS) >= 50, f"no drone marker at {p1} in {first['path']}"
+        assert colour_count(image2, p2, SCOUTS) >= 50, f"no drone marker at {p2} in {second['path']}"
+        others = [d["pixel"] for d in second["drones"]]
+        alone = all(math.dist(p1[:2], o[:2]) > 15 for o in others)
+        if math.dist(p1[:2], p2[:2]) > 15 and alone:
+            # Only a trail line (a pixel wide) is left where the marker was.
+            assert colour_count(image2, p1, SCOUTS) < 30, f"the marker stayed at {p1}"
+            moved.append(d1["enu"])
+    assert moved, "no drone marker moved on the screen between the screenshots"
+
+
+def test_a_replay_scrubs_to_where_the_trajectory_says(live, sadesim, tmp_path):
+    proc = live["proc"]
+    proc.communicate(timeout=240)  # the 40 s run ends by itself
+    run_dir = next((live["tmp"] / "runs" / "quickstart").iterdir())
+    assert (run_dir / "manifest.json").exists()
+    rows = list(csv.DictReader((run_dir / "trajectory.csv").open()))
+
+    def at(t):
+        picked = [r for r in rows if abs(float(r["time_s"]) - t) < 1e-6]
+        assert len(picked) == 4, f"trajectory.csv has no row for every drone at {t} s"
+        return [[float(r["east_m"]), float(r["north_m"]), float(r["up_m"])] for r in sorted(picked, key=lambda r: int(r["drone"]))]
+
+    t, later = 22.0, 32.0
+    viewer = subprocess.Popen(
+        [sadesim, "view", f"file://{run_dir}", "--listen", "127.0.0.1:0"],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        env={**os.environ, "SADESIM_CACHE_DIR": str(live["tmp"] / "cache")},
+    )
+    try:
+        url = read_line_matching(viewer, r"(http://127\.0\.0\.1:\d+/)", 120).group(1)
+        results = drive(tmp_path, url, [
+            {"waitFor": "window.sadesimView && window.sadesimView.ready", "timeoutMs": 90000},
+            {"eval": f"window.sadesimView.lookAt({EYE}, {TARGET})"},
+            {"eval": f"window.sadesimView.seek({t})"},
+            {"shot": "replay", "project": at(t) + at(later)},
+        ])
+    finally:
+        viewer.send_signal(signal.SIGINT)
+        viewer.communicate(timeout=30)
+    shot = results[-1]
+    print("screenshot:", shot["path"])
+    assert abs(shot["time"] - t) < 1e-9
+    image = Image.open(shot["path"]).convert("RGB")
+    now, then = shot["points"][:4], shot["points"][4:]
+    for p in now:
+        assert colour_count(image, p["pixel"], SCOUTS) >= 50, f"no drone where trajectory.csv puts it at {t} s: {p}"
+    apart = [q for p, q in zip(now, then) if all(math.dist(q["pixel"][:2], o["pixel"][:2]) > 15 for o in now)]
+    assert apart, "the drones did not move between the two times"
+    for q in apart:
+        assert colour_count(image, q["pixel"], SCOUTS) < 30, f"a drone drawn where it was only at {later} s: {q}"
