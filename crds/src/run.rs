@@ -439,6 +439,10 @@ pub struct Rendering {
     /// Start the renderer (browser 3D view). Default false.
     #[serde(default)]
     pub enabled: bool,
+    /// GPUs (`nvidia.com/gpu`) for the renderer pod on Kubernetes, 1..=8; absent: none (the
+    /// live view draws in the browser). A local run notes that it applies on a cluster only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gpus: Option<u32>,
 }
 
 /// What the recorder writes besides events, trajectory and summary (always written).

@@ -100,6 +100,13 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
     if let Some(queue) = &spec.queue {
         p.dns_label("spec.queue", queue, 63);
     }
+    let rendering = spec.rendering();
+    if let Some(gpus) = rendering.gpus {
+        p.range_int("spec.rendering.gpus", gpus.into(), 1, 8);
+        if !rendering.enabled {
+            p.add("spec.rendering.gpus", "asks GPUs for a renderer that is off: set spec.rendering.enabled to true");
+        }
+    }
     criteria::check_criteria(spec, &group_names, &zone_names, p);
 }
 

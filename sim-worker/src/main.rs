@@ -68,6 +68,10 @@ enum Role {
         /// `services.airspaceHttp` port; 0.0.0.0 in a pod).
         #[arg(long)]
         airspace_bind: Option<std::net::SocketAddr>,
+        /// With `spec.rendering.enabled`: where to serve the live stream the renderer follows
+        /// (default: 127.0.0.1 at the plan's `services.rendererHttp` port; 0.0.0.0 in a pod).
+        #[arg(long)]
+        view_bind: Option<std::net::SocketAddr>,
         /// Seconds to wait for a shard's answer to a window before failing the run (its
         /// host down or the network cut: no FIN arrives); 0 waits forever. A shard whose
         /// process dies fails the run at once.
@@ -114,6 +118,24 @@ enum Role {
         /// `/dev/termination-log`, which the operator reads).
         #[arg(long, value_name = "FILE")]
         report_file: Option<PathBuf>,
+    },
+    /// Serve the live 3D view of a run to browsers: follows the coordinator's live stream
+    /// (`--feed`, its `--view-bind`) and serves the page, three.js, the world's glTF and
+    /// the stream on `--listen` until SIGINT/SIGTERM. Any number of browsers; none of them
+    /// can slow the simulation.
+    Renderer {
+        /// RunPlan JSON written by the planner.
+        #[arg(long)]
+        plan: PathBuf,
+        /// Address to serve the page on.
+        #[arg(long, default_value = "127.0.0.1:8490")]
+        listen: std::net::SocketAddr,
+        /// `host:port` of the coordinator's live stream.
+        #[arg(long)]
+        feed: String,
+        /// The world's asset bundle, as for `shard --assets` (the city drawn in the view).
+        #[arg(long, env = "SADESIM_ASSETS_URL", value_name = "URL")]
+        assets: Option<String>,
     },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
@@ -185,6 +207,7 @@ fn main() -> ExitCode {
             listen,
             out,
             airspace_bind,
+            view_bind,
             shard_timeout,
             connect_timeout,
             control_file,
@@ -221,7 +244,7 @@ fn main() -> ExitCode {
                 let timeouts =
                     roles::coordinator::Timeouts { connect: positive(connect_timeout), shard: positive(shard_timeout) };
                 let ends = roles::coordinator::Ends { stop: &stop, timeouts, requests };
-                roles::coordinator::run(&plan, &world, listen.as_str(), airspace, &out, ends).map(|_| ())
+                roles::coordinator::run(&plan, &world, listen.as_str(), airspace, &out, ends, view_bind).map(|_| ())
             });
             // Whatever the run's end: the folder's files are evidence of a failed run too.
             let archived = !finish_run
@@ -234,6 +257,16 @@ fn main() -> ExitCode {
         }
         Role::Assets { plan, archive, report_file } => roles::read_plan(&plan)
             .and_then(|plan| roles::assets::run(&plan, &archive, report_file.as_deref()).map(|_| ())),
+        Role::Renderer { plan, listen, feed, assets } => {
+            let stop = Arc::new(AtomicBool::new(false));
+            let flag = stop.clone();
+            // SIGTERM ends the process at once: a renderer holds nothing to flush.
+            let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+            roles::read_plan(&plan).and_then(|plan| {
+                let world = roles::world(&plan, assets.as_deref())?;
+                roles::renderer::run(&plan, &world, listen, &feed, &stop)
+            })
+        }
         Role::Router { plan, segment, bind, drone_host } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();

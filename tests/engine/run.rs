@@ -241,7 +241,7 @@ fn the_live_view_leaves_the_run_unchanged() {
     // with it on or off (the browser side is tested in tests/interop/test_view.py).
     let with_view = |on: bool| {
         let mut r = scenario(2, 2);
-        r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: on });
+        r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: on, gpus: None });
         r
     };
     let root = out_root("view-unchanged");
@@ -254,8 +254,9 @@ fn the_live_view_leaves_the_run_unchanged() {
 
 #[test]
 fn the_live_view_with_worker_processes_is_refused_naming_the_field() {
-    let r =
-        RunBuilder::test().with(|r| r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true })).build();
+    let r = RunBuilder::test()
+        .with(|r| r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true, gpus: None }))
+        .build();
     let err = run(&r, &out_root("view-processes"), true).unwrap_err();
     assert!(matches!(err, RunError::NotSupported(_)), "{err}");
     assert!(err.to_string().contains("spec.rendering.enabled with --processes"), "{err}");

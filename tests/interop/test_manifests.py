@@ -155,3 +155,20 @@ def test_the_operator_binary_reads_every_variable_the_chart_sets(sadesim_operato
     assert flags == env - {"POD_NAMESPACE", "POD_NAME"}
     for name in sorted(flags):
         assert f"env: {name}" in help_text, f"{name} is not a sadesim-operator flag:\n{help_text}"
+
+
+def test_a_rendering_run_with_gpus_passes_kubernetes_validate_strict(sadesim, venv_bin, tmp_path):
+    """The renderer Deployment and Service (with a GPU request) and the coordinator's
+    live-stream port, against Kubernetes' schemas."""
+    doc = yaml.safe_load((REPO / "examples" / "quickstart.yaml").read_text())
+    doc["spec"]["rendering"] = {"enabled": True, "gpus": 1}
+    scenario = tmp_path / "view.yaml"
+    scenario.write_text(yaml.safe_dump(doc))
+    text = manifests(sadesim, str(scenario))
+    assert {"Deployment/quickstart-renderer", "Service/quickstart-renderer"} <= set(kinds(text)), kinds(text)
+    result = kubernetes_validate(venv_bin, text)
+    assert result.returncode == 0, result.stdout + result.stderr
+    renderer = next(d for d in yaml.safe_load_all(text) if d and d["kind"] == "Deployment")
+    container = renderer["spec"]["template"]["spec"]["containers"][0]
+    assert container["resources"]["limits"]["nvidia.com/gpu"] == "1"
+    assert renderer["metadata"]["ownerReferences"][0]["kind"] == "SimulationRun"

@@ -14,7 +14,6 @@ import math
 import os
 import pathlib
 import re
-import select
 import signal
 import subprocess
 import time
@@ -39,17 +38,28 @@ pytestmark = pytest.mark.skipif(not pathlib.Path(CHROMIUM).exists(), reason="nee
 
 
 def read_line_matching(proc, pattern, timeout_s):
-    """The first match of `pattern` in the process's stderr+stdout lines, within `timeout_s`."""
+    """The first match of `pattern` in the process's output lines, within `timeout_s` (a
+    thread reads the pipe, so lines that arrive together are all seen)."""
+    import queue
+    import threading
+
+    if not hasattr(proc, "lines"):
+        proc.lines = queue.Queue()
+
+        def pump():
+            for line in proc.stdout:
+                proc.lines.put(line)
+            proc.lines.put(None)
+
+        threading.Thread(target=pump, daemon=True).start()
     deadline = time.monotonic() + timeout_s
     seen = []
-    while time.monotonic() < deadline:
-        ready, _, _ = select.select([proc.stdout], [], [], 0.5)
-        if not ready:
-            if proc.poll() is not None:
-                break
-            continue
-        line = proc.stdout.readline()
-        if not line:
+    while (left := deadline - time.monotonic()) > 0:
+        try:
+            line = proc.lines.get(timeout=left)
+        except queue.Empty:
+            break
+        if line is None:
             break
         seen.append(line)
         m = re.search(pattern, line)
@@ -204,3 +214,77 @@ def test_a_replay_scrubs_to_where_the_trajectory_says(live, sadesim, tmp_path):
     assert apart, "the drones did not move between the two times"
     for q in apart:
         assert colour_count(image, q["pixel"], SCOUTS) < 30, f"a drone drawn where it was only at {later} s: {q}"
+
+
+def free_port():
+    """A free port below Linux's ephemeral range (32768+): a client that retries a port in
+    that range can connect to itself (TCP simultaneous open) and hold it."""
+    import random
+    import socket
+
+    for port in random.sample(range(20000, 32000), 200):
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise AssertionError("no free port in 20000-32000")
+
+
+def test_the_renderer_role_serves_the_coordinators_stream(sadesim, sim_worker, tmp_path):
+    """The cluster path as separate processes: `sim-worker renderer` (started first, as a
+    pod may be) follows `sim-worker coordinator --view-bind` and serves its frames and
+    events to a browser's EventSource request."""
+    import urllib.request
+
+    doc = yaml.safe_load((REPO / "examples" / "quickstart.yaml").read_text())
+    doc["spec"]["duration"] = "30s"
+    doc["spec"]["clock"] = {"mode": "scaled", "factor": 2}
+    doc["spec"]["rendering"] = {"enabled": True}
+    scenario = tmp_path / "quickstart.yaml"
+    scenario.write_text(yaml.safe_dump(doc))
+    planned = subprocess.run([sadesim, "plan", str(scenario), "--json"], capture_output=True, text=True, timeout=120)
+    assert planned.returncode == 0, planned.stderr
+    plan = tmp_path / "plan.json"
+    plan.write_text(planned.stdout)
+    drones = len(json.loads(planned.stdout)["drones"])
+    feed, page = free_port(), free_port()
+    procs = []
+
+    def start(*args, **kw):
+        p = subprocess.Popen([sim_worker, *args], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, **kw)
+        procs.append(p)
+        return p
+
+    try:
+        renderer = start("renderer", "--plan", str(plan), "--listen", f"127.0.0.1:{page}", "--feed", f"127.0.0.1:{feed}")
+        url = read_line_matching(renderer, r"renderer: serving (http://\S+)", 120).group(1)
+        coordinator = start("coordinator", "--plan", str(plan), "--listen", "127.0.0.1:0", "--out", str(tmp_path / "out"),
+                            "--airspace-bind", "127.0.0.1:0", "--view-bind", f"127.0.0.1:{feed}")
+        shard_link = read_line_matching(coordinator, r'"address":"([0-9.:]+)"', 120).group(1)
+        start("shard", "--plan", str(plan), "--shard", "0", "--coordinator", shard_link, "--no-mavlink")
+        scene = json.load(urllib.request.urlopen(url + "scene.json"))
+        assert scene["mode"] == "live" and len(scene["drones"]) == drones
+        events, frame = [], None
+        with urllib.request.urlopen(url + "live", timeout=60) as stream:
+            kind = None
+            for raw in stream:
+                line = raw.decode().rstrip("\n")
+                if line.startswith("event:"):
+                    kind = line.split(":", 1)[1].strip()
+                elif line.startswith("data:"):
+                    data = json.loads(line.split(":", 1)[1])
+                    if kind == "event":
+                        events.append(data["event"])
+                    elif kind == "frame" and data["t"] > 3:
+                        frame = data
+                        break
+        assert "runStarted" in events and "takeoff" in events, events
+        assert len(frame["p"]) == 3 * drones and len(frame["s"]) == drones
+        assert frame["air"] == drones, frame
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+            p.communicate(timeout=30)

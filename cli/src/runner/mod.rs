@@ -262,6 +262,11 @@ fn cluster_only_notices(plan: &RunPlan) -> Vec<String> {
             "spec.queue: the Kueue LocalQueue {queue:?} admits the run on Kubernetes only; this local run starts at once"
         ));
     }
+    if let Some(gpus) = plan.spec.rendering().gpus {
+        out.push(format!(
+            "spec.rendering.gpus: the {gpus} GPU(s) are asked for the renderer pod on Kubernetes only; locally the live view draws in your browser"
+        ));
+    }
     out
 }
 
@@ -604,5 +609,16 @@ mod tests {
         assert_eq!(notices.len(), 1);
         assert!(notices[0].starts_with("spec.queue: the Kueue LocalQueue \"team-a\""), "{notices:?}");
         assert!(cluster_only_notices(&plan_with(None)).is_empty());
+    }
+
+    #[test]
+    fn gpus_for_the_renderer_are_said_to_apply_on_kubernetes_only() {
+        use sadesim_crds::fixtures::RunBuilder;
+        use sadesim_crds::run::Rendering;
+        let run =
+            RunBuilder::test().with(|r| r.spec.rendering = Some(Rendering { enabled: true, gpus: Some(1) })).build();
+        let notices = cluster_only_notices(&sadesim_planner::plan(&run).unwrap());
+        assert_eq!(notices.len(), 1, "{notices:?}");
+        assert!(notices[0].starts_with("spec.rendering.gpus: the 1 GPU(s)"), "{notices:?}");
     }
 }

@@ -322,3 +322,17 @@ fn an_imported_openfoam_case_needs_model_openfoam_a_folder_and_the_runs_directio
     assert!(fine.is_empty(), "{fine:?}");
     assert!(with_urban(serde_json::json!({"model": "openfoam"})).is_empty());
 }
+
+#[test]
+fn gpus_for_the_renderer_are_bounded_and_need_it_on() {
+    use crate::run::Rendering;
+    let with =
+        |enabled: bool, gpus: Option<u32>| problems_of(move |r| r.spec.rendering = Some(Rendering { enabled, gpus }));
+    assert!(with(true, Some(1)).is_empty(), "{:?}", with(true, Some(1)));
+    assert!(with(true, None).is_empty());
+    assert_eq!(with(true, Some(0)), ["spec.rendering.gpus: must be between 1 and 8, got 0"]);
+    assert_eq!(with(true, Some(9)), ["spec.rendering.gpus: must be between 1 and 8, got 9"]);
+    let off = with(false, Some(1));
+    assert_eq!(off.len(), 1);
+    assert!(off[0].starts_with("spec.rendering.gpus: asks GPUs for a renderer that is off"), "{off:?}");
+}

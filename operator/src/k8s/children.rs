@@ -394,14 +394,6 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
             fatal: true,
         });
     }
-    if plan.spec.rendering().enabled {
-        // Same rule as `sadesim run`: no fake success for a role that does not exist yet.
-        out.push(Problem {
-            field: "spec.rendering.enabled".into(),
-            message: "the renderer is not built yet; set it to false".into(),
-            fatal: true,
-        });
-    }
     let urban = plan.spec.environment().wind.and_then(|w| w.urban);
     if let Some(case) = urban.as_ref().and_then(|u| u.case.as_ref()) {
         // The pods cannot see a folder on the machine that applied the run.

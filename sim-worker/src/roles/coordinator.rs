@@ -51,11 +51,16 @@ struct Reporting<'a> {
     next_report_s: f64,
     /// Where a request to end the run early arrives.
     stop_request: StopRequest,
+    /// The live stream (`spec.rendering.enabled`), which the renderer pod follows.
+    view: Option<crate::view::Publisher>,
 }
 
 impl RunObserver for Reporting<'_> {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
         self.recorder.on_window(time_s, drones, events)?;
+        if let Some(view) = &mut self.view {
+            view.on_window(time_s, drones, events);
+        }
         if time_s >= self.next_report_s {
             self.next_report_s = time_s.floor() + 1.0;
             report(&Report::Progress { sim_time_s: time_s, counts: crate::protocol::fleet_counts(drones) });
@@ -124,6 +129,8 @@ pub fn finish(plan_file: &Path, plan: &RunPlan, world: &World, out_dir: &Path, u
 /// `ends.timeouts.connect`, or `ends.stop` while waiting for them, end the role before the
 /// run starts; a shard that sends nothing for `ends.timeouts.shard` during the run fails
 /// it. A request in `ends.requests` ends the run after the current window with its reason.
+/// With `spec.rendering.enabled` the live stream (`/live`, and the page itself) is served on
+/// `view_bind` (default 127.0.0.1 at the plan's renderer port) for the renderer to follow.
 ///
 /// # Errors
 /// Network, protocol, shard and recording failures; each is also reported as a
@@ -135,9 +142,20 @@ pub fn run(
     airspace_bind: SocketAddr,
     out_dir: &Path,
     ends: Ends<'_>,
+    view_bind: Option<SocketAddr>,
 ) -> Result<RunSummary, RoleError> {
     let Ends { stop, timeouts, requests } = ends;
     let result = (|| {
+        // Up before the shards connect: the renderer follows it from the start.
+        let live = match plan.spec.rendering().enabled {
+            true => {
+                let bind = view_bind.unwrap_or_else(|| SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http)));
+                let live = crate::view::serve_live(plan, world, bind).map_err(RoleError::Protocol)?;
+                eprintln!("live stream: {}live", live.server.url());
+                Some(live)
+            }
+            false => None,
+        };
         // The airspace API is up before any shard connects, so it answers as soon as pilots
         // are released. Credentials from Secrets arrive as SADESIM_CREDENTIAL_<GROUP>.
         let mut airspace = Airspace::new(plan, &|key| std::env::var(key).ok());
@@ -176,7 +194,8 @@ pub fn run(
         let mut links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
         let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
         let mut recorder = Recorder::create(out_dir, plan, world, RecorderOptions::default()).map_err(record_err)?;
-        let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: requests };
+        let view = live.as_ref().map(|l| crate::view::Publisher::new(l.feed.clone()));
+        let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: requests, view };
         let result = coordinator::run(plan, &mut links, &mut WithAirspace::new(&mut airspace, &mut observer), stop);
         drop(links); // close every shard connection now: the survivors exit without waiting for us
         let outcome = match result {
@@ -367,7 +386,7 @@ mod tests {
         let timeouts = Timeouts { connect, shard: None };
         let any = SocketAddr::from(([127, 0, 0, 1], 0));
         let error =
-            run(&plan, &world, "127.0.0.1:0", any, &dir.0, Ends { stop, timeouts, requests: StopRequest::new() })
+            run(&plan, &world, "127.0.0.1:0", any, &dir.0, Ends { stop, timeouts, requests: StopRequest::new() }, None)
                 .expect_err("no shard connects");
         (error, started.elapsed())
     }

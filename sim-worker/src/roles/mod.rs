@@ -4,6 +4,7 @@
 pub mod assets;
 pub mod control;
 pub mod coordinator;
+pub mod renderer;
 pub mod router;
 pub mod shard;
 

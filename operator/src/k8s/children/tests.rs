@@ -163,7 +163,7 @@ trait TapRendering {
 
 impl TapRendering for SimulationRun {
     fn tap_rendering(mut self) -> Self {
-        self.spec.rendering = Some(Rendering { enabled: true });
+        self.spec.rendering = Some(Rendering { enabled: true, gpus: None });
         self
     }
 }
@@ -351,6 +351,56 @@ fn the_renderer_exists_only_with_rendering_on() {
     };
     assert_eq!(count(&off), []);
     assert_eq!(count(&on), [Kind::Service, Kind::Deployment]);
+}
+
+#[test]
+fn the_renderer_follows_the_coordinators_live_stream() {
+    let run = piloted(3).tap_rendering();
+    let children = children(&run, &planned(&run), &s3(), Stage::ALL);
+    let port = planned(&run).services.renderer_http;
+    // The coordinator serves the stream on the renderer port, published by its Service.
+    let coordinator = container(&children, "test-run-coordinator");
+    let args = coordinator.args.clone().unwrap();
+    let at = args.iter().position(|a| a == "--view-bind").expect("--view-bind");
+    assert_eq!(args[at + 1], format!("0.0.0.0:{port}"));
+    let Some(Child::Service(svc)) = children.iter().find(|c| c.name() == "test-run-airspace") else { panic!() };
+    let ports = svc.spec.as_ref().unwrap().ports.as_ref().unwrap();
+    assert!(ports.iter().any(|p| p.name.as_deref() == Some("view-feed") && p.port == i32::from(port)), "{ports:?}");
+    // The renderer follows it through that Service and loads the world's bundle.
+    let renderer = container(&children, "test-run-renderer");
+    let args = renderer.args.unwrap();
+    let at = args.iter().position(|a| a == "--feed").expect("--feed");
+    assert_eq!(args[at + 1], format!("test-run-airspace.default.svc:{port}"));
+    assert!(args.iter().any(|a| a == "--assets"), "{args:?}");
+    // Without rendering, the coordinator has no stream and its Service no such port.
+    let off = piloted(3);
+    let children = children_of(&off);
+    assert!(!container(&children, "test-run-coordinator").args.unwrap().contains(&"--view-bind".to_string()));
+}
+
+fn children_of(run: &SimulationRun) -> Vec<Child> {
+    children(run, &planned(run), &s3(), Stage::ALL)
+}
+
+#[test]
+fn the_renderer_asks_for_gpus_only_when_the_scenario_does() {
+    let gpu_limit = |gpus: Option<u32>| {
+        let mut run = piloted(3);
+        run.spec.rendering = Some(Rendering { enabled: true, gpus });
+        let c = container(&children_of(&run), "test-run-renderer");
+        c.resources.and_then(|r| r.limits).and_then(|l| l.get("nvidia.com/gpu").map(|q| q.0.clone()))
+    };
+    assert_eq!(gpu_limit(None), None);
+    assert_eq!(gpu_limit(Some(2)), Some("2".to_string()));
+    // No other pod asks for one.
+    let mut run = piloted(3);
+    run.spec.rendering = Some(Rendering { enabled: true, gpus: Some(1) });
+    for (name, spec) in pod_specs(&children_of(&run)) {
+        let asks = spec.containers.iter().any(|c| {
+            c.resources.as_ref().and_then(|r| r.limits.as_ref()).is_some_and(|l| l.contains_key("nvidia.com/gpu"))
+        });
+        assert_eq!(asks, name == "test-run-renderer", "{name}");
+    }
 }
 
 #[test]

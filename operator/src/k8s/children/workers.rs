@@ -23,6 +23,10 @@ use super::{
     ASSET_KEY_ANNOTATION, Role, SEGMENT_LABEL, STOP_ANNOTATION, asset_cache_location, kueue, names, upload_url,
 };
 
+/// The extended resource of NVIDIA's device plugin (the common one; other vendors' plugins
+/// name theirs differently).
+const GPU_RESOURCE: &str = "nvidia.com/gpu";
+
 /// Seconds a stopping coordinator gets to finish the run, write its files and upload them.
 pub const COORDINATOR_GRACE_S: i64 = 600;
 
@@ -115,20 +119,31 @@ fn runs_openfoam(plan: &sadesim_crds::plan::RunPlan) -> bool {
 /// `<run>-airspace`: the coordinator's shard link and airspace API. Not-ready addresses are
 /// published so shards can connect while the coordinator is still starting.
 pub(super) fn airspace_service(ctx: &Context) -> Service {
-    let s = ctx.plan.services;
     Service {
         metadata: ctx.meta(names::airspace_service(ctx.name), Role::Coordinator),
         spec: Some(ServiceSpec {
             selector: Some(ctx.selector(Role::Coordinator)),
-            ports: Some(vec![
-                service_port("shard-link", s.coordinator, "TCP"),
-                service_port("airspace", s.airspace_http, "TCP"),
-            ]),
+            ports: Some(airspace_service_ports(ctx)),
             publish_not_ready_addresses: Some(true),
             ..Default::default()
         }),
         ..Default::default()
     }
+}
+
+/// The coordinator's ports: the shard link, the airspace API and, with rendering on, the
+/// live stream the renderer follows (the renderer port number, on the coordinator pod).
+fn coordinator_ports(ctx: &Context) -> Vec<(&'static str, u16)> {
+    let s = ctx.plan.services;
+    let mut ports = vec![("shard-link", s.coordinator), ("airspace", s.airspace_http)];
+    if ctx.plan.spec.rendering().enabled {
+        ports.push(("view-feed", s.renderer_http));
+    }
+    ports
+}
+
+fn airspace_service_ports(ctx: &Context) -> Vec<ServicePort> {
+    coordinator_ports(ctx).into_iter().map(|(name, number)| service_port(name, number, "TCP")).collect()
 }
 
 /// The coordinator pod's program, one process (no shell): `sim-worker coordinator
@@ -141,7 +156,7 @@ fn coordinator_args(ctx: &Context) -> Vec<String> {
     let s = ctx.plan.services;
     let listen = format!("0.0.0.0:{}", s.coordinator);
     let airspace = format!("0.0.0.0:{}", s.airspace_http);
-    strings(&[
+    let mut args = strings(&[
         "coordinator",
         "--plan",
         PLAN_PATH,
@@ -154,7 +169,11 @@ fn coordinator_args(ctx: &Context) -> Vec<String> {
         "--control-file",
         CONTROL_FILE,
         "--finish-run",
-    ])
+    ]);
+    if ctx.plan.spec.rendering().enabled {
+        args.extend(["--view-bind".into(), format!("0.0.0.0:{}", s.renderer_http)]);
+    }
+    args
 }
 
 /// `<run>-coordinator`: lockstep clock, recorder, airspace authority; finishes and uploads
@@ -166,7 +185,6 @@ fn coordinator_args(ctx: &Context) -> Vec<String> {
 /// the current window with that reason. An annotation is the one thing of a running Pod the
 /// operator may change, so the same server-side apply that created the Pod asks it to stop.
 pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
-    let s = ctx.plan.services;
     let command = strings(&[SIM_WORKER]);
     let mut c =
         worker_container(ctx, Role::Coordinator, command, coordinator_args(ctx), ctx.plan.resources.coordinator);
@@ -182,7 +200,7 @@ pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
     // The authority checks the bearer credentials the pilot presents.
     env.extend(ctx.credential_env());
     c.env_from = ctx.object_store_env();
-    c.ports = Some(vec![port("shard-link", s.coordinator, "TCP"), port("airspace", s.airspace_http, "TCP")]);
+    c.ports = Some(coordinator_ports(ctx).into_iter().map(|(name, number)| port(name, number, "TCP")).collect());
     c.readiness_probe = Some(tcp_probe("airspace"));
     let mounts = c.volume_mounts.get_or_insert_with(Vec::new);
     mounts.push(mount("out", OUT_DIR, false));
@@ -373,14 +391,27 @@ pub(super) fn renderer_service(ctx: &Context) -> Service {
     }
 }
 
-/// `<run>-renderer`: `sim-worker renderer --plan P --listen 0.0.0.0:<renderer port>`, one
-/// replica, replaced (not rolled) on change.
+/// `<run>-renderer`: `sim-worker renderer --plan P --listen 0.0.0.0:<renderer port> --feed
+/// <run>-airspace:<renderer port>` (the coordinator's live stream), one replica, replaced
+/// (not rolled) on change. It loads the world's bundle as the shards do (for the city it
+/// draws) and asks `spec.rendering.gpus` GPUs when set.
 pub(super) fn renderer_deployment(ctx: &Context) -> Deployment {
     let port_no = ctx.plan.services.renderer_http;
-    let args =
-        vec!["renderer".into(), "--plan".into(), PLAN_PATH.into(), "--listen".into(), format!("0.0.0.0:{port_no}")];
+    let feed = format!("{}:{port_no}", names::airspace_host(ctx.name, ctx.namespace));
+    let mut args: Vec<String> = strings(&["renderer", "--plan", PLAN_PATH, "--listen"]);
+    args.extend([format!("0.0.0.0:{port_no}"), "--feed".into(), feed]);
+    if let Some(url) = asset_cache_location(ctx.plan, ctx.settings) {
+        args.extend(["--assets".into(), url]);
+    }
     let resources = ctx.plan.resources.renderer.unwrap_or(RoleResources { cpu_millis: 1000, memory_mib: 1024 });
     let mut c = worker_container(ctx, Role::Renderer, strings(&[SIM_WORKER]), args, resources);
+    // The bundle, or without one the world's own files, are read with the object-store
+    // credentials, as by the shards.
+    c.env_from = ctx.object_store_env();
+    if let Some(gpus) = ctx.plan.spec.rendering().gpus {
+        let limits = c.resources.get_or_insert_with(Default::default).limits.get_or_insert_with(BTreeMap::new);
+        limits.insert(GPU_RESOURCE.into(), k8s_openapi::apimachinery::pkg::api::resource::Quantity(gpus.to_string()));
+    }
     c.ports = Some(vec![port("http", port_no, "TCP")]);
     c.readiness_probe = Some(tcp_probe("http"));
     let spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Always");
