@@ -3,6 +3,7 @@
 #   .venv/        Python tools (tests/requirements.txt): pytest, kubernetes-validate, ...
 #   gdal-bin      GDAL's tools (apt-get), for the DEM interop tests
 #   openfoam      OpenFOAM v1912 (apt-get), for the surface-mounted cube CFD test
+#   mesa-vulkan-drivers, libvulkan1  Vulkan on the CPU (lavapipe, apt-get), for sadesim-render
 #   .tools/npm/   Khronos' gltf-validator and playwright-core (npm)
 #   chromium      (apt-get), the browser of the live view tests
 #   sim-worker/web/node_modules/  three.js for the live view (npm ci)
@@ -31,6 +32,16 @@ if ! command -v simpleFoam >/dev/null 2>&1; then
   if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends openfoam >/dev/null
+fi
+
+# Vulkan with Mesa's CPU rasteriser (lavapipe): the onboard camera frames of sadesim-render
+# are rendered through wgpu on Vulkan, and its tests need an adapter on machines without a GPU.
+if ! dpkg -s mesa-vulkan-drivers libvulkan1 >/dev/null 2>&1; then
+  echo "==> installing mesa-vulkan-drivers and libvulkan1 (apt-get)"
+  sudo=""
+  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends mesa-vulkan-drivers libvulkan1 >/dev/null
 fi
 
 if [ ! -x .venv/bin/python ]; then
