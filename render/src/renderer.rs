@@ -96,9 +96,13 @@ impl Renderer {
         }))
         .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
         let adapter_name = adapter.get_info().name;
-        let (device, queue) = pollster::block_on(
-            adapter.request_device(&wgpu::DeviceDescriptor { label: Some("sadesim-render"), ..Default::default() }),
-        )
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("sadesim-render"),
+            // The adapter's own limits, not WebGPU's portable minimum: many large frames
+            // in one call need a readback buffer beyond WebGPU's 256 MiB.
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
         .map_err(|e| RenderError::Device { adapter: adapter_name.clone(), reason: e.to_string() })?;
         let errors = Arc::new(Mutex::new(Vec::new()));
         let sink = Arc::clone(&errors);
@@ -348,7 +352,8 @@ impl Renderer {
         });
     }
 
-    /// The readback buffer, at least `size` bytes (grown by doubling, never shrunk).
+    /// The readback buffer, at least `size` bytes (grown to the largest call so far, never
+    /// shrunk).
     fn ensure_readback(&mut self, size: u64) -> wgpu::Buffer {
         if let Some(buffer) = &self.readback
             && buffer.size() >= size
@@ -357,7 +362,7 @@ impl Renderer {
         }
         let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("readback"),
-            size: size.next_power_of_two(),
+            size,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });

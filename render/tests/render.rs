@@ -63,6 +63,39 @@ fn a_facade_20_m_ahead_is_20_m_deep_and_its_edges_are_where_project_puts_the_cor
 }
 
 #[test]
+fn pixel_centres_are_at_integers_so_an_edge_starts_at_the_next_whole_pixel() {
+    // The camera slides east by a tenth of a pixel (at 20 m) per view: the facade's west
+    // edge sweeps across a pixel. A pixel shows the facade when its centre is inside, so
+    // with centres at integers the first facade column is exactly ceil(u_west) and the
+    // last floor(u_east). A half-pixel slip in the convention fails half of these views.
+    let scene = Scene::from_world(&world_of(&[BLOCK]));
+    let (base, _) = facing_the_block();
+    let metres_per_px = 20.0 / base.model.intrinsics().fx;
+    let views: Vec<CameraView> = (0..10)
+        .map(|k| {
+            let [e, n, u] = base.pose.position_enu_m();
+            let at = [e + 0.1 * f64::from(k) * metres_per_px, n, u];
+            let pose = CameraPose::looking_at(at, [at[0], at[1] + 1.0, at[2]]).expect("pose");
+            CameraView { pose, ..base }
+        })
+        .collect();
+    let frames = Renderer::new(&scene).expect("adapter").render(&views).expect("renders");
+    for (view, frame) in views.iter().zip(&frames) {
+        let z = view.pose.position_enu_m()[2] + 3.0;
+        let [_, v] = view.project([0.0, BLOCK.south_m, z]).expect("in front");
+        let (first, last) = non_sky_span(frame, v.round() as u32);
+        let [u_west, _] = view.project([BLOCK.west_m, BLOCK.south_m, z]).expect("in front");
+        let [u_east, _] = view.project([BLOCK.east_m, BLOCK.south_m, z]).expect("in front");
+        for (edge, want, got) in [("west", u_west.ceil(), first), ("east", u_east.floor(), last)] {
+            let near_a_centre = (want - if edge == "west" { u_west } else { u_east }).abs() < 0.02;
+            if !near_a_centre {
+                assert_eq!(f64::from(got), want, "{edge} edge: projected {u_west} / {u_east}");
+            }
+        }
+    }
+}
+
+#[test]
 fn project_and_the_calibration_matrices_find_a_roof_corner_where_it_is_drawn() {
     let scene = Scene::from_world(&world_of(&[BLOCK]));
     // Off-centre, heading a little east of north, looking 5 degrees up.
