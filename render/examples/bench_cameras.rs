@@ -38,6 +38,9 @@ fn views(n: usize, model: CameraModel) -> Vec<CameraView> {
         .collect()
 }
 
+/// One way to turn a frame into bytes.
+type Encoder = dyn Fn(&Frame) -> Vec<u8>;
+
 fn timed(budget: Duration, mut f: impl FnMut()) -> (usize, Duration) {
     f(); // warm-up: first use of a resolution creates its textures and grows the buffers
     let start = Instant::now();
@@ -75,7 +78,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!();
     println!("| encoding one 640x480 frame | ms | bytes |");
     println!("|---|---:|---:|");
-    let encoders: [(&str, &dyn Fn(&Frame) -> Vec<u8>); 4] = [
+    let encoders: [(&str, &Encoder); 4] = [
         ("rgb_png", &|f| f.rgb_png().expect("png")),
         ("rgb_jpeg(85)", &|f| f.rgb_jpeg(85).expect("jpeg")),
         ("depth_png_mm", &|f| f.depth_png_mm().expect("png")),

@@ -217,3 +217,10 @@ fn an_empty_call_and_an_empty_scene_are_fine() {
     assert!(frame.rgb.chunks(3).all(|p| p == sadesim_render::SKY_RGB));
     assert!(frame.depth_m.iter().all(|&d| d == 0.0));
 }
+
+#[test]
+fn the_renderer_can_move_to_a_sensor_thread() {
+    fn send<T: Send>() {}
+    send::<Renderer>();
+    send::<Frame>();
+}
