@@ -1,6 +1,8 @@
 //! Frames per second of the renderer over a small city: 100 box buildings on a 10 x 10 grid,
-//! 1, 8 and 32 cameras per `render` call at 160x120, 320x240 and 640x480, plus the cost of
-//! encoding one 640x480 frame. Wall time, so run it on an idle machine:
+//! 1, 8 and 32 cameras per `render` call at 160x120, 320x240 and 640x480 on flat ground
+//! (1 and 8 on hills, where the ground keeps its grid), plus the cost of encoding one
+//! 640x480 frame. Frames are rendered into reused buffers (`Renderer::render_into`), as a
+//! simulator at camera rate would. Wall time, so run it on an idle machine:
 //!
 //! ```text
 //! cargo run --release -p sadesim-render --example bench_cameras [seconds per case]
@@ -9,10 +11,11 @@
 use std::time::{Duration, Instant};
 
 use sadesim_render::{CameraModel, CameraPose, CameraView, Frame, Mount, Renderer, Scene};
-use sadesim_world::{Building, Footprint, World};
+use sadesim_world::{Building, Footprint, GroundGrid, Terrain, World};
 
-/// 100 buildings, 20 m x 20 m, on a 40 m grid, 12 to 47 m tall.
-fn city() -> World {
+/// 100 buildings, 20 m x 20 m, on a 40 m grid, 12 to 47 m tall, on flat ground or on
+/// gentle hills (which keep the ground's 65 x 65 grid: 8 192 more triangles).
+fn city(hills: bool) -> World {
     let mut buildings = Vec::new();
     for j in 0..10 {
         for i in 0..10 {
@@ -22,18 +25,28 @@ fn city() -> World {
             buildings.push(Building::new(Footprint::new(ring, vec![]).expect("square"), 0.0, height_m).expect("tall"));
         }
     }
-    World::of_buildings(300.0, buildings)
+    if hills {
+        let grid = GroundGrid::sample(300.0, 61, |e, n| 3.0 * (e / 80.0).sin() * (n / 110.0).cos());
+        World::of_buildings_on(300.0, Terrain::from_grid(grid), buildings)
+    } else {
+        World::of_buildings(300.0, buildings)
+    }
 }
 
-/// `n` drones at 40 m over the city, each heading its own way, cameras pitched 30 degrees down.
-fn views(n: usize, model: CameraModel) -> Vec<CameraView> {
+/// Viewpoints every case cycles through, so that all cases average the same images.
+const VIEWPOINTS: usize = 32;
+
+/// `VIEWPOINTS` drones at 40 m spread over the city (a sunflower spiral), each heading its
+/// own way, cameras pitched 30 degrees down.
+fn viewpoints(model: CameraModel) -> Vec<CameraView> {
     let mount = Mount { pitch_deg: 30.0, ..Mount::FORWARD };
-    (0..n)
+    (0..VIEWPOINTS)
         .map(|k| {
-            let a = k as f64 * 2.399_963; // golden angle: spread positions and headings
-            let position = [120.0 * a.cos() * (k as f64 / n as f64).sqrt(), 120.0 * a.sin(), 40.0];
+            let a = k as f64 * 2.399_963; // the golden angle
+            let r = 180.0 * ((k as f64 + 0.5) / VIEWPOINTS as f64).sqrt();
             let (s, c) = (a / 2.0).sin_cos();
-            CameraView { model, pose: CameraPose::from_body(position, [c, 0.0, 0.0, s], &mount).expect("pose") }
+            let pose = CameraPose::from_body([r * a.cos(), r * a.sin(), 40.0], [c, 0.0, 0.0, s], &mount);
+            CameraView { model, pose: pose.expect("pose") }
         })
         .collect()
 }
@@ -55,26 +68,41 @@ fn timed(budget: Duration, mut f: impl FnMut()) -> (usize, Duration) {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seconds: f64 = std::env::args().nth(1).map(|s| s.parse()).transpose()?.unwrap_or(3.0);
     let budget = Duration::from_secs_f64(seconds);
-    let scene = Scene::from_world(&city());
-    let mut renderer = Renderer::new(&scene)?;
+    let flat = Scene::from_world(&city(false));
+    let hills = Scene::from_world(&city(true));
+    let mut renderer = Renderer::new(&flat)?;
     println!("adapter: {}", renderer.adapter_name());
-    println!("scene: {} triangles", scene.triangle_count());
     println!();
-    println!("| resolution | cameras per call | calls/s | frames/s | ms per call |");
-    println!("|---|---:|---:|---:|---:|");
-    for (w, h) in [(160, 120), (320, 240), (640, 480)] {
-        let model = CameraModel::new(w, h, 90.0)?;
-        for n in [1, 8, 32] {
-            let views = views(n, model);
-            let (calls, elapsed) = timed(budget, || {
-                renderer.render(&views).expect("renders");
-            });
-            let per_call = elapsed.as_secs_f64() / calls as f64;
-            println!("| {w}x{h} | {n} | {:.1} | {:.1} | {:.2} |", 1.0 / per_call, n as f64 / per_call, per_call * 1e3);
+    println!("| ground | triangles | resolution | cameras per call | calls/s | frames/s | ms per call |");
+    println!("|---|---:|---|---:|---:|---:|---:|");
+    let sizes = [(160, 120), (320, 240), (640, 480)];
+    for (name, scene, counts) in [("flat", &flat, &[1, 8, 32][..]), ("hills", &hills, &[1, 8][..])] {
+        renderer.set_scene(scene);
+        for (w, h) in sizes {
+            let model = CameraModel::new(w, h, 90.0)?;
+            for &n in counts {
+                // Call i renders viewpoints i n .. i n + n (cyclic).
+                let all = viewpoints(model);
+                let (mut next, mut frames) = (0, Vec::new());
+                let (calls, elapsed) = timed(budget, || {
+                    let views: Vec<CameraView> = (0..n).map(|j| all[(next + j) % VIEWPOINTS]).collect();
+                    next = (next + n) % VIEWPOINTS;
+                    renderer.render_into(&views, &mut frames).expect("renders");
+                });
+                let per_call = elapsed.as_secs_f64() / calls as f64;
+                let triangles = scene.triangle_count();
+                println!(
+                    "| {name} | {triangles} | {w}x{h} | {n} | {:.1} | {:.1} | {:.2} |",
+                    1.0 / per_call,
+                    n as f64 / per_call,
+                    per_call * 1e3
+                );
+            }
         }
     }
+    renderer.set_scene(&flat);
 
-    let frame: Frame = renderer.render(&views(1, CameraModel::new(640, 480, 90.0)?))?.remove(0);
+    let frame: Frame = renderer.render(&viewpoints(CameraModel::new(640, 480, 90.0)?)[..1])?.remove(0);
     println!();
     println!("| encoding one 640x480 frame | ms | bytes |");
     println!("|---|---:|---:|");

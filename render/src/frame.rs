@@ -4,7 +4,7 @@ use crate::error::{RenderError, Result};
 
 /// One camera's image at one instant: colour and depth, the same size, row-major, the top
 /// row first (pixel `(u, v)` at index `v * width + u`, the convention of [`crate::camera`]).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Frame {
     /// Width, pixels.
     pub width: u32,

@@ -168,17 +168,53 @@ impl Renderer {
         });
     }
 
-    /// Renders every view, in order, in one GPU submission: one [`Frame`] per view.
+    /// Renders every view, in order: one [`Frame`] per view. Views go to the GPU in groups
+    /// of up to 4 MiB of images, one submission and one readback each: small frames share
+    /// the fixed cost of a submission, and the readback buffer stays small however many
+    /// views a call has (32 views of 640x480 would map 79 MB at once).
     ///
     /// # Errors
     ///
     /// [`RenderError::Gpu`] when the device reports an error (out of memory, device lost).
     pub fn render(&mut self, views: &[CameraView]) -> Result<Vec<Frame>> {
-        if views.is_empty() {
-            return Ok(Vec::new());
+        let mut frames = Vec::new();
+        self.render_into(views, &mut frames)?;
+        Ok(frames)
+    }
+
+    /// As [`Renderer::render`], into `frames` (resized to one per view), reusing their
+    /// allocations: at camera rates, fresh frame buffers cost their page faults every call
+    /// (about 1 ms a 640x480 frame with lavapipe's 2-core machine, `docs/performance.md`).
+    ///
+    /// # Errors
+    ///
+    /// As [`Renderer::render`]; `frames` then holds unspecified images.
+    pub fn render_into(&mut self, views: &[CameraView], frames: &mut Vec<Frame>) -> Result<()> {
+        frames.truncate(views.len());
+        frames.resize_with(views.len(), Frame::default);
+        let (mut rest, mut out) = (views, &mut frames[..]);
+        while !rest.is_empty() {
+            // As many views as fit in READBACK_GROUP_BYTES, at least one.
+            let mut bytes = 0;
+            let n = rest
+                .iter()
+                .take_while(|v| {
+                    bytes += view_readback_bytes(v);
+                    bytes <= READBACK_GROUP_BYTES
+                })
+                .count()
+                .max(1);
+            let (group_out, later) = out.split_at_mut(n);
+            self.render_group(&rest[..n], group_out)?;
+            (rest, out) = (&rest[n..], later);
         }
+        Ok(())
+    }
+
+    /// Renders `views` (not empty) into `frames` (as many) in one submission and one readback.
+    fn render_group(&mut self, views: &[CameraView], frames: &mut [Frame]) -> Result<()> {
         self.ensure_uniforms(views)?;
-        let slots = self.layout_readback(views);
+        let slots = layout_readback(views);
         let total = slots.last().map_or(0, |s| s.depth_offset + padded_row(s.width) * u64::from(s.height));
         for v in views {
             self.ensure_targets(v.model.width(), v.model.height());
@@ -260,12 +296,14 @@ impl Renderer {
             Ok(Err(e)) => return Err(RenderError::Gpu(format!("failed to map the readback buffer: {e}"))),
             Err(_) => return Err(RenderError::Gpu("the readback buffer was never mapped".to_owned())),
         }
-        let frames = {
+        {
             let mapped = readback.slice(..total).get_mapped_range().map_err(|e| RenderError::Gpu(e.to_string()))?;
-            slots.iter().map(|slot| read_frame(&mapped, slot)).collect()
-        };
+            for (slot, frame) in slots.iter().zip(frames) {
+                read_frame(&mapped, slot, frame);
+            }
+        }
         readback.unmap();
-        Ok(frames)
+        Ok(())
     }
 
     /// Writes every view's matrix into the uniform buffer (grown to fit, with its bind group).
@@ -307,20 +345,6 @@ impl Renderer {
             self.queue.write_buffer(buffer, 0, &bytes);
         }
         Ok(())
-    }
-
-    fn layout_readback(&self, views: &[CameraView]) -> Vec<Slot> {
-        let mut offset = 0;
-        views
-            .iter()
-            .map(|v| {
-                let (width, height) = (v.model.width(), v.model.height());
-                let image = padded_row(width) * u64::from(height);
-                let slot = Slot { width, height, color_offset: offset, depth_offset: offset + image };
-                offset += 2 * image;
-                slot
-            })
-            .collect()
     }
 
     fn ensure_targets(&mut self, width: u32, height: u32) {
@@ -376,27 +400,52 @@ impl Renderer {
     }
 }
 
+/// Where each view's colour and depth land in the readback buffer, one after the other.
+fn layout_readback(views: &[CameraView]) -> Vec<Slot> {
+    let mut offset = 0;
+    views
+        .iter()
+        .map(|v| {
+            let (width, height) = (v.model.width(), v.model.height());
+            let image = padded_row(width) * u64::from(height);
+            let slot = Slot { width, height, color_offset: offset, depth_offset: offset + image };
+            offset += 2 * image;
+            slot
+        })
+        .collect()
+}
+
+/// Largest readback of one submission, bytes (module doc of [`Renderer::render`]).
+const READBACK_GROUP_BYTES: u64 = 4 << 20;
+
+/// Bytes one view takes in the readback buffer: colour and depth, padded rows.
+fn view_readback_bytes(view: &CameraView) -> u64 {
+    2 * padded_row(view.model.width()) * u64::from(view.model.height())
+}
+
 /// Bytes of one row in the readback buffer: wgpu copies rows at multiples of 256 bytes.
 fn padded_row(width: u32) -> u64 {
     u64::from(width * TEXEL_BYTES).next_multiple_of(u64::from(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT))
 }
 
-/// Unpads one view's rows: RGBA8 -> RGB8, R32Float -> f32 (both little-endian on the GPU
-/// side of wgpu's copy).
-fn read_frame(mapped: &[u8], slot: &Slot) -> Frame {
+/// Unpads one view's rows into `frame` (keeping its allocations): RGBA8 -> RGB8,
+/// R32Float -> f32 (little-endian, as wgpu's copy lays texels out).
+fn read_frame(mapped: &[u8], slot: &Slot, frame: &mut Frame) {
     let (w, h) = (slot.width as usize, slot.height as usize);
     let row = padded_row(slot.width) as usize;
-    let mut rgb = Vec::with_capacity(w * h * 3);
-    let mut depth_m = Vec::with_capacity(w * h);
+    (frame.width, frame.height) = (slot.width, slot.height);
+    frame.rgb.clear();
+    frame.rgb.reserve(w * h * 3);
+    frame.depth_m.clear();
+    frame.depth_m.reserve(w * h);
     for y in 0..h {
         let color = &mapped[slot.color_offset as usize + y * row..][..w * 4];
         for px in color.chunks_exact(4) {
-            rgb.extend_from_slice(&px[..3]);
+            frame.rgb.extend_from_slice(&px[..3]);
         }
         let depth = &mapped[slot.depth_offset as usize + y * row..][..w * 4];
-        depth_m.extend(depth.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])));
+        frame.depth_m.extend(depth.chunks_exact(4).map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])));
     }
-    Frame { width: slot.width, height: slot.height, rgb, depth_m }
 }
 
 /// The clear colour: [`SKY_RGB`] exactly (RGBA8 unorm stores `round(c * 255)`).

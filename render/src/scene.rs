@@ -107,9 +107,17 @@ pub struct Scene {
 impl Scene {
     /// The world's ground (a [`GROUND_SAMPLES`] grid, as the recording and the glTF draw
     /// it) and buildings, no markers.
+    ///
+    /// Flat ground (every grid height equal) is drawn as its one square, two triangles, the
+    /// same plane with the same colour: the same pixels as the grid's 8 192 triangles, which
+    /// would be 87 % of a 100-building city's triangles and cost lavapipe 1 ms a view
+    /// (`docs/performance.md`).
     pub fn from_world(world: &World) -> Self {
         let mut scene = Self::default();
-        scene.add_mesh(&mesh::ground_mesh(world, GROUND_SAMPLES), |_| GROUND_ALBEDO);
+        let grid = mesh::ground_mesh(world, GROUND_SAMPLES);
+        let flat = grid.positions_enu_m.windows(2).all(|w| w[0][2] == w[1][2]);
+        let ground = if flat { mesh::ground_mesh(world, 2) } else { grid };
+        scene.add_mesh(&ground, |_| GROUND_ALBEDO);
         scene.add_mesh(&mesh::buildings_mesh(world), |normal| if normal[2] > 0.5 { ROOF_ALBEDO } else { WALL_ALBEDO });
         scene
     }
@@ -223,6 +231,15 @@ mod tests {
         let m = Marker { yaw_deg: 90.0, ..m };
         let [e, n, _] = m.cell_center_enu_m(0, 0);
         assert!((e - 7.5).abs() < 1e-9 && (n - 17.5).abs() < 1e-9, "{e} {n}");
+    }
+
+    #[test]
+    fn flat_ground_is_one_square_and_terrain_keeps_its_grid() {
+        let flat = World::of_buildings(50.0, vec![]);
+        assert_eq!(Scene::from_world(&flat).triangle_count(), 2);
+        let grid = sadesim_world::GroundGrid::sample(50.0, 11, |e, n| 0.01 * e + 0.02 * n);
+        let hills = World::of_buildings_on(50.0, sadesim_world::Terrain::from_grid(grid), vec![]);
+        assert_eq!(Scene::from_world(&hills).triangle_count(), 2 * (GROUND_SAMPLES - 1).pow(2));
     }
 
     #[test]

@@ -142,6 +142,9 @@ fn the_same_views_render_the_same_bytes() {
     let first = renderer.render(&[view, other, view]).expect("renders");
     let second = renderer.render(&[other, view]).expect("renders");
     let fresh = Renderer::new(&scene).expect("adapter").render(&[view]).expect("renders");
+    let mut reused = first.clone();
+    renderer.render_into(&[other, view], &mut reused).expect("renders");
+    assert_eq!(reused, second, "into reused frames of other sizes");
     assert_eq!(first[0], first[2], "the same view twice in one call");
     assert_eq!(first[0], second[1], "across calls");
     assert_eq!(first[1], second[0], "across calls, another resolution");
