@@ -77,7 +77,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("|---|---:|---|---:|---:|---:|---:|");
     let sizes = [(160, 120), (320, 240), (640, 480)];
     for (name, scene, counts) in [("flat", &flat, &[1, 8, 32][..]), ("hills", &hills, &[1, 8][..])] {
-        renderer.set_scene(scene);
+        renderer.set_scene(scene)?;
         for (w, h) in sizes {
             let model = CameraModel::new(w, h, 90.0)?;
             for &n in counts {
@@ -100,7 +100,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
     }
-    renderer.set_scene(&flat);
+    renderer.set_scene(&flat)?;
 
     let frame: Frame = renderer.render(&viewpoints(CameraModel::new(640, 480, 90.0)?)[..1])?.remove(0);
     println!();

@@ -142,8 +142,7 @@ impl Renderer {
             readback: None,
             errors,
         };
-        renderer.set_scene(scene);
-        renderer.take_error()?;
+        renderer.set_scene(scene)?;
         Ok(renderer)
     }
 
@@ -153,7 +152,11 @@ impl Renderer {
     }
 
     /// Replaces the scene (e.g. markers added or moved); textures and buffers are kept.
-    pub fn set_scene(&mut self, scene: &Scene) {
+    ///
+    /// # Errors
+    ///
+    /// [`RenderError::Gpu`] when the device cannot hold the scene's vertices.
+    pub fn set_scene(&mut self, scene: &Scene) -> Result<()> {
         let bytes = scene.vertex_bytes();
         self.vertex_count = scene.vertex_count();
         self.vertices = (!bytes.is_empty()).then(|| {
@@ -166,6 +169,7 @@ impl Renderer {
             self.queue.write_buffer(&buffer, 0, &bytes);
             buffer
         });
+        self.take_error()
     }
 
     /// Renders every view, in order: one [`Frame`] per view. Views go to the GPU in groups

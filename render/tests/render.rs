@@ -212,13 +212,17 @@ fn probe_no_adapter() {
 }
 
 #[test]
-fn an_empty_call_and_an_empty_scene_are_fine() {
+fn an_empty_call_an_empty_scene_and_a_new_scene_are_fine() {
     let mut renderer = Renderer::new(&Scene::default()).expect("adapter");
     assert!(renderer.render(&[]).expect("nothing to do").is_empty());
     let (view, _) = facing_the_block();
     let frame = renderer.render(&[view]).expect("renders").pop().expect("one");
     assert!(frame.rgb.chunks(3).all(|p| p == sadesim_render::SKY_RGB));
     assert!(frame.depth_m.iter().all(|&d| d == 0.0));
+    // The scene can change under the same renderer.
+    let block = Scene::from_world(&world_of(&[BLOCK]));
+    renderer.set_scene(&block).expect("fits");
+    assert_eq!(renderer.render(&[view]).expect("renders"), [render_one(&block, view)]);
 }
 
 #[test]
