@@ -253,11 +253,16 @@ fn the_live_view_leaves_the_run_unchanged() {
 }
 
 #[test]
-fn the_live_view_with_worker_processes_is_refused_naming_the_field() {
-    let r = RunBuilder::test()
-        .with(|r| r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true, gpus: None }))
-        .build();
-    let err = run(&r, &out_root("view-processes"), true).unwrap_err();
-    assert!(matches!(err, RunError::NotSupported(_)), "{err}");
-    assert!(err.to_string().contains("spec.rendering.enabled with --processes"), "{err}");
+fn the_live_view_with_worker_processes_flies_the_same_run() {
+    // With --processes the coordinator process serves the view (`--view-bind`), as its pod
+    // does on a cluster; the run is the same as the in-process one.
+    let mut r = scenario(2, 1);
+    r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true, gpus: None });
+    let root = out_root("view-processes");
+    let threads = run(&r, &root.join("threads"), false).unwrap();
+    let processes = run(&r, &root.join("processes"), true).unwrap();
+    assert_eq!(bytes(&processes.out_dir, "trajectory.csv"), bytes(&threads.out_dir, "trajectory.csv"));
+    let log = bytes(&processes.out_dir, "coordinator.log");
+    assert!(log.contains("live stream: http://127.0.0.1:"), "{log}");
+    std::fs::remove_dir_all(&root).unwrap();
 }

@@ -238,11 +238,6 @@ fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError>
                 sim_worker::view::server::NO_THREE
             )));
         }
-        if options.processes {
-            return Err(RunError::NotSupported(
-                "spec.rendering.enabled with --processes: the live view runs in-process only; drop --processes".into(),
-            ));
-        }
     }
     // Object stores are written at the end of the run: a bad URL or store configuration
     // (credentials, account) fails now, not after the run.
@@ -415,7 +410,8 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     write_json(&out_dir, "world.json", world.stats())?;
     // The live view is up before the run starts, so a browser opened on the printed URL
     // sees the drones from the first window.
-    let live_view = match plan.spec.rendering().enabled {
+    // With --processes the coordinator process serves it (`--view-bind`), as its pod does.
+    let live_view = match plan.spec.rendering().enabled && !options.processes {
         true => {
             let bind = std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http));
             let view = sim_worker::view::serve_live(&plan, &world, bind).map_err(RunError::Worker)?;
@@ -439,6 +435,10 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             supervisor.as_mut(),
             airspace_addr,
             assets.as_ref().map(AssetsOutcome::url),
+            plan.spec
+                .rendering()
+                .enabled
+                .then(|| std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http))),
         )
     } else {
         let surroundings = sim_worker::shard::Surroundings { world: world.clone(), sky, wind };

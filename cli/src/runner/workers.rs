@@ -74,6 +74,7 @@ pub(super) fn run(
     mut pilot: Option<&mut Supervisor>,
     airspace: std::net::SocketAddr,
     assets: Option<&str>,
+    view: Option<std::net::SocketAddr>,
 ) -> Result<RunSummary, RunError> {
     let worker = worker_binary(worker)?;
     let plan_path = out_dir.join(sadesim_crds::outcome::run_folder::PLAN);
@@ -87,6 +88,7 @@ pub(super) fn run(
             .arg("--airspace-bind")
             .arg(airspace.to_string())
             .args(assets.iter().flat_map(|url| ["--assets", url]))
+            .args(view.iter().flat_map(|addr| ["--view-bind".to_string(), addr.to_string()]))
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(log_file(out_dir, "coordinator.log")?),
@@ -96,7 +98,12 @@ pub(super) fn run(
     let mut control = coordinator.stdin.take();
     let mut lines = BufReader::new(stdout).lines();
     let address = match lines.next().and_then(Result::ok).and_then(|l| serde_json::from_str::<Report>(&l).ok()) {
-        Some(Report::Listening { address, .. }) => address,
+        Some(Report::Listening { address, view: shown, .. }) => {
+            if let Some(shown) = shown {
+                bar.suspend(|| eprintln!("live view: http://{shown}/"));
+            }
+            address
+        }
         _ => {
             let _ = coordinator.kill();
             return Err(RunError::Worker(format!(

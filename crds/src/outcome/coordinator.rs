@@ -15,7 +15,13 @@ pub const UPLOAD_FAILED_EXIT: u8 = 3;
 #[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
 pub enum Report {
     /// Bound and waiting for shards; the airspace API listens at `airspace`.
-    Listening { address: String, airspace: String },
+    Listening {
+        address: String,
+        airspace: String,
+        /// The live view's address (`host:port`), with `spec.rendering.enabled`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        view: Option<String>,
+    },
     /// Progress, about once per simulated second.
     Progress {
         sim_time_s: f64,

@@ -163,7 +163,11 @@ pub fn run(
             .serve(airspace_bind)
             .map_err(|e| RoleError::Protocol(format!("airspace API: cannot listen on {airspace_bind}: {e}")))?;
         let listener = TcpListener::bind(listen)?;
-        report(&Report::Listening { address: listener.local_addr()?.to_string(), airspace: airspace_addr.to_string() });
+        report(&Report::Listening {
+            address: listener.local_addr()?.to_string(),
+            airspace: airspace_addr.to_string(),
+            view: live.as_ref().map(|l| l.server.addr.to_string()),
+        });
         let mut links: Vec<Option<Box<dyn ShardLink>>> = (0..plan.shards.len()).map(|_| None).collect();
         let deadline = timeouts.connect.map(|t| Instant::now() + t);
         for _ in 0..plan.shards.len() {
