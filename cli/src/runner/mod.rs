@@ -231,13 +231,8 @@ fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError>
     if !external.is_empty() && !options.mavlink {
         return Err(RunError::NeedsMavlink { groups: external.join(", ") });
     }
-    if spec.rendering().enabled {
-        if !sim_worker::view::server::has_three() {
-            return Err(RunError::NotSupported(format!(
-                "spec.rendering.enabled: {}",
-                sim_worker::view::server::NO_THREE
-            )));
-        }
+    if spec.rendering().enabled && !sim_worker::view::server::has_three() {
+        return Err(RunError::NotSupported(format!("spec.rendering.enabled: {}", sim_worker::view::server::NO_THREE)));
     }
     // Object stores are written at the end of the run: a bad URL or store configuration
     // (credentials, account) fails now, not after the run.
