@@ -2,11 +2,13 @@
 # End-to-end test on a local cluster: create a k3d or kind cluster, build and import the
 # images, start MinIO as the archive, install the chart, apply the quickstart run, wait for
 # Succeeded, and verify the archived run against its manifest; then a run whose pilot Job
-# exits after 30 s must end there (tests/e2e/pilot-exit.yaml).
+# exits after 30 s must end there (tests/e2e/pilot-exit.yaml); a run with the live view streams
+# frames through its renderer Service and takes the renderer with it when deleted
+# (tests/e2e/view.yaml).
 #
 #   tests/e2e/run.sh k3d     # or: tests/e2e/run.sh kind
 #
-# Needs: docker (a running engine), kubectl, k3d or kind, and helm (.tools/bin/helm from
+# Needs: docker (a running engine), kubectl, curl, k3d or kind, and helm (.tools/bin/helm from
 # tests/install-tools.sh, or on PATH). KEEP_CLUSTER=1 keeps the cluster afterwards.
 # Not part of tests/run.sh: it needs a Docker engine, which CI's test machine lacks.
 set -euo pipefail
@@ -52,6 +54,7 @@ cleanup() {
     kubectl logs -n "$SYSTEM_NS" deployment/sadesim --tail=100 >&2 || true
     kubectl logs -n "$RUN_NS" "$RUN-coordinator" --tail=50 >&2 || true
   fi
+  if [ -n "${FORWARD_PID:-}" ]; then kill "$FORWARD_PID" 2>/dev/null || true; fi
   if [ "${KEEP_CLUSTER:-0}" != 1 ]; then
     step "deleting cluster $CLUSTER (KEEP_CLUSTER=1 keeps it)"
     case "$TOOL" in
@@ -220,4 +223,33 @@ case "$ended" in
 esac
 awk -v s="$sim" 'BEGIN { exit !(s < 300) }' || { echo "e2e: $PILOT_RUN ran to simTimeS=$sim, not ~30 s" >&2; exit 1; }
 
-step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified; $PILOT_RUN ended by its pilot at ${sim} s"
+# The live view: the renderer Deployment follows the coordinator's stream and serves it;
+# deleting the run deletes the renderer (owner references).
+VIEW_RUN=live-view
+step "applying tests/e2e/view.yaml (rendering.enabled)"
+kubectl delete simrun "$VIEW_RUN" -n "$RUN_NS" --ignore-not-found --wait
+kubectl apply -n "$RUN_NS" -f tests/e2e/view.yaml
+deadline=$((SECONDS + TIMEOUT))
+until [ "$(kubectl get simrun "$VIEW_RUN" -n "$RUN_NS" -o jsonpath='{.status.phase}' 2>/dev/null)" = Running ]; do
+  [ "$SECONDS" -lt "$deadline" ] || { echo "e2e: $VIEW_RUN never reached Running" >&2; exit 1; }
+  sleep 5
+done
+kubectl rollout status -n "$RUN_NS" "deployment/$VIEW_RUN-renderer" --timeout=300s
+endpoint=$(kubectl get simrun "$VIEW_RUN" -n "$RUN_NS" -o jsonpath='{.status.endpoints.renderer}')
+echo "  status.endpoints.renderer=$endpoint"
+kubectl port-forward -n "$RUN_NS" "svc/$VIEW_RUN-renderer" 18490:8490 >/dev/null 2>&1 &
+FORWARD_PID=$!
+sleep 3
+curl -fsS http://127.0.0.1:18490/scene.json | grep -q '"mode":"live"' || { echo "e2e: the renderer's scene.json is not a live scene" >&2; exit 1; }
+frames=$(curl -sN --max-time 5 http://127.0.0.1:18490/live | grep -c '^event: frame' || true)
+[ "$frames" -ge 10 ] || { echo "e2e: the renderer streamed $frames frames in 5 s, expected at least 10" >&2; exit 1; }
+echo "  the renderer streamed $frames frames in 5 s"
+kill "$FORWARD_PID" 2>/dev/null || true
+kubectl delete simrun "$VIEW_RUN" -n "$RUN_NS" --wait
+deadline=$((SECONDS + 120))
+while kubectl get deployment -n "$RUN_NS" "$VIEW_RUN-renderer" >/dev/null 2>&1; do
+  [ "$SECONDS" -lt "$deadline" ] || { echo "e2e: the renderer outlived its run" >&2; exit 1; }
+  sleep 3
+done
+
+step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified; $PILOT_RUN ended by its pilot at ${sim} s; the live view streamed $frames frames"
