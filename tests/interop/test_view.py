@@ -6,7 +6,7 @@ playwright-core, WebGL on SwiftShader): the tests read the screenshots' pixels.
 - Replay: `sadesim view` on that run's folder scrubs to a time and draws the drones where
   `trajectory.csv` says they were then (and not where they were 5 s later).
 
-Screenshots are kept in the test's temporary folder (printed on failure).
+Screenshots are kept as test artifacts in `<target>/test-artifacts/view/`.
 """
 import csv
 import json
@@ -77,6 +77,16 @@ def drive(tmp_path, url, steps):
     errors = [line for line in report["console"] if line.startswith(("pageerror", "error"))]
     assert not errors, f"the page reported errors: {errors}"
     return report["results"]
+
+
+def keep(*paths):
+    """Copies screenshots to `<target>/test-artifacts/view/` (CI keeps them to look at)."""
+    import shutil
+
+    folder = REPO / os.environ.get("CARGO_TARGET_DIR", "target") / "test-artifacts" / "view"
+    folder.mkdir(parents=True, exist_ok=True)
+    for p in paths:
+        shutil.copy(p, folder / pathlib.Path(p).name)
 
 
 def colour_count(image, pixel, colour, half=6, tolerance=40):
@@ -151,7 +161,7 @@ def test_the_live_view_shows_the_zone_and_moving_drones(live, tmp_path):
         {"shot": "live-2", "project": [zone_centre, beside_zone]},
     ])
     first, second = results[-3], results[-1]
-    print("screenshots:", first["path"], second["path"])
+    keep(first["path"], second["path"])
     assert second["time"] > first["time"], "the stream moved on between the screenshots"
     for shot in (first, second):
         image = Image.open(shot["path"]).convert("RGB")
@@ -204,7 +214,7 @@ def test_a_replay_scrubs_to_where_the_trajectory_says(live, sadesim, tmp_path):
         viewer.send_signal(signal.SIGINT)
         viewer.communicate(timeout=30)
     shot = results[-1]
-    print("screenshot:", shot["path"])
+    keep(shot["path"])
     assert abs(shot["time"] - t) < 1e-9
     image = Image.open(shot["path"]).convert("RGB")
     now, then = shot["points"][:4], shot["points"][4:]

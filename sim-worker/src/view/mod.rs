@@ -10,6 +10,7 @@
 //!   the world's glTF from the asset bundle, the stream.
 
 pub mod feed;
+pub mod frames;
 pub mod relay;
 pub mod replay;
 pub mod scene;
