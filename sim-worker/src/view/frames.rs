@@ -96,11 +96,11 @@ impl FrameStore {
         }
     }
 
-    fn channel(&self, drone: &str, camera: &str) -> Result<&watch::Sender<Option<Arc<CameraFrame>>>, Response> {
+    /// The camera's channel, or the 404 text naming the cameras there are.
+    fn channel(&self, drone: &str, camera: &str) -> Result<&watch::Sender<Option<Arc<CameraFrame>>>, String> {
         self.cameras.get(&(drone.to_string(), camera.to_string())).ok_or_else(|| {
             let known: Vec<String> = self.cameras.keys().map(|(d, c)| format!("{d}/{c}")).collect();
-            let text = format!("no camera {drone}/{camera}; this run has: {}", known.join(", "));
-            (StatusCode::NOT_FOUND, text).into_response()
+            format!("no camera {drone}/{camera}; this run has: {}", known.join(", "))
         })
     }
 }
@@ -171,7 +171,7 @@ async fn image(
 ) -> Response {
     let tx = match store.channel(&drone, &camera) {
         Ok(tx) => tx,
-        Err(answer) => return answer,
+        Err(text) => return (StatusCode::NOT_FOUND, text).into_response(),
     };
     let Some((which, format)) = Format::of(&file) else {
         let text = format!(
@@ -183,7 +183,8 @@ async fn image(
         match tx.borrow().clone() {
             Some(frame) => frame,
             None => {
-                return (StatusCode::SERVICE_UNAVAILABLE, "no frame yet: the camera's first is not due").into_response();
+                return (StatusCode::SERVICE_UNAVAILABLE, "no frame yet: the camera's first is not due")
+                    .into_response();
             }
         }
     } else {
@@ -225,7 +226,7 @@ const BOUNDARY: &str = "sadesimframe";
 async fn mjpeg(State(store): State<Arc<FrameStore>>, Path((drone, camera)): Path<(String, String)>) -> Response {
     let rx = match store.channel(&drone, &camera) {
         Ok(tx) => tx.subscribe(),
-        Err(answer) => return answer,
+        Err(text) => return (StatusCode::NOT_FOUND, text).into_response(),
     };
     // The current frame first (if any), then each new one; a slow reader skips frames.
     let parts = stream::unfold((rx, true), |(mut rx, first)| async move {
