@@ -22,6 +22,8 @@ import pytest
 import yaml
 from PIL import Image
 
+from test_archive import s3  # noqa: F401  (the fixture: a moto S3 server)
+
 REPO = pathlib.Path(__file__).resolve().parents[2]
 DRIVER = REPO / "tests" / "browser" / "drive.mjs"
 CHROMIUM = "/usr/bin/chromium"
@@ -31,8 +33,7 @@ SCOUTS = (0x4E, 0x79, 0xA7)
 # scouts over Millennium Park behind it (ENU metres from the run origin).
 EYE = [260.0, -320.0, 260.0]
 TARGET = [40.0, 160.0, 20.0]
-# The museum zone of examples/quickstart.yaml: its centroid half-way up its 60 m.
-ZONE_CENTRE = None  # from /scene.json, see zone_centre()
+HIDE_LABELS = "document.getElementById('labels').style.visibility = 'hidden'"
 
 pytestmark = pytest.mark.skipif(not pathlib.Path(CHROMIUM).exists(), reason="needs Debian's chromium (tests/install-tools.sh)")
 
@@ -156,12 +157,17 @@ def test_the_live_view_shows_the_zone_and_moving_drones(live, tmp_path):
         # Airborne and cruising.
         {"waitFor": "window.sadesimView.time > 14", "timeoutMs": 90000},
         {"eval": f"window.sadesimView.lookAt({EYE}, {TARGET})"},
+        {"eval": "[...document.querySelectorAll('.label')].filter(l => l.style.display !== 'none').map(l => l.textContent)"},
+        # Name labels are HTML over the canvas: one drone's name can cover another's marker.
+        {"eval": HIDE_LABELS},
         {"shot": "live-1", "project": [zone_centre, beside_zone]},
         {"sleepMs": 2500},
         {"shot": "live-2", "project": [zone_centre, beside_zone]},
     ])
     first, second = results[-3], results[-1]
     keep(first["path"], second["path"])
+    shown_labels = results[3]["value"]
+    assert "museum" in shown_labels and {d["name"] for d in scene["drones"]} <= set(shown_labels), shown_labels
     assert second["time"] > first["time"], "the stream moved on between the screenshots"
     for shot in (first, second):
         image = Image.open(shot["path"]).convert("RGB")
@@ -207,6 +213,7 @@ def test_a_replay_scrubs_to_where_the_trajectory_says(live, sadesim, tmp_path):
         results = drive(tmp_path, url, [
             {"waitFor": "window.sadesimView && window.sadesimView.ready", "timeoutMs": 90000},
             {"eval": f"window.sadesimView.lookAt({EYE}, {TARGET})"},
+            {"eval": HIDE_LABELS},
             {"eval": f"window.sadesimView.seek({t})"},
             {"shot": "replay", "project": at(t) + at(later)},
         ])
@@ -298,3 +305,42 @@ def test_the_renderer_role_serves_the_coordinators_stream(sadesim, sim_worker, t
             if p.poll() is None:
                 p.kill()
             p.communicate(timeout=30)
+
+
+def replay_json(sadesim, location, env):
+    """`sadesim view LOCATION` on a free port: its /replay.json, then the viewer is stopped."""
+    import urllib.request
+
+    viewer = subprocess.Popen([sadesim, "view", location, "--listen", "127.0.0.1:0"], stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True, env={**os.environ, **env})
+    try:
+        url = read_line_matching(viewer, r"(http://127\.0\.0\.1:\d+/)", 120).group(1)
+        return json.load(urllib.request.urlopen(url + "replay.json"))
+    finally:
+        viewer.send_signal(signal.SIGINT)
+        viewer.communicate(timeout=30)
+
+
+def test_an_archived_run_replays_as_its_folder_does(live, sadesim, s3, tmp_path):
+    """`sadesim view s3://...` reads the run from object storage (each file checked against
+    the manifest) and gives the same frames as the local folder; a tampered recording is
+    refused, naming the file."""
+    from test_archive import ARCHIVE, AWS_ENV, BUCKET, PREFIX, sadesim_cmd
+
+    live["proc"].communicate(timeout=240)
+    run_dir = next((live["tmp"] / "runs" / "quickstart").iterdir())
+    put = sadesim_cmd(sadesim, "archive", "put", str(run_dir), ARCHIVE, "--run", "quickstart", "--uid", "view-1")
+    assert put.returncode == 0, put.stdout + put.stderr
+    url = f"{ARCHIVE}/default/quickstart/view-1"
+    local = replay_json(sadesim, str(run_dir), {})
+    archived = replay_json(sadesim, url, AWS_ENV)
+    assert archived["frames"] == local["frames"] and archived["events"] == local["events"]
+    assert len(local["frames"]) == round(local["endS"] * local["rateHz"]) + 1
+
+    key = f"{PREFIX}/default/quickstart/view-1/recording.mcap"
+    body = s3.get_object(Bucket=BUCKET, Key=key)["Body"].read()
+    s3.put_object(Bucket=BUCKET, Key=key, Body=body[:-100] + bytes(100))
+    refused = subprocess.run([sadesim, "view", url, "--listen", "127.0.0.1:0"], capture_output=True, text=True,
+                             env={**os.environ, **AWS_ENV}, timeout=120)
+    assert refused.returncode != 0
+    assert "recording.mcap" in refused.stderr, refused.stderr
