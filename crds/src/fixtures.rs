@@ -129,6 +129,7 @@ fn group(name: &str, count: u32) -> FleetGroup {
             speed_mps: None,
         }),
         geofence: None,
+        cameras: Vec::new(),
     }
 }
 

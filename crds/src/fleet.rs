@@ -58,6 +58,11 @@ pub struct FleetGroup {
     /// lease for. Default: no geofence (the pilot alone is responsible).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub geofence: Option<GeofenceAction>,
+    /// Onboard cameras of every drone of the group (needs `spec.rendering.enabled`); their
+    /// frames are served to pilots over HTTP. Local runs only in this version.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(length(max = 4))]
+    pub cameras: Vec<crate::camera::Camera>,
 }
 
 /// Where a bearer credential comes from.

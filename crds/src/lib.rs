@@ -5,6 +5,7 @@
 //! are pure functions. Every other crate depends on it; it depends on none of them.
 
 pub mod airframe;
+pub mod camera;
 pub mod crd;
 pub mod criteria;
 pub mod document;

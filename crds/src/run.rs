@@ -289,6 +289,11 @@ pub struct World {
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 256))]
     pub open_areas: Vec<crate::fleet::Area>,
+    /// Fiducial markers on the ground (ArUco), seen by the onboard cameras only: a world
+    /// with markers needs a group with cameras.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    #[schemars(length(max = 64))]
+    pub markers: Vec<crate::camera::GroundMarker>,
 }
 
 fn default_extent_m() -> f64 {
@@ -304,6 +309,7 @@ impl Default for World {
             extent_m: DEFAULT_WORLD_EXTENT_M,
             city: None,
             open_areas: Vec::new(),
+            markers: Vec::new(),
         }
     }
 }

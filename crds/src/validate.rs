@@ -10,6 +10,7 @@
 //! The sections live in their own modules: `problems` (the list and its phrasing),
 //! `world`, `fleet` (groups, missions, the pilot), `zones`, `environment` and `criteria`.
 
+mod camera;
 mod criteria;
 mod environment;
 mod fleet;
@@ -79,6 +80,7 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
         zones::check_zone_interactions(spec, b, p);
     }
     environment::check_environment(spec, &group_names, p);
+    camera::check_cameras(spec, bounds.as_ref(), p);
     fleet::check_pilot(spec, p);
 
     let sharding = spec.sharding();

@@ -133,7 +133,7 @@ def live(sadesim, tmp_path_factory):
     scenario = tmp / "quickstart-view.yaml"
     scenario.write_text(yaml.safe_dump(doc))
     proc = subprocess.Popen(
-        [sadesim, "run", str(scenario), "--out", str(tmp / "runs")],
+        [sadesim, "run", str(scenario), "--out", str(tmp / "runs"), "--no-mavlink"],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp,
         env={**os.environ, "SADESIM_CACHE_DIR": str(tmp / "cache")},
     )

@@ -20,6 +20,7 @@ fn inputs(extent_m: f64, city: Option<City>, open_areas: Vec<OpenArea>) -> World
             extent_m,
             city,
             open_areas: Vec::new(),
+            markers: Vec::new(),
         },
         open_areas,
     }

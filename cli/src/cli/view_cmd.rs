@@ -59,6 +59,7 @@ pub fn view(location: &str, listen: SocketAddr, rate_hz: f64, out: &mut dyn Writ
         scene_json: Arc::new(serde_json::to_vec(&scene).expect("a scene is JSON")),
         world_glb: glb,
         source: Source::Replay(Arc::new(serde_json::to_vec(&replay).expect("a replay is JSON"))),
+        frames: None,
     };
     let server = view::server::start(listen, content).map_err(|e| failed(format!("cannot listen on {listen}: {e}")))?;
     writeln!(

@@ -29,6 +29,7 @@ use sim_worker::transport;
 
 use sadesim_planner::{self as planner, Addressing, PlanError};
 
+mod cameras;
 pub mod pilot;
 mod workers;
 
@@ -231,6 +232,13 @@ fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError>
     if !external.is_empty() && !options.mavlink {
         return Err(RunError::NeedsMavlink { groups: external.join(", ") });
     }
+    if options.processes
+        && let Some(i) = spec.fleet.iter().position(|g| !g.cameras.is_empty())
+    {
+        return Err(RunError::NotSupported(format!(
+            "spec.fleet[{i}].cameras with --processes: onboard cameras render in-process only; drop --processes"
+        )));
+    }
     if spec.rendering().enabled && !sim_worker::view::server::has_three() {
         return Err(RunError::NotSupported(format!("spec.rendering.enabled: {}", sim_worker::view::server::NO_THREE)));
     }
@@ -308,6 +316,8 @@ struct Progress<'a> {
     pilot_exited: bool,
     /// The live view's publisher (`spec.rendering.enabled`).
     view: Option<sim_worker::view::Publisher>,
+    /// The onboard cameras: frames due in a window are rendered before the next one.
+    cameras: Option<cameras::Cameras>,
 }
 
 impl RunObserver for Progress<'_> {
@@ -317,6 +327,9 @@ impl RunObserver for Progress<'_> {
         self.recorder.on_window(time_s, drones, events)?;
         if let Some(view) = &mut self.view {
             view.on_window(time_s, drones, events);
+        }
+        if let Some(cameras) = &mut self.cameras {
+            cameras.on_window(time_s, drones).map_err(|e| ObserverError::Record(std::io::Error::other(e)))?;
         }
         if let Some(pilot) = self.pilot.as_deref_mut() {
             pilot.advance(time_s);
@@ -406,11 +419,19 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     // The live view is up before the run starts, so a browser opened on the printed URL
     // sees the drones from the first window.
     // With --processes the coordinator process serves it (`--view-bind`), as its pod does.
+    let cameras = match options.processes {
+        false => cameras::Cameras::new(&plan, &world).map_err(RunError::NotSupported)?,
+        true => None,
+    };
     let live_view = match plan.spec.rendering().enabled && !options.processes {
         true => {
             let bind = std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http));
-            let view = sim_worker::view::serve_live(&plan, &world, bind).map_err(RunError::Worker)?;
+            let frames = cameras.as_ref().map(cameras::Cameras::store);
+            let view = sim_worker::view::serve_live(&plan, &world, bind, frames).map_err(RunError::Worker)?;
             eprintln!("live view: {}", view.server.url());
+            if let Some(c) = &cameras {
+                eprintln!("onboard cameras: {}cameras (rendered on {})", view.server.url(), c.adapter());
+            }
             Some(view)
         }
         false => None,
@@ -438,7 +459,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     } else {
         let surroundings = sim_worker::shard::Surroundings { world: world.clone(), sky, wind };
         let view = live_view.as_ref().map(|v| v.feed.clone());
-        let links = ShardInputs { surroundings, mavlink: options.mavlink, view };
+        let links = ShardInputs { surroundings, mavlink: options.mavlink, view, cameras };
         run_threads(&plan, links, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
     bar.finish_and_clear();
@@ -517,6 +538,8 @@ struct ShardInputs {
     mavlink: bool,
     /// The live view's feed (`spec.rendering.enabled`).
     view: Option<Arc<sim_worker::view::Feed>>,
+    /// The onboard cameras (`spec.fleet[].cameras`).
+    cameras: Option<cameras::Cameras>,
 }
 
 /// Every role in this process: one thread per shard, the coordinator on this thread, the
@@ -530,7 +553,7 @@ fn run_threads(
     pilot: Option<&mut Supervisor>,
     airspace: &mut Airspace,
 ) -> Result<RunSummary, RunError> {
-    let ShardInputs { surroundings, mavlink, view } = inputs;
+    let ShardInputs { surroundings, mavlink, view, cameras } = inputs;
     let world = &surroundings.world;
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
@@ -553,6 +576,7 @@ fn run_threads(
         pilot_error: None,
         pilot_exited: false,
         view: view.map(sim_worker::view::Publisher::new),
+        cameras,
     };
     let outcome = coordinator::run(plan, &mut links, &mut WithAirspace::new(airspace, &mut progress), stop);
     let pilot_error = progress.pilot_error.take();

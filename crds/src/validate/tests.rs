@@ -210,7 +210,7 @@ fn the_schema_pass_lists_missing_fields_types_enums_and_unknown_fields() {
         [
             "spec.duration: Required value",
             r#"spec.clock.mode: Unsupported value: "fast": supported values: "realtime", "scaled", "asFastAsPossible""#,
-            "spec.fleet[0].colour: unknown field `colour`, expected one of `airframe`, `altitude`, `count`, `credential`, `geofence`, `homes`, `mission`, `name`, `operator`, `role`",
+            "spec.fleet[0].colour: unknown field `colour`, expected one of `airframe`, `altitude`, `cameras`, `count`, `credential`, `geofence`, `homes`, `mission`, `name`, `operator`, `role`",
             "spec.fleet[0].count: must be of type integer, got number 1.5",
             "spec.fleet[0].homes: Required value: exactly one of `explicit`, `randomInArea`, `areas`",
             "spec.origin.altitudeMslM: Required value",
@@ -335,4 +335,57 @@ fn gpus_for_the_renderer_are_bounded_and_need_it_on() {
     let off = with(false, Some(1));
     assert_eq!(off.len(), 1);
     assert!(off[0].starts_with("spec.rendering.gpus: asks GPUs for a renderer that is off"), "{off:?}");
+}
+
+#[test]
+fn cameras_and_markers_name_their_bad_fields() {
+    use crate::camera::{Camera, CameraMount, GroundMarker};
+    use crate::run::Rendering;
+    let camera = |rate_hz: f64, width_px: u32| Camera {
+        name: "down".into(),
+        width_px,
+        height_px: 120,
+        horizontal_fov_deg: 90.0,
+        rate_hz,
+        mount: CameraMount { pitch_deg: 90.0, ..CameraMount::default() },
+        depth: true,
+    };
+    let marker = |id: u32| GroundMarker {
+        name: "pad".into(),
+        position: crate::fleet::LatLon { latitude_deg: 41.8826, longitude_deg: -87.6225 },
+        size_m: 1.0,
+        yaw_deg: 0.0,
+        aruco_id: id,
+    };
+    let run = |cameras: Vec<Camera>, rendering: bool, markers: Vec<GroundMarker>| {
+        problems_of(move |r| {
+            r.spec.fleet[0].cameras = cameras;
+            r.spec.rendering = Some(Rendering { enabled: rendering, gpus: None });
+            r.spec.world.get_or_insert_with(Default::default).markers = markers;
+        })
+    };
+    assert!(
+        run(vec![camera(10.0, 160)], true, vec![marker(7)]).is_empty(),
+        "{:?}",
+        run(vec![camera(10.0, 160)], true, vec![])
+    );
+    assert_eq!(
+        run(vec![camera(10.0, 8)], true, vec![]),
+        ["spec.fleet[0].cameras[0].widthPx: must be between 16 and 4096, got 8"]
+    );
+    let off_grid = run(vec![camera(30.0, 160)], true, vec![]);
+    assert!(
+        off_grid[0].starts_with("spec.fleet[0].cameras[0].rateHz: 30 Hz does not divide the 100 Hz"),
+        "{off_grid:?}"
+    );
+    let too_fast = run(vec![camera(200.0, 160)], true, vec![]);
+    assert!(too_fast[0].starts_with("spec.fleet[0].cameras[0].rateHz: must be between"), "{too_fast:?}");
+    let off = run(vec![camera(10.0, 160)], false, vec![]);
+    assert!(off[0].starts_with("spec.fleet[0].cameras: onboard cameras are rendered by the renderer"), "{off:?}");
+    assert_eq!(
+        run(vec![camera(10.0, 160)], true, vec![marker(50)]),
+        ["spec.world.markers[0].arucoId: must be between 0 and 49, got 50"]
+    );
+    let unseen = run(vec![], true, vec![marker(1)]);
+    assert!(unseen[0].starts_with("spec.world.markers: only onboard cameras see markers"), "{unseen:?}");
 }

@@ -394,6 +394,14 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
             fatal: true,
         });
     }
+    if let Some(i) = plan.spec.fleet.iter().position(|g| !g.cameras.is_empty()) {
+        // Frames are rendered by the local runner only so far: no fake success on a cluster.
+        out.push(Problem {
+            field: format!("spec.fleet[{i}].cameras"),
+            message: "onboard cameras run in local runs (sadesim run) only in this version".into(),
+            fatal: true,
+        });
+    }
     let urban = plan.spec.environment().wind.and_then(|w| w.urban);
     if let Some(case) = urban.as_ref().and_then(|u| u.case.as_ref()) {
         // The pods cannot see a folder on the machine that applied the run.

@@ -150,7 +150,7 @@ pub fn run(
         let live = match plan.spec.rendering().enabled {
             true => {
                 let bind = view_bind.unwrap_or_else(|| SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http)));
-                let live = crate::view::serve_live(plan, world, bind).map_err(RoleError::Protocol)?;
+                let live = crate::view::serve_live(plan, world, bind, None).map_err(RoleError::Protocol)?;
                 eprintln!("live stream: {}live", live.server.url());
                 Some(live)
             }

@@ -23,7 +23,7 @@ pub fn run(plan: &RunPlan, world: &World, listen: SocketAddr, feed: &str, stop: 
     if !plan.spec.rendering().enabled {
         return Err(RoleError::Protocol("spec.rendering.enabled is false: this run has no renderer".into()));
     }
-    let live = crate::view::serve_live(plan, world, listen).map_err(RoleError::Protocol)?;
+    let live = crate::view::serve_live(plan, world, listen, None).map_err(RoleError::Protocol)?;
     eprintln!("renderer: serving {} (following {feed})", live.server.url());
     crate::view::relay::follow_forever(feed, &live.feed, stop, RETRY, &mut |line| eprintln!("renderer: {line}"));
     Ok(())

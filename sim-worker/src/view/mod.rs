@@ -32,13 +32,19 @@ pub struct LiveView {
     pub feed: Arc<Feed>,
 }
 
-/// Serves the live view of `plan` flying in `world` on `bind`, or on a free port of the
+/// Serves the live view of `plan` flying in `world` on `bind` (with the onboard cameras'
+/// `frames` when the run has cameras), or on a free port of the
 /// same host when that port is taken (another run on this machine); the world model is
 /// the bundle's `world.glb`, made from the loaded world by the same function (same bytes).
 ///
 /// # Errors
 /// The build has no three.js, or no port of the host can be bound.
-pub fn serve_live(plan: &RunPlan, world: &World, bind: SocketAddr) -> Result<LiveView, String> {
+pub fn serve_live(
+    plan: &RunPlan,
+    world: &World,
+    bind: SocketAddr,
+    frames: Option<Arc<frames::FrameStore>>,
+) -> Result<LiveView, String> {
     if !server::has_three() {
         return Err(server::NO_THREE.into());
     }
@@ -49,6 +55,7 @@ pub fn serve_live(plan: &RunPlan, world: &World, bind: SocketAddr) -> Result<Liv
         scene_json: Arc::new(serde_json::to_vec(&scene).expect("a scene is JSON")),
         world_glb: Some(Arc::new(glb)),
         source: Source::Live(feed.clone()),
+        frames,
     };
     let server = match server::start(bind, content.clone()) {
         Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => server::start(SocketAddr::new(bind.ip(), 0), content),

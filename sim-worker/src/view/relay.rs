@@ -113,8 +113,12 @@ mod tests {
         let upstream = Feed::new();
         upstream.publish_event(r#"{"timeS":0.0,"event":"runStarted","drones":1,"shards":1}"#.into());
         upstream.publish_frame(r#"{"t":1.5,"p":[1,2,3]}"#.into());
-        let content =
-            Content { scene_json: Arc::new(b"{}".to_vec()), world_glb: None, source: Source::Live(upstream.clone()) };
+        let content = Content {
+            scene_json: Arc::new(b"{}".to_vec()),
+            world_glb: None,
+            source: Source::Live(upstream.clone()),
+            frames: None,
+        };
         let coordinator = server::start("127.0.0.1:0".parse().unwrap(), content).unwrap();
         let renderer = Feed::new();
         let mut seen = renderer.subscribe();

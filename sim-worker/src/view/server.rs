@@ -13,6 +13,7 @@
 //! | `/live` | live runs: `text/event-stream`, events `frame` and `event` (and `lagged`) |
 //! | `/replay.json` | replays: every frame and event of the recording |
 //! | `/healthz` | `ok` (Kubernetes probes) |
+//! | `/cameras/...` | onboard camera frames for pilots ([`super::frames`]), in runs with cameras |
 //!
 //! Why Server-Sent Events rather than a WebSocket: the stream goes one way (the simulation
 //! to the browser), EventSource reconnects by itself, and it is plain HTTP/1 that every
@@ -69,6 +70,8 @@ pub struct Content {
     /// `/world.glb`.
     pub world_glb: Option<Arc<Vec<u8>>>,
     pub source: Source,
+    /// The onboard cameras' frames (`/cameras/...`), in runs with cameras.
+    pub frames: Option<Arc<super::frames::FrameStore>>,
 }
 
 /// A running view server; stops when dropped (or with [`ViewHandle::stop`]).
@@ -133,6 +136,7 @@ pub fn start(bind: SocketAddr, content: Content) -> std::io::Result<ViewHandle> 
 }
 
 fn router(content: Content) -> Router {
+    let cameras = content.frames.clone().map(super::frames::routes).unwrap_or_default();
     Router::new()
         .route("/", get(|| async { ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], INDEX_HTML) }))
         .route("/app.js", get(|| async { ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], APP_JS) }))
@@ -143,6 +147,7 @@ fn router(content: Content) -> Router {
         .route("/replay.json", get(replay))
         .route("/healthz", get(|| async { "ok" }))
         .with_state(content)
+        .merge(cameras)
 }
 
 async fn vendor(Path(path): Path<String>) -> Response {

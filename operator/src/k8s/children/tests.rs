@@ -733,3 +733,22 @@ fn a_queue_without_the_kueue_integration_is_refused_naming_the_field() {
     run.spec.queue = None;
     assert!(!problems(&planned(&run), &s3()).iter().any(|p| p.field == "spec.queue"));
 }
+
+#[test]
+fn onboard_cameras_are_refused_on_a_cluster_naming_the_field() {
+    let mut run = piloted(1).tap_rendering();
+    run.spec.fleet[0].cameras = vec![sadesim_crds::camera::Camera {
+        name: "down".into(),
+        width_px: 160,
+        height_px: 120,
+        horizontal_fov_deg: 90.0,
+        rate_hz: 10.0,
+        mount: Default::default(),
+        depth: false,
+    }];
+    let found = problems(&planned(&run), &s3());
+    let p = found.iter().find(|p| p.field == "spec.fleet[0].cameras").expect("refused");
+    assert!(p.fatal && p.message.contains("local runs"), "{p:?}");
+    run.spec.fleet[0].cameras.clear();
+    assert!(!problems(&planned(&run), &s3()).iter().any(|p| p.field.contains("cameras")));
+}

@@ -1,0 +1,178 @@
+//! Onboard cameras in a local run (`spec.fleet[].cameras`): at every window boundary where
+//! a camera is due, its frame is rendered from the drone's ground-truth pose at that exact
+//! simulated time (`sadesim-render`, wgpu on Vulkan) and published to the pilots' HTTP API
+//! (`sim_worker::view::frames`, served with the live view).
+//!
+//! Rendering happens on the coordinator's thread, inside the window: the run waits for due
+//! frames, so the same seed gives the same images at any clock (a real-time run that
+//! cannot keep up runs late, as with any other load; the real-time factor shows it).
+
+use std::sync::Arc;
+
+use sadesim_crds::geo::LocalFrame;
+use sadesim_crds::plan::RunPlan;
+use sadesim_render::{CameraModel, CameraPose, CameraView, Frame, Marker, Mount, Renderer, Scene};
+use sadesim_world::World;
+use sim_worker::protocol::DroneSnapshot;
+use sim_worker::view::frames::{CameraFrame, FrameImage, FrameStore};
+
+/// JPEG quality of served frames (the libjpeg default a pilot's decoder expects).
+const JPEG_QUALITY: u8 = 85;
+
+/// One camera on one drone.
+#[derive(Debug)]
+struct DroneCamera {
+    drone: u32,
+    drone_name: String,
+    camera: String,
+    model: CameraModel,
+    mount: Mount,
+    depth: bool,
+    /// Due every this many windows.
+    every_windows: u64,
+    /// Frames taken so far.
+    taken: u64,
+}
+
+/// The run's cameras, their renderer and the store pilots read.
+#[derive(Debug)]
+pub struct Cameras {
+    renderer: Renderer,
+    cameras: Vec<DroneCamera>,
+    store: Arc<FrameStore>,
+    window_s: f64,
+    /// Reused between windows.
+    due: Vec<usize>,
+    views: Vec<CameraView>,
+    frames: Vec<Frame>,
+}
+
+impl Cameras {
+    /// The cameras of `plan` in `world` (with the scenario's ground markers), or `None`
+    /// for a run without cameras.
+    ///
+    /// # Errors
+    /// No Vulkan device (the message names what to install), or a camera the renderer
+    /// refuses (named by its scenario field).
+    pub fn new(plan: &RunPlan, world: &World) -> Result<Option<Self>, String> {
+        let spec = &plan.spec;
+        if spec.fleet.iter().all(|g| g.cameras.is_empty()) {
+            return Ok(None);
+        }
+        let frame = LocalFrame::new(spec.origin.geo());
+        let markers = spec
+            .world()
+            .markers
+            .iter()
+            .enumerate()
+            .map(|(k, m)| {
+                let (e, n) = frame.to_plane(m.position.latitude_deg, m.position.longitude_deg);
+                let cells = sadesim_render::aruco_4x4_50(m.aruco_id as usize)
+                    .ok_or_else(|| format!("spec.world.markers[{k}].arucoId: no ArUco 4x4_50 id {}", m.aruco_id))?;
+                Ok(Marker {
+                    center_enu_m: [e, n, world.ground_up_m(e, n)],
+                    size_m: m.size_m,
+                    yaw_deg: m.yaw_deg,
+                    cells,
+                })
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        let scene = Scene::with_markers(world, &markers).map_err(|e| format!("spec.world.markers: {e}"))?;
+        let renderer = Renderer::new(&scene).map_err(|e| format!("spec.fleet[].cameras: {e}"))?;
+        let window_steps = u64::from(plan.sync_window_steps);
+        let window_s = window_steps as f64 / f64::from(plan.physics_rate_hz);
+        let mut cameras = Vec::new();
+        for (i, group) in spec.fleet.iter().enumerate() {
+            for (k, c) in group.cameras.iter().enumerate() {
+                let model = CameraModel::new(c.width_px, c.height_px, c.horizontal_fov_deg)
+                    .map_err(|e| format!("spec.fleet[{i}].cameras[{k}]: {e}"))?;
+                let m = c.mount;
+                let mount = Mount {
+                    offset_flu_m: [m.forward_m, m.left_m, m.up_m],
+                    roll_deg: m.roll_deg,
+                    pitch_deg: m.pitch_deg,
+                    yaw_deg: m.yaw_deg,
+                };
+                // Validation made the window rate a whole multiple of the camera's.
+                let every_windows = ((1.0 / c.rate_hz) / window_s).round().max(1.0) as u64;
+                for d in plan.drones.iter().filter(|d| d.group_index as usize == i) {
+                    cameras.push(DroneCamera {
+                        drone: d.index,
+                        drone_name: d.name.clone(),
+                        camera: c.name.clone(),
+                        model,
+                        mount,
+                        depth: c.depth,
+                        every_windows,
+                        taken: 0,
+                    });
+                }
+            }
+        }
+        let store = FrameStore::new(cameras.iter().map(|c| (c.drone_name.clone(), c.camera.clone())));
+        Ok(Some(Self { renderer, cameras, store, window_s, due: Vec::new(), views: Vec::new(), frames: Vec::new() }))
+    }
+
+    /// The store the HTTP API serves.
+    pub fn store(&self) -> Arc<FrameStore> {
+        self.store.clone()
+    }
+
+    /// The renderer's device (e.g. `llvmpipe (LLVM 15.0.6, 256 bits)`), for the log.
+    pub fn adapter(&self) -> String {
+        self.renderer.adapter_name().to_string()
+    }
+
+    /// A window ended at `time_s` with `drones` (by global index): renders every camera due
+    /// now (the first window, and every `every_windows` after) and publishes the frames.
+    ///
+    /// # Errors
+    /// The renderer failed (a lost device): the run stops, its files are kept.
+    pub fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot]) -> Result<(), String> {
+        let window = (time_s / self.window_s).round() as u64;
+        self.due.clear();
+        self.views.clear();
+        for (i, c) in self.cameras.iter().enumerate() {
+            if !window.is_multiple_of(c.every_windows) {
+                continue;
+            }
+            let Some(d) = drones.get(c.drone as usize) else { continue };
+            let pose = CameraPose::from_body(d.position_enu_m, d.attitude_wxyz, &c.mount)
+                .map_err(|e| format!("camera {}/{}: {e}", c.drone_name, c.camera))?;
+            self.due.push(i);
+            self.views.push(CameraView { model: c.model, pose });
+        }
+        if self.due.is_empty() {
+            return Ok(());
+        }
+        self.renderer.render_into(&self.views, &mut self.frames).map_err(|e| format!("onboard cameras: {e}"))?;
+        for (&i, frame) in self.due.iter().zip(self.frames.drain(..)) {
+            let c = &mut self.cameras[i];
+            let image = Rendered { frame, depth: c.depth };
+            self.store.publish(&c.drone_name, &c.camera, CameraFrame::new(time_s, c.taken, Box::new(image)));
+            c.taken += 1;
+        }
+        Ok(())
+    }
+}
+
+/// A rendered frame, encoded when a pilot asks.
+#[derive(Debug)]
+struct Rendered {
+    frame: Frame,
+    depth: bool,
+}
+
+impl FrameImage for Rendered {
+    fn jpeg(&self) -> Vec<u8> {
+        self.frame.rgb_jpeg(JPEG_QUALITY).unwrap_or_default()
+    }
+
+    fn png(&self) -> Vec<u8> {
+        self.frame.rgb_png().unwrap_or_default()
+    }
+
+    fn depth_png_mm(&self) -> Option<Vec<u8>> {
+        self.depth.then(|| self.frame.depth_png_mm().unwrap_or_default())
+    }
+}
