@@ -225,6 +225,9 @@ fn udp_and_tcp_ground_stations_both_get_telemetry_and_see_each_other() {
     let mut tcp = TcpStream::connect(router.gcs_tcp()).unwrap();
     tcp.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
     wait_for("the TCP client registered", || (router.stats().gcs_tcp_clients == 1).then_some(()));
+    // The TCP GCS's single heartbeat reaches only the UDP ground stations registered by
+    // then: wait for the UDP one (a loaded machine may read the TCP stream first).
+    wait_for("the UDP client registered", || (router.stats().gcs_udp_clients == 1).then_some(()));
     tcp.write_all(&frame(254, &heartbeat(MavType::MAV_TYPE_GCS))).unwrap();
     udp.send_to(&frame(GCS_SYSID, &heartbeat(MavType::MAV_TYPE_GCS)), router.gcs_udp()).unwrap();
 
