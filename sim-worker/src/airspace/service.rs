@@ -467,35 +467,7 @@ async fn list_events(State(state): State<SharedAirspace>, RawQuery(query): RawQu
 
 /// A running service. Stops (gracefully: requests in flight are answered, for at most 5 s)
 /// when dropped or on [`ServiceHandle::stop`], and joins its thread.
-#[derive(Debug)]
-pub struct ServiceHandle {
-    /// Where it listens (the actual port when bound to port 0).
-    pub addr: SocketAddr,
-    stop: Option<tokio::sync::oneshot::Sender<()>>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
-
-impl ServiceHandle {
-    /// Stops the service and waits for its thread.
-    pub fn stop(mut self) {
-        self.shut_down();
-    }
-
-    fn shut_down(&mut self) {
-        if let Some(stop) = self.stop.take() {
-            let _ = stop.send(());
-        }
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
-    }
-}
-
-impl Drop for ServiceHandle {
-    fn drop(&mut self) {
-        self.shut_down();
-    }
-}
+pub type ServiceHandle = crate::http_thread::HttpThread;
 
 /// Serves [`router`] on `bind` from a current-thread tokio runtime on its own OS thread
 /// (`airspace-http`), so the coordinator's window loop stays synchronous. The socket is
@@ -505,31 +477,7 @@ impl Drop for ServiceHandle {
 /// # Errors
 /// The address cannot be bound, or the runtime or thread cannot be created.
 pub fn start(state: SharedAirspace, bind: SocketAddr) -> std::io::Result<ServiceHandle> {
-    let listener = std::net::TcpListener::bind(bind)?;
-    listener.set_nonblocking(true)?;
-    let addr = listener.local_addr()?;
-    let runtime = tokio::runtime::Builder::new_current_thread().enable_io().enable_time().build()?;
-    let listener = {
-        let _context = runtime.enter();
-        tokio::net::TcpListener::from_std(listener)?
-    };
-    let app = router(state);
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let thread = std::thread::Builder::new().name("airspace-http".into()).spawn(move || {
-        runtime.block_on(async move {
-            let (graceful_tx, graceful_rx) = tokio::sync::oneshot::channel::<()>();
-            let server = axum::serve(listener, app).with_graceful_shutdown(async move {
-                let _ = graceful_rx.await;
-            });
-            let server = tokio::spawn(async move { server.await });
-            // `stop()` sends; a dropped handle closes the channel: either way, stop.
-            let _ = stop_rx.await;
-            let _ = graceful_tx.send(());
-            let _ = tokio::time::timeout(SHUTDOWN_GRACE, server).await;
-        });
-        // Dropping the runtime here cuts any connection still open after the grace period.
-    })?;
-    Ok(ServiceHandle { addr, stop: Some(stop_tx), thread: Some(thread) })
+    crate::http_thread::start(bind, router(state), "airspace-http", SHUTDOWN_GRACE)
 }
 
 #[cfg(test)]

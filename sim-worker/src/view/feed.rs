@@ -150,14 +150,22 @@ pub struct Pose {
 
 impl Pose {
     pub fn of(d: &DroneSnapshot) -> Self {
-        let state = if d.crashed {
-            b'C'
-        } else if d.on_ground {
-            b'G'
-        } else {
-            b'A'
-        };
-        Self { position_enu_m: d.position_enu_m, attitude_wxyz: d.attitude_wxyz, state }
+        Self {
+            position_enu_m: d.position_enu_m,
+            attitude_wxyz: d.attitude_wxyz,
+            state: state_letter(d.on_ground, d.crashed),
+        }
+    }
+}
+
+/// A drone's state letter: `C` crashed (whatever else), `G` on the ground, `A` airborne.
+pub fn state_letter(on_ground: bool, crashed: bool) -> u8 {
+    if crashed {
+        b'C'
+    } else if on_ground {
+        b'G'
+    } else {
+        b'A'
     }
 }
 

@@ -10,7 +10,7 @@ use std::collections::HashMap;
 
 use serde::Serialize;
 
-use super::feed::{Pose, encode_frame};
+use super::feed::{Pose, encode_frame, state_letter};
 
 /// Why a recording cannot be replayed.
 #[derive(Debug, thiserror::Error)]
@@ -77,14 +77,7 @@ pub fn replay(mcap: &[u8], events_jsonl: &str, names: &[String], rate_hz: f64) -
             }
             "status" => {
                 let status: Status = serde_json::from_slice(&message.data).map_err(|e| bad(e.to_string()))?;
-                let letter = if status.crashed {
-                    b'C'
-                } else if status.on_ground {
-                    b'G'
-                } else {
-                    b'A'
-                };
-                tracks[i].states.push((message.log_time, letter));
+                tracks[i].states.push((message.log_time, state_letter(status.on_ground, status.crashed)));
             }
             _ => {}
         }

@@ -75,64 +75,16 @@ pub struct Content {
 }
 
 /// A running view server; stops when dropped (or with [`ViewHandle::stop`]).
-#[derive(Debug)]
-pub struct ViewHandle {
-    pub addr: SocketAddr,
-    stop: Option<tokio::sync::oneshot::Sender<()>>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
-
-impl ViewHandle {
-    /// The page's URL (`http://host:port/`).
-    pub fn url(&self) -> String {
-        format!("http://{}/", self.addr)
-    }
-
-    /// Stops serving: open streams end, the thread is joined.
-    pub fn stop(mut self) {
-        self.shutdown();
-    }
-
-    fn shutdown(&mut self) {
-        if let Some(stop) = self.stop.take() {
-            let _ = stop.send(());
-        }
-        if let Some(thread) = self.thread.take() {
-            let _ = thread.join();
-        }
-    }
-}
-
-impl Drop for ViewHandle {
-    fn drop(&mut self) {
-        self.shutdown();
-    }
-}
+pub type ViewHandle = crate::http_thread::HttpThread;
 
 /// Serves `content` on `bind` from a thread of its own (one tokio current-thread runtime:
-/// the server's work is copying bytes, and the simulation keeps the cores).
+/// the server's work is copying bytes, and the simulation keeps the cores). Stopping ends
+/// open streams at once: they never finish by themselves.
 ///
 /// # Errors
 /// The address cannot be bound, or the thread cannot start.
 pub fn start(bind: SocketAddr, content: Content) -> std::io::Result<ViewHandle> {
-    let listener = std::net::TcpListener::bind(bind)?;
-    listener.set_nonblocking(true)?;
-    let addr = listener.local_addr()?;
-    let runtime = tokio::runtime::Builder::new_current_thread().enable_io().enable_time().build()?;
-    let listener = {
-        let _context = runtime.enter();
-        tokio::net::TcpListener::from_std(listener)?
-    };
-    let app = router(content);
-    let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();
-    let thread = std::thread::Builder::new().name("view-http".into()).spawn(move || {
-        runtime.block_on(async move {
-            let server = tokio::spawn(async move { axum::serve(listener, app).await });
-            let _ = stop_rx.await;
-            server.abort();
-        });
-    })?;
-    Ok(ViewHandle { addr, stop: Some(stop_tx), thread: Some(thread) })
+    crate::http_thread::start(bind, router(content), "view-http", Duration::ZERO)
 }
 
 fn router(content: Content) -> Router {
