@@ -173,7 +173,7 @@ fn read_doubles(data: &[u8], out: &mut [f64]) -> Result<(), String> {
 
 /// A protobuf field's value.
 enum Wire<'a> {
-    Varint(#[allow(dead_code)] u64),
+    Varint,
     Fixed64(u64),
     Bytes(&'a [u8]),
     Fixed32,
@@ -216,7 +216,10 @@ impl<'a> Fields<'a> {
         let key = self.varint()?;
         let number = (key >> 3) as u32;
         let value = match key & 7 {
-            0 => Wire::Varint(self.varint()?),
+            0 => {
+                self.varint()?;
+                Wire::Varint
+            }
             1 => Wire::Fixed64(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes"))),
             2 => {
                 let len = self.varint()? as usize;
