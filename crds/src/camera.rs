@@ -29,6 +29,14 @@ pub struct Camera {
     /// 100 Hz by default) must be a whole multiple of it, so that every frame is taken at
     /// a window boundary: 100, 50, 25, 20, 10, 5, 2, 1 Hz by default.
     pub rate_hz: f64,
+    /// Frames per simulated second written into `recording.mcap`
+    /// (`/drones/<drone>/cameras/<name>/image`, `foxglove.CompressedImage` JPEG, with its
+    /// `foxglove.CameraCalibration`, and `.../depth` as `foxglove.RawImage` `16UC1` for depth
+    /// cameras). `rateHz` must be a whole multiple of it, so that every recorded frame is a
+    /// rendered one; 0 records none. Default: 1 Hz, or `rateHz` when that is slower (images
+    /// are most of a recording's bytes: 320x240 JPEG is about 15 kB a frame).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub record_rate_hz: Option<f64>,
     /// Where the camera sits on the drone and where it looks. Default: at the centre,
     /// looking forward.
     #[serde(default)]
@@ -37,6 +45,14 @@ pub struct Camera {
     /// millimetres). Default false.
     #[serde(default)]
     pub depth: bool,
+}
+
+impl Camera {
+    /// Frames per simulated second recorded into `recording.mcap` (`recordRateHz` or its
+    /// default).
+    pub fn record_rate_hz(&self) -> f64 {
+        self.record_rate_hz.unwrap_or(self.rate_hz.min(1.0))
+    }
 }
 
 /// A camera's pose on the drone, body frame FLU.

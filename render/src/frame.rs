@@ -75,13 +75,16 @@ impl Frame {
     ///
     /// [`RenderError::Encode`] if the encoder fails (it does not for a well-formed frame).
     pub fn depth_png_mm(&self) -> Result<Vec<u8>> {
-        let mut samples = Vec::with_capacity(self.depth_m.len() * 2);
-        for &d in &self.depth_m {
-            let mm = if d.is_finite() && d > 0.0 { (f64::from(d) * 1000.0).round().min(65535.0) as u16 } else { 0 };
-            // PNG stores 16-bit samples big-endian.
-            samples.extend_from_slice(&mm.to_be_bytes());
-        }
+        // PNG stores 16-bit samples big-endian.
+        let samples: Vec<u8> = self.depth_m.iter().flat_map(|&d| millimetres(d).to_be_bytes()).collect();
         png_bytes(self.width, self.height, png::ColorType::Grayscale, png::BitDepth::Sixteen, &samples)
+    }
+
+    /// The depth image as raw 16-bit millimetres, little-endian, row-major (ROS and
+    /// Foxglove `RawImage` encoding `16UC1`), rounded and saturating as
+    /// [`Frame::depth_png_mm`].
+    pub fn depth_mm_le(&self) -> Vec<u8> {
+        self.depth_m.iter().flat_map(|&d| millimetres(d).to_le_bytes()).collect()
     }
 
     /// The depth image as raw float32 metres, little-endian, row-major (ROS `32FC1` with
@@ -89,6 +92,11 @@ impl Frame {
     pub fn depth_f32_le(&self) -> Vec<u8> {
         self.depth_m.iter().flat_map(|d| d.to_le_bytes()).collect()
     }
+}
+
+/// A depth in metres as `16UC1` millimetres: rounded, saturating at 65535, 0 for no hit.
+fn millimetres(d: f32) -> u16 {
+    if d.is_finite() && d > 0.0 { (f64::from(d) * 1000.0).round().min(65535.0) as u16 } else { 0 }
 }
 
 fn png_bytes(width: u32, height: u32, color: png::ColorType, depth: png::BitDepth, data: &[u8]) -> Result<Vec<u8>> {

@@ -6,6 +6,9 @@
 //! Rendering happens on the coordinator's thread, inside the window: the run waits for due
 //! frames, so the same seed gives the same images at any clock (a real-time run that
 //! cannot keep up runs late, as with any other load; the real-time factor shows it).
+//!
+//! Every n-th frame of a camera (its `recordRateHz`) also goes into `recording.mcap`, JPEG
+//! with its calibration, and depth as `16UC1` ([`Cameras::streams`], [`Cameras::on_window`]).
 
 use std::sync::Arc;
 
@@ -14,6 +17,7 @@ use sadesim_crds::plan::RunPlan;
 use sadesim_render::{CameraModel, CameraPose, CameraView, Frame, Marker, Mount, Renderer, Scene};
 use sadesim_world::World;
 use sim_worker::protocol::DroneSnapshot;
+use sim_worker::record::{CameraImage, CameraStream};
 use sim_worker::view::frames::{CameraFrame, FrameImage, FrameStore};
 
 /// JPEG quality of served frames (the libjpeg default a pilot's decoder expects).
@@ -30,6 +34,10 @@ struct DroneCamera {
     depth: bool,
     /// Due every this many windows.
     every_windows: u64,
+    /// Every this many frames one goes into `recording.mcap` (`None`: none does).
+    record_every: Option<u64>,
+    /// Its index in [`Cameras::streams`] when recorded.
+    stream: Option<usize>,
     /// Frames taken so far.
     taken: u64,
 }
@@ -39,6 +47,8 @@ struct DroneCamera {
 pub struct Cameras {
     renderer: Renderer,
     cameras: Vec<DroneCamera>,
+    /// The recorded cameras.
+    streams: Vec<CameraStream>,
     store: Arc<FrameStore>,
     window_s: f64,
     /// Reused between windows.
@@ -55,6 +65,8 @@ impl Cameras {
     /// No Vulkan device (the message names what to install), or a camera the renderer
     /// refuses (named by its scenario field).
     pub fn new(plan: &RunPlan, world: &World) -> Result<Option<Self>, String> {
+        // Frames are recorded only into recording.mcap.
+        let recording = plan.spec.recording().mcap;
         let spec = &plan.spec;
         if spec.fleet.iter().all(|g| g.cameras.is_empty()) {
             return Ok(None);
@@ -95,6 +107,9 @@ impl Cameras {
                 };
                 // Validation made the window rate a whole multiple of the camera's.
                 let every_windows = ((1.0 / c.rate_hz) / window_s).round().max(1.0) as u64;
+                // Validation made the camera's rate a whole multiple of the recording's.
+                let record_every = (recording && c.record_rate_hz() > 0.0)
+                    .then(|| (c.rate_hz / c.record_rate_hz()).round().max(1.0) as u64);
                 for d in plan.drones.iter().filter(|d| d.group_index as usize == i) {
                     cameras.push(DroneCamera {
                         drone: d.index,
@@ -104,13 +119,35 @@ impl Cameras {
                         mount,
                         depth: c.depth,
                         every_windows,
+                        record_every,
+                        stream: None,
                         taken: 0,
                     });
                 }
             }
         }
+        let mut streams = Vec::new();
+        for c in cameras.iter_mut().filter(|c| c.record_every.is_some()) {
+            c.stream = Some(streams.len());
+            streams.push(stream_of(c)?);
+        }
         let store = FrameStore::new(cameras.iter().map(|c| (c.drone_name.clone(), c.camera.clone())));
-        Ok(Some(Self { renderer, cameras, store, window_s, due: Vec::new(), views: Vec::new(), frames: Vec::new() }))
+        Ok(Some(Self {
+            renderer,
+            cameras,
+            streams,
+            store,
+            window_s,
+            due: Vec::new(),
+            views: Vec::new(),
+            frames: Vec::new(),
+        }))
+    }
+
+    /// The cameras `recording.mcap` holds frames of (in the order of
+    /// [`CameraImage::stream`]).
+    pub fn streams(&self) -> Vec<CameraStream> {
+        self.streams.clone()
     }
 
     /// The store the HTTP API serves.
@@ -124,11 +161,12 @@ impl Cameras {
     }
 
     /// A window ended at `time_s` with `drones` (by global index): renders every camera due
-    /// now (the first window, and every `every_windows` after) and publishes the frames.
+    /// now (the first window, and every `every_windows` after), publishes the frames, and
+    /// returns those due for the recording.
     ///
     /// # Errors
     /// The renderer failed (a lost device): the run stops, its files are kept.
-    pub fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot]) -> Result<(), String> {
+    pub fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot]) -> Result<Vec<CameraImage>, String> {
         let window = (time_s / self.window_s).round() as u64;
         self.due.clear();
         self.views.clear();
@@ -142,18 +180,50 @@ impl Cameras {
             self.due.push(i);
             self.views.push(CameraView { model: c.model, pose });
         }
+        let mut recorded = Vec::new();
         if self.due.is_empty() {
-            return Ok(());
+            return Ok(recorded);
         }
         self.renderer.render_into(&self.views, &mut self.frames).map_err(|e| format!("onboard cameras: {e}"))?;
         for (&i, frame) in self.due.iter().zip(self.frames.drain(..)) {
             let c = &mut self.cameras[i];
+            if let (Some(every), Some(stream)) = (c.record_every, c.stream)
+                && c.taken.is_multiple_of(every)
+            {
+                recorded.push(CameraImage {
+                    stream,
+                    time_s,
+                    jpeg: frame
+                        .rgb_jpeg(JPEG_QUALITY)
+                        .map_err(|e| format!("camera {}/{}: {e}", c.drone_name, c.camera))?,
+                    depth_mm_le: c.depth.then(|| frame.depth_mm_le()),
+                });
+            }
             let image = Rendered { frame, depth: c.depth };
             self.store.publish(&c.drone_name, &c.camera, CameraFrame::new(time_s, c.taken, Box::new(image)));
             c.taken += 1;
         }
-        Ok(())
+        Ok(recorded)
     }
+}
+
+/// How `recording.mcap` declares camera `c`: its calibration, and its mount as the optical
+/// frame's pose in the body frame (the camera pose of a body at the origin, unrotated).
+fn stream_of(c: &DroneCamera) -> Result<CameraStream, String> {
+    let calibration = c.model.calibration();
+    let mount = CameraPose::from_body([0.0; 3], [1.0, 0.0, 0.0, 0.0], &c.mount)
+        .map_err(|e| format!("camera {}/{}: {e}", c.drone_name, c.camera))?;
+    Ok(CameraStream {
+        drone: c.drone,
+        camera: c.camera.clone(),
+        width: calibration.width,
+        height: calibration.height,
+        k: calibration.k,
+        p: calibration.p,
+        mount_offset_flu_m: mount.position_enu_m(),
+        mount_optical_to_flu_wxyz: mount.optical_to_enu_wxyz(),
+        depth: c.depth,
+    })
 }
 
 /// A rendered frame, encoded when a pilot asks.

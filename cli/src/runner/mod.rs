@@ -322,14 +322,21 @@ struct Progress<'a> {
 
 impl RunObserver for Progress<'_> {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
-        // Recorded (and flushed) first: a pilot that starts now finds `pilotsReleased` in
+        // Frames due now are rendered first, so that the recorder writes those it records
+        // with this window. The final window repeats the last snapshot: no new frames.
+        let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
+        if let Some(cameras) = &mut self.cameras
+            && !final_window
+        {
+            let images =
+                cameras.on_window(time_s, drones).map_err(|e| ObserverError::Record(std::io::Error::other(e)))?;
+            self.recorder.queue_images(images);
+        }
+        // Recorded (and flushed) before the pilot is started: it finds `pilotsReleased` in
         // events.jsonl.
         self.recorder.on_window(time_s, drones, events)?;
         if let Some(view) = &mut self.view {
             view.on_window(time_s, drones, events);
-        }
-        if let Some(cameras) = &mut self.cameras {
-            cameras.on_window(time_s, drones).map_err(|e| ObserverError::Record(std::io::Error::other(e)))?;
         }
         if let Some(pilot) = self.pilot.as_deref_mut() {
             pilot.advance(time_s);
@@ -566,7 +573,11 @@ fn run_threads(
         threads.push(handle);
     }
     let output_err = |source| RunError::Output { path: out_dir.display().to_string(), source };
-    let mut recorder = Recorder::create(out_dir, plan, world, RecorderOptions::default()).map_err(output_err)?;
+    let options = RecorderOptions {
+        cameras: cameras.as_ref().map(cameras::Cameras::streams).unwrap_or_default(),
+        ..RecorderOptions::default()
+    };
+    let mut recorder = Recorder::create(out_dir, plan, world, options).map_err(output_err)?;
     let mut progress = Progress {
         recorder: &mut recorder,
         bar: bar.clone(),

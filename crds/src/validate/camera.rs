@@ -45,6 +45,21 @@ pub(super) fn check_cameras(spec: &SimulationRunSpec, bounds: Option<&WorldBound
                     );
                 }
             }
+            if let Some(record) = c.record_rate_hz
+                && p.range(format!("{path}.recordRateHz"), record, 0.0, c.rate_hz)
+                && record > 0.0
+            {
+                let frames = c.rate_hz / record;
+                if (frames - frames.round()).abs() > 1e-9 {
+                    p.add(
+                        format!("{path}.recordRateHz"),
+                        format!(
+                            "{record} Hz does not divide the camera's rateHz ({} Hz): the recording takes every n-th rendered frame",
+                            c.rate_hz
+                        ),
+                    );
+                }
+            }
             let m = &c.mount;
             for (field, v, limit) in [
                 ("forwardM", m.forward_m, 10.0),

@@ -347,6 +347,7 @@ fn cameras_and_markers_name_their_bad_fields() {
         height_px: 120,
         horizontal_fov_deg: 90.0,
         rate_hz,
+        record_rate_hz: None,
         mount: CameraMount { pitch_deg: 90.0, ..CameraMount::default() },
         depth: true,
     };
@@ -385,6 +386,19 @@ fn cameras_and_markers_name_their_bad_fields() {
     assert_eq!(
         run(vec![camera(10.0, 160)], true, vec![marker(50)]),
         ["spec.world.markers[0].arucoId: must be between 0 and 49, got 50"]
+    );
+    let recorded = |record: f64| Camera { record_rate_hz: Some(record), ..camera(10.0, 160) };
+    assert!(run(vec![recorded(5.0)], true, vec![]).is_empty());
+    assert!(run(vec![recorded(0.0)], true, vec![]).is_empty(), "0 records no frames");
+    let uneven = run(vec![recorded(3.0)], true, vec![]);
+    assert!(
+        uneven[0]
+            .starts_with("spec.fleet[0].cameras[0].recordRateHz: 3 Hz does not divide the camera's rateHz (10 Hz)"),
+        "{uneven:?}"
+    );
+    assert_eq!(
+        run(vec![recorded(20.0)], true, vec![]),
+        ["spec.fleet[0].cameras[0].recordRateHz: must be between 0 and 10, got 20"]
     );
     let unseen = run(vec![], true, vec![marker(1)]);
     assert!(unseen[0].starts_with("spec.world.markers: only onboard cameras see markers"), "{unseen:?}");

@@ -22,7 +22,14 @@
 //! | `/drones/<name>/gnss` | foxglove.LocationFix (receiver) | `drone/<name>` | each new 3D fix |
 //! | `/world` | foxglove.SceneUpdate (buildings, ground) | `world` | once, at 0 |
 //! | `/zones` | foxglove.SceneUpdate | `world` | once, at 0 |
+//! | `/markers` (runs with `spec.world.markers`) | foxglove.SceneUpdate | `world` | once, at 0 |
 //! | `/events` | foxglove.Log | | each event |
+//! | `/drones/<name>/cameras/<camera>/image` | foxglove.CompressedImage (protobuf, JPEG) | `drone/<name>/<camera>` | the camera's `recordRateHz` |
+//! | `/drones/<name>/cameras/<camera>/calibration` | foxglove.CameraCalibration (protobuf) | `drone/<name>/<camera>` | with each image |
+//! | `/drones/<name>/cameras/<camera>/depth` | foxglove.RawImage (protobuf, `16UC1` mm) | `drone/<name>/<camera>` | with each image, depth cameras |
+//!
+//! Camera frames (`drone/<name>/<camera>`) are optical frames (x right, y down, z forward,
+//! as `CameraCalibration` expects); their mounts on the body are one `/tf` message at 0.
 //!
 //! `world` is ENU (x east, y north, z up) in metres from the run origin. Sampled streams
 //! take one sample at the first sync window at or after each multiple of their period
@@ -58,7 +65,7 @@ use sadesim_world::World;
 use self::writer::{ChunkCompression, McapWriter};
 use crate::events::{Event, EventKind};
 use crate::protocol::DroneSnapshot;
-use crate::record::Sampler;
+use crate::record::{CameraImage, CameraStream, Sampler};
 
 /// File name inside the run folder.
 pub const MCAP_FILE: &str = "recording.mcap";
@@ -73,6 +80,9 @@ const CHANNELS_PER_DRONE: usize = 10;
 
 /// Most drones one `recording.mcap` holds (65 535 channel ids, 4 run-wide channels).
 pub const MAX_DRONES: usize = (u16::MAX as usize - 4) / CHANNELS_PER_DRONE;
+
+/// Channels per recorded camera (image, calibration, depth).
+const CHANNELS_PER_CAMERA: usize = 3;
 
 /// zstd level: 1 is the fastest standard level. On a real recording it compresses 7.7x at
 /// about 700 MB/s here; level 3 compresses less well on this data (7.3x) at 25 % more CPU,
@@ -134,6 +144,18 @@ struct DroneChannels {
     last_gnss_s: Option<f64>,
 }
 
+/// The channels of one recorded camera.
+#[derive(Debug)]
+struct CameraChannels {
+    stream: CameraStream,
+    /// `drone/<name>/<camera>`: the optical frame.
+    frame: String,
+    image: Channel,
+    calibration: Channel,
+    /// For depth cameras.
+    depth: Option<Channel>,
+}
+
 /// Writes `recording.mcap` incrementally.
 #[derive(Debug)]
 pub struct McapRecorder {
@@ -142,6 +164,7 @@ pub struct McapRecorder {
     drones: Vec<DroneChannels>,
     tf: Channel,
     events: Channel,
+    cameras: Vec<CameraChannels>,
     ground_truth: Sampler,
     estimator: Sampler,
     actuators: Sampler,
@@ -159,13 +182,13 @@ fn ns(time_s: f64) -> u64 {
 impl McapRecorder {
     /// Creates `dir/recording.mcap` and writes the header, schemas, channels and the static
     /// scene (the city of `world`, the zones of `plan`), at the rates of
-    /// `plan.spec.recording()`.
+    /// `plan.spec.recording()`, with channels for the frames of `cameras`.
     ///
     /// # Errors
     /// I/O errors; an `Unsupported` error for fleets over [`MAX_DRONES`].
-    pub fn create(dir: &Path, plan: &RunPlan, world: &World) -> std::io::Result<Self> {
+    pub fn create(dir: &Path, plan: &RunPlan, world: &World, cameras: &[CameraStream]) -> std::io::Result<Self> {
         let recording = plan.spec.recording();
-        Self::create_with(dir, plan, world, recording.compression, recording.rates)
+        Self::create_with(dir, plan, world, recording.compression, recording.rates, cameras)
     }
 
     /// [`Self::create`] with explicit compression and rates.
@@ -178,7 +201,19 @@ impl McapRecorder {
         world: &World,
         compression: Compression,
         rates: RecordingRates,
+        cameras: &[CameraStream],
     ) -> std::io::Result<Self> {
+        let channels = 5 + plan.drones.len() * CHANNELS_PER_DRONE + cameras.len() * CHANNELS_PER_CAMERA;
+        if plan.drones.len() <= MAX_DRONES && channels > usize::from(u16::MAX) {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::Unsupported,
+                format!(
+                    "recording.mcap holds at most 65535 channels, this run's {} drones and {} recorded cameras need {channels}; set recordRateHz: 0 on some of spec.fleet[].cameras",
+                    plan.drones.len(),
+                    cameras.len()
+                ),
+            ));
+        }
         if plan.drones.len() > MAX_DRONES {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::Unsupported,
@@ -200,7 +235,8 @@ impl McapRecorder {
         for (name, text) in schemas::ALL {
             schema.insert(name, (writer.add_schema(name, "jsonschema", text.as_bytes())?, "json"));
         }
-        for name in schemas::PROTOBUF {
+        let camera_schemas = if cameras.is_empty() { &[][..] } else { &schemas::CAMERA_PROTOBUF[..] };
+        for name in schemas::PROTOBUF.iter().chain(camera_schemas) {
             let descriptors = protobuf::descriptor_set(name).expect("every protobuf schema is in protobuf::FILES");
             schema.insert(name, (writer.add_schema(name, "protobuf", &descriptors)?, "protobuf"));
         }
@@ -232,12 +268,45 @@ impl McapRecorder {
                 last_gnss_s: None,
             });
         }
+        let mut camera_channels = Vec::with_capacity(cameras.len());
+        for c in cameras {
+            let drone = plan.drones.get(c.drone as usize).ok_or_else(|| {
+                std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    format!("camera {}: no drone {}", c.camera, c.drone),
+                )
+            })?;
+            let topic = |stream: &str| format!("/drones/{}/cameras/{}/{stream}", drone.name, c.camera);
+            camera_channels.push(CameraChannels {
+                frame: crate::record::optical_frame(&drone.name, &c.camera),
+                image: channel(&mut writer, &topic("image"), schemas::COMPRESSED_IMAGE_NAME)?,
+                calibration: channel(&mut writer, &topic("calibration"), schemas::CAMERA_CALIBRATION_NAME)?,
+                depth: match c.depth {
+                    true => Some(channel(&mut writer, &topic("depth"), schemas::RAW_IMAGE_NAME)?),
+                    false => None,
+                },
+                stream: c.clone(),
+            });
+        }
         let mut out = Output { writer };
         let mut zones = zones;
         let scene = scene::world_update(world);
         out.write(&mut city, 0, 0, |b| b.extend_from_slice(&scene))?;
         let scene = scene::zones_update(plan, world);
         out.write(&mut zones, 0, 0, |b| b.extend_from_slice(scene.as_bytes()))?;
+        if let Some(scene) = scene::markers_update(plan, world) {
+            let mut markers = channel(&mut out.writer, "/markers", schemas::SCENE_UPDATE_NAME)?;
+            out.write(&mut markers, 0, 0, |b| b.extend_from_slice(scene.as_bytes()))?;
+        }
+        let mut tf = tf;
+        // The cameras' mounts: fixed on the bodies, one transform each, valid from 0 on.
+        if !camera_channels.is_empty() {
+            out.write(&mut tf, 0, 0, |b| {
+                for c in &camera_channels {
+                    messages::mount_transform(b, 0, &drones[c.stream.drone as usize].frame, &c.frame, &c.stream);
+                }
+            })?;
+        }
         // The first chunks (schemas, channels, city, zones) are on disk before the run starts.
         out.writer.flush()?;
         Ok(Self {
@@ -246,6 +315,7 @@ impl McapRecorder {
             drones,
             tf,
             events,
+            cameras: camera_channels,
             ground_truth: Sampler::new(rates.ground_truth_hz),
             estimator: Sampler::new(rates.estimator_hz),
             actuators: Sampler::new(rates.actuators_hz),
@@ -316,6 +386,28 @@ impl McapRecorder {
         }
         if !tf_buf.is_empty() {
             out.write(tf, log_ns, log_ns, |b| b.extend_from_slice(tf_buf))?;
+        }
+        Ok(())
+    }
+
+    /// Records camera frames taken in the window at `time_s`, after the window's
+    /// messages ([`Self::write_window`]): each frame's calibration, image and depth.
+    ///
+    /// # Errors
+    /// I/O errors; `InvalidInput` for an image of a camera not given at creation.
+    pub fn write_images(&mut self, time_s: f64, images: &[CameraImage]) -> std::io::Result<()> {
+        let log_ns = ns(time_s);
+        for image in images {
+            let c = self.cameras.get_mut(image.stream).ok_or_else(|| {
+                std::io::Error::new(std::io::ErrorKind::InvalidInput, format!("no recorded camera {}", image.stream))
+            })?;
+            let at = ns(image.time_s).min(log_ns);
+            let CameraChannels { stream, frame, image: image_channel, calibration, depth } = c;
+            self.out.write(calibration, log_ns, at, |b| messages::calibration(b, at, frame, stream))?;
+            self.out.write(image_channel, log_ns, at, |b| messages::compressed_image(b, at, frame, &image.jpeg))?;
+            if let (Some(depth), Some(data)) = (depth, &image.depth_mm_le) {
+                self.out.write(depth, log_ns, at, |b| messages::depth_image(b, at, frame, stream, data))?;
+            }
         }
         Ok(())
     }

@@ -3,6 +3,7 @@
 //! (one line per drone, for any map tool), a summary, `recording.mcap` (Foxglove schemas)
 //! and one PX4 ULog per drone (`spec.recording` turns the last two off).
 
+mod camera_images;
 mod cost;
 mod events;
 mod gnss_tally;
@@ -16,6 +17,7 @@ pub(crate) mod test_dir;
 mod trajectory;
 pub mod ulog_file;
 
+pub use camera_images::{CameraImage, CameraStream, optical_frame};
 pub use cost::RecordingCost;
 pub use events::EventLog;
 pub use mcap_file::{MCAP_FILE, McapRecorder};

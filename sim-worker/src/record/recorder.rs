@@ -8,26 +8,28 @@ use sadesim_world::World;
 
 use super::cost::Lap;
 use super::{
-    DroneSummary, EventLog, McapRecorder, RunSummary, Sampler, StreamWriter, TrajectoryCsv, TrajectoryGeoJson,
-    UlogRecorder,
+    CameraImage, CameraStream, DroneSummary, EventLog, McapRecorder, RunSummary, Sampler, StreamWriter, TrajectoryCsv,
+    TrajectoryGeoJson, UlogRecorder,
 };
 use crate::airspace::criteria::RunVerdict;
 use crate::coordinator::{ObserverError, RunObserver, RunOutcome};
 use crate::events::{Event, EventKind};
 use crate::protocol::DroneSnapshot;
 
-/// Sampling rates of the recorded streams.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Sampling rates of the recorded streams, and the recorded cameras.
+#[derive(Clone, Debug, PartialEq)]
 pub struct RecorderOptions {
     /// Rows per drone per simulated second in `trajectory.csv`.
     pub trajectory_hz: f64,
     /// Points per drone per simulated second in `trajectory.geojson`.
     pub track_hz: f64,
+    /// The onboard cameras whose frames `recording.mcap` holds ([`Recorder::queue_images`]).
+    pub cameras: Vec<CameraStream>,
 }
 
 impl Default for RecorderOptions {
     fn default() -> Self {
-        Self { trajectory_hz: 10.0, track_hz: 1.0 }
+        Self { trajectory_hz: 10.0, track_hz: 1.0, cameras: Vec::new() }
     }
 }
 
@@ -57,6 +59,8 @@ pub struct Recorder {
     /// `recording.mcap` (unless `spec.recording.mcap` is false) and `ulog/*.ulg` (unless
     /// `spec.recording.ulog` is false); `None` when both are off.
     streams: Option<StreamWriter>,
+    /// Camera frames for the next window ([`Recorder::queue_images`]).
+    images: Vec<CameraImage>,
 }
 
 impl Recorder {
@@ -85,7 +89,7 @@ impl Recorder {
             ..Default::default()
         };
         let recording = plan.spec.recording();
-        let mcap = if recording.mcap { Some(McapRecorder::create(dir, plan, world)?) } else { None };
+        let mcap = if recording.mcap { Some(McapRecorder::create(dir, plan, world, &options.cameras)?) } else { None };
         let ulog = if recording.ulog { Some(UlogRecorder::create(dir, plan)?) } else { None };
         let streams = if mcap.is_some() || ulog.is_some() { Some(StreamWriter::start(mcap, ulog)?) } else { None };
         Ok(Self {
@@ -112,6 +116,7 @@ impl Recorder {
             },
             last_positions: vec![None; plan.drones.len()],
             last: Vec::new(),
+            images: Vec::new(),
             plan: plan.clone(),
         })
     }
@@ -123,6 +128,12 @@ impl Recorder {
 
     pub fn summary(&self) -> &RunSummary {
         &self.summary
+    }
+
+    /// Camera frames taken in the coming window, written into `recording.mcap` with it
+    /// (dropped when the run records no MCAP).
+    pub fn queue_images(&mut self, images: Vec<CameraImage>) {
+        self.images.extend(images);
     }
 
     /// The verdict on the scenario's criteria, written into `summary.json` by [`Recorder::finish`].
@@ -168,8 +179,11 @@ impl RunObserver for Recorder {
         let mut cost = self.summary.recording_cpu_s;
         let mut lap = Lap::start();
         self.events.write(events).map_err(ObserverError::Record)?;
+        let images = std::mem::take(&mut self.images);
         if let Some(streams) = &mut self.streams {
-            streams.write(time_s, drones.to_vec(), events.to_vec()).map_err(ObserverError::Record)?;
+            streams
+                .write_with_images(time_s, drones.to_vec(), events.to_vec(), images)
+                .map_err(ObserverError::Record)?;
         }
         let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
         if !final_window && self.rows.due(time_s) {

@@ -28,7 +28,7 @@ use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
 use super::cost::{Lap, RecordingCost};
-use super::{McapRecorder, UlogRecorder};
+use super::{CameraImage, McapRecorder, UlogRecorder};
 use crate::events::Event;
 use crate::protocol::DroneSnapshot;
 
@@ -46,6 +46,8 @@ struct Window {
     time_s: f64,
     drones: Vec<DroneSnapshot>,
     events: Vec<Event>,
+    /// Camera frames taken in the window (`recording.mcap` only).
+    images: Vec<CameraImage>,
 }
 
 /// The MCAP and ULog writers, on a thread of their own.
@@ -76,10 +78,24 @@ impl StreamWriter {
     /// # Errors
     /// The writer thread failed (on an earlier window): its error.
     pub fn write(&mut self, time_s: f64, drones: Vec<DroneSnapshot>, events: Vec<Event>) -> io::Result<()> {
+        self.write_with_images(time_s, drones, events, Vec::new())
+    }
+
+    /// [`Self::write`] with the camera frames taken in the window.
+    ///
+    /// # Errors
+    /// As [`Self::write`].
+    pub fn write_with_images(
+        &mut self,
+        time_s: f64,
+        drones: Vec<DroneSnapshot>,
+        events: Vec<Event>,
+        images: Vec<CameraImage>,
+    ) -> io::Result<()> {
         if self.sender.is_none() {
             return Err(io::Error::other("the recordings were already closed after an error"));
         }
-        self.pending.push(Window { time_s, drones, events });
+        self.pending.push(Window { time_s, drones, events, images });
         if self.pending.len() < BATCH_WINDOWS { Ok(()) } else { self.hand_over() }
     }
 
@@ -146,6 +162,7 @@ fn write_all(
     for w in batches.into_iter().flatten() {
         if let Some(m) = &mut mcap {
             m.write_window(w.time_s, &w.drones, &w.events)?;
+            m.write_images(w.time_s, &w.images)?;
             lap.add_to(&mut cost.mcap);
         }
         if let Some(u) = &mut ulog {
@@ -196,7 +213,7 @@ mod tests {
         let plan = plan_of(run_with_groups(&[("a", 3)]).build());
         let direct = TempDir::new("streams-direct");
         let (mut mcap, mut ulog) = (
-            McapRecorder::create(&direct.0, &plan, &world_of(&plan)).unwrap(),
+            McapRecorder::create(&direct.0, &plan, &world_of(&plan), &[]).unwrap(),
             UlogRecorder::create(&direct.0, &plan).unwrap(),
         );
         for (t, drones) in windows() {
@@ -207,7 +224,7 @@ mod tests {
         ulog.finish().unwrap();
 
         let threaded = TempDir::new("streams-threaded");
-        let mcap = McapRecorder::create(&threaded.0, &plan, &world_of(&plan)).unwrap();
+        let mcap = McapRecorder::create(&threaded.0, &plan, &world_of(&plan), &[]).unwrap();
         let ulog = UlogRecorder::create(&threaded.0, &plan).unwrap();
         let mut writer = StreamWriter::start(Some(mcap), Some(ulog)).unwrap();
         for (t, drones) in windows() {
@@ -231,7 +248,8 @@ mod tests {
         let plan = plan_of(run_with_groups(&[("a", 3)]).build());
         let dir = TempDir::new("streams-dropped");
         let mut writer =
-            StreamWriter::start(Some(McapRecorder::create(&dir.0, &plan, &world_of(&plan)).unwrap()), None).unwrap();
+            StreamWriter::start(Some(McapRecorder::create(&dir.0, &plan, &world_of(&plan), &[]).unwrap()), None)
+                .unwrap();
         let sent = BATCH_WINDOWS * 3 + 7; // the last 7 are still pending
         for (t, drones) in windows().take(sent) {
             writer.write(t, drones, Vec::new()).unwrap();

@@ -743,6 +743,7 @@ fn onboard_cameras_are_refused_on_a_cluster_naming_the_field() {
         height_px: 120,
         horizontal_fov_deg: 90.0,
         rate_hz: 10.0,
+        record_rate_hz: None,
         mount: Default::default(),
         depth: false,
     }];

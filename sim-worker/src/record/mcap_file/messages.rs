@@ -9,6 +9,7 @@ use super::json::{self, COARSE, DEGREES, METRES};
 use super::protobuf;
 use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, EstimateDetail, GnssDetail};
+use crate::record::CameraStream;
 
 fn norm(v: [f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
@@ -34,6 +35,50 @@ pub fn transform(out: &mut Vec<u8>, ns: u64, child: &str, s: &DroneSnapshot) {
         protobuf::bytes(b, 3, child.as_bytes());
         protobuf::vector3(b, 4, s.position_enu_m, protobuf::METRES_BITS);
         protobuf::quaternion(b, 5, s.attitude_wxyz);
+    });
+}
+
+/// `foxglove.CompressedImage` (protobuf): one camera frame as JPEG.
+pub fn compressed_image(out: &mut Vec<u8>, ns: u64, frame_id: &str, jpeg: &[u8]) {
+    protobuf::timestamp(out, 1, ns);
+    protobuf::bytes(out, 2, jpeg);
+    protobuf::bytes(out, 3, b"jpeg");
+    protobuf::bytes(out, 4, frame_id.as_bytes());
+}
+
+/// `foxglove.RawImage` (protobuf): a depth frame, `16UC1` millimetres, little-endian.
+pub fn depth_image(out: &mut Vec<u8>, ns: u64, frame_id: &str, camera: &CameraStream, depth_mm_le: &[u8]) {
+    protobuf::timestamp(out, 1, ns);
+    protobuf::fixed32(out, 2, camera.width);
+    protobuf::fixed32(out, 3, camera.height);
+    protobuf::bytes(out, 4, b"16UC1");
+    protobuf::fixed32(out, 5, camera.width * 2);
+    protobuf::bytes(out, 6, depth_mm_le);
+    protobuf::bytes(out, 7, frame_id.as_bytes());
+}
+
+/// `foxglove.CameraCalibration` (protobuf): the ideal pinhole of `camera` (no distortion,
+/// `D` empty, `R` identity).
+pub fn calibration(out: &mut Vec<u8>, ns: u64, frame_id: &str, camera: &CameraStream) {
+    protobuf::timestamp(out, 1, ns);
+    protobuf::fixed32(out, 2, camera.width);
+    protobuf::fixed32(out, 3, camera.height);
+    protobuf::bytes(out, 4, b"plumb_bob");
+    protobuf::packed_doubles(out, 6, &camera.k);
+    protobuf::packed_doubles(out, 7, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+    protobuf::packed_doubles(out, 8, &camera.p);
+    protobuf::bytes(out, 9, frame_id.as_bytes());
+}
+
+/// Appends one `foxglove.FrameTransform` `drone/<name>` -> the camera's optical frame (its
+/// mount, fixed on the body) to a `foxglove.FrameTransforms` message.
+pub fn mount_transform(out: &mut Vec<u8>, ns: u64, parent: &str, child: &str, camera: &CameraStream) {
+    protobuf::message(out, 1, |b| {
+        protobuf::timestamp(b, 1, ns);
+        protobuf::bytes(b, 2, parent.as_bytes());
+        protobuf::bytes(b, 3, child.as_bytes());
+        protobuf::vector3(b, 4, camera.mount_offset_flu_m, protobuf::METRES_BITS);
+        protobuf::quaternion(b, 5, camera.mount_optical_to_flu_wxyz);
     });
 }
 

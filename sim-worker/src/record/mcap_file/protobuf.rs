@@ -19,6 +19,7 @@
 const VARINT: u8 = 0;
 const FIXED64: u8 = 1;
 const LENGTH_DELIMITED: u8 = 2;
+const FIXED32: u8 = 5;
 
 /// Appends `v` as a base-128 varint.
 pub fn varint(out: &mut Vec<u8>, mut v: u64) {
@@ -43,6 +44,25 @@ pub fn double(out: &mut Vec<u8>, field: u32, v: f64) {
 pub fn uint(out: &mut Vec<u8>, field: u32, v: u64) {
     key(out, field, VARINT);
     varint(out, v);
+}
+
+/// A `fixed32` field.
+pub fn fixed32(out: &mut Vec<u8>, field: u32, v: u32) {
+    key(out, field, FIXED32);
+    out.extend_from_slice(&v.to_le_bytes());
+}
+
+/// A `repeated double` field, packed (proto3's encoding of repeated scalars: one
+/// length-delimited field holding the values back to back). Nothing for an empty list.
+pub fn packed_doubles(out: &mut Vec<u8>, field: u32, values: &[f64]) {
+    if values.is_empty() {
+        return;
+    }
+    key(out, field, LENGTH_DELIMITED);
+    varint(out, (values.len() * 8) as u64);
+    for v in values {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
 }
 
 /// A `string` or `bytes` field.
@@ -122,7 +142,9 @@ pub enum Kind {
     Double,
     Int64,
     Int32,
+    Fixed32,
     String,
+    Bytes,
     /// A message, by full name with the leading dot (`.foxglove.Vector3`).
     Message(&'static str),
 }
@@ -134,7 +156,9 @@ impl Kind {
             Kind::Double => 1,
             Kind::Int64 => 3,
             Kind::Int32 => 5,
+            Kind::Fixed32 => 7,
             Kind::String => 9,
+            Kind::Bytes => 12,
             Kind::Message(_) => 11,
         }
     }
@@ -151,6 +175,10 @@ pub struct Field {
 
 const fn field(name: &'static str, number: u32, kind: Kind) -> Field {
     Field { name, number, repeated: false, kind }
+}
+
+const fn repeated(name: &'static str, number: u32, kind: Kind) -> Field {
+    Field { name, number, repeated: true, kind }
 }
 
 /// A `.proto` file with one message (as each of Foxglove's files has).
@@ -245,6 +273,52 @@ pub const FILES: &[ProtoFile] = &[
             repeated: true,
             kind: Kind::Message(".foxglove.FrameTransform"),
         }],
+    },
+    // Onboard cameras (issue 18). Fields in the order of Foxglove's files, which is not
+    // the order of their numbers.
+    ProtoFile {
+        name: "foxglove/CompressedImage.proto",
+        package: "foxglove",
+        dependencies: &["google/protobuf/timestamp.proto"],
+        message: "CompressedImage",
+        fields: &[
+            field("timestamp", 1, TIMESTAMP),
+            field("frame_id", 4, Kind::String),
+            field("data", 2, Kind::Bytes),
+            field("format", 3, Kind::String),
+        ],
+    },
+    ProtoFile {
+        name: "foxglove/CameraCalibration.proto",
+        package: "foxglove",
+        dependencies: &["google/protobuf/timestamp.proto"],
+        message: "CameraCalibration",
+        fields: &[
+            field("timestamp", 1, TIMESTAMP),
+            field("frame_id", 9, Kind::String),
+            field("width", 2, Kind::Fixed32),
+            field("height", 3, Kind::Fixed32),
+            field("distortion_model", 4, Kind::String),
+            repeated("D", 5, Kind::Double),
+            repeated("K", 6, Kind::Double),
+            repeated("R", 7, Kind::Double),
+            repeated("P", 8, Kind::Double),
+        ],
+    },
+    ProtoFile {
+        name: "foxglove/RawImage.proto",
+        package: "foxglove",
+        dependencies: &["google/protobuf/timestamp.proto"],
+        message: "RawImage",
+        fields: &[
+            field("timestamp", 1, TIMESTAMP),
+            field("frame_id", 7, Kind::String),
+            field("width", 2, Kind::Fixed32),
+            field("height", 3, Kind::Fixed32),
+            field("encoding", 4, Kind::String),
+            field("step", 5, Kind::Fixed32),
+            field("data", 6, Kind::Bytes),
+        ],
     },
     // Ours: the ground-truth velocity, linear in `world` (ENU, m/s) and angular in the body
     // frame (FLU, rad/s).
@@ -369,6 +443,26 @@ pub mod decode {
                     json!(v)
                 }
                 (Kind::Int64 | Kind::Int32, 0) => json!(varint(data, &mut at)),
+                (Kind::Fixed32, 5) => {
+                    let v = u32::from_le_bytes(data[at..at + 4].try_into().unwrap());
+                    at += 4;
+                    json!(v)
+                }
+                // A packed `repeated double`: every value at once.
+                (Kind::Double, 2) if field.repeated => {
+                    let len = varint(data, &mut at) as usize;
+                    let values: Vec<f64> =
+                        data[at..at + len].chunks_exact(8).map(|c| f64::from_le_bytes(c.try_into().unwrap())).collect();
+                    at += len;
+                    fields.insert(field.name.to_string(), json!(values));
+                    continue;
+                }
+                (Kind::Bytes, 2) => {
+                    let len = varint(data, &mut at) as usize;
+                    let body = &data[at..at + len];
+                    at += len;
+                    json!({"bytes": body.len(), "head": body.iter().take(4).collect::<Vec<_>>()})
+                }
                 (Kind::String | Kind::Message(_), 2) => {
                     let len = varint(data, &mut at) as usize;
                     let body = &data[at..at + len];

@@ -163,3 +163,45 @@ pub fn zones_update(plan: &RunPlan, world: &World) -> String {
         .collect();
     json!({"deletions": [], "entities": entities}).to_string()
 }
+
+/// The `/markers` message at time 0 (`None` without markers): one entity per ground marker
+/// of `spec.world.markers` (`marker/<name>`), a thin dark square lying on the ground at
+/// its centre (`world.ground_up_m` there, where the cameras see it), turned by its yaw,
+/// with its ArUco id as metadata: a marker's pose is a known 3-D point to check a camera
+/// against.
+pub fn markers_update(plan: &RunPlan, world: &World) -> Option<String> {
+    let markers = &plan.spec.world().markers;
+    if markers.is_empty() {
+        return None;
+    }
+    let frame = LocalFrame::new(plan.spec.origin.geo());
+    let entities: Vec<Value> = markers
+        .iter()
+        .map(|m| {
+            let (e, n) = frame.to_plane(m.position.latitude_deg, m.position.longitude_deg);
+            let half_yaw = m.yaw_deg.to_radians() / 2.0;
+            json!({
+                "timestamp": {"sec": 0, "nsec": 0},
+                "frame_id": "world",
+                "id": format!("marker/{}", m.name),
+                "lifetime": {"sec": 0, "nsec": 0},
+                "frame_locked": false,
+                "metadata": [
+                    {"key": "marker", "value": m.name},
+                    {"key": "arucoId", "value": m.aruco_id.to_string()},
+                    {"key": "dictionary", "value": "DICT_4X4_50"},
+                ],
+                "arrows": [], "spheres": [], "cylinders": [], "lines": [], "triangles": [], "texts": [], "models": [],
+                "cubes": [{
+                    "pose": {
+                        "position": point(e, n, world.ground_up_m(e, n)),
+                        "orientation": {"x": 0.0, "y": 0.0, "z": half_yaw.sin(), "w": half_yaw.cos()},
+                    },
+                    "size": point(m.size_m, m.size_m, 0.01),
+                    "color": {"r": 0.1, "g": 0.1, "b": 0.1, "a": 1.0},
+                }],
+            })
+        })
+        .collect();
+    Some(json!({"deletions": [], "entities": entities}).to_string())
+}

@@ -83,6 +83,12 @@ pub const POSE_IN_FRAME_NAME: &str = "foxglove.PoseInFrame";
 pub const FRAME_TRANSFORMS_NAME: &str = "foxglove.FrameTransforms";
 /// Ground-truth velocity (`sadesim/Velocity.proto`).
 pub const VELOCITY_NAME: &str = "sadesim.Velocity";
+/// Onboard camera frames (JPEG), their calibration and depth (`16UC1`), protobuf too;
+/// declared only in recordings with cameras.
+pub const COMPRESSED_IMAGE_NAME: &str = "foxglove.CompressedImage";
+pub const CAMERA_CALIBRATION_NAME: &str = "foxglove.CameraCalibration";
+pub const RAW_IMAGE_NAME: &str = "foxglove.RawImage";
+pub const CAMERA_PROTOBUF: [&str; 3] = [COMPRESSED_IMAGE_NAME, CAMERA_CALIBRATION_NAME, RAW_IMAGE_NAME];
 /// The schemas encoded as protobuf.
 pub const PROTOBUF: [&str; 3] = [POSE_IN_FRAME_NAME, FRAME_TRANSFORMS_NAME, VELOCITY_NAME];
 

@@ -79,7 +79,7 @@ fn snapshot(index: u32, t: f64) -> DroneSnapshot {
 /// Runs `seconds` of windows through a recorder (plus the final run-ended window) and
 /// returns the file's bytes.
 fn record(dir: &TempDir, plan: &RunPlan, seconds: f64, compression: Compression, rates: RecordingRates) -> Vec<u8> {
-    let mut recorder = McapRecorder::create_with(&dir.0, plan, &world_of(plan), compression, rates).unwrap();
+    let mut recorder = McapRecorder::create_with(&dir.0, plan, &world_of(plan), compression, rates, &[]).unwrap();
     let windows = (seconds / WINDOW_S).round() as u32;
     for w in 1..=windows {
         let t = f64::from(w) * WINDOW_S;
@@ -447,7 +447,7 @@ fn an_unfinished_file_reads_up_to_its_last_chunk() {
     let dir = TempDir::new("killed");
     let plan = plan(20);
     let mut recorder =
-        McapRecorder::create_with(&dir.0, &plan, &world_of(&plan), Compression::Zstd, RecordingRates::default())
+        McapRecorder::create_with(&dir.0, &plan, &world_of(&plan), Compression::Zstd, RecordingRates::default(), &[])
             .unwrap();
     let path = dir.0.join(MCAP_FILE);
     // Write until the file has grown three times (the first chunk with schemas, channels
@@ -504,7 +504,8 @@ fn recording_cost() {
             (1..=200).map(|w| (0..100).map(|i| snapshot(i, f64::from(w) * WINDOW_S)).collect()).collect();
         let started = std::time::Instant::now();
         let mut recorder =
-            McapRecorder::create_with(&dir.0, &plan, &world_of(&plan), compression, RecordingRates::default()).unwrap();
+            McapRecorder::create_with(&dir.0, &plan, &world_of(&plan), compression, RecordingRates::default(), &[])
+                .unwrap();
         for w in 1..=2000u32 {
             let t = f64::from(w) * WINDOW_S;
             recorder.write_window(t, &windows[(w % 200) as usize], &[]).unwrap();
@@ -513,4 +514,102 @@ fn recording_cost() {
         let size = std::fs::metadata(dir.0.join(MCAP_FILE)).unwrap().len();
         println!("{compression:?}: {:.3} s, {:.1} MB", started.elapsed().as_secs_f64(), size as f64 / 1e6);
     }
+}
+
+/// A downward camera on drone 1, recorded with depth.
+fn down_camera() -> crate::record::CameraStream {
+    crate::record::CameraStream {
+        drone: 1,
+        camera: "down".into(),
+        width: 4,
+        height: 2,
+        k: [2.0, 0.0, 1.5, 0.0, 2.0, 0.5, 0.0, 0.0, 1.0],
+        p: [2.0, 0.0, 1.5, 0.0, 0.0, 2.0, 0.5, 0.0, 0.0, 0.0, 1.0, 0.0],
+        mount_offset_flu_m: [0.1, 0.0, -0.05],
+        // Optical z (forward) along body -z (down), optical x (right) along body -y.
+        mount_optical_to_flu_wxyz: [0.0, std::f64::consts::FRAC_1_SQRT_2, -std::f64::consts::FRAC_1_SQRT_2, 0.0],
+        depth: true,
+    }
+}
+
+#[test]
+fn camera_frames_are_recorded_with_their_calibration_depth_and_mount() {
+    use crate::record::CameraImage;
+    let plan = plan(2);
+    let dir = TempDir::new("mcap-cameras");
+    let camera = down_camera();
+    let mut recorder = McapRecorder::create_with(
+        &dir.0,
+        &plan,
+        &world_of(&plan),
+        Compression::Zstd,
+        RecordingRates::default(),
+        std::slice::from_ref(&camera),
+    )
+    .unwrap();
+    let jpeg = vec![0xFF, 0xD8, 0xFF, 0xE0, 1, 2, 3];
+    let depth: Vec<u8> = (0..8u16).flat_map(|mm| (1000 + mm).to_le_bytes()).collect();
+    for w in 1..=100u32 {
+        let t = f64::from(w) * WINDOW_S;
+        let drones: Vec<_> = (0..2).map(|i| snapshot(i, t)).collect();
+        recorder.write_window(t, &drones, &[]).unwrap();
+        if w % 50 == 0 {
+            let image = CameraImage { stream: 0, time_s: t, jpeg: jpeg.clone(), depth_mm_le: Some(depth.clone()) };
+            recorder.write_images(t, &[image]).unwrap();
+        }
+    }
+    let unknown = CameraImage { stream: 1, time_s: 1.0, jpeg: jpeg.clone(), depth_mm_le: None };
+    let err = recorder.write_images(1.0, &[unknown]).unwrap_err();
+    assert!(err.to_string().contains("no recorded camera 1"), "{err}");
+    recorder.finish().unwrap();
+    let messages = read_all(&std::fs::read(dir.0.join(MCAP_FILE)).unwrap());
+    let on = |topic: &str| messages.iter().filter(|m| m.topic == topic).collect::<Vec<_>>();
+
+    let images = on("/drones/a-1/cameras/down/image");
+    assert_eq!(images.len(), 2, "a frame at 0.5 s and 1.0 s");
+    assert_eq!(images[0].schema, "foxglove.CompressedImage");
+    assert_eq!(images[1].log_time, 1_000_000_000);
+    let image = &images[0].json;
+    assert_eq!((image["format"].as_str(), image["frame_id"].as_str()), (Some("jpeg"), Some("drone/a-1/down")));
+    assert_eq!(image["data"]["bytes"], 7);
+    assert_eq!(ns_to_s(&image["timestamp"]), 0.5);
+
+    let calibration = on("/drones/a-1/cameras/down/calibration");
+    assert_eq!(calibration.len(), 2);
+    let c = &calibration[0].json;
+    assert_eq!(calibration[0].schema, "foxglove.CameraCalibration");
+    assert_eq!((c["width"].as_u64(), c["height"].as_u64()), (Some(4), Some(2)));
+    assert_eq!(c["K"], serde_json::json!(camera.k));
+    assert_eq!(c["P"], serde_json::json!(camera.p));
+    assert_eq!(c["R"], serde_json::json!([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]));
+    assert_eq!(c.get("D"), None, "no distortion: D is empty");
+    assert_eq!(c["distortion_model"], "plumb_bob");
+
+    let depths = on("/drones/a-1/cameras/down/depth");
+    assert_eq!(depths.len(), 2);
+    let d = &depths[0].json;
+    assert_eq!(depths[0].schema, "foxglove.RawImage");
+    assert_eq!((d["encoding"].as_str(), d["step"].as_u64()), (Some("16UC1"), Some(8)));
+    assert_eq!(d["data"]["bytes"], 16);
+    assert_eq!(d["data"]["head"], serde_json::json!([0xE8, 0x03, 0xE9, 0x03]), "1000 mm, 1001 mm, little-endian");
+
+    // The mount: one transform at 0, the camera's optical frame under the drone's body.
+    let mount = on("/tf").into_iter().find(|m| m.log_time == 0).expect("the mounts at 0");
+    let t = &mount.json["transforms"][0];
+    assert_eq!(
+        (t["parent_frame_id"].as_str(), t["child_frame_id"].as_str()),
+        (Some("drone/a-1"), Some("drone/a-1/down"))
+    );
+    assert!(close(xyz(&t["translation"]), [0.1, 0.0, -0.05], 1e-3));
+    assert!((t["rotation"]["x"].as_f64().unwrap() - std::f64::consts::FRAC_1_SQRT_2).abs() < 1e-4);
+}
+
+#[test]
+fn a_recording_without_cameras_declares_no_image_schemas() {
+    let plan = plan(1);
+    let dir = TempDir::new("mcap-no-cameras");
+    let bytes = record(&dir, &plan, 0.1, Compression::None, RecordingRates::default());
+    let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+    let names: BTreeSet<_> = summary.schemas.values().map(|s| s.name.clone()).collect();
+    assert!(!names.contains("foxglove.CompressedImage") && !names.contains("foxglove.CameraCalibration"), "{names:?}");
 }
