@@ -136,6 +136,12 @@ pub trait RunObserver {
     fn stop_reason(&mut self) -> Option<String> {
         None
     }
+    /// The clock started at `started`: in a paced run (realtime, scaled), simulated time
+    /// `t` is due at `started + t / factor` (see [`crate::pacing::Pacer::due_after`]).
+    /// Called once, before the first window.
+    fn on_clock_started(&mut self, started: Instant) {
+        let _ = started;
+    }
 }
 
 /// How a run ended.
@@ -265,6 +271,7 @@ fn run_inner(
     let window = u64::from(plan.sync_window_steps);
     let pacer = Pacer::new(&plan.spec.clock());
     let started = Instant::now();
+    observer.on_clock_started(started);
     let mut all_ready = false;
     // The window being received; swapped into `state.drones` once every shard answered.
     let mut incoming: Vec<DroneSnapshot> = Vec::with_capacity(plan.drones.len());

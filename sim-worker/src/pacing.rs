@@ -36,6 +36,12 @@ impl Pacer {
         }
     }
 
+    /// When simulated time `sim_time_s` is due, as wall time since the clock started;
+    /// `None` when the run is not paced (as fast as possible: nothing is ever late).
+    pub fn due_after(&self, sim_time_s: f64) -> Option<Duration> {
+        self.factor.map(|f| Duration::from_secs_f64((sim_time_s / f).max(0.0)))
+    }
+
     pub fn is_paced(&self) -> bool {
         self.factor.is_some()
     }
@@ -56,8 +62,10 @@ mod tests {
     fn scaled_divides_and_afap_never_waits() {
         let p = Pacer::new(&Clock { mode: ClockMode::Scaled, factor: Some(4.0) });
         assert_eq!(p.wait_before(4.0, Duration::ZERO), Duration::from_secs(1));
+        assert_eq!(p.due_after(6.0), Some(Duration::from_millis(1500)));
         let p = Pacer::new(&Clock { mode: ClockMode::AsFastAsPossible, factor: None });
         assert_eq!(p.wait_before(1000.0, Duration::ZERO), Duration::ZERO);
+        assert_eq!(p.due_after(1000.0), None);
         assert!(!p.is_paced());
     }
 }

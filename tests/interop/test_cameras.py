@@ -257,3 +257,44 @@ def test_the_recorded_calibration_projects_the_pad_where_opencv_finds_it(hover):
         assert errors.max() < 1.5, f"corners {errors.round(2)} px off at {log_time} ns: {found} vs {expected}"
         checked += 1
     assert checked >= 50, checked
+
+
+def test_the_summary_counts_each_cameras_frames(hover):
+    finished_recording(hover)
+    (summary,) = hover.runs.glob("*/*/summary.json")
+    (tally,) = json.loads(summary.read_text())["cameras"]
+    assert (tally["drone"], tally["camera"]) == ("scouts-0", "down")
+    # 60 simulated seconds at 10 Hz, the first frame at the first window.
+    assert abs(tally["frames"] - 600) <= 1, tally
+    assert 0 <= tally["late"] <= tally["frames"]
+
+
+def test_frames_a_machine_cannot_render_in_time_are_counted_late(sadesim, tmp_path):
+    """A clock no renderer can keep up with (1000x: a 100 Hz camera is 100 000 frames per
+    wall second): the run still renders every frame, counts them late in summary.json, and
+    warns."""
+    doc = yaml.safe_load((REPO / "examples" / "quickstart.yaml").read_text())
+    spec = doc["spec"]
+    spec["duration"] = "3s"
+    spec["clock"] = {"mode": "scaled", "factor": 1000}
+    spec["rendering"] = {"enabled": True}
+    group = spec["fleet"][0]
+    group["count"] = 1
+    group["cameras"] = [{"name": "front", "widthPx": 320, "heightPx": 240, "horizontalFovDeg": 90, "rateHz": 100,
+                         "recordRateHz": 0}]
+    scenario = tmp_path / "fast.yaml"
+    scenario.write_text(yaml.safe_dump(doc))
+    done = subprocess.run([sadesim, "run", str(scenario), "--out", str(tmp_path / "runs"), "--no-mavlink"],
+                          capture_output=True, text=True, timeout=600, cwd=tmp_path,
+                          env={**os.environ, "SADESIM_CACHE_DIR": str(tmp_path / "cache")})
+    assert done.returncode == 0, done.stderr
+    (summary,) = (tmp_path / "runs").glob("*/*/summary.json")
+    (tally,) = json.loads(summary.read_text())["cameras"]
+    assert abs(tally["frames"] - 300) <= 1, tally
+    assert tally["late"] >= tally["frames"] // 2 and tally["maxLateS"] > 0.0, tally
+    assert f"{tally['late']} of {tally['frames']} camera frames were late" in done.stderr, done.stderr
+    # Not one frame went missing: recordRateHz 0 keeps them out of the recording only.
+    (mcap,) = (tmp_path / "runs").glob("*/*/recording.mcap")
+    with open(mcap, "rb") as f:
+        topics = {c.topic for c in make_reader(f).get_summary().channels.values()}
+    assert not any("/cameras/" in t for t in topics), topics

@@ -7,15 +7,23 @@
 //! frames, so the same seed gives the same images at any clock (a real-time run that
 //! cannot keep up runs late, as with any other load; the real-time factor shows it).
 //!
+//! In a paced run (realtime, scaled) a frame handed over more than one camera period after
+//! its simulated time was due on the wall clock is counted late, per camera, in
+//! `summary.json` (`cameras[].late`), and the run warns about it: frames are never dropped,
+//! a machine too slow for the cameras makes them late, and the count says so.
+//!
 //! Every n-th frame of a camera (its `recordRateHz`) also goes into `recording.mcap`, JPEG
 //! with its calibration, and depth as `16UC1` ([`Cameras::streams`], [`Cameras::on_window`]).
 
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use sadesim_crds::geo::LocalFrame;
+use sadesim_crds::outcome::summary::CameraTally;
 use sadesim_crds::plan::RunPlan;
 use sadesim_render::{CameraModel, CameraPose, CameraView, Frame, Marker, Mount, Renderer, Scene};
 use sadesim_world::World;
+use sim_worker::pacing::Pacer;
 use sim_worker::protocol::DroneSnapshot;
 use sim_worker::record::{CameraImage, CameraStream};
 use sim_worker::view::frames::{CameraFrame, FrameImage, FrameStore};
@@ -38,8 +46,15 @@ struct DroneCamera {
     record_every: Option<u64>,
     /// Its index in [`Cameras::streams`] when recorded.
     stream: Option<usize>,
+    /// The camera's period, simulated seconds (on the wall clock: divided by the clock's
+    /// factor).
+    period_s: f64,
     /// Frames taken so far.
     taken: u64,
+    /// Frames handed over more than a period after they were due (paced runs).
+    late: u64,
+    /// The latest a frame came after its due time, wall seconds.
+    max_late_s: f64,
 }
 
 /// The run's cameras, their renderer and the store pilots read.
@@ -51,6 +66,10 @@ pub struct Cameras {
     streams: Vec<CameraStream>,
     store: Arc<FrameStore>,
     window_s: f64,
+    /// When simulated times are due on the wall clock, from `clock_started`.
+    pacer: Pacer,
+    /// The coordinator's clock start ([`Cameras::clock_started`]); `None` before it.
+    clock_started: Option<Instant>,
     /// Reused between windows.
     due: Vec<usize>,
     views: Vec<CameraView>,
@@ -121,7 +140,10 @@ impl Cameras {
                         every_windows,
                         record_every,
                         stream: None,
+                        period_s: 1.0 / c.rate_hz,
                         taken: 0,
+                        late: 0,
+                        max_late_s: 0.0,
                     });
                 }
             }
@@ -138,6 +160,8 @@ impl Cameras {
             streams,
             store,
             window_s,
+            pacer: Pacer::new(&spec.clock()),
+            clock_started: None,
             due: Vec::new(),
             views: Vec::new(),
             frames: Vec::new(),
@@ -153,6 +177,25 @@ impl Cameras {
     /// The store the HTTP API serves.
     pub fn store(&self) -> Arc<FrameStore> {
         self.store.clone()
+    }
+
+    /// The coordinator's clock started at `started`: frames are due from then on.
+    pub fn clock_started(&mut self, started: Instant) {
+        self.clock_started = Some(started);
+    }
+
+    /// Frames and late frames per camera, for `summary.json`.
+    pub fn tallies(&self) -> Vec<CameraTally> {
+        self.cameras
+            .iter()
+            .map(|c| CameraTally {
+                drone: c.drone_name.clone(),
+                camera: c.camera.clone(),
+                frames: c.taken,
+                late: c.late,
+                max_late_s: c.max_late_s,
+            })
+            .collect()
     }
 
     /// The renderer's device (e.g. `llvmpipe (LLVM 15.0.6, 256 bits)`), for the log.
@@ -185,8 +228,17 @@ impl Cameras {
             return Ok(recorded);
         }
         self.renderer.render_into(&self.views, &mut self.frames).map_err(|e| format!("onboard cameras: {e}"))?;
+        // Handed over now (published below, microseconds later).
+        let behind = match (self.pacer.due_after(time_s), self.clock_started) {
+            (Some(due), Some(started)) => Some(behind_s(due, started.elapsed())),
+            _ => None,
+        };
         for (&i, frame) in self.due.iter().zip(self.frames.drain(..)) {
             let c = &mut self.cameras[i];
+            if let (Some(behind), Some(period)) = (behind, self.pacer.due_after(c.period_s)) {
+                c.max_late_s = c.max_late_s.max(behind);
+                c.late += u64::from(behind > period.as_secs_f64());
+            }
             if let (Some(every), Some(stream)) = (c.record_every, c.stream)
                 && c.taken.is_multiple_of(every)
             {
@@ -205,6 +257,12 @@ impl Cameras {
         }
         Ok(recorded)
     }
+}
+
+/// How far behind its due time a frame handed over at `elapsed` (wall time since the clock
+/// started) is, wall seconds; 0 when on time.
+fn behind_s(due: Duration, elapsed: Duration) -> f64 {
+    elapsed.saturating_sub(due).as_secs_f64()
 }
 
 /// How `recording.mcap` declares camera `c`: its calibration, and its mount as the optical
@@ -244,5 +302,18 @@ impl FrameImage for Rendered {
 
     fn depth_png_mm(&self) -> Option<Vec<u8>> {
         self.depth.then(|| self.frame.depth_png_mm().unwrap_or_default())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_is_behind_by_the_wall_time_past_its_due_time() {
+        let ms = Duration::from_millis;
+        assert_eq!(behind_s(ms(500), ms(400)), 0.0, "early: on time");
+        assert_eq!(behind_s(ms(500), ms(500)), 0.0);
+        assert!((behind_s(ms(500), ms(750)) - 0.25).abs() < 1e-12);
     }
 }

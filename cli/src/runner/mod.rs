@@ -353,6 +353,12 @@ impl RunObserver for Progress<'_> {
         Ok(())
     }
 
+    fn on_clock_started(&mut self, started: std::time::Instant) {
+        if let Some(cameras) = &mut self.cameras {
+            cameras.clock_started(started);
+        }
+    }
+
     fn stop_reason(&mut self) -> Option<String> {
         if self.pilot_error.is_some() {
             Some(pilot::PILOT_FAILED.into())
@@ -362,6 +368,20 @@ impl RunObserver for Progress<'_> {
             None
         }
     }
+}
+
+/// What to say when a paced run handed frames over late (`None` when none was).
+fn late_frames_warning(tallies: &[sadesim_crds::outcome::summary::CameraTally]) -> Option<String> {
+    let late: u64 = tallies.iter().map(|t| t.late).sum();
+    if late == 0 {
+        return None;
+    }
+    let frames: u64 = tallies.iter().map(|t| t.frames).sum();
+    let worst = tallies.iter().map(|t| t.max_late_s).fold(0.0, f64::max);
+    Some(format!(
+        "{late} of {frames} camera frames were late (handed to pilots more than one camera period after their simulated time; the latest {:.0} ms behind): this machine renders the cameras slower than the clock. Lower spec.fleet[].cameras rateHz or resolution, slow the clock (spec.clock), or give the renderer a GPU; summary.json lists them per camera",
+        worst * 1000.0
+    ))
 }
 
 /// The progress bar's position and message: sim time, real-time factor, fleet counts.
@@ -591,6 +611,13 @@ fn run_threads(
     };
     let outcome = coordinator::run(plan, &mut links, &mut WithAirspace::new(airspace, &mut progress), stop);
     let pilot_error = progress.pilot_error.take();
+    if let Some(cameras) = progress.cameras.take() {
+        let tallies = cameras.tallies();
+        if let Some(warning) = late_frames_warning(&tallies) {
+            eprintln!("warning: {warning}");
+        }
+        recorder.set_camera_tallies(tallies);
+    }
     drop(links);
     for t in threads {
         let _ = t.join();

@@ -113,6 +113,26 @@ pub struct RunSummary {
     /// CPU seconds the recorder spent writing each kind of file (measured on its thread).
     #[serde(default)]
     pub recording_cpu_s: RecordingCost,
+    /// Each onboard camera's frames, and how many were late (runs with cameras).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub cameras: Vec<CameraTally>,
+}
+
+/// One camera on one drone over a run.
+#[derive(Serialize, Deserialize, Clone, Debug, Default, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct CameraTally {
+    pub drone: String,
+    pub camera: String,
+    /// Frames rendered (and served), one per period of its `rateHz`.
+    pub frames: u64,
+    /// Frames of a paced run (realtime, scaled) handed to pilots more than one camera
+    /// period (on the wall clock: `1 / rateHz / factor`) after their simulated time was due
+    /// on the wall clock: a real camera would already have taken the next one. Always 0 in `asFastAsPossible` runs, which wait
+    /// for every frame.
+    pub late: u64,
+    /// The latest a frame came after its due time, wall seconds (0 when none was behind).
+    pub max_late_s: f64,
 }
 
 /// CPU seconds the recorder's threads spent on each kind of file over a run.

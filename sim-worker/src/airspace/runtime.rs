@@ -206,4 +206,8 @@ impl RunObserver for WithAirspace<'_> {
     fn stop_reason(&mut self) -> Option<String> {
         self.inner.stop_reason()
     }
+
+    fn on_clock_started(&mut self, started: std::time::Instant) {
+        self.inner.on_clock_started(started);
+    }
 }

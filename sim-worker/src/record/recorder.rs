@@ -136,6 +136,11 @@ impl Recorder {
         self.images.extend(images);
     }
 
+    /// Frames and late frames per onboard camera, written into `summary.json`.
+    pub fn set_camera_tallies(&mut self, tallies: Vec<sadesim_crds::outcome::summary::CameraTally>) {
+        self.summary.cameras = tallies;
+    }
+
     /// The verdict on the scenario's criteria, written into `summary.json` by [`Recorder::finish`].
     pub fn set_verdict(&mut self, verdict: RunVerdict) {
         self.summary.verdict = Some(verdict);
