@@ -9,6 +9,10 @@
 //! `sadesim bench --urban-wind` alternates runs with the urban wind field off
 //! (`environment.wind.urban.model: none`, the plain log profile) and on (the default).
 //!
+//! `sadesim bench --cameras 320x240` alternates runs without cameras and with one
+//! downward camera per drone at 10 Hz of that size (rendered on this machine's Vulkan
+//! device, lavapipe without a GPU, and recorded at 1 Hz), and reports what they cost.
+//!
 //! `sadesim bench --airspace` measures the airspace authority's HTTP API instead: the
 //! service with the Chicago case study's zone and fleet on 127.0.0.1, under an open-loop
 //! load of entry requests, `GET /zones` and `GET /events` (see [`airspace_load`]).
@@ -38,6 +42,7 @@ spec:
     gnss: {gnss}
   sharding: {dronesPerShard: {per_shard}}
   recording: {mcap: {mcap}, ulog: {ulog}}
+  rendering: {enabled: {rendering}}
   world:
     openAreas:
       - {name: flight area, center: {latitudeDeg: 41.8796, longitudeDeg: -87.6237}, radiusM: 700}
@@ -47,7 +52,7 @@ spec:
       airframe: x500
       operator: bench
       homes: {randomInArea: {center: {latitudeDeg: 41.8796, longitudeDeg: -87.6237}, radiusM: 400}}
-      altitude: {maxAglM: 120}
+      altitude: {maxAglM: 120}{cameras}
       mission:
         speedMps: 8
         items:
@@ -123,6 +128,8 @@ pub struct BenchResult {
     pub urban_gnss: bool,
     /// The urban wind field was on (the default; off: `urban: {model: none}`).
     pub urban_wind: bool,
+    /// Every drone carried a camera of this size.
+    pub cameras: Option<CameraSize>,
     /// Drone-steps (drones x physics steps) per wall second.
     pub drone_steps_per_s: f64,
     pub report: RunReport,
@@ -144,6 +151,32 @@ pub struct Variant {
     /// The urban wind field over the city's buildings (the default, `urban: {model:
     /// diagnostic}`); `false` flies the plain log profile (`urban: {model: none}`).
     pub urban_wind: bool,
+    /// One downward camera per drone of this size (width, height), 10 Hz, recorded at 1 Hz.
+    pub cameras: Option<CameraSize>,
+}
+
+/// The image size of `bench --cameras`, `WIDTHxHEIGHT` on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CameraSize {
+    pub width_px: u32,
+    pub height_px: u32,
+}
+
+impl std::str::FromStr for CameraSize {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        let bad = || format!("{s:?}: expected WIDTHxHEIGHT in pixels, e.g. 320x240");
+        let (w, h) = s.split_once('x').ok_or_else(bad)?;
+        let (width_px, height_px) = (w.parse().map_err(|_| bad())?, h.parse().map_err(|_| bad())?);
+        Ok(Self { width_px, height_px })
+    }
+}
+
+impl std::fmt::Display for CameraSize {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}x{}", self.width_px, self.height_px)
+    }
 }
 
 pub fn run(
@@ -153,12 +186,20 @@ pub fn run(
     out_root: std::path::PathBuf,
     variant: Variant,
 ) -> Result<BenchResult, RunError> {
-    let Variant { mavlink, recordings, urban_gnss, urban_wind } = variant;
+    let Variant { mavlink, recordings, urban_gnss, urban_wind, cameras } = variant;
+    let camera = cameras.map_or(String::new(), |c| {
+        format!(
+            "\n      cameras: [{{name: down, widthPx: {}, heightPx: {}, horizontalFovDeg: 90, rateHz: 10, mount: {{pitchDeg: 90}}}}]",
+            c.width_px, c.height_px
+        )
+    });
     // Urban GNSS under the built-in nominal GPS + Galileo constellation (no file).
     let gnss = if urban_gnss { "{rateHz: 5, constellation: {}}" } else { "{rateHz: 5}" };
     let text = SCENARIO
         .replace("{gnss}", gnss)
         .replace("{urban}", if urban_wind { "" } else { ", urban: {model: none}" })
+        .replace("{rendering}", &cameras.is_some().to_string())
+        .replace("{cameras}", &camera)
         .replace("{mcap}", &recordings.mcap.to_string())
         .replace("{ulog}", &recordings.ulog.to_string())
         .replace("{drones}", &drones.to_string())
@@ -184,6 +225,7 @@ pub fn run(
         recordings,
         urban_gnss,
         urban_wind,
+        cameras,
         report,
     })
 }

@@ -86,15 +86,17 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             recording,
             urban_gnss,
             urban_wind,
+            cameras,
             repeat,
             ..
         } => {
             use crate::bench::pairs::Comparison;
-            let comparison = match (mavlink, recording, urban_gnss, urban_wind) {
+            let comparison = match (mavlink, recording, urban_gnss, urban_wind, cameras) {
                 (true, ..) => Comparison::Mavlink,
                 (_, Some(set), ..) => Comparison::Recording(set),
-                (_, _, true, _) => Comparison::UrbanGnss,
-                (.., true) => Comparison::UrbanWind,
+                (_, _, true, ..) => Comparison::UrbanGnss,
+                (_, _, _, true, _) => Comparison::UrbanWind,
+                (.., Some(size)) => Comparison::Cameras(size),
                 _ => Comparison::None,
             };
             crate::bench::pairs::run_pairs(drones, seconds, drones_per_shard, comparison, repeat, out)

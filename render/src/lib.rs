@@ -28,6 +28,7 @@ pub mod error;
 pub mod frame;
 pub mod renderer;
 pub mod scene;
+pub mod tiles;
 
 pub use aruco::aruco_4x4_50;
 pub use camera::{

@@ -16,6 +16,7 @@ use crate::camera::CameraView;
 use crate::error::{RenderError, Result};
 use crate::frame::Frame;
 use crate::scene::{SKY_RGB, Scene, VERTEX_BYTES};
+use crate::tiles::{Tile, frustum_planes, visible_ranges};
 
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const DEPTH_OUT_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Float;
@@ -43,7 +44,16 @@ pub struct Renderer {
     view_layout: wgpu::BindGroupLayout,
     uniform_stride: u64,
     vertices: Option<wgpu::Buffer>,
-    vertex_count: u32,
+    /// The scene's tiles in the vertex buffer ([`crate::tiles`]): each view draws those in
+    /// its frustum.
+    tiles: Vec<Tile>,
+    /// Reused between views: the vertex ranges of the visible tiles.
+    ranges: Vec<std::ops::Range<u32>>,
+    /// Triangles drawn by the last call, every view's summed.
+    triangles_drawn: u64,
+    /// Draw only the tiles in each view's frustum (default); off draws every tile, for
+    /// comparisons.
+    culling: bool,
     /// The per-view uniforms (one stride each) and their bind group, with room for
     /// `.2` views.
     uniforms: Option<(wgpu::Buffer, wgpu::BindGroup, usize)>,
@@ -136,7 +146,10 @@ impl Renderer {
             view_layout,
             uniform_stride,
             vertices: None,
-            vertex_count: 0,
+            tiles: Vec::new(),
+            ranges: Vec::new(),
+            triangles_drawn: 0,
+            culling: true,
             uniforms: None,
             targets: HashMap::new(),
             readback: None,
@@ -151,14 +164,26 @@ impl Renderer {
         &self.adapter_name
     }
 
+    /// Triangles the last [`Renderer::render`] call drew, every view's summed: the tiles in
+    /// each view's frustum ([`crate::tiles`]), out of [`Scene::triangle_count`] per view.
+    pub fn triangles_drawn(&self) -> u64 {
+        self.triangles_drawn
+    }
+
+    /// Turns frustum culling on (the default) or off (every triangle drawn for every view:
+    /// the same images, slower; for comparisons and benchmarks).
+    pub fn set_culling(&mut self, on: bool) {
+        self.culling = on;
+    }
+
     /// Replaces the scene (e.g. markers added or moved); textures and buffers are kept.
     ///
     /// # Errors
     ///
     /// [`RenderError::Gpu`] when the device cannot hold the scene's vertices.
     pub fn set_scene(&mut self, scene: &Scene) -> Result<()> {
-        let bytes = scene.vertex_bytes();
-        self.vertex_count = scene.vertex_count();
+        let (bytes, tiles) = scene.tiled_vertex_bytes();
+        self.tiles = tiles;
         self.vertices = (!bytes.is_empty()).then(|| {
             let buffer = self.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("scene vertices"),
@@ -194,6 +219,7 @@ impl Renderer {
     ///
     /// As [`Renderer::render`]; `frames` then holds unspecified images.
     pub fn render_into(&mut self, views: &[CameraView], frames: &mut Vec<Frame>) -> Result<()> {
+        self.triangles_drawn = 0;
         frames.truncate(views.len());
         frames.resize_with(views.len(), Frame::default);
         let (mut rest, mut out) = (views, &mut frames[..]);
@@ -269,7 +295,21 @@ impl Renderer {
                         .map_err(|_| RenderError::Gpu(format!("{} views overflow the uniform offsets", views.len())))?;
                     pass.set_bind_group(0, bind_group, &[offset]);
                     pass.set_vertex_buffer(0, vertices.slice(..));
-                    pass.draw(0..self.vertex_count, 0..1);
+                    if self.culling {
+                        visible_ranges(&self.tiles, &frustum_planes(&views[i].clip_from_world()), &mut self.ranges);
+                    } else {
+                        self.ranges.clear();
+                        self.ranges.extend(
+                            self.tiles
+                                .first()
+                                .zip(self.tiles.last())
+                                .map(|(first, last)| first.first_vertex..last.first_vertex + last.vertex_count),
+                        );
+                    }
+                    for range in &self.ranges {
+                        self.triangles_drawn += u64::from(range.len() as u32 / 3);
+                        pass.draw(range.clone(), 0..1);
+                    }
                 }
             }
             for (texture, offset) in [(&targets.color, slot.color_offset), (&targets.depth_out, slot.depth_offset)] {

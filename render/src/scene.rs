@@ -141,20 +141,19 @@ impl Scene {
         self.vertices.len() / 3
     }
 
-    /// The vertex buffer's bytes: per vertex `x, y, z` f32 little-endian then `r, g, b, a`.
-    pub(crate) fn vertex_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(self.vertices.len() * VERTEX_BYTES as usize);
-        for (p, rgba) in &self.vertices {
+    /// The vertex buffer's bytes, sorted by tile ([`crate::tiles`]), and the tiles: per
+    /// vertex `x, y, z` f32 little-endian then `r, g, b, a`.
+    pub(crate) fn tiled_vertex_bytes(&self) -> (Vec<u8>, Vec<crate::tiles::Tile>) {
+        let mut vertices = self.vertices.clone();
+        let tiles = crate::tiles::tile(&mut vertices);
+        let mut out = Vec::with_capacity(vertices.len() * VERTEX_BYTES as usize);
+        for (p, rgba) in &vertices {
             for c in p {
                 out.extend_from_slice(&c.to_le_bytes());
             }
             out.extend_from_slice(rgba);
         }
-        out
-    }
-
-    pub(crate) fn vertex_count(&self) -> u32 {
-        u32::try_from(self.vertices.len()).unwrap_or(u32::MAX)
+        (out, tiles)
     }
 
     fn add_mesh(&mut self, mesh: &TriangleMesh, albedo: impl Fn([f64; 3]) -> [f64; 3]) {

@@ -231,3 +231,40 @@ fn the_renderer_can_move_to_a_sensor_thread() {
     send::<Renderer>();
     send::<Frame>();
 }
+
+#[test]
+fn culling_draws_the_same_images_from_far_fewer_triangles() {
+    use common::BoxBuilding;
+    // A grid of 20 m blocks every 40 m over the whole 400 m world: 100 buildings in 16 tiles.
+    let blocks: Vec<BoxBuilding> = (0..10)
+        .flat_map(|i| (0..10).map(move |j| (f64::from(i) * 40.0 - 190.0, f64::from(j) * 40.0 - 190.0)))
+        .map(|(w, s)| BoxBuilding { west_m: w, east_m: w + 20.0, south_m: s, north_m: s + 20.0, height_m: 12.0 })
+        .collect();
+    let scene = Scene::from_world(&world_of(&blocks));
+    let model = CameraModel::new(160, 120, 90.0).expect("model");
+    let views = [
+        // Straight down from 40 m over a corner of four blocks: a few tiles.
+        CameraView {
+            model,
+            pose: CameraPose::looking_at([-150.0, -150.0, 40.0], [-150.0, -150.0, 0.0]).expect("pose"),
+        },
+        // Across the whole city from its south-west corner: most tiles.
+        CameraView { model, pose: CameraPose::looking_at([-210.0, -210.0, 30.0], [0.0, 0.0, 0.0]).expect("pose") },
+    ];
+    let mut renderer = Renderer::new(&scene).expect("adapter");
+    let culled: Vec<Frame> = views.iter().map(|v| renderer.render(&[*v]).expect("renders").remove(0)).collect();
+    let down_drawn = {
+        renderer.render(&views[..1]).expect("renders");
+        renderer.triangles_drawn()
+    };
+    renderer.set_culling(false);
+    let everything = renderer.render(&views).expect("renders");
+    assert_eq!(renderer.triangles_drawn(), 2 * scene.triangle_count() as u64);
+    assert_eq!(culled, everything, "culling changes no pixel");
+    assert!(
+        down_drawn * 3 < scene.triangle_count() as u64,
+        "the downward view drew {down_drawn} of {} triangles",
+        scene.triangle_count()
+    );
+    assert!(culled[0].depth_at(80, 60).is_some_and(|d| d > 0.0), "it sees the ground or a roof");
+}

@@ -19,6 +19,8 @@ pub enum Comparison {
     /// The plain log wind profile (`urban: {model: none}`) / the urban wind field (the
     /// default).
     UrbanWind,
+    /// No cameras / one downward camera of this size per drone at 10 Hz.
+    Cameras(super::CameraSize),
 }
 use crate::cli::{CliError, Outcome, count};
 
@@ -55,10 +57,12 @@ pub fn run_pairs(
             if with_mavlink { " (MAVLink on)" } else { "" },
             if recording.is_some() { format!(" ({})", recordings.label()) } else { String::new() },
             if variant.urban_gnss { " (urban GNSS)" } else { "" },
-            match (comparison, variant.urban_wind) {
-                (Comparison::UrbanWind, true) => " (urban wind field)",
-                (Comparison::UrbanWind, false) => " (urban wind off)",
-                _ => "",
+            match (comparison, variant.urban_wind, variant.cameras) {
+                (Comparison::UrbanWind, true, _) => " (urban wind field)".to_string(),
+                (Comparison::UrbanWind, false, _) => " (urban wind off)".to_string(),
+                (Comparison::Cameras(_), _, Some(c)) => format!(" (a {c} camera per drone at 10 Hz)"),
+                (Comparison::Cameras(_), _, None) => " (no cameras)".to_string(),
+                _ => String::new(),
             },
             count(result.drones as usize, "drone"),
             count(result.shards as usize, "shard"),
@@ -80,6 +84,14 @@ pub fn run_pairs(
                 cost.ulog / drone_seconds(&result) * 1e6,
             )?;
         }
+        if let Some(tallies) = Some(&result.report.summary.cameras).filter(|t| !t.is_empty()) {
+            let frames: u64 = tallies.iter().map(|t| t.frames).sum();
+            writeln!(
+                out,
+                "  cameras: {frames} frames rendered, {:.1} frames per wall second",
+                frames as f64 / result.wall_time_s.max(1e-9)
+            )?;
+        }
         results.push(result);
     }
     let _ = std::fs::remove_dir_all(&root);
@@ -89,12 +101,14 @@ pub fn run_pairs(
         Comparison::Recording(set) => Some(format!("Recording cost ({})", set.recordings().label())),
         Comparison::UrbanGnss => Some("Urban GNSS cost".to_string()),
         Comparison::UrbanWind => Some("Urban wind cost".to_string()),
+        Comparison::Cameras(c) => Some(format!("Camera cost ({c} at 10 Hz per drone)")),
         Comparison::None => None,
     };
     let is_on = |r: &BenchResult| match comparison {
         Comparison::Mavlink => r.mavlink,
         Comparison::UrbanGnss => r.urban_gnss,
         Comparison::UrbanWind => r.urban_wind,
+        Comparison::Cameras(_) => r.cameras.is_some(),
         _ => r.recordings != Recordings::NONE,
     };
     if let Some(label) = label {
@@ -149,7 +163,8 @@ pub fn run_pairs(
 /// (off, on) pairs, every other one "on" first; otherwise one run with MAVLink off and
 /// every recording.
 fn schedule(comparison: Comparison, repeat: u32) -> Vec<Variant> {
-    let base = Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true };
+    let base =
+        Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true, cameras: None };
     // The (off, on) variants a comparison alternates; `None` for a single run.
     let compared: Option<[Variant; 2]> = match comparison {
         Comparison::Mavlink => Some([base, Variant { mavlink: true, ..base }]),
@@ -158,6 +173,7 @@ fn schedule(comparison: Comparison, repeat: u32) -> Vec<Variant> {
         }
         Comparison::UrbanGnss => Some([base, Variant { urban_gnss: true, ..base }]),
         Comparison::UrbanWind => Some([Variant { urban_wind: false, ..base }, base]),
+        Comparison::Cameras(size) => Some([base, Variant { cameras: Some(size), ..base }]),
         Comparison::None => None,
     };
     match compared {
@@ -178,7 +194,8 @@ mod tests {
     use super::*;
     use crate::bench::RecordingSet;
 
-    const BASE: Variant = Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true };
+    const BASE: Variant =
+        Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true, cameras: None };
 
     #[test]
     fn mavlink_pairs_alternate_which_variant_runs_first() {
@@ -204,6 +221,16 @@ mod tests {
         // The benchmark flies in the field by default: "off" is the plain profile.
         let off = Variant { urban_wind: false, ..BASE };
         assert_eq!(schedule(Comparison::UrbanWind, 3), vec![off, BASE, BASE, off, off, BASE]);
+    }
+
+    #[test]
+    fn camera_pairs_add_one_camera_per_drone() {
+        let size: crate::bench::CameraSize = "160x120".parse().unwrap();
+        assert_eq!((size.width_px, size.height_px), (160, 120));
+        let on = Variant { cameras: Some(size), ..BASE };
+        assert_eq!(schedule(Comparison::Cameras(size), 2), vec![BASE, on, on, BASE]);
+        let bad = "160".parse::<crate::bench::CameraSize>().unwrap_err();
+        assert!(bad.contains("expected WIDTHxHEIGHT"), "{bad}");
     }
 
     #[test]

@@ -71,6 +71,11 @@ pub enum Command {
         /// variant's drone-steps/s and their ratio.
         #[arg(long, conflicts_with_all = ["mavlink", "recording", "urban_gnss", "airspace"])]
         urban_wind: bool,
+        /// Also run with one downward camera per drone, WIDTHxHEIGHT pixels (e.g. 320x240) at
+        /// 10 Hz, rendered on this machine's Vulkan device (Mesa's lavapipe without a GPU)
+        /// and recorded at 1 Hz, and report what the cameras cost against the run without.
+        #[arg(long, value_name = "WIDTHxHEIGHT", conflicts_with_all = ["mavlink", "recording", "urban_gnss", "urban_wind", "airspace"])]
+        cameras: Option<crate::bench::CameraSize>,
         /// Also run with `spec.recording` off (no recording.mcap, no ULogs) and report the CPU
         /// cost of the recordings as a ratio of the run without: `all` (default) turns both on
         /// in the other runs, `mcap` or `ulog` one of them.
