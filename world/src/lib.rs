@@ -35,6 +35,7 @@ mod inputs;
 mod map;
 pub mod mesh;
 pub mod osm;
+pub mod protobuf;
 mod stats;
 mod terrain;
 

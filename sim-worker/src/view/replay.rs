@@ -11,6 +11,7 @@ use std::collections::HashMap;
 use serde::Serialize;
 
 use super::feed::{Pose, encode_frame, state_letter};
+use sadesim_world::protobuf::{Bad, Fields, Value};
 
 /// Why a recording cannot be replayed.
 #[derive(Debug, thiserror::Error)]
@@ -137,18 +138,21 @@ struct Status {
 
 /// `foxglove.PoseInFrame` (protobuf): `pose` (3) = `Pose { position (1): Vector3 {x 1, y 2,
 /// z 3}, orientation (2): Quaternion {x 1, y 2, z 3, w 4} }`; doubles, proto3 defaults (an
-/// absent component is 0, an absent orientation the identity).
+/// absent component is 0, an absent orientation the identity). Errors name the byte in the
+/// message (in the embedded message for errors inside one).
 fn decode_pose(data: &[u8]) -> Result<([f64; 3], [f64; 4]), String> {
     let mut position = [0.0; 3];
     let mut orientation = [0.0, 0.0, 0.0, 1.0]; // x, y, z, w
-    for field in Fields::new(data) {
-        if let (3, Wire::Bytes(pose)) = field? {
-            for field in Fields::new(pose) {
-                match field? {
-                    (1, Wire::Bytes(v)) => read_doubles(v, &mut position)?,
-                    (2, Wire::Bytes(q)) => {
+    let mut fields = Fields::new(data);
+    while let Some(field) = fields.next().map_err(|e| e.to_string())? {
+        if let (3, Value::Bytes(pose)) = field {
+            let mut pose = Fields::new(pose);
+            while let Some(field) = pose.next().map_err(|e| format!("pose: {e}"))? {
+                match field {
+                    (1, Value::Bytes(v)) => read_doubles(v, &mut position).map_err(|e| format!("position: {e}"))?,
+                    (2, Value::Bytes(q)) => {
                         orientation = [0.0; 4];
-                        read_doubles(q, &mut orientation)?;
+                        read_doubles(q, &mut orientation).map_err(|e| format!("orientation: {e}"))?;
                     }
                     _ => {}
                 }
@@ -160,92 +164,16 @@ fn decode_pose(data: &[u8]) -> Result<([f64; 3], [f64; 4]), String> {
 }
 
 /// Doubles of fields 1..=N of a message into `out[0..N]`.
-fn read_doubles(data: &[u8], out: &mut [f64]) -> Result<(), String> {
-    for field in Fields::new(data) {
-        if let (n @ 1.., Wire::Fixed64(bits)) = field?
+fn read_doubles(data: &[u8], out: &mut [f64]) -> Result<(), Bad> {
+    let mut fields = Fields::new(data);
+    while let Some(field) = fields.next()? {
+        if let (n @ 1.., Value::Fixed64(bits)) = field
             && let Some(slot) = out.get_mut(n as usize - 1)
         {
             *slot = f64::from_bits(bits);
         }
     }
     Ok(())
-}
-
-/// A protobuf field's value.
-enum Wire<'a> {
-    Varint,
-    Fixed64(u64),
-    Bytes(&'a [u8]),
-    Fixed32,
-}
-
-/// The fields of one protobuf message, each checked against the buffer's end.
-struct Fields<'a> {
-    data: &'a [u8],
-    at: usize,
-    failed: bool,
-}
-
-impl<'a> Fields<'a> {
-    fn new(data: &'a [u8]) -> Self {
-        Self { data, at: 0, failed: false }
-    }
-
-    fn varint(&mut self) -> Result<u64, String> {
-        let mut v = 0u64;
-        for shift in (0..64).step_by(7) {
-            let &byte = self.data.get(self.at).ok_or_else(|| format!("truncated varint at byte {}", self.at))?;
-            self.at += 1;
-            v |= u64::from(byte & 0x7f) << shift;
-            if byte < 0x80 {
-                return Ok(v);
-            }
-        }
-        Err(format!("varint longer than 10 bytes at byte {}", self.at))
-    }
-
-    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
-        let end = self.at.checked_add(n).filter(|&e| e <= self.data.len());
-        let end = end.ok_or_else(|| format!("a {n}-byte field at byte {} runs past the message's end", self.at))?;
-        let slice = &self.data[self.at..end];
-        self.at = end;
-        Ok(slice)
-    }
-
-    fn field(&mut self) -> Result<(u32, Wire<'a>), String> {
-        let key = self.varint()?;
-        let number = (key >> 3) as u32;
-        let value = match key & 7 {
-            0 => {
-                self.varint()?;
-                Wire::Varint
-            }
-            1 => Wire::Fixed64(u64::from_le_bytes(self.take(8)?.try_into().expect("8 bytes"))),
-            2 => {
-                let len = self.varint()? as usize;
-                Wire::Bytes(self.take(len)?)
-            }
-            5 => {
-                self.take(4)?;
-                Wire::Fixed32
-            }
-            other => return Err(format!("wire type {other} at byte {} is not protobuf", self.at)),
-        };
-        Ok((number, value))
-    }
-}
-
-impl<'a> Iterator for Fields<'a> {
-    type Item = Result<(u32, Wire<'a>), String>;
-
-    fn next(&mut self) -> Option<Self::Item> {
-        if self.failed || self.at >= self.data.len() {
-            return None;
-        }
-        let field = self.field();
-        self.failed = field.is_err();
-        Some(field)
-    }
 }
 
 #[cfg(test)]
@@ -271,7 +199,11 @@ mod tests {
         messages::pose(&mut bytes, 1, &DroneSnapshot::climbing(0, 1.0, 1.0));
         bytes.truncate(bytes.len() - 3);
         let e = decode_pose(&bytes).unwrap_err();
-        assert!(e.contains("runs past the message's end"), "{e}");
+        // The pose (field 3) after the timestamp and frame id claims more bytes than remain.
+        assert!(
+            e.starts_with("field 3: length ") && e.contains("runs past the message's") && e.contains(" at byte "),
+            "{e}"
+        );
     }
 
     #[test]

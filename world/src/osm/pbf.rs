@@ -16,6 +16,8 @@
 use std::collections::HashMap;
 use std::io::Read;
 
+use crate::protobuf::{Bad, Cursor, Fields, Value, bad};
+
 /// Largest `BlobHeader`, bytes (the format's limit).
 const MAX_HEADER_BYTES: usize = 64 * 1024;
 /// Largest blob, compressed or not, bytes (the format's limit).
@@ -114,7 +116,7 @@ pub fn read(bytes: &[u8], keep_tag: &dyn Fn(&str) -> bool) -> Result<RawOsm, Pbf
         let header = bytes.get(pos..pos + header_len).ok_or_else(|| {
             malformed(format!("truncated: the blob header needs {header_len} bytes, {} remain", bytes.len() - pos))
         })?;
-        let (kind, data_size) = blob_header(header).map_err(|e| e.at(pos as u64, None))?;
+        let (kind, data_size) = blob_header(header).map_err(|e| placed(e, pos as u64, None))?;
         pos += header_len;
         if data_size > MAX_BLOB_BYTES {
             return Err(malformed(format!("blob of {data_size} bytes is over the format's {MAX_BLOB_BYTES}")));
@@ -127,7 +129,7 @@ pub fn read(bytes: &[u8], keep_tag: &dyn Fn(&str) -> bool) -> Result<RawOsm, Pbf
         match (blob_index, kind.as_str()) {
             (0, "OSMHeader") => {
                 let payload = blob_payload(blob, blob_at)?;
-                header_block(&payload, &mut out).map_err(|e| e.at(blob_at, Some(())))?;
+                header_block(&payload, &mut out).map_err(|e| placed(e, blob_at, Some(())))?;
             }
             (0, other) => {
                 return Err(malformed(format!(
@@ -136,7 +138,7 @@ pub fn read(bytes: &[u8], keep_tag: &dyn Fn(&str) -> bool) -> Result<RawOsm, Pbf
             }
             (_, "OSMData") => {
                 let payload = blob_payload(blob, blob_at)?;
-                primitive_block(&payload, keep_tag, &mut out).map_err(|e| e.at(blob_at, Some(())))?;
+                primitive_block(&payload, keep_tag, &mut out).map_err(|e| placed(e, blob_at, Some(())))?;
             }
             // Unknown blob types are skipped, as the format asks.
             _ => {}
@@ -149,26 +151,14 @@ pub fn read(bytes: &[u8], keep_tag: &dyn Fn(&str) -> bool) -> Result<RawOsm, Pbf
     Ok(out)
 }
 
-/// A decoding error inside one message, before it is placed in the file.
-#[derive(Debug)]
-struct Bad {
-    offset: usize,
-    message: String,
-}
-
-impl Bad {
-    /// Places the error: `base` is where the message starts in the file, or the blob's
-    /// first byte with `payload` set (then `offset` is inside the decompressed payload).
-    fn at(self, base: u64, payload: Option<()>) -> PbfError {
-        match payload {
-            None => PbfError::Malformed { offset: base + self.offset as u64, inner: None, message: self.message },
-            Some(()) => PbfError::Malformed { offset: base, inner: Some(self.offset as u64), message: self.message },
-        }
+/// Places a decoding error inside one message in the file: `base` is where the message
+/// starts in the file, or the blob's first byte with `payload` set (then the offset is
+/// inside the decompressed payload).
+fn placed(e: Bad, base: u64, payload: Option<()>) -> PbfError {
+    match payload {
+        None => PbfError::Malformed { offset: base + e.offset as u64, inner: None, message: e.message },
+        Some(()) => PbfError::Malformed { offset: base, inner: Some(e.offset as u64), message: e.message },
     }
-}
-
-fn bad(offset: usize, message: impl Into<String>) -> Bad {
-    Bad { offset, message: message.into() }
 }
 
 /// The payload of a `Blob`: `raw`, or `zlib_data` inflated to `raw_size` bytes.
@@ -177,7 +167,7 @@ fn blob_payload(blob: &[u8], at: u64) -> Result<Vec<u8>, PbfError> {
     let mut zlib: Option<&[u8]> = None;
     let mut raw_size: Option<usize> = None;
     let mut fields = Fields::new(blob);
-    while let Some((field, value)) = fields.next().map_err(|e| e.at(at, None))? {
+    while let Some((field, value)) = fields.next().map_err(|e| placed(e, at, None))? {
         match (field, value) {
             (1, Value::Bytes(b)) => raw = Some(b),
             (2, Value::Varint(n)) => raw_size = Some(n as usize),
@@ -495,80 +485,4 @@ fn packed(value: Value, out: &mut Vec<u64>, at: usize) -> Result<(), Bad> {
 
 fn zigzag(n: u64) -> i64 {
     ((n >> 1) as i64) ^ -((n & 1) as i64)
-}
-
-/// One field's value.
-#[derive(Clone, Copy, Debug)]
-enum Value<'a> {
-    Varint(u64),
-    Bytes(&'a [u8]),
-    Fixed,
-}
-
-struct Cursor<'a> {
-    bytes: &'a [u8],
-    pos: usize,
-}
-
-impl Cursor<'_> {
-    fn varint(&mut self) -> Result<u64, Bad> {
-        let start = self.pos;
-        let mut value = 0u64;
-        for shift in (0..64).step_by(7) {
-            let byte = *self.bytes.get(self.pos).ok_or_else(|| bad(start, "truncated varint"))?;
-            self.pos += 1;
-            value |= u64::from(byte & 0x7f) << shift;
-            if byte & 0x80 == 0 {
-                return Ok(value);
-            }
-        }
-        Err(bad(start, "varint longer than 10 bytes"))
-    }
-}
-
-/// The fields of one message, in order.
-struct Fields<'a> {
-    cursor: Cursor<'a>,
-    /// Offset of the last field's value (for errors and nested offsets).
-    last: usize,
-}
-
-impl<'a> Fields<'a> {
-    fn new(bytes: &'a [u8]) -> Self {
-        Self { cursor: Cursor { bytes, pos: 0 }, last: 0 }
-    }
-
-    fn next(&mut self) -> Result<Option<(u32, Value<'a>)>, Bad> {
-        let c = &mut self.cursor;
-        if c.pos >= c.bytes.len() {
-            return Ok(None);
-        }
-        let at = c.pos;
-        let key = c.varint()?;
-        let field = (key >> 3) as u32;
-        let value = match key & 7 {
-            0 => Value::Varint(c.varint()?),
-            1 | 5 => {
-                let width = if key & 7 == 1 { 8 } else { 4 };
-                if c.pos + width > c.bytes.len() {
-                    return Err(bad(at, format!("field {field}: truncated {width}-byte value")));
-                }
-                c.pos += width;
-                Value::Fixed
-            }
-            2 => {
-                let len = c.varint()? as usize;
-                let start = c.pos;
-                let end = start.checked_add(len).filter(|&e| e <= c.bytes.len()).ok_or_else(|| {
-                    bad(at, format!("field {field}: length {len} runs past the message's {} bytes", c.bytes.len()))
-                })?;
-                c.pos = end;
-                self.last = start;
-                return Ok(Some((field, Value::Bytes(&c.bytes[start..end]))));
-            }
-            wire => return Err(bad(at, format!("field {field}: wire type {wire} (groups or invalid)"))),
-        };
-        self.last = at;
-        Ok(Some((field, value)))
-    }
 }
