@@ -208,11 +208,8 @@ fn fleet_file_gives_each_drone_its_camera_urls_once_the_frame_server_listens() {
     assert!(fleet.drones.iter().all(|d| d.cameras.is_empty()));
     assert!(!serde_json::to_string(&fleet).unwrap().contains("cameras"), "no frame server, no cameras field");
     add_camera_urls(&mut fleet, &plan, "http://127.0.0.1:8091/cameras/");
-    let urls: Vec<Vec<(&str, &str)>> = fleet
-        .drones
-        .iter()
-        .map(|d| d.cameras.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect())
-        .collect();
+    let urls: Vec<Vec<(&str, &str)>> =
+        fleet.drones.iter().map(|d| d.cameras.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect()).collect();
     let first = &fleet.drones[0].name;
     assert_eq!(urls[0], [("down", format!("http://127.0.0.1:8091/cameras/{first}/down/").as_str())]);
     assert_eq!(urls[1].len(), 1);

@@ -400,7 +400,8 @@ mod tests {
         assert!(launch.env.iter().all(|(k, _)| k != CAMERAS_URL_ENV), "no frame server, no variable");
         launch.set_cameras_url("http://127.0.0.1:8091/cameras");
         launch.set_cameras_url("http://127.0.0.1:8092/cameras");
-        let urls: Vec<&str> = launch.env.iter().filter(|(k, _)| k == CAMERAS_URL_ENV).map(|(_, v)| v.as_str()).collect();
+        let urls: Vec<&str> =
+            launch.env.iter().filter(|(k, _)| k == CAMERAS_URL_ENV).map(|(_, v)| v.as_str()).collect();
         assert_eq!(urls, ["http://127.0.0.1:8092/cameras"]);
     }
 

@@ -152,8 +152,7 @@ fn a_fixed_bias_shifts_every_fix_of_both_receivers_by_exactly_the_bias() {
         Arc::new(RunSky::new(c, sadesim_crds::geo::GeoPoint::new(60.17, 24.94, 10.0), epoch, 10.0))
     };
     let world = Arc::new(World::of_buildings(600.0, vec![]));
-    let ranging = |config| {
-        fixes(&mut GnssReceiver::ranging(config, 4, 0, sky.clone(), world.clone()), 10.0, 0.001, &OPEN_SKY)
-    };
+    let ranging =
+        |config| fixes(&mut GnssReceiver::ranging(config, 4, 0, sky.clone(), world.clone()), 10.0, 0.001, &OPEN_SKY);
     assert_shifted(ranging(plain), ranging(biased));
 }
