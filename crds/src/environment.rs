@@ -139,10 +139,34 @@ pub struct Gnss {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(range(min = 0.0, max = 10.0))]
     pub bias_walk_m_per_sqrt_s: Option<f64>,
+    /// A constant position error added to every fix, metres, world ENU: a datum error, a
+    /// spoofed or multipath-biased fix. A drone flying by GNSS alone then misses its target
+    /// by exactly this. Applies to both receivers. Default none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bias: Option<GnssBias>,
     /// Scheduled outages.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 256))]
     pub dropouts: Vec<GnssDropout>,
+}
+
+/// A constant GNSS position bias, metres, world ENU (each -100..100, default 0): the fix
+/// reports the drone `eastM` east, `northM` north and `upM` above where it is.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct GnssBias {
+    /// East error, metres (-100..100).
+    #[serde(default)]
+    #[schemars(range(min = -100.0, max = 100.0))]
+    pub east_m: f64,
+    /// North error, metres (-100..100).
+    #[serde(default)]
+    #[schemars(range(min = -100.0, max = 100.0))]
+    pub north_m: f64,
+    /// Up error, metres (-100..100).
+    #[serde(default)]
+    #[schemars(range(min = -100.0, max = 100.0))]
+    pub up_m: f64,
 }
 
 /// The GNSS constellation of a run: which orbit file, which instant is the run's t = 0.

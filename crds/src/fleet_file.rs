@@ -1,6 +1,8 @@
 //! The fleet file (`fleet.json`, path in `SADESIM_FLEET`): everything a pilot needs to find
 //! and fly its drones. Pilots in any language read it; keep it plain JSON and stable.
 
+use std::collections::BTreeMap;
+
 use serde::{Deserialize, Serialize};
 
 use crate::fleet::Role;
@@ -49,6 +51,11 @@ pub struct FleetDrone {
     pub min_altitude_agl_m: Option<f64>,
     /// Flown by a scripted mission (the pilot should leave it alone).
     pub scripted: bool,
+    /// The drone's onboard cameras (`spec.fleet[].cameras`) by name: the base URL of each
+    /// camera's frames, ending in `/` (append `latest.jpg`, `next.jpg?after=T`, ...). Absent
+    /// when the run serves no camera frames.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub cameras: BTreeMap<String, String>,
 }
 
 /// Ways to reach a drone over MAVLink, in MAVSDK/pymavlink URL syntax.

@@ -1,6 +1,8 @@
 //! The fleet file a pilot reads (`SADESIM_FLEET`), built from a plan and an addressing
 //! mode: where the pilot runs decides which host names and ports it must use.
 
+use std::collections::BTreeMap;
+
 use sadesim_crds::fleet::Credential;
 use sadesim_crds::fleet_file::{FLEET_FILE_VERSION, FleetDrone, FleetFile, MavlinkUrls};
 use sadesim_crds::plan::RunPlan;
@@ -70,6 +72,7 @@ pub fn fleet_file(plan: &RunPlan, addressing: &Addressing) -> FleetFile {
                 max_altitude_agl_m: group.altitude.max_agl_m,
                 min_altitude_agl_m: group.altitude.min_agl_m,
                 scripted: d.scripted,
+                cameras: BTreeMap::new(),
             }
         })
         .collect();
@@ -81,6 +84,18 @@ pub fn fleet_file(plan: &RunPlan, addressing: &Addressing) -> FleetFile {
         gcs_urls,
         drones,
         zones: zones_geojson(&plan.spec.zones),
+    }
+}
+
+/// Fills each drone's `cameras` with the base URL of its cameras' frames under
+/// `cameras_url`, the frame server's `/cameras` (e.g. `http://127.0.0.1:8090/cameras`): the
+/// server's address is known only once it listens, so this comes after [`fleet_file`].
+pub fn add_camera_urls(fleet: &mut FleetFile, plan: &RunPlan, cameras_url: &str) {
+    let base = cameras_url.trim_end_matches('/');
+    for (drone, planned) in fleet.drones.iter_mut().zip(&plan.drones) {
+        let group = &plan.spec.fleet[planned.group_index as usize];
+        drone.cameras =
+            group.cameras.iter().map(|c| (c.name.clone(), format!("{base}/{}/{}/", drone.name, c.name))).collect();
     }
 }
 

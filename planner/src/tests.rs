@@ -183,6 +183,41 @@ fn fleet_file_gives_urls_credentials_and_closed_zone_rings() {
     assert_eq!(cluster.airspace_url, "http://test-run-airspace.default.svc:8480");
 }
 
+#[test]
+fn fleet_file_gives_each_drone_its_camera_urls_once_the_frame_server_listens() {
+    use sadesim_crds::camera::{Camera, CameraMount};
+    let down = Camera {
+        name: "down".into(),
+        width_px: 320,
+        height_px: 240,
+        horizontal_fov_deg: 90.0,
+        rate_hz: 10.0,
+        mount: CameraMount { pitch_deg: 90.0, ..CameraMount::default() },
+        depth: false,
+    };
+    let run = RunBuilder::test()
+        .with_drones(2)
+        .with_group("no-camera", 1)
+        .with(|r| {
+            r.spec.fleet[0].cameras = vec![down];
+            r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true, gpus: None });
+        })
+        .build();
+    let plan = plan(&run).unwrap();
+    let mut fleet = fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
+    assert!(fleet.drones.iter().all(|d| d.cameras.is_empty()));
+    assert!(!serde_json::to_string(&fleet).unwrap().contains("cameras"), "no frame server, no cameras field");
+    add_camera_urls(&mut fleet, &plan, "http://127.0.0.1:8091/cameras/");
+    let urls: Vec<Vec<(&str, &str)>> =
+        fleet.drones.iter().map(|d| d.cameras.iter().map(|(k, v)| (k.as_str(), v.as_str())).collect()).collect();
+    let first = &fleet.drones[0].name;
+    assert_eq!(urls[0], [("down", format!("http://127.0.0.1:8091/cameras/{first}/down/").as_str())]);
+    assert_eq!(urls[1].len(), 1);
+    assert!(urls[2].is_empty(), "the group without cameras gets none");
+    let json = serde_json::to_value(&fleet).unwrap();
+    assert_eq!(json["drones"][0]["cameras"]["down"], format!("http://127.0.0.1:8091/cameras/{first}/down/"));
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
     #[test]

@@ -417,7 +417,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         .find(|d| !d.exists())
         .expect("some suffix is free");
     // Everything about the pilot that can be wrong is found before the run starts.
-    let launch = match (&plan.spec.pilot, options.start_pilot) {
+    let mut launch = match (&plan.spec.pilot, options.start_pilot) {
         (Some(p), true) => Some(pilot::Launch::prepare(&plan, p, options.scenario.as_deref(), &out_dir)?),
         _ => None,
     };
@@ -429,10 +429,6 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     let mut airspace = Airspace::new(&plan, &|key| std::env::var(key).ok());
     let airspace_addr =
         if options.processes { free_airspace_address(&plan) } else { serve_airspace(&mut airspace, &plan)? };
-    // Written for every run: pilots started by hand and ground stations use it too.
-    let mut fleet = planner::fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
-    fleet.airspace_url = format!("http://{airspace_addr}");
-    write_json(&out_dir, pilot::FLEET_FILE, &fleet)?;
 
     // With a cache the field is stored there for the worker processes to load; without one
     // they compute it themselves.
@@ -463,6 +459,21 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         }
         false => None,
     };
+    // Written for every run: pilots started by hand and ground stations use it too. It
+    // comes after the servers listen, as their addresses can differ from the plan's ports.
+    let mut fleet = planner::fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
+    fleet.airspace_url = format!("http://{airspace_addr}");
+    let cameras_url = match (&live_view, &cameras) {
+        (Some(view), Some(_)) => Some(format!("{}cameras", view.server.url())),
+        _ => None,
+    };
+    if let Some(url) = &cameras_url {
+        planner::add_camera_urls(&mut fleet, &plan, url);
+        if let Some(l) = &mut launch {
+            l.set_cameras_url(url);
+        }
+    }
+    write_json(&out_dir, pilot::FLEET_FILE, &fleet)?;
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));
     bar.enable_steady_tick(Duration::from_millis(200));

@@ -36,6 +36,8 @@ pub const FLEET_FILE: &str = sadesim_crds::outcome::run_folder::FLEET;
 pub const LOG_FILE: &str = sadesim_crds::outcome::run_folder::PILOT_LOG;
 /// What happened to the pilot ([`PilotRecord`]), in the output folder.
 pub const RECORD_FILE: &str = sadesim_crds::outcome::run_folder::PILOT_RECORD;
+/// The variable that holds the base URL of the run's onboard camera frames.
+pub const CAMERAS_URL_ENV: &str = "SADESIM_CAMERAS_URL";
 /// Time between SIGTERM and SIGKILL when the run ends before the pilot.
 pub const TERM_GRACE: Duration = Duration::from_secs(5);
 
@@ -105,7 +107,8 @@ impl Launch {
     ///
     /// The pilot's environment is `sadesim`'s, plus `spec.pilot.env`, plus `SADESIM_FLEET`
     /// (absolute path of `fleet.json`), `SADESIM_RUN` (run name), `SADESIM_OUT` (absolute
-    /// output folder) and, for each group with a credential, `SADESIM_CREDENTIAL_<GROUP>`.
+    /// output folder) and, for each group with a credential, `SADESIM_CREDENTIAL_<GROUP>`;
+    /// a run with onboard cameras adds `SADESIM_CAMERAS_URL` ([`Self::set_cameras_url`]).
     ///
     /// # Errors
     /// [`PilotError::NoCommand`], [`PilotError::SecretRef`] (naming the field), or
@@ -148,6 +151,13 @@ impl Launch {
             log: out_dir.join(LOG_FILE),
             on_exit: pilot.on_exit.unwrap_or_default(),
         })
+    }
+
+    /// Tells the pilot where the run's onboard camera frames are: `SADESIM_CAMERAS_URL`,
+    /// the frame server's `/cameras` (known once the server listens, after [`Self::prepare`]).
+    pub fn set_cameras_url(&mut self, cameras_url: &str) {
+        self.env.retain(|(k, _)| k != CAMERAS_URL_ENV);
+        self.env.push((CAMERAS_URL_ENV.into(), cameras_url.into()));
     }
 
     /// Starts the program in its own process group, stdin from /dev/null, stdout and
@@ -379,6 +389,20 @@ mod tests {
         assert_eq!((launch.dir.as_path(), launch.program.as_path()), (Path::new("/s"), Path::new("python3")));
         assert_eq!(launch.on_exit, PilotExit::EndRun);
         assert!(!format!("{launch:?}").contains("s3cret"), "credential values stay out of Debug output");
+    }
+
+    #[test]
+    fn a_run_with_cameras_tells_the_pilot_where_the_frames_are() {
+        let plan = plan_with(|_| {});
+        let mut launch =
+            Launch::prepare(&plan, &pilot(&["python3", "p.py"]), Some(Path::new("/s/scen.yaml")), Path::new("/o/r/t"))
+                .unwrap();
+        assert!(launch.env.iter().all(|(k, _)| k != CAMERAS_URL_ENV), "no frame server, no variable");
+        launch.set_cameras_url("http://127.0.0.1:8091/cameras");
+        launch.set_cameras_url("http://127.0.0.1:8092/cameras");
+        let urls: Vec<&str> =
+            launch.env.iter().filter(|(k, _)| k == CAMERAS_URL_ENV).map(|(_, v)| v.as_str()).collect();
+        assert_eq!(urls, ["http://127.0.0.1:8092/cameras"]);
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! `spec.environment`: wind and GNSS (noise and dropouts).
+//! `spec.environment`: wind and GNSS (noise, bias and dropouts).
 
 use std::collections::HashSet;
 
@@ -85,6 +85,11 @@ pub(super) fn check_environment(spec: &SimulationRunSpec, groups: &HashSet<Strin
         for (field, value, hi) in limits {
             if let Some(v) = value {
                 p.range(format!("{base}.{field}"), v, 0.0, hi);
+            }
+        }
+        if let Some(b) = &g.bias {
+            for (field, value) in [("eastM", b.east_m), ("northM", b.north_m), ("upM", b.up_m)] {
+                p.range(format!("{base}.bias.{field}"), value, -100.0, 100.0);
             }
         }
         if let Some(c) = &g.constellation {

@@ -294,6 +294,28 @@ fn a_gnss_constellation_needs_a_file_a_time_and_no_noise_figures() {
 }
 
 #[test]
+fn a_gnss_bias_beyond_100_m_is_refused_naming_the_field() {
+    let with_bias = |bias: serde_json::Value| {
+        problems_of(|r| {
+            r.spec.environment = Some(serde_json::from_value(serde_json::json!({"gnss": {"bias": bias}})).unwrap());
+        })
+    };
+    assert_eq!(
+        with_bias(serde_json::json!({"eastM": 150.0, "northM": -3.5})),
+        ["spec.environment.gnss.bias.eastM: must be between -100 and 100, got 150"]
+    );
+    assert!(with_bias(serde_json::json!({"eastM": 3.0, "northM": -2.0, "upM": 0.5})).is_empty());
+    // The ranging receiver takes a bias too: it is not a noise figure.
+    let ranging = problems_of(|r| {
+        r.spec.environment = Some(
+            serde_json::from_value(serde_json::json!({"gnss": {"bias": {"northM": 4.0}, "constellation": {}}}))
+                .unwrap(),
+        );
+    });
+    assert!(ranging.is_empty(), "{ranging:?}");
+}
+
+#[test]
 fn an_imported_openfoam_case_needs_model_openfoam_a_folder_and_the_runs_direction() {
     let with_urban = |urban: serde_json::Value| {
         problems_of(|r| {

@@ -92,6 +92,7 @@ mod tests {
             horizontal_sigma_m: None,
             vertical_sigma_m: None,
             bias_walk_m_per_sqrt_s: None,
+            bias: None,
             dropouts: vec![dropout(10, 5, &["survey"]), dropout(30, 2, &[])],
         };
         let spec = EnvSpec { wind: None, gnss: Some(gnss) };

@@ -40,11 +40,15 @@ pub struct GnssConfig {
     /// Horizontal (per axis) and vertical white velocity noise at open sky, 1-sigma, m/s.
     pub horizontal_velocity_sigma_mps: f64,
     pub vertical_velocity_sigma_mps: f64,
+    /// Constant position error added to every fix, world ENU, m (`spec.environment.gnss.bias`;
+    /// zero by default). Both receivers apply it.
+    pub fixed_bias_enu_m: Vector3<f64>,
 }
 
 impl GnssConfig {
     /// The spec's receiver (`spec.environment.gnss`), defaults where absent: 5 Hz,
-    /// 0.5 m / 0.8 m, 0.01 m/√s; velocity noise 0.05 / 0.08 m/s (u-blox M8/M9 class).
+    /// 0.5 m / 0.8 m, 0.01 m/√s, no fixed bias; velocity noise 0.05 / 0.08 m/s (u-blox
+    /// M8/M9 class).
     pub fn from_spec(spec: Option<&Gnss>) -> Self {
         let get = |f: fn(&Gnss) -> Option<f64>, default: f64| spec.and_then(f).unwrap_or(default);
         Self {
@@ -54,6 +58,9 @@ impl GnssConfig {
             bias_walk_m_per_sqrt_s: get(|g| g.bias_walk_m_per_sqrt_s, 0.01),
             horizontal_velocity_sigma_mps: 0.05,
             vertical_velocity_sigma_mps: 0.08,
+            fixed_bias_enu_m: spec
+                .and_then(|g| g.bias)
+                .map_or_else(Vector3::zeros, |b| Vector3::new(b.east_m, b.north_m, b.up_m)),
         }
     }
 }
@@ -153,8 +160,8 @@ impl GnssReceiver {
     /// grid k / rate_hz; if calls skip epochs, the next call yields one fix, not a burst).
     ///
     /// At each due epoch the bias walks by the time since the previous epoch (so it does not
-    /// depend on how often `update` is called), then: position = truth + bias + white noise
-    /// × `cond.sigma_scale`; velocity = truth + white noise × `cond.sigma_scale`. Without
+    /// depend on how often `update` is called), then: position = truth + fixed bias + walking
+    /// bias + white noise × `cond.sigma_scale`; velocity = truth + white noise × `cond.sigma_scale`. Without
     /// signal (`!cond.available`) or with fewer than 4 satellites the fix is
     /// `GPS_FIX_TYPE_NO_FIX`; the first epoch after the signal returns is a fresh 3D fix.
     /// Draws nine normals per epoch, fix or not, so an outage does not shift later noise.
@@ -173,7 +180,11 @@ impl GnssReceiver {
         let dt_s = self.last_epoch_s.map_or(0.0, |last| time_s - last);
         self.last_epoch_s = Some(time_s);
         if let Some(ranging) = &mut self.ranging {
-            return Some(ranging_fix(ranging, time_s, true_pos_enu_m, true_vel_enu_mps, cond));
+            let mut fix = ranging_fix(ranging, time_s, true_pos_enu_m, true_vel_enu_mps, cond);
+            if fix.fix_type >= GPS_FIX_TYPE_2D_FIX {
+                fix.position_enu_m += c.fixed_bias_enu_m;
+            }
+            return Some(fix);
         }
 
         self.bias_enu_m =
@@ -208,7 +219,7 @@ impl GnssReceiver {
         let vertical_ratio = if c.horizontal_sigma_m > 0.0 { c.vertical_sigma_m / c.horizontal_sigma_m } else { 1.6 };
         Some(GnssFix {
             time_s,
-            position_enu_m: true_pos_enu_m + self.bias_enu_m + pos_noise,
+            position_enu_m: true_pos_enu_m + c.fixed_bias_enu_m + self.bias_enu_m + pos_noise,
             velocity_enu_mps: true_vel_enu_mps + vel_noise,
             fix_type: GPS_FIX_TYPE_3D_FIX,
             satellites: cond.satellites,
@@ -221,7 +232,7 @@ impl GnssReceiver {
         })
     }
 
-    /// Current position bias, world ENU, m.
+    /// Current random-walk position bias, world ENU, m (without the fixed bias).
     pub fn bias_enu_m(&self) -> Vector3<f64> {
         self.bias_enu_m
     }

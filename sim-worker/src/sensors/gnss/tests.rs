@@ -1,3 +1,5 @@
+use sadesim_crds::environment::GnssBias;
+
 use super::*;
 
 const OPEN_SKY: GnssCondition = GnssCondition { available: true, sigma_scale: 1.0, satellites: 14, hdop: 0.8 };
@@ -115,9 +117,42 @@ fn config_comes_from_the_spec_with_defaults() {
         horizontal_sigma_m: None,
         vertical_sigma_m: Some(2.0),
         bias_walk_m_per_sqrt_s: None,
+        bias: Some(GnssBias { east_m: 3.0, north_m: -4.0, up_m: 0.0 }),
         dropouts: Vec::new(),
     };
     let c = GnssConfig::from_spec(Some(&spec));
     assert_eq!((c.rate_hz, c.horizontal_sigma_m, c.vertical_sigma_m, c.bias_walk_m_per_sqrt_s), (10.0, 0.5, 2.0, 0.01));
+    assert_eq!(c.fixed_bias_enu_m, Vector3::new(3.0, -4.0, 0.0));
     assert_eq!(GnssConfig::default().rate_hz, 5.0);
+    assert_eq!(GnssConfig::default().fixed_bias_enu_m, Vector3::zeros());
+}
+
+#[test]
+fn a_fixed_bias_shifts_every_fix_of_both_receivers_by_exactly_the_bias() {
+    let bias = Vector3::new(3.5, -2.0, 1.0);
+    let plain = GnssConfig::default();
+    let biased = GnssConfig { fixed_bias_enu_m: bias, ..plain };
+    // Same seed with and without the bias: the noise is identical, so each fix moves by
+    // exactly the bias.
+    let assert_shifted = |without: Vec<GnssFix>, with: Vec<GnssFix>| {
+        assert_eq!(without.len(), with.len());
+        assert!(with.iter().filter(|f| f.has_3d_fix()).count() > 20);
+        for (a, b) in without.iter().zip(&with) {
+            assert!((b.position_enu_m - a.position_enu_m - bias).norm() < 1e-9, "{a:?} {b:?}");
+            assert_eq!(a.velocity_enu_mps, b.velocity_enu_mps);
+        }
+    };
+    // The statistical receiver.
+    let statistical = |config| fixes(&mut GnssReceiver::new(config, 4, 0), 5.0, 0.001, &OPEN_SKY);
+    assert_shifted(statistical(plain), statistical(biased));
+    // The ranging receiver, in open sky.
+    let sky = {
+        let c = sadesim_gnss::Constellation::from_tle(&sadesim_gnss::synthetic::walker_gps_galileo_tle()).unwrap();
+        let epoch = c.satellites[0].epoch_unix_s;
+        Arc::new(RunSky::new(c, sadesim_crds::geo::GeoPoint::new(60.17, 24.94, 10.0), epoch, 10.0))
+    };
+    let world = Arc::new(World::of_buildings(600.0, vec![]));
+    let ranging =
+        |config| fixes(&mut GnssReceiver::ranging(config, 4, 0, sky.clone(), world.clone()), 10.0, 0.001, &OPEN_SKY);
+    assert_shifted(ranging(plain), ranging(biased));
 }
