@@ -192,6 +192,7 @@ fn fleet_file_gives_each_drone_its_camera_urls_once_the_frame_server_listens() {
         height_px: 240,
         horizontal_fov_deg: 90.0,
         rate_hz: 10.0,
+        record_rate_hz: None,
         mount: CameraMount { pitch_deg: 90.0, ..CameraMount::default() },
         depth: false,
     };
