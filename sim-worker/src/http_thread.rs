@@ -43,6 +43,22 @@ impl Drop for HttpThread {
     }
 }
 
+/// `serve(bind)`, or when that port is taken (another run on this machine) `serve` on a
+/// free port of the same address: local runs print or write the address they got, so a
+/// second run beside the first still works.
+///
+/// # Errors
+/// `serve`'s error other than a taken port, or the free port's.
+pub fn or_free_port<T>(
+    bind: SocketAddr,
+    mut serve: impl FnMut(SocketAddr) -> std::io::Result<T>,
+) -> std::io::Result<T> {
+    match serve(bind) {
+        Err(e) if e.kind() == std::io::ErrorKind::AddrInUse && bind.port() != 0 => serve(SocketAddr::new(bind.ip(), 0)),
+        other => other,
+    }
+}
+
 /// Serves `app` on `bind` from the thread `name`. The socket is bound before this returns:
 /// port 0 picks a free port, reported in [`HttpThread::addr`]. On stop, requests in flight
 /// get at most `grace` to finish (zero: none, for endless streams).
@@ -74,4 +90,22 @@ pub fn start(bind: SocketAddr, app: axum::Router, name: &str, grace: Duration) -
         // Dropping the runtime here cuts any connection still open after the grace period.
     })?;
     Ok(HttpThread { addr, stop: Some(stop_tx), thread: Some(thread) })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_taken_port_falls_back_to_a_free_one_on_the_same_address() {
+        let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+        let bind = taken.local_addr().unwrap();
+        let got = or_free_port(bind, |a| std::net::TcpListener::bind(a).and_then(|l| l.local_addr())).unwrap();
+        assert_eq!(got.ip(), bind.ip());
+        assert_ne!(got.port(), bind.port());
+        // Any other error is returned as it is.
+        let refused =
+            or_free_port(bind, |_| -> std::io::Result<()> { Err(std::io::ErrorKind::PermissionDenied.into()) });
+        assert_eq!(refused.unwrap_err().kind(), std::io::ErrorKind::PermissionDenied);
+    }
 }

@@ -528,14 +528,8 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
 /// taken (another run on this machine): the fleet file gives pilots the address either way.
 fn serve_airspace(airspace: &mut Airspace, plan: &RunPlan) -> Result<std::net::SocketAddr, RunError> {
     let planned = std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.airspace_http));
-    let err = |e: std::io::Error| RunError::Worker(format!("airspace API: cannot listen on 127.0.0.1: {e}"));
-    match airspace.serve(planned) {
-        Ok(addr) => Ok(addr),
-        Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => {
-            airspace.serve(std::net::SocketAddr::from(([127, 0, 0, 1], 0))).map_err(err)
-        }
-        Err(e) => Err(err(e)),
-    }
+    sim_worker::http_thread::or_free_port(planned, |addr| airspace.serve(addr))
+        .map_err(|e| RunError::Worker(format!("airspace API: cannot listen on 127.0.0.1: {e}")))
 }
 
 /// For `--processes`: the planned airspace address on 127.0.0.1 if it is free now, else a

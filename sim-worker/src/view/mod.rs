@@ -57,10 +57,7 @@ pub fn serve_live(
         source: Source::Live(feed.clone()),
         frames,
     };
-    let server = match server::start(bind, content.clone()) {
-        Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => server::start(SocketAddr::new(bind.ip(), 0), content),
-        other => other,
-    }
-    .map_err(|e| format!("live view: cannot listen on {bind}: {e}"))?;
+    let server = crate::http_thread::or_free_port(bind, |addr| server::start(addr, content.clone()))
+        .map_err(|e| format!("live view: cannot listen on {bind}: {e}"))?;
     Ok(LiveView { server, feed })
 }
