@@ -11,6 +11,7 @@
 
 pub mod airspace;
 pub mod autopilot;
+pub mod cameras;
 pub mod coordinator;
 pub mod env;
 pub mod events;

@@ -266,3 +266,55 @@ fn the_live_view_with_worker_processes_flies_the_same_run() {
     assert!(log.contains("live stream: http://127.0.0.1:"), "{log}");
     std::fs::remove_dir_all(&root).unwrap();
 }
+
+/// The camera images recorded in `dir/recording.mcap`, in file order: (topic, log time, data).
+fn recorded_images(dir: &Path) -> Vec<(String, u64, Vec<u8>)> {
+    let file = std::fs::read(dir.join("recording.mcap")).unwrap();
+    mcap::MessageStream::new(&file)
+        .unwrap()
+        .map(Result::unwrap)
+        .filter(|m| m.channel.topic.contains("/cameras/"))
+        .map(|m| (m.channel.topic.clone(), m.log_time, m.data.into_owned()))
+        .collect()
+}
+
+#[test]
+fn onboard_cameras_with_worker_processes_take_the_same_frames() {
+    // The coordinator process renders the cameras (as the runner does in-process) and
+    // records them: the same seed gives the same images, frame for frame.
+    if !Path::new("/usr/share/vulkan/icd.d")
+        .read_dir()
+        .is_ok_and(|mut d| d.any(|e| e.is_ok_and(|e| e.file_name().to_string_lossy().starts_with("lvp_icd"))))
+    {
+        eprintln!("skipped: needs Mesa's lavapipe (mesa-vulkan-drivers, tests/install-tools.sh)");
+        return;
+    }
+    let mut r = scenario(2, 1);
+    r.spec.duration = "6s".parse().unwrap();
+    r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true, gpus: None });
+    r.spec.fleet[0].cameras = vec![sadesim_crds::camera::Camera {
+        name: "down".into(),
+        width_px: 64,
+        height_px: 48,
+        horizontal_fov_deg: 90.0,
+        rate_hz: 5.0,
+        record_rate_hz: Some(5.0),
+        mount: sadesim_crds::camera::CameraMount { pitch_deg: 90.0, ..Default::default() },
+        depth: true,
+    }];
+    let root = out_root("cameras-processes");
+    let threads = run(&r, &root.join("threads"), false).unwrap();
+    let processes = run(&r, &root.join("processes"), true).unwrap();
+    assert_eq!(bytes(&processes.out_dir, "trajectory.csv"), bytes(&threads.out_dir, "trajectory.csv"));
+    let tally = |report: &sadesim::runner::RunReport| -> Vec<(String, u64)> {
+        report.summary.cameras.iter().map(|c| (c.drone.clone(), c.frames)).collect()
+    };
+    assert_eq!(tally(&threads), [("alpha-0".to_string(), 30), ("alpha-1".to_string(), 30)], "6 s at 5 Hz per drone");
+    assert_eq!(tally(&processes), tally(&threads));
+    let (a, b) = (recorded_images(&threads.out_dir), recorded_images(&processes.out_dir));
+    assert_eq!(a.len(), 2 * 30 * 3, "image, calibration and depth per frame");
+    assert!(a == b, "the recorded frames differ between threads and processes");
+    let log = bytes(&processes.out_dir, "coordinator.log");
+    assert!(log.contains("onboard cameras: http://127.0.0.1:"), "{log}");
+    std::fs::remove_dir_all(&root).unwrap();
+}

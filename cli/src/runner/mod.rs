@@ -29,7 +29,7 @@ use sim_worker::transport;
 
 use sadesim_planner::{self as planner, Addressing, PlanError};
 
-mod cameras;
+use sim_worker::cameras;
 pub mod pilot;
 mod workers;
 
@@ -232,13 +232,6 @@ fn check_supported(plan: &RunPlan, options: &RunOptions) -> Result<(), RunError>
     if !external.is_empty() && !options.mavlink {
         return Err(RunError::NeedsMavlink { groups: external.join(", ") });
     }
-    if options.processes
-        && let Some(i) = spec.fleet.iter().position(|g| !g.cameras.is_empty())
-    {
-        return Err(RunError::NotSupported(format!(
-            "spec.fleet[{i}].cameras with --processes: onboard cameras render in-process only; drop --processes"
-        )));
-    }
     if spec.rendering().enabled && !sim_worker::view::server::has_three() {
         return Err(RunError::NotSupported(format!("spec.rendering.enabled: {}", sim_worker::view::server::NO_THREE)));
     }
@@ -370,20 +363,6 @@ impl RunObserver for Progress<'_> {
     }
 }
 
-/// What to say when a paced run handed frames over late (`None` when none was).
-fn late_frames_warning(tallies: &[sadesim_crds::outcome::summary::CameraTally]) -> Option<String> {
-    let late: u64 = tallies.iter().map(|t| t.late).sum();
-    if late == 0 {
-        return None;
-    }
-    let frames: u64 = tallies.iter().map(|t| t.frames).sum();
-    let worst = tallies.iter().map(|t| t.max_late_s).fold(0.0, f64::max);
-    Some(format!(
-        "{late} of {frames} camera frames were late (handed to pilots more than one camera period after their simulated time; the latest {:.0} ms behind): this machine renders the cameras slower than the clock. Lower spec.fleet[].cameras rateHz or resolution, slow the clock (spec.clock), or give the renderer a GPU; summary.json lists them per camera",
-        worst * 1000.0
-    ))
-}
-
 /// The progress bar's position and message: sim time, real-time factor, fleet counts.
 fn show_progress(bar: &ProgressBar, time_s: f64, duration_s: f64, started: std::time::Instant, c: FleetCounts) {
     let rtf = time_s / started.elapsed().as_secs_f64().max(1e-9);
@@ -427,8 +406,11 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     // The airspace authority answers before the pilot starts. In `--processes` runs the
     // coordinator process serves it on the planned port instead.
     let mut airspace = Airspace::new(&plan, &|key| std::env::var(key).ok());
-    let airspace_addr =
-        if options.processes { free_airspace_address(&plan) } else { serve_airspace(&mut airspace, &plan)? };
+    let airspace_addr = if options.processes {
+        free_local_address(plan.services.airspace_http)
+    } else {
+        serve_airspace(&mut airspace, &plan)?
+    };
 
     // With a cache the field is stored there for the worker processes to load; without one
     // they compute it themselves.
@@ -463,8 +445,13 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     // comes after the servers listen, as their addresses can differ from the plan's ports.
     let mut fleet = planner::fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
     fleet.airspace_url = format!("http://{airspace_addr}");
-    let cameras_url = match (&live_view, &cameras) {
-        (Some(view), Some(_)) => Some(format!("{}cameras", view.server.url())),
+    // With --processes the coordinator process serves the view and the cameras' frames.
+    let processes_view =
+        (options.processes && plan.spec.rendering().enabled).then(|| free_local_address(plan.services.renderer_http));
+    let has_cameras = plan.spec.fleet.iter().any(|g| !g.cameras.is_empty());
+    let cameras_url = match (&live_view, &cameras, processes_view) {
+        (Some(view), Some(_), _) => Some(format!("{}cameras", view.server.url())),
+        (_, _, Some(addr)) if has_cameras => Some(format!("http://{addr}/cameras")),
         _ => None,
     };
     if let Some(url) = &cameras_url {
@@ -489,10 +476,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             supervisor.as_mut(),
             airspace_addr,
             assets.as_ref().map(AssetsOutcome::url),
-            plan.spec
-                .rendering()
-                .enabled
-                .then(|| std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http))),
+            processes_view,
         )
     } else {
         let surroundings = sim_worker::shard::Surroundings { world: world.clone(), sky, wind };
@@ -532,11 +516,12 @@ fn serve_airspace(airspace: &mut Airspace, plan: &RunPlan) -> Result<std::net::S
         .map_err(|e| RunError::Worker(format!("airspace API: cannot listen on 127.0.0.1: {e}")))
 }
 
-/// For `--processes`: the planned airspace address on 127.0.0.1 if it is free now, else a
-/// free port (the coordinator process binds it a moment later; another program taking it
-/// in between makes the coordinator fail with the address named).
-fn free_airspace_address(plan: &RunPlan) -> std::net::SocketAddr {
-    let planned = std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.airspace_http));
+/// For `--processes`: `port` (a planned one) on 127.0.0.1 if it is free now, else a free
+/// port (the coordinator process binds it a moment later; another program taking it in
+/// between makes the coordinator fail with the address named, or the view move to another
+/// port).
+fn free_local_address(port: u16) -> std::net::SocketAddr {
+    let planned = std::net::SocketAddr::from(([127, 0, 0, 1], port));
     let probe = std::net::TcpListener::bind(planned)
         .or_else(|_| std::net::TcpListener::bind(std::net::SocketAddr::from(([127, 0, 0, 1], 0))));
     probe.and_then(|l| l.local_addr()).unwrap_or(planned)
@@ -618,7 +603,7 @@ fn run_threads(
     let pilot_error = progress.pilot_error.take();
     if let Some(cameras) = progress.cameras.take() {
         let tallies = cameras.tallies();
-        if let Some(warning) = late_frames_warning(&tallies) {
+        if let Some(warning) = cameras::late_frames_warning(&tallies) {
             eprintln!("warning: {warning}");
         }
         recorder.set_camera_tallies(tallies);

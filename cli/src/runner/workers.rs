@@ -101,6 +101,12 @@ pub(super) fn run(
         Some(Report::Listening { address, view: shown, .. }) => {
             if let Some(shown) = shown {
                 bar.suspend(|| eprintln!("live view: http://{shown}/"));
+                // The coordinator process renders the cameras and serves their frames.
+                if plan.spec.fleet.iter().any(|g| !g.cameras.is_empty()) {
+                    bar.suspend(|| {
+                        eprintln!("onboard cameras: http://{shown}/cameras (rendered by the coordinator process)")
+                    });
+                }
             }
             address
         }

@@ -53,10 +53,22 @@ struct Reporting<'a> {
     stop_request: StopRequest,
     /// The live stream (`spec.rendering.enabled`), which the renderer pod follows.
     view: Option<crate::view::Publisher>,
+    /// The onboard cameras: frames due in a window are rendered before the next one.
+    cameras: Option<crate::cameras::Cameras>,
 }
 
 impl RunObserver for Reporting<'_> {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
+        // As the local runner: due frames first, recorded with this window; the final
+        // window repeats the last snapshot and takes none.
+        let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
+        if let Some(cameras) = &mut self.cameras
+            && !final_window
+        {
+            let images =
+                cameras.on_window(time_s, drones).map_err(|e| ObserverError::Record(std::io::Error::other(e)))?;
+            self.recorder.queue_images(images);
+        }
         self.recorder.on_window(time_s, drones, events)?;
         if let Some(view) = &mut self.view {
             view.on_window(time_s, drones, events);
@@ -73,6 +85,12 @@ impl RunObserver for Reporting<'_> {
 
     fn stop_reason(&mut self) -> Option<String> {
         self.stop_request.take()
+    }
+
+    fn on_clock_started(&mut self, started: Instant) {
+        if let Some(cameras) = &mut self.cameras {
+            cameras.clock_started(started);
+        }
     }
 }
 
@@ -146,12 +164,19 @@ pub fn run(
 ) -> Result<RunSummary, RoleError> {
     let Ends { stop, timeouts, requests } = ends;
     let result = (|| {
+        // The onboard cameras render here, in the lockstep loop's observer, and their
+        // frames are served with the live stream (`/cameras`).
+        let cameras = crate::cameras::Cameras::new(plan, world).map_err(RoleError::Protocol)?;
         // Up before the shards connect: the renderer follows it from the start.
         let live = match plan.spec.rendering().enabled {
             true => {
                 let bind = view_bind.unwrap_or_else(|| SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http)));
-                let live = crate::view::serve_live(plan, world, bind, None).map_err(RoleError::Protocol)?;
+                let frames = cameras.as_ref().map(crate::cameras::Cameras::store);
+                let live = crate::view::serve_live(plan, world, bind, frames).map_err(RoleError::Protocol)?;
                 eprintln!("live stream: {}live", live.server.url());
+                if let Some(c) = &cameras {
+                    eprintln!("onboard cameras: {}cameras (rendered on {})", live.server.url(), c.adapter());
+                }
                 Some(live)
             }
             false => None,
@@ -197,10 +222,22 @@ pub fn run(
         }
         let mut links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
         let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
-        let mut recorder = Recorder::create(out_dir, plan, world, RecorderOptions::default()).map_err(record_err)?;
+        let options = RecorderOptions {
+            cameras: cameras.as_ref().map(crate::cameras::Cameras::streams).unwrap_or_default(),
+            ..RecorderOptions::default()
+        };
+        let mut recorder = Recorder::create(out_dir, plan, world, options).map_err(record_err)?;
         let view = live.as_ref().map(|l| crate::view::Publisher::new(l.feed.clone()));
-        let mut observer = Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: requests, view };
+        let mut observer =
+            Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: requests, view, cameras };
         let result = coordinator::run(plan, &mut links, &mut WithAirspace::new(&mut airspace, &mut observer), stop);
+        if let Some(cameras) = observer.cameras.take() {
+            let tallies = cameras.tallies();
+            if let Some(warning) = crate::cameras::late_frames_warning(&tallies) {
+                eprintln!("warning: {warning}");
+            }
+            recorder.set_camera_tallies(tallies);
+        }
         drop(links); // close every shard connection now: the survivors exit without waiting for us
         let outcome = match result {
             Ok(outcome) => outcome,

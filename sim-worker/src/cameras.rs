@@ -1,4 +1,5 @@
-//! Onboard cameras in a local run (`spec.fleet[].cameras`): at every window boundary where
+//! Onboard cameras (`spec.fleet[].cameras`), where the lockstep loop is: the local runner's
+//! observer, or the coordinator role's (`--processes`).: at every window boundary where
 //! a camera is due, its frame is rendered from the drone's ground-truth pose at that exact
 //! simulated time (`sadesim-render`, wgpu on Vulkan) and published to the pilots' HTTP API
 //! (`sim_worker::view::frames`, served with the live view).
@@ -18,15 +19,15 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::pacing::Pacer;
+use crate::protocol::DroneSnapshot;
+use crate::record::{CameraImage, CameraStream};
+use crate::view::frames::{CameraFrame, FrameImage, FrameStore};
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::outcome::summary::CameraTally;
 use sadesim_crds::plan::RunPlan;
 use sadesim_render::{CameraModel, CameraPose, CameraView, Frame, Marker, Mount, Renderer, Scene};
 use sadesim_world::World;
-use sim_worker::pacing::Pacer;
-use sim_worker::protocol::DroneSnapshot;
-use sim_worker::record::{CameraImage, CameraStream};
-use sim_worker::view::frames::{CameraFrame, FrameImage, FrameStore};
 
 /// JPEG quality of served frames (the libjpeg default a pilot's decoder expects).
 const JPEG_QUALITY: u8 = 85;
@@ -257,6 +258,20 @@ impl Cameras {
         }
         Ok(recorded)
     }
+}
+
+/// What to say when a paced run handed frames over late (`None` when none was).
+pub fn late_frames_warning(tallies: &[CameraTally]) -> Option<String> {
+    let late: u64 = tallies.iter().map(|t| t.late).sum();
+    if late == 0 {
+        return None;
+    }
+    let frames: u64 = tallies.iter().map(|t| t.frames).sum();
+    let worst = tallies.iter().map(|t| t.max_late_s).fold(0.0, f64::max);
+    Some(format!(
+        "{late} of {frames} camera frames were late (handed to pilots more than one camera period after their simulated time; the latest {:.0} ms behind): this machine renders the cameras slower than the clock. Lower spec.fleet[].cameras rateHz or resolution, slow the clock (spec.clock), or give the renderer a GPU; summary.json lists them per camera",
+        worst * 1000.0
+    ))
 }
 
 /// How far behind its due time a frame handed over at `elapsed` (wall time since the clock
