@@ -19,9 +19,11 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+use crate::coordinator::ObserverError;
+use crate::events::{Event, EventKind};
 use crate::pacing::Pacer;
 use crate::protocol::DroneSnapshot;
-use crate::record::{CameraImage, CameraStream};
+use crate::record::{CameraImage, CameraStream, Recorder, RecorderOptions};
 use crate::view::frames::{CameraFrame, FrameImage, FrameStore};
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::outcome::summary::CameraTally;
@@ -175,6 +177,12 @@ impl Cameras {
         self.streams.clone()
     }
 
+    /// The recorder's options for a run with `cameras` (the defaults, with the recorded
+    /// cameras' streams).
+    pub fn recorder_options(cameras: Option<&Self>) -> RecorderOptions {
+        RecorderOptions { cameras: cameras.map(Self::streams).unwrap_or_default(), ..RecorderOptions::default() }
+    }
+
     /// The store the HTTP API serves.
     pub fn store(&self) -> Arc<FrameStore> {
         self.store.clone()
@@ -204,13 +212,45 @@ impl Cameras {
         self.renderer.adapter_name().to_string()
     }
 
+    /// What an observer with cameras does first in each window (the local runner's and the
+    /// coordinator role's): renders the frames due ([`Cameras::on_window`]) and queues those
+    /// the recording takes in `recorder`, before the recorder sees the window, so they are
+    /// written with it. The final window repeats the last snapshot and takes none.
+    ///
+    /// # Errors
+    /// The renderer failed: the run stops, its files are kept.
+    pub fn before_recording(
+        &mut self,
+        recorder: &mut Recorder,
+        time_s: f64,
+        drones: &[DroneSnapshot],
+        events: &[Event],
+    ) -> Result<(), ObserverError> {
+        if events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. })) {
+            return Ok(());
+        }
+        let images = self.on_window(time_s, drones).map_err(|e| ObserverError::Record(std::io::Error::other(e)))?;
+        recorder.queue_images(images);
+        Ok(())
+    }
+
+    /// The run is over: each camera's frames and late frames into `recorder`'s
+    /// `summary.json`, and a warning on stderr when any was late.
+    pub fn finish(self, recorder: &mut Recorder) {
+        let tallies = self.tallies();
+        if let Some(warning) = late_frames_warning(&tallies) {
+            eprintln!("warning: {warning}");
+        }
+        recorder.set_camera_tallies(tallies);
+    }
+
     /// A window ended at `time_s` with `drones` (by global index): renders every camera due
     /// now (the first window, and every `every_windows` after), publishes the frames, and
     /// returns those due for the recording.
     ///
     /// # Errors
     /// The renderer failed (a lost device): the run stops, its files are kept.
-    pub fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot]) -> Result<Vec<CameraImage>, String> {
+    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot]) -> Result<Vec<CameraImage>, String> {
         let window = (time_s / self.window_s).round() as u64;
         self.due.clear();
         self.views.clear();
@@ -240,20 +280,21 @@ impl Cameras {
                 c.max_late_s = c.max_late_s.max(behind);
                 c.late += u64::from(behind > period.as_secs_f64());
             }
-            if let (Some(every), Some(stream)) = (c.record_every, c.stream)
-                && c.taken.is_multiple_of(every)
-            {
-                recorded.push(CameraImage {
-                    stream,
-                    time_s,
-                    jpeg: frame
-                        .rgb_jpeg(JPEG_QUALITY)
-                        .map_err(|e| format!("camera {}/{}: {e}", c.drone_name, c.camera))?,
-                    depth_mm_le: c.depth.then(|| frame.depth_mm_le()),
-                });
+            let record = c.record_every.zip(c.stream).filter(|(every, _)| c.taken.is_multiple_of(*every));
+            let depth_mm_le = (record.is_some() && c.depth).then(|| frame.depth_mm_le());
+            let published = CameraFrame::new(time_s, c.taken, Box::new(Rendered { frame, depth: c.depth }));
+            if let Some((_, stream)) = record {
+                // Encoded once: the JPEG recorded is the one pilots are served.
+                let jpeg = published.jpeg();
+                if jpeg.is_empty() {
+                    return Err(format!(
+                        "camera {}/{}: the frame could not be encoded as JPEG",
+                        c.drone_name, c.camera
+                    ));
+                }
+                recorded.push(CameraImage { stream, time_s, jpeg: jpeg.to_vec(), depth_mm_le });
             }
-            let image = Rendered { frame, depth: c.depth };
-            self.store.publish(&c.drone_name, &c.camera, CameraFrame::new(time_s, c.taken, Box::new(image)));
+            self.store.publish(&c.drone_name, &c.camera, published);
             c.taken += 1;
         }
         Ok(recorded)
@@ -261,7 +302,7 @@ impl Cameras {
 }
 
 /// What to say when a paced run handed frames over late (`None` when none was).
-pub fn late_frames_warning(tallies: &[CameraTally]) -> Option<String> {
+fn late_frames_warning(tallies: &[CameraTally]) -> Option<String> {
     let late: u64 = tallies.iter().map(|t| t.late).sum();
     if late == 0 {
         return None;

@@ -27,13 +27,7 @@ impl Pacer {
     /// to catch up: a slow machine simply runs slower than requested, and the real-time
     /// factor in the status shows it).
     pub fn wait_before(&self, sim_time_s: f64, elapsed: Duration) -> Duration {
-        match self.factor {
-            None => Duration::ZERO,
-            Some(f) => {
-                let due = Duration::from_secs_f64((sim_time_s / f).max(0.0));
-                due.saturating_sub(elapsed)
-            }
-        }
+        self.due_after(sim_time_s).map_or(Duration::ZERO, |due| due.saturating_sub(elapsed))
     }
 
     /// When simulated time `sim_time_s` is due, as wall time since the clock started;

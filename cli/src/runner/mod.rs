@@ -21,7 +21,7 @@ use sim_worker::coordinator::{self, CoordinatorError, ObserverError, RunObserver
 use sim_worker::events::{Event, EventKind};
 use sim_worker::mavlink::router::RouterHandle;
 use sim_worker::protocol::{DroneSnapshot, FleetCounts};
-use sim_worker::record::{Recorder, RecorderOptions, RunSummary};
+use sim_worker::record::{Recorder, RunSummary};
 use sim_worker::roles::coordinator::close_failed_run;
 use sim_worker::roles::router::RouterOptions;
 use sim_worker::shard::MavlinkOptions;
@@ -315,15 +315,8 @@ struct Progress<'a> {
 
 impl RunObserver for Progress<'_> {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
-        // Frames due now are rendered first, so that the recorder writes those it records
-        // with this window. The final window repeats the last snapshot: no new frames.
-        let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
-        if let Some(cameras) = &mut self.cameras
-            && !final_window
-        {
-            let images =
-                cameras.on_window(time_s, drones).map_err(|e| ObserverError::Record(std::io::Error::other(e)))?;
-            self.recorder.queue_images(images);
+        if let Some(cameras) = &mut self.cameras {
+            cameras.before_recording(self.recorder, time_s, drones, events)?;
         }
         // Recorded (and flushed) before the pilot is started: it finds `pilotsReleased` in
         // events.jsonl.
@@ -583,10 +576,7 @@ fn run_threads(
         threads.push(handle);
     }
     let output_err = |source| RunError::Output { path: out_dir.display().to_string(), source };
-    let options = RecorderOptions {
-        cameras: cameras.as_ref().map(cameras::Cameras::streams).unwrap_or_default(),
-        ..RecorderOptions::default()
-    };
+    let options = cameras::Cameras::recorder_options(cameras.as_ref());
     let mut recorder = Recorder::create(out_dir, plan, world, options).map_err(output_err)?;
     let mut progress = Progress {
         recorder: &mut recorder,
@@ -602,11 +592,7 @@ fn run_threads(
     let outcome = coordinator::run(plan, &mut links, &mut WithAirspace::new(airspace, &mut progress), stop);
     let pilot_error = progress.pilot_error.take();
     if let Some(cameras) = progress.cameras.take() {
-        let tallies = cameras.tallies();
-        if let Some(warning) = cameras::late_frames_warning(&tallies) {
-            eprintln!("warning: {warning}");
-        }
-        recorder.set_camera_tallies(tallies);
+        cameras.finish(&mut recorder);
     }
     drop(links);
     for t in threads {

@@ -203,23 +203,24 @@ impl McapRecorder {
         rates: RecordingRates,
         cameras: &[CameraStream],
     ) -> std::io::Result<Self> {
-        let channels = 5 + plan.drones.len() * CHANNELS_PER_DRONE + cameras.len() * CHANNELS_PER_CAMERA;
-        if plan.drones.len() <= MAX_DRONES && channels > usize::from(u16::MAX) {
-            return Err(std::io::Error::new(
-                std::io::ErrorKind::Unsupported,
-                format!(
-                    "recording.mcap holds at most 65535 channels, this run's {} drones and {} recorded cameras need {channels}; set recordRateHz: 0 on some of spec.fleet[].cameras",
-                    plan.drones.len(),
-                    cameras.len()
-                ),
-            ));
-        }
         if plan.drones.len() > MAX_DRONES {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::Unsupported,
                 format!(
                     "recording.mcap holds at most {MAX_DRONES} drones ({CHANNELS_PER_DRONE} channels each), this run has {}; set spec.recording.mcap: false",
                     plan.drones.len()
+                ),
+            ));
+        }
+        // Within the fleet limit, recorded cameras can still need too many channels.
+        let channels = 5 + plan.drones.len() * CHANNELS_PER_DRONE + cameras.len() * CHANNELS_PER_CAMERA;
+        if channels > usize::from(u16::MAX) {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::Unsupported,
+                format!(
+                    "recording.mcap holds at most 65535 channels, this run's {} drones and {} recorded cameras need {channels}; set recordRateHz: 0 on some of spec.fleet[].cameras",
+                    plan.drones.len(),
+                    cameras.len()
                 ),
             ));
         }
@@ -248,7 +249,7 @@ impl McapRecorder {
         let mut city = channel(&mut writer, "/world", schemas::SCENE_UPDATE_NAME)?;
         let zones = channel(&mut writer, "/zones", schemas::SCENE_UPDATE_NAME)?;
         let events = channel(&mut writer, "/events", schemas::LOG_NAME)?;
-        let tf = channel(&mut writer, "/tf", schemas::FRAME_TRANSFORMS_NAME)?;
+        let mut tf = channel(&mut writer, "/tf", schemas::FRAME_TRANSFORMS_NAME)?;
         let mut drones = Vec::with_capacity(plan.drones.len());
         for d in &plan.drones {
             let topic = |stream: &str| format!("/drones/{}/{stream}", d.name);
@@ -298,7 +299,6 @@ impl McapRecorder {
             let mut markers = channel(&mut out.writer, "/markers", schemas::SCENE_UPDATE_NAME)?;
             out.write(&mut markers, 0, 0, |b| b.extend_from_slice(scene.as_bytes()))?;
         }
-        let mut tf = tf;
         // The cameras' mounts: fixed on the bodies, one transform each, valid from 0 on.
         if !camera_channels.is_empty() {
             out.write(&mut tf, 0, 0, |b| {

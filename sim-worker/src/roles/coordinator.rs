@@ -28,7 +28,7 @@ use crate::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use crate::coordinator::{self, CoordinatorError, LinkError, ObserverError, RunFailure, RunObserver, ShardLink};
 use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION};
-use crate::record::{Recorder, RecorderOptions, RunSummary};
+use crate::record::{Recorder, RunSummary};
 use crate::transport::TcpLink;
 
 /// Default of `--shard-timeout`: the longest wait for a shard's answer to a window. A shard
@@ -59,15 +59,8 @@ struct Reporting<'a> {
 
 impl RunObserver for Reporting<'_> {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
-        // As the local runner: due frames first, recorded with this window; the final
-        // window repeats the last snapshot and takes none.
-        let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
-        if let Some(cameras) = &mut self.cameras
-            && !final_window
-        {
-            let images =
-                cameras.on_window(time_s, drones).map_err(|e| ObserverError::Record(std::io::Error::other(e)))?;
-            self.recorder.queue_images(images);
+        if let Some(cameras) = &mut self.cameras {
+            cameras.before_recording(self.recorder, time_s, drones, events)?;
         }
         self.recorder.on_window(time_s, drones, events)?;
         if let Some(view) = &mut self.view {
@@ -222,21 +215,14 @@ pub fn run(
         }
         let mut links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
         let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
-        let options = RecorderOptions {
-            cameras: cameras.as_ref().map(crate::cameras::Cameras::streams).unwrap_or_default(),
-            ..RecorderOptions::default()
-        };
+        let options = crate::cameras::Cameras::recorder_options(cameras.as_ref());
         let mut recorder = Recorder::create(out_dir, plan, world, options).map_err(record_err)?;
         let view = live.as_ref().map(|l| crate::view::Publisher::new(l.feed.clone()));
         let mut observer =
             Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: requests, view, cameras };
         let result = coordinator::run(plan, &mut links, &mut WithAirspace::new(&mut airspace, &mut observer), stop);
         if let Some(cameras) = observer.cameras.take() {
-            let tallies = cameras.tallies();
-            if let Some(warning) = crate::cameras::late_frames_warning(&tallies) {
-                eprintln!("warning: {warning}");
-            }
-            recorder.set_camera_tallies(tallies);
+            cameras.finish(&mut recorder);
         }
         drop(links); // close every shard connection now: the survivors exit without waiting for us
         let outcome = match result {
@@ -465,7 +451,8 @@ mod tests {
         let dir = TempDir::new("close-failed-run");
         let plan = plan_of(run_with_groups(&[("a", 2)]).build());
         let airspace = Airspace::new(&plan, &|_| None);
-        let mut recorder = Recorder::create(&dir.0, &plan, &world_of(&plan), RecorderOptions::default()).unwrap();
+        let mut recorder =
+            Recorder::create(&dir.0, &plan, &world_of(&plan), crate::record::RecorderOptions::default()).unwrap();
         for w in 1..=50u32 {
             let t = f64::from(w) * 0.01;
             let drones: Vec<DroneSnapshot> =

@@ -63,6 +63,12 @@ impl CameraFrame {
         Self { time_s, seq, image, jpeg: OnceLock::new(), png: OnceLock::new(), depth: OnceLock::new() }
     }
 
+    /// The frame as JPEG, encoded on the first call (by a pilot's request or the recorder)
+    /// and kept.
+    pub fn jpeg(&self) -> Bytes {
+        self.encoded(Format::Jpeg).unwrap_or_default()
+    }
+
     fn encoded(&self, format: Format) -> Option<Bytes> {
         match format {
             Format::Jpeg => Some(self.jpeg.get_or_init(|| self.image.jpeg().into()).clone()),
