@@ -97,6 +97,43 @@ def run_scripted(sadesim: str, doc: dict, folder: pathlib.Path) -> tuple[subproc
     return run, next(out.glob(f"{doc['metadata']['name']}/*"), None)
 
 
+def run_piloted(sadesim: str, scenario: pathlib.Path, out: pathlib.Path, venv_bin: pathlib.Path, timeout_s: float,
+                env: dict | None = None, cwd: pathlib.Path | None = None) -> tuple[int | None, pathlib.Path | None, str]:
+    """Runs `scenario` with its pilot (`sadesim run -q --out out`), the venv's `python3` first
+    on PATH, in a session of its own; after `timeout_s` it is interrupted (SIGINT, then
+    SIGKILL to the whole session). Returns the exit code (None when it had to be stopped),
+    the run folder (None when none was made) and the end of sadesim's output and of
+    pilot.log, for assertion messages."""
+    env = {**os.environ, **(env or {})}
+    env["PATH"] = f"{venv_bin}{os.pathsep}{env.get('PATH', '')}"  # the scenario's `python3` is the venv's
+    out.mkdir(parents=True, exist_ok=True)
+    log = out / "sadesim.log"
+    with open(log, "wb") as sink:
+        proc = subprocess.Popen([sadesim, "run", str(scenario), "--out", str(out), "-q"], cwd=cwd, stdout=sink,
+                                stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env, start_new_session=True)
+        try:
+            code = proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                pass
+            code = None
+        finally:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            proc.wait()
+    name = yaml.safe_load(scenario.read_text())["metadata"]["name"]
+    out_dir = next((out / name).glob("*"), None)
+    pilot_log = out_dir / "pilot.log" if out_dir else None
+    pilot_text = pilot_log.read_text(errors="replace") if pilot_log and pilot_log.exists() else ""
+    context = f"--- sadesim ---\n{log.read_text(errors='replace')[-3000:]}\n--- pilot.log ---\n{pilot_text[-4000:]}"
+    return code, out_dir, context
+
+
 def pymavlink_url(url: str) -> str:
     """A fleet-file URL (MAVSDK syntax, `udpout://127.0.0.1:24600`) in pymavlink's syntax
     (`udpout:127.0.0.1:24600`)."""

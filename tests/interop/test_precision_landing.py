@@ -10,18 +10,16 @@ using MAVLink (see simrun.py).
 """
 import csv
 import math
-import os
 import pathlib
-import signal
-import subprocess
 import time
 
 import pytest
 import yaml
 
+from simrun import enu_m, run_piloted
+
 REPO = pathlib.Path(__file__).resolve().parents[2]
 EXAMPLE = REPO / "examples" / "precision-landing.yaml"
-EARTH_RADIUS_M = 6378137.0
 
 pytestmark = pytest.mark.skipif(
     not any(pathlib.Path("/usr/share/vulkan/icd.d").glob("lvp_icd*.json")),
@@ -40,33 +38,10 @@ def fly(sadesim, venv_bin, tmp, camera):
     tmp.mkdir(parents=True, exist_ok=True)
     scenario = tmp / "precision-landing.yaml"
     scenario.write_text(yaml.safe_dump(doc))
-    env = {**os.environ, "SADESIM_CACHE_DIR": str(tmp / "cache")}
-    env["PATH"] = f"{venv_bin}{os.pathsep}{env.get('PATH', '')}"  # the scenario's `python3` is the venv's
-    log = tmp / "sadesim.log"
     started = time.monotonic()
-    with open(log, "wb") as out:
-        proc = subprocess.Popen([sadesim, "run", str(scenario), "--out", str(tmp / "runs"), "-q"], cwd=tmp,
-                                stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env,
-                                start_new_session=True)
-        try:
-            code = proc.wait(timeout=240)
-        except subprocess.TimeoutExpired:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                pass
-            code = None
-        finally:
-            try:
-                os.killpg(proc.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            proc.wait()
+    code, out_dir, context = run_piloted(sadesim, scenario, tmp / "runs", venv_bin, 240,
+                                         env={"SADESIM_CACHE_DIR": str(tmp / "cache")}, cwd=tmp)
     wall_s = time.monotonic() - started
-    (out_dir,) = list((tmp / "runs" / "precision-landing").glob("*")) or [None]
-    pilot_log = (out_dir / "pilot.log").read_text(errors="replace") if out_dir and (out_dir / "pilot.log").exists() else ""
-    context = f"--- sadesim ---\n{log.read_text(errors='replace')[-3000:]}\n--- pilot.log ---\n{pilot_log[-4000:]}"
     assert code == 0, f"sadesim exited with {code} after {wall_s:.0f} s\n{context}"
     return out_dir, doc, wall_s, context
 
@@ -78,9 +53,8 @@ def landing_error_m(out_dir, doc):
     last = rows[-1]
     assert last["on_ground"] == "true", last
     (pad,) = doc["spec"]["world"]["markers"]
-    lat0, lon0 = pad["position"]["latitudeDeg"], pad["position"]["longitudeDeg"]
-    north = math.radians(float(last["latitude_deg"]) - lat0) * EARTH_RADIUS_M
-    east = math.radians(float(last["longitude_deg"]) - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
+    east, north, _ = enu_m({**pad["position"], "altitudeMslM": 0.0}, float(last["latitude_deg"]),
+                           float(last["longitude_deg"]), 0.0)
     return math.hypot(north, east)
 
 
