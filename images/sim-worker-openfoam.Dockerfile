@@ -21,6 +21,9 @@ RUN --mount=type=cache,target=/usr/local/cargo/registry \
  && install -D -m 0755 -t /out target/release/sim-worker target/release/sadesim
 
 FROM debian:bookworm-slim
+# Debian 12's openfoam is v1912 (see above); exact version pins would break the build when
+# Debian replaces a version with its security update.
+# hadolint ignore=DL3008
 RUN apt-get update \
  && DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends openfoam ca-certificates \
  && rm -rf /var/lib/apt/lists/*

@@ -2,6 +2,7 @@
 
 use kube::core::{Duration, ObjectMeta};
 
+use crate::camera::{Camera, CameraMount};
 use crate::fleet::{AltitudeLimits, Area, FleetGroup, HomePlacement, LatLon, Mission, MissionItem, Role};
 use crate::geo::{Enu, GeoPoint, LocalFrame};
 use crate::run::{Origin, Pilot, SimulationRun, SimulationRunSpec};
@@ -102,6 +103,14 @@ impl RunBuilder {
         self
     }
 
+    /// Gives the first group's drones `camera` and turns the renderer on (cameras need it).
+    pub fn with_camera(mut self, camera: Camera) -> Self {
+        let rendering = self.run.spec.rendering.get_or_insert_with(Default::default);
+        rendering.enabled = true;
+        self.run.spec.fleet[0].cameras.push(camera);
+        self
+    }
+
     /// Applies any other change.
     pub fn with(mut self, f: impl FnOnce(&mut SimulationRun)) -> Self {
         f(&mut self.run);
@@ -110,6 +119,20 @@ impl RunBuilder {
 
     pub fn build(self) -> SimulationRun {
         self.run
+    }
+}
+
+/// A downward RGB camera named `down`: 160x120, 90° wide, 10 frames per second.
+pub fn down_camera() -> Camera {
+    Camera {
+        name: "down".into(),
+        width_px: 160,
+        height_px: 120,
+        horizontal_fov_deg: 90.0,
+        rate_hz: 10.0,
+        record_rate_hz: None,
+        mount: CameraMount { pitch_deg: 90.0, ..CameraMount::default() },
+        depth: false,
     }
 }
 

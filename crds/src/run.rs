@@ -445,8 +445,10 @@ pub struct Rendering {
     /// Start the renderer (browser 3D view). Default false.
     #[serde(default)]
     pub enabled: bool,
-    /// GPUs (`nvidia.com/gpu`) for the renderer pod on Kubernetes, 1..=8; absent: none (the
-    /// live view draws in the browser). A local run notes that it applies on a cluster only.
+    /// GPUs (`nvidia.com/gpu`) on Kubernetes for the pod that renders the onboard cameras
+    /// (the coordinator), 1..=8; needs cameras in `spec.fleet[].cameras`, since the live
+    /// view draws in each browser. Absent: the cameras render on the CPU (Mesa's lavapipe).
+    /// Locally the cameras use whatever Vulkan device the machine has.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gpus: Option<u32>,
 }

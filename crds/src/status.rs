@@ -119,6 +119,10 @@ pub struct Endpoints {
     /// Renderer URL when rendering is on.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub renderer: Option<String>,
+    /// The onboard cameras' frame listing (`.../cameras`, JSON with each drone's camera
+    /// URLs) when the run has cameras; pilots find the same URLs in their fleet file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cameras: Option<String>,
 }
 
 /// The run's archive.

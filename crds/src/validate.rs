@@ -107,6 +107,13 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
         p.range_int("spec.rendering.gpus", gpus.into(), 1, 8);
         if !rendering.enabled {
             p.add("spec.rendering.gpus", "asks GPUs for a renderer that is off: set spec.rendering.enabled to true");
+        } else if spec.fleet.iter().all(|g| g.cameras.is_empty()) {
+            // GPUs go to the pod that renders onboard cameras; the live view draws in each
+            // browser, so without cameras a GPU would be reserved and never used.
+            p.add(
+                "spec.rendering.gpus",
+                "asks GPUs, but nothing renders on the server without onboard cameras (the live view draws in each browser): declare spec.fleet[].cameras or remove gpus",
+            );
         }
     }
     criteria::check_criteria(spec, &group_names, &zone_names, p);

@@ -12,6 +12,10 @@ pub struct OperatorArgs {
     /// Job of runs whose `environment.wind.urban.model` is `openfoam`.
     #[arg(long, env = "SADESIM_OPENFOAM_IMAGE", default_value = "ghcr.io/sadesim/sim-worker-openfoam:0.1.0")]
     pub openfoam_image: String,
+    /// Image of sim-worker with Mesa's Vulkan drivers (images/sim-worker-camera.Dockerfile):
+    /// the coordinator of runs with onboard cameras, which renders their frames.
+    #[arg(long, env = "SADESIM_CAMERA_IMAGE", default_value = "ghcr.io/sadesim/sim-worker-camera:0.1.0")]
+    pub camera_image: String,
     /// Archive URL for runs without spec.archive (s3://bucket/prefix, gs://..., az://...).
     #[arg(long, env = "SADESIM_DEFAULT_ARCHIVE_URL")]
     pub default_archive_url: Option<String>,
@@ -52,6 +56,7 @@ impl OperatorArgs {
             settings: crate::k8s::children::ClusterSettings {
                 worker_image: self.worker_image,
                 openfoam_image: self.openfoam_image,
+                camera_image: self.camera_image,
                 default_archive_url: self.default_archive_url.filter(|u| !u.is_empty()),
                 object_store_secret: self.object_store_secret.filter(|s| !s.is_empty()),
                 router_service_type: self.router_service_type,

@@ -20,6 +20,21 @@ pub enum Addressing {
     Cluster,
 }
 
+/// The environment variable that gives a pilot the run's onboard-camera listing
+/// (`<frame server>/cameras`), locally and on a cluster.
+pub const CAMERAS_URL_ENV: &str = "SADESIM_CAMERAS_URL";
+
+/// Where a cluster run's onboard camera frames are served, or `None` without cameras: the
+/// coordinator renders them and serves them on the plan's renderer port of its Service
+/// `<run>-airspace` (port `view-feed`). Locally the address is known only once the server
+/// listens (see [`add_camera_urls`]).
+pub fn cluster_cameras_url(plan: &RunPlan) -> Option<String> {
+    plan.spec.fleet.iter().any(|g| !g.cameras.is_empty()).then(|| {
+        let (run, ns) = (&plan.run.name, &plan.run.namespace);
+        format!("http://{run}-airspace.{ns}.svc:{}/cameras", plan.services.renderer_http)
+    })
+}
+
 /// Name of the environment variable that carries a group's credential to the pilot.
 pub fn credential_env_var(group: &str) -> String {
     format!("SADESIM_CREDENTIAL_{}", group.to_ascii_uppercase().replace('-', "_"))
@@ -76,7 +91,7 @@ pub fn fleet_file(plan: &RunPlan, addressing: &Addressing) -> FleetFile {
             }
         })
         .collect();
-    FleetFile {
+    let mut file = FleetFile {
         version: FLEET_FILE_VERSION,
         run: run.clone(),
         origin: plan.spec.origin.geo(),
@@ -84,12 +99,18 @@ pub fn fleet_file(plan: &RunPlan, addressing: &Addressing) -> FleetFile {
         gcs_urls,
         drones,
         zones: zones_geojson(&plan.spec.zones),
+    };
+    // In a cluster the frame server's address is fixed by the plan.
+    if let (Addressing::Cluster, Some(url)) = (addressing, cluster_cameras_url(plan)) {
+        add_camera_urls(&mut file, plan, &url);
     }
+    file
 }
 
 /// Fills each drone's `cameras` with the base URL of its cameras' frames under
-/// `cameras_url`, the frame server's `/cameras` (e.g. `http://127.0.0.1:8090/cameras`): the
-/// server's address is known only once it listens, so this comes after [`fleet_file`].
+/// `cameras_url`, the frame server's `/cameras` (e.g. `http://127.0.0.1:8090/cameras`).
+/// Locally the server's address is known only once it listens, so this comes after
+/// [`fleet_file`]; [`Addressing::Cluster`] fleet files have them already.
 pub fn add_camera_urls(fleet: &mut FleetFile, plan: &RunPlan, cameras_url: &str) {
     let base = cameras_url.trim_end_matches('/');
     for (drone, planned) in fleet.drones.iter_mut().zip(&plan.drones) {

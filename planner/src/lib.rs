@@ -19,7 +19,9 @@ use sadesim_crds::{SimulationRun, ValidationErrors, validate};
 use sadesim_world::{World, WorldData, WorldError, WorldInputs};
 use serde::Serialize;
 
-pub use fleet_file::{Addressing, add_camera_urls, credential_env_var, fleet_file, zones_geojson};
+pub use fleet_file::{
+    Addressing, CAMERAS_URL_ENV, add_camera_urls, cluster_cameras_url, credential_env_var, fleet_file, zones_geojson,
+};
 pub use ports::{
     MAX_SEGMENTS, SYSTEM_IDS_PER_SEGMENT, api_udp_port, endpoint_port, gcs_tcp_port, gcs_udp_port, service_ports,
 };

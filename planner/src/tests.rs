@@ -185,24 +185,10 @@ fn fleet_file_gives_urls_credentials_and_closed_zone_rings() {
 
 #[test]
 fn fleet_file_gives_each_drone_its_camera_urls_once_the_frame_server_listens() {
-    use sadesim_crds::camera::{Camera, CameraMount};
-    let down = Camera {
-        name: "down".into(),
-        width_px: 320,
-        height_px: 240,
-        horizontal_fov_deg: 90.0,
-        rate_hz: 10.0,
-        record_rate_hz: None,
-        mount: CameraMount { pitch_deg: 90.0, ..CameraMount::default() },
-        depth: false,
-    };
     let run = RunBuilder::test()
         .with_drones(2)
         .with_group("no-camera", 1)
-        .with(|r| {
-            r.spec.fleet[0].cameras = vec![down];
-            r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true, gpus: None });
-        })
+        .with_camera(sadesim_crds::fixtures::down_camera())
         .build();
     let plan = plan(&run).unwrap();
     let mut fleet = fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
@@ -217,6 +203,17 @@ fn fleet_file_gives_each_drone_its_camera_urls_once_the_frame_server_listens() {
     assert!(urls[2].is_empty(), "the group without cameras gets none");
     let json = serde_json::to_value(&fleet).unwrap();
     assert_eq!(json["drones"][0]["cameras"]["down"], format!("http://127.0.0.1:8091/cameras/{first}/down/"));
+    // On a cluster the coordinator serves them on its Service's renderer port.
+    let cluster = fleet_file(&plan, &Addressing::Cluster);
+    assert_eq!(cluster_cameras_url(&plan).as_deref(), Some("http://test-run-airspace.default.svc:8490/cameras"));
+    assert_eq!(
+        cluster.drones[0].cameras["down"],
+        format!("http://test-run-airspace.default.svc:8490/cameras/{first}/down/")
+    );
+    assert!(cluster.drones[2].cameras.is_empty());
+    let without = super::plan(&RunBuilder::test().with_drones(2).build()).unwrap();
+    assert_eq!(cluster_cameras_url(&without), None, "no cameras, no URL");
+    assert!(fleet_file(&without, &Addressing::Cluster).drones.iter().all(|d| d.cameras.is_empty()));
 }
 
 proptest! {

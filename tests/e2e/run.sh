@@ -3,8 +3,9 @@
 # images, start MinIO as the archive, install the chart, apply the quickstart run, wait for
 # Succeeded, and verify the archived run against its manifest; then a run whose pilot Job
 # exits after 30 s must end there (tests/e2e/pilot-exit.yaml); a run with the live view streams
-# frames through its renderer Service and takes the renderer with it when deleted
-# (tests/e2e/view.yaml).
+# frames through its renderer Service, serves its drones' onboard camera frames from the
+# coordinator (rendered on lavapipe in the camera image), and takes the renderer with it when
+# deleted (tests/e2e/view.yaml).
 #
 #   tests/e2e/run.sh k3d     # or: tests/e2e/run.sh kind
 #
@@ -24,6 +25,7 @@ CLUSTER=${CLUSTER:-sadesim-e2e}
 TAG=${TAG:-e2e}
 OPERATOR_IMAGE=ghcr.io/sadesim/sadesim:$TAG
 WORKER_IMAGE=ghcr.io/sadesim/sim-worker:$TAG
+CAMERA_IMAGE=ghcr.io/sadesim/sim-worker-camera:$TAG
 MINIO_IMAGE=${MINIO_IMAGE:-quay.io/minio/minio:latest}
 MC_IMAGE=${MC_IMAGE:-quay.io/minio/mc:latest}
 SYSTEM_NS=sadesim-system
@@ -76,11 +78,12 @@ kubectl cluster-info
 step "building images"
 docker build -f images/operator.Dockerfile -t "$OPERATOR_IMAGE" .
 docker build -f images/sim-worker.Dockerfile -t "$WORKER_IMAGE" .
+docker build -f images/sim-worker-camera.Dockerfile -t "$CAMERA_IMAGE" .
 
 step "importing images into the cluster"
 case "$TOOL" in
-  k3d) k3d image import -c "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" ;;
-  kind) kind load docker-image --name "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" ;;
+  k3d) k3d image import -c "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" "$CAMERA_IMAGE" ;;
+  kind) kind load docker-image --name "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" "$CAMERA_IMAGE" ;;
 esac
 
 step "starting MinIO (the archive) with bucket $BUCKET"
@@ -136,6 +139,7 @@ ENDPOINT=http://minio.minio.svc:9000
 "$HELM" upgrade --install sadesim charts/sadesim -n "$SYSTEM_NS" --create-namespace --wait --timeout 180s \
   --set image.tag="$TAG" \
   --set workerImage.tag="$TAG" \
+  --set cameraImage.tag="$TAG" \
   --set defaultArchiveUrl="s3://$BUCKET" \
   --set objectStore.create=true \
   --set objectStore.secretName=sadesim-object-store \
@@ -245,6 +249,24 @@ frames=$(curl -sN --max-time 5 http://127.0.0.1:18490/live | grep -c '^event: fr
 [ "$frames" -ge 10 ] || { echo "e2e: the renderer streamed $frames frames in 5 s, expected at least 10" >&2; exit 1; }
 echo "  the renderer streamed $frames frames in 5 s"
 kill "$FORWARD_PID" 2>/dev/null || true
+# The onboard cameras: the coordinator renders them and serves them on its Service.
+cameras=$(kubectl get simrun "$VIEW_RUN" -n "$RUN_NS" -o jsonpath='{.status.endpoints.cameras}')
+[ "$cameras" = "http://$VIEW_RUN-airspace.$RUN_NS.svc:8490/cameras" ] \
+  || { echo "e2e: status.endpoints.cameras is '$cameras'" >&2; exit 1; }
+kubectl port-forward -n "$RUN_NS" "svc/$VIEW_RUN-airspace" 18491:8490 >/dev/null 2>&1 &
+FORWARD_PID=$!
+sleep 3
+latest=$(curl -fsS http://127.0.0.1:18491/cameras | grep -o '"latest":"[^"]*"' | head -n 1 | cut -d'"' -f4)
+[ -n "$latest" ] || { echo "e2e: the coordinator lists no camera at /cameras" >&2; exit 1; }
+curl -fsS -o /tmp/sadesim-e2e-frame.jpg "http://127.0.0.1:18491$latest"
+# A JPEG starts with FF D8 FF; 160x120 frames of a city are a few kB.
+magic=$(head -c 3 /tmp/sadesim-e2e-frame.jpg | od -An -tx1 | tr -d ' \n')
+[ "$magic" = ffd8ff ] || { echo "e2e: $latest is not a JPEG (starts with $magic)" >&2; exit 1; }
+size=$(wc -c < /tmp/sadesim-e2e-frame.jpg)
+[ "$size" -gt 1000 ] || { echo "e2e: $latest is $size bytes, too small for a frame" >&2; exit 1; }
+kubectl logs -n "$RUN_NS" "$VIEW_RUN-coordinator" | grep -m1 'onboard cameras:' || true
+echo "  the coordinator served $latest, a $size-byte JPEG"
+kill "$FORWARD_PID" 2>/dev/null || true
 kubectl delete simrun "$VIEW_RUN" -n "$RUN_NS" --wait
 deadline=$((SECONDS + 120))
 while kubectl get deployment -n "$RUN_NS" "$VIEW_RUN-renderer" >/dev/null 2>&1; do
@@ -252,4 +274,4 @@ while kubectl get deployment -n "$RUN_NS" "$VIEW_RUN-renderer" >/dev/null 2>&1; 
   sleep 3
 done
 
-step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified; $PILOT_RUN ended by its pilot at ${sim} s; the live view streamed $frames frames"
+step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified; $PILOT_RUN ended by its pilot at ${sim} s; the live view streamed $frames frames; a camera frame of $size bytes"

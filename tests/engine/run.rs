@@ -293,14 +293,12 @@ fn onboard_cameras_with_worker_processes_take_the_same_frames() {
     r.spec.duration = "6s".parse().unwrap();
     r.spec.rendering = Some(sadesim_crds::run::Rendering { enabled: true, gpus: None });
     r.spec.fleet[0].cameras = vec![sadesim_crds::camera::Camera {
-        name: "down".into(),
         width_px: 64,
         height_px: 48,
-        horizontal_fov_deg: 90.0,
         rate_hz: 5.0,
         record_rate_hz: Some(5.0),
-        mount: sadesim_crds::camera::CameraMount { pitch_deg: 90.0, ..Default::default() },
         depth: true,
+        ..sadesim_crds::fixtures::down_camera()
     }];
     let root = out_root("cameras-processes");
     let threads = run(&r, &root.join("threads"), false).unwrap();

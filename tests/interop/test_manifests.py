@@ -1,6 +1,7 @@
 """What the operator creates (`sadesim manifests`) and what the Helm chart installs, against
 Kubernetes' own schemas: kubernetes-validate --strict for Kubernetes 1.33 (the API version the
 operator is built against, k8s-openapi feature v1_33)."""
+import json
 import pathlib
 import subprocess
 
@@ -120,7 +121,7 @@ def test_the_chart_configures_the_operator_with_the_contract_env_only():
     container = deployment["spec"]["template"]["spec"]["containers"][0]
     env = {e["name"]: e.get("value") for e in container["env"]}
     assert set(env) == {
-        "SADESIM_WORKER_IMAGE", "SADESIM_OPENFOAM_IMAGE", "SADESIM_DEFAULT_ARCHIVE_URL", "SADESIM_OBJECT_STORE_SECRET",
+        "SADESIM_WORKER_IMAGE", "SADESIM_OPENFOAM_IMAGE", "SADESIM_CAMERA_IMAGE", "SADESIM_DEFAULT_ARCHIVE_URL", "SADESIM_OBJECT_STORE_SECRET",
         "SADESIM_ROUTER_SERVICE_TYPE", "SADESIM_KUEUE", "SADESIM_MAX_CONCURRENT_RUNS", "SADESIM_METRICS_ADDR",
         "SADESIM_LEADER_ELECTION", "POD_NAMESPACE", "POD_NAME",
     }
@@ -128,6 +129,9 @@ def test_the_chart_configures_the_operator_with_the_contract_env_only():
     # The assets Job of an OpenFOAM run takes the image with OpenFOAM, same tag as the worker's.
     assert env["SADESIM_OPENFOAM_IMAGE"].startswith("ghcr.io/sadesim/sim-worker-openfoam:")
     assert env["SADESIM_OPENFOAM_IMAGE"].split(":")[1] == env["SADESIM_WORKER_IMAGE"].split(":")[1]
+    # The coordinator of a run with onboard cameras takes the image with Vulkan, same tag.
+    assert env["SADESIM_CAMERA_IMAGE"].startswith("ghcr.io/sadesim/sim-worker-camera:")
+    assert env["SADESIM_CAMERA_IMAGE"].split(":")[1] == env["SADESIM_WORKER_IMAGE"].split(":")[1]
     # The image's entrypoint is the operator binary itself (images/operator.Dockerfile).
     assert "args" not in container and "command" not in container
     assert container["livenessProbe"]["httpGet"]["path"] == "/healthz"
@@ -157,18 +161,61 @@ def test_the_operator_binary_reads_every_variable_the_chart_sets(sadesim_operato
         assert f"env: {name}" in help_text, f"{name} is not a sadesim-operator flag:\n{help_text}"
 
 
-def test_a_rendering_run_with_gpus_passes_kubernetes_validate_strict(sadesim, venv_bin, tmp_path):
-    """The renderer Deployment and Service (with a GPU request) and the coordinator's
-    live-stream port, against Kubernetes' schemas."""
-    doc = yaml.safe_load((REPO / "examples" / "quickstart.yaml").read_text())
+def test_a_run_with_onboard_cameras_and_gpus_passes_kubernetes_validate_strict(sadesim, venv_bin, tmp_path):
+    """The renderer Deployment and Service, and the coordinator that renders the onboard
+    cameras (the camera image, a GPU request, the frames' port) and the pilot that reads
+    them, against Kubernetes' schemas."""
+    doc = yaml.safe_load((REPO / "examples" / "precision-landing.yaml").read_text())
     doc["spec"]["rendering"] = {"enabled": True, "gpus": 1}
-    scenario = tmp_path / "view.yaml"
+    doc["spec"]["pilot"]["image"] = "registry.example/team-a/landing:1"
+    scenario = tmp_path / "cameras.yaml"
     scenario.write_text(yaml.safe_dump(doc))
     text = manifests(sadesim, str(scenario))
-    assert {"Deployment/quickstart-renderer", "Service/quickstart-renderer"} <= set(kinds(text)), kinds(text)
+    assert {"Deployment/precision-landing-renderer", "Service/precision-landing-renderer"} <= set(kinds(text)), kinds(text)
     result = kubernetes_validate(venv_bin, text)
     assert result.returncode == 0, result.stdout + result.stderr
-    renderer = next(d for d in yaml.safe_load_all(text) if d and d["kind"] == "Deployment")
-    container = renderer["spec"]["template"]["spec"]["containers"][0]
-    assert container["resources"]["limits"]["nvidia.com/gpu"] == "1"
+    docs = [d for d in yaml.safe_load_all(text) if d]
+    pods = {
+        d["metadata"]["name"]: (d["spec"] if d["kind"] == "Pod" else d["spec"]["template"]["spec"])
+        for d in docs
+        if d["kind"] in ("Pod", "Job", "Deployment")
+    }
+    limits = {name: spec["containers"][0]["resources"].get("limits", {}) for name, spec in pods.items()}
+    assert {name for name, lim in limits.items() if "nvidia.com/gpu" in lim} == {"precision-landing-coordinator"}
+    coordinator = pods["precision-landing-coordinator"]["containers"][0]
+    assert coordinator["image"].startswith("ghcr.io/sadesim/sim-worker-camera:")
+    assert pods["precision-landing-renderer"]["containers"][0]["image"].startswith("ghcr.io/sadesim/sim-worker:")
+    pilot_env = {e["name"]: e.get("value") for e in pods["precision-landing-pilot"]["containers"][0]["env"]}
+    url = pilot_env["SADESIM_CAMERAS_URL"]
+    assert url == "http://precision-landing-airspace.default.svc:8490/cameras", url
+    fleet_cm = next(d for d in docs if d["kind"] == "ConfigMap" and d["metadata"]["name"] == "precision-landing-fleet")
+    fleet = json.loads(fleet_cm["data"]["fleet.json"])
+    assert all(d["cameras"]["down"] == f"{url}/{d['name']}/down/" for d in fleet["drones"]), fleet["drones"]
+    renderer = next(d for d in docs if d["kind"] == "Deployment")
     assert renderer["metadata"]["ownerReferences"][0]["kind"] == "SimulationRun"
+
+
+def test_every_dockerfile_passes_hadolint(venv_bin):
+    """The images (unbuilt on this machine, which has no container engine) against hadolint's
+    rules; an ignored rule is ignored in the Dockerfile itself, with its reason."""
+    dockerfiles = sorted((REPO / "images").glob("*.Dockerfile"))
+    assert len(dockerfiles) >= 4, dockerfiles
+    result = subprocess.run([str(venv_bin / "hadolint"), *map(str, dockerfiles)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("scenario", sorted(p.name for p in (REPO / "tests" / "e2e").glob("*.yaml")))
+def test_the_end_to_end_scenarios_make_valid_manifests(sadesim, venv_bin, scenario):
+    """tests/e2e/run.sh cannot run here (no container engine): what it applies must at least
+    make objects Kubernetes accepts."""
+    text = manifests(sadesim, f"tests/e2e/{scenario}")
+    result = kubernetes_validate(venv_bin, text)
+    assert result.returncode == 0, result.stdout + result.stderr
+
+
+def test_the_shell_scripts_pass_shellcheck(venv_bin):
+    """The end-to-end script, which cannot run on this machine, and CI's scripts."""
+    scripts = [REPO / ".ci" / "run", *sorted((REPO / "tests").rglob("*.sh"))]
+    assert REPO / "tests" / "e2e" / "run.sh" in scripts
+    result = subprocess.run([str(venv_bin / "shellcheck"), *map(str, scripts)], capture_output=True, text=True)
+    assert result.returncode == 0, result.stdout + result.stderr

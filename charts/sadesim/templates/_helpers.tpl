@@ -42,3 +42,7 @@ app.kubernetes.io/component: operator
 {{- define "sadesim.openfoamImage" -}}
 {{- printf "%s:%s" .Values.openfoamImage.repository (default .Chart.AppVersion .Values.openfoamImage.tag) -}}
 {{- end -}}
+
+{{- define "sadesim.cameraImage" -}}
+{{- printf "%s:%s" .Values.cameraImage.repository (default .Chart.AppVersion .Values.cameraImage.tag) -}}
+{{- end -}}

@@ -255,7 +255,7 @@ fn cluster_only_notices(plan: &RunPlan) -> Vec<String> {
     }
     if let Some(gpus) = plan.spec.rendering().gpus {
         out.push(format!(
-            "spec.rendering.gpus: the {gpus} GPU(s) are asked for the renderer pod on Kubernetes only; locally the live view draws in your browser"
+            "spec.rendering.gpus: the {gpus} GPU(s) are asked for the pod that renders the onboard cameras on Kubernetes only; locally they render on this machine's Vulkan device (named below)"
         ));
     }
     out
@@ -648,8 +648,10 @@ mod tests {
     fn gpus_for_the_renderer_are_said_to_apply_on_kubernetes_only() {
         use sadesim_crds::fixtures::RunBuilder;
         use sadesim_crds::run::Rendering;
-        let run =
-            RunBuilder::test().with(|r| r.spec.rendering = Some(Rendering { enabled: true, gpus: Some(1) })).build();
+        let run = RunBuilder::test()
+            .with_camera(sadesim_crds::fixtures::down_camera())
+            .with(|r| r.spec.rendering = Some(Rendering { enabled: true, gpus: Some(1) }))
+            .build();
         let notices = cluster_only_notices(&sadesim_planner::plan(&run).unwrap());
         assert_eq!(notices.len(), 1, "{notices:?}");
         assert!(notices[0].starts_with("spec.rendering.gpus: the 1 GPU(s)"), "{notices:?}");

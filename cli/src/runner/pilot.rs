@@ -37,7 +37,7 @@ pub const LOG_FILE: &str = sadesim_crds::outcome::run_folder::PILOT_LOG;
 /// What happened to the pilot ([`PilotRecord`]), in the output folder.
 pub const RECORD_FILE: &str = sadesim_crds::outcome::run_folder::PILOT_RECORD;
 /// The variable that holds the base URL of the run's onboard camera frames.
-pub const CAMERAS_URL_ENV: &str = "SADESIM_CAMERAS_URL";
+pub use sadesim_planner::CAMERAS_URL_ENV;
 /// Time between SIGTERM and SIGKILL when the run ends before the pilot.
 pub const TERM_GRACE: Duration = Duration::from_secs(5);
 

@@ -346,33 +346,34 @@ fn an_imported_openfoam_case_needs_model_openfoam_a_folder_and_the_runs_directio
 }
 
 #[test]
-fn gpus_for_the_renderer_are_bounded_and_need_it_on() {
+fn gpus_for_the_renderer_are_bounded_and_need_it_on_and_cameras_to_render() {
     use crate::run::Rendering;
-    let with =
-        |enabled: bool, gpus: Option<u32>| problems_of(move |r| r.spec.rendering = Some(Rendering { enabled, gpus }));
+    let camera = crate::fixtures::down_camera();
+    let with = |enabled: bool, gpus: Option<u32>| {
+        let camera = camera.clone();
+        problems_of(move |r| {
+            r.spec.rendering = Some(Rendering { enabled, gpus });
+            r.spec.fleet[0].cameras = vec![camera];
+        })
+    };
     assert!(with(true, Some(1)).is_empty(), "{:?}", with(true, Some(1)));
     assert!(with(true, None).is_empty());
+    let no_cameras = problems_of(|r| r.spec.rendering = Some(Rendering { enabled: true, gpus: Some(1) }));
+    assert_eq!(no_cameras.len(), 1);
+    assert!(no_cameras[0].starts_with("spec.rendering.gpus: asks GPUs, but nothing renders"), "{no_cameras:?}");
     assert_eq!(with(true, Some(0)), ["spec.rendering.gpus: must be between 1 and 8, got 0"]);
     assert_eq!(with(true, Some(9)), ["spec.rendering.gpus: must be between 1 and 8, got 9"]);
     let off = with(false, Some(1));
-    assert_eq!(off.len(), 1);
-    assert!(off[0].starts_with("spec.rendering.gpus: asks GPUs for a renderer that is off"), "{off:?}");
+    assert!(off.iter().any(|p| p.starts_with("spec.rendering.gpus: asks GPUs for a renderer that is off")), "{off:?}");
+    assert!(off.iter().all(|p| !p.contains("nothing renders")), "one reason at a time: {off:?}");
 }
 
 #[test]
 fn cameras_and_markers_name_their_bad_fields() {
-    use crate::camera::{Camera, CameraMount, GroundMarker};
+    use crate::camera::{Camera, GroundMarker};
     use crate::run::Rendering;
-    let camera = |rate_hz: f64, width_px: u32| Camera {
-        name: "down".into(),
-        width_px,
-        height_px: 120,
-        horizontal_fov_deg: 90.0,
-        rate_hz,
-        record_rate_hz: None,
-        mount: CameraMount { pitch_deg: 90.0, ..CameraMount::default() },
-        depth: true,
-    };
+    let camera =
+        |rate_hz: f64, width_px: u32| Camera { rate_hz, width_px, depth: true, ..crate::fixtures::down_camera() };
     let marker = |id: u32| GroundMarker {
         name: "pad".into(),
         position: crate::fleet::LatLon { latitude_deg: 41.8826, longitude_deg: -87.6225 },

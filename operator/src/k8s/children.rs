@@ -146,6 +146,10 @@ pub struct ClusterSettings {
     /// assets Job uses it when the run's urban wind model is `openfoam`, because that Job
     /// runs OpenFOAM over the world's buildings. Every other pod keeps `worker_image`.
     pub openfoam_image: String,
+    /// The worker image with Mesa's Vulkan drivers (images/sim-worker-camera.Dockerfile):
+    /// the coordinator of a run with onboard cameras uses it, because it renders their
+    /// frames through Vulkan (lavapipe on the CPU, or the node's GPU driver).
+    pub camera_image: String,
     /// Archive URL used when `spec.archive` is absent (e.g. `s3://sadesim-runs`).
     pub default_archive_url: Option<String>,
     /// Secret whose keys become environment variables of roles that write the archive
@@ -162,6 +166,7 @@ impl Default for ClusterSettings {
         Self {
             worker_image: "ghcr.io/sadesim/sim-worker:0.1.0".into(),
             openfoam_image: "ghcr.io/sadesim/sim-worker-openfoam:0.1.0".into(),
+            camera_image: "ghcr.io/sadesim/sim-worker-camera:0.1.0".into(),
             default_archive_url: None,
             object_store_secret: None,
             router_service_type: "ClusterIP".into(),
@@ -391,14 +396,6 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
         out.push(Problem {
             field: "spec.pilot.image".into(),
             message: "required on Kubernetes: the pilot runs as a Job from this image (`command` only overrides its entrypoint)".into(),
-            fatal: true,
-        });
-    }
-    if let Some(i) = plan.spec.fleet.iter().position(|g| !g.cameras.is_empty()) {
-        // Frames are rendered by the local runner only so far: no fake success on a cluster.
-        out.push(Problem {
-            field: format!("spec.fleet[{i}].cameras"),
-            message: "onboard cameras run in local runs (sadesim run) only in this version".into(),
             fatal: true,
         });
     }

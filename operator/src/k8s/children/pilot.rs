@@ -15,8 +15,9 @@ use super::{Role, kueue, names};
 /// `problems`). Environment, in order: `spec.pilot.env`, `SADESIM_FLEET` (the mounted
 /// fleet file, in-cluster addresses), `SADESIM_RUN`, `SADESIM_NAMESPACE`, `SADESIM_RUN_UID`,
 /// `SADESIM_OUT` (a writable folder), `HOME` (`/tmp` unless `spec.pilot.env` sets it: the
-/// root filesystem is read-only) and `SADESIM_CREDENTIAL_<GROUP>` per group with a
-/// credential. The pilot runs once: a pilot that fails is a finding, not something to retry.
+/// root filesystem is read-only), `SADESIM_CREDENTIAL_<GROUP>` per group with a
+/// credential and, with onboard cameras, `SADESIM_CAMERAS_URL` (the coordinator's frame
+/// listing; the fleet file has each drone's camera URLs). The pilot runs once: a pilot that fails is a finding, not something to retry.
 pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
     let pilot = ctx.plan.spec.pilot.as_ref()?;
     let image = pilot.image.clone()?;
@@ -28,6 +29,9 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
         vars.push(env("HOME", TMP_DIR));
     }
     vars.extend(ctx.credential_env());
+    if let Some(url) = sadesim_planner::cluster_cameras_url(ctx.plan) {
+        vars.push(env(sadesim_planner::CAMERAS_URL_ENV, url));
+    }
     let planned = ctx.plan.resources.pilot.unwrap_or(RoleResources { cpu_millis: 500, memory_mib: 512 });
     let container = Container {
         name: Role::Pilot.label().into(),

@@ -382,25 +382,81 @@ fn children_of(run: &SimulationRun) -> Vec<Child> {
     children(run, &planned(run), &s3(), Stage::ALL)
 }
 
+fn gpu_limit(c: &Container) -> Option<String> {
+    c.resources.as_ref()?.limits.as_ref()?.get("nvidia.com/gpu").map(|q| q.0.clone())
+}
+
+/// GPUs go to the pod that renders on the server: the coordinator, which renders the
+/// onboard cameras. Browsers draw the live view, so the renderer never asks for one.
 #[test]
-fn the_renderer_asks_for_gpus_only_when_the_scenario_does() {
-    let gpu_limit = |gpus: Option<u32>| {
+fn gpus_go_to_the_coordinator_that_renders_the_cameras_and_only_when_asked() {
+    let with = |gpus: Option<u32>| {
         let mut run = piloted(3);
         run.spec.rendering = Some(Rendering { enabled: true, gpus });
-        let c = container(&children_of(&run), "test-run-renderer");
-        c.resources.and_then(|r| r.limits).and_then(|l| l.get("nvidia.com/gpu").map(|q| q.0.clone()))
+        run.spec.fleet[0].cameras = vec![sadesim_crds::fixtures::down_camera()];
+        children_of(&run)
     };
-    assert_eq!(gpu_limit(None), None);
-    assert_eq!(gpu_limit(Some(2)), Some("2".to_string()));
-    // No other pod asks for one.
-    let mut run = piloted(3);
-    run.spec.rendering = Some(Rendering { enabled: true, gpus: Some(1) });
-    for (name, spec) in pod_specs(&children_of(&run)) {
-        let asks = spec.containers.iter().any(|c| {
-            c.resources.as_ref().and_then(|r| r.limits.as_ref()).is_some_and(|l| l.contains_key("nvidia.com/gpu"))
-        });
-        assert_eq!(asks, name == "test-run-renderer", "{name}");
+    let coordinator = container(&with(None), "test-run-coordinator");
+    assert_eq!(gpu_limit(&coordinator), None);
+    let no_capability = |c: &Container| c.env.iter().flatten().all(|e| e.name != "NVIDIA_DRIVER_CAPABILITIES");
+    assert!(no_capability(&coordinator), "no GPU, no NVIDIA runtime settings");
+    let children = with(Some(2));
+    let coordinator = container(&children, "test-run-coordinator");
+    assert_eq!(gpu_limit(&coordinator).as_deref(), Some("2"));
+    // NVIDIA's runtime mounts its Vulkan driver only for the `graphics` capability.
+    let caps = coordinator.env.iter().flatten().find(|e| e.name == "NVIDIA_DRIVER_CAPABILITIES").unwrap();
+    assert!(caps.value.as_deref().unwrap().split(',').any(|c| c == "graphics"), "{caps:?}");
+    for (name, spec) in pod_specs(&children) {
+        let asks = spec.containers.iter().any(|c| gpu_limit(c).is_some());
+        assert_eq!(asks, name == "test-run-coordinator", "{name}");
     }
+}
+
+/// A run with onboard cameras runs on a cluster: the coordinator renders them in the image
+/// that has Vulkan, serves them on its Service's `view-feed` port, and the pilot finds them
+/// there through its fleet file and `SADESIM_CAMERAS_URL`.
+#[test]
+fn onboard_cameras_run_in_the_camera_image_and_the_pilot_gets_their_urls() {
+    let settings = ClusterSettings { camera_image: "registry.example/camera:3".into(), ..s3() };
+    let mut run = piloted(2).tap_rendering();
+    run.spec.fleet[0].cameras = vec![sadesim_crds::fixtures::down_camera()];
+    let plan = planned(&run);
+    assert!(
+        problems(&plan, &settings).iter().all(|p| !p.field.contains("cameras")),
+        "{:?}",
+        problems(&plan, &settings)
+    );
+    let children = children(&run, &plan, &settings, Stage::ALL);
+    let coordinator = container(&children, "test-run-coordinator");
+    assert_eq!(coordinator.image.as_deref(), Some("registry.example/camera:3"));
+    for other in ["test-run-shard", "test-run-renderer", "test-run-router-0"] {
+        assert_eq!(container(&children, other).image, Some(settings.worker_image.clone()), "{other}");
+    }
+    // The frame server listens on every interface, on the port the Service exposes.
+    let args = coordinator.args.unwrap();
+    let view = args.iter().position(|a| a == "--view-bind").map(|i| args[i + 1].clone());
+    assert_eq!(view.as_deref(), Some("0.0.0.0:8490"));
+    let Some(Child::Service(svc)) = children.iter().find(|c| c.name() == "test-run-airspace") else { panic!() };
+    let ports = svc.spec.as_ref().unwrap().ports.as_ref().unwrap();
+    assert!(ports.iter().any(|p| p.name.as_deref() == Some("view-feed") && p.port == 8490), "{ports:?}");
+    // The pilot's two ways to the frames name that Service and port.
+    let url = "http://test-run-airspace.default.svc:8490/cameras";
+    let pilot_env = container(&children, "test-run-pilot").env.unwrap();
+    let cameras_env = pilot_env.iter().find(|e| e.name == "SADESIM_CAMERAS_URL").and_then(|e| e.value.as_deref());
+    assert_eq!(cameras_env, Some(url));
+    let Some(Child::ConfigMap(cm)) = children.iter().find(|c| c.name() == "test-run-fleet") else { panic!() };
+    let fleet: Value = serde_json::from_str(&cm.data.as_ref().unwrap()["fleet.json"]).unwrap();
+    for d in fleet["drones"].as_array().unwrap() {
+        assert_eq!(d["cameras"]["down"], format!("{url}/{}/down/", d["name"].as_str().unwrap()));
+    }
+    // The same run's coordinator plans the CPU its cameras render with.
+    let without = planned(&piloted(2).tap_rendering());
+    assert!(plan.resources.coordinator.cpu_millis > without.resources.coordinator.cpu_millis);
+    // Without cameras: the small image, and no camera variable.
+    let run = piloted(2).tap_rendering();
+    let children = children_of(&run);
+    assert_eq!(container(&children, "test-run-coordinator").image, Some(s3().worker_image));
+    assert!(container(&children, "test-run-pilot").env.unwrap().iter().all(|e| e.name != "SADESIM_CAMERAS_URL"));
 }
 
 #[test]
@@ -732,24 +788,4 @@ fn a_queue_without_the_kueue_integration_is_refused_naming_the_field() {
     // Without spec.queue nothing is said either way.
     run.spec.queue = None;
     assert!(!problems(&planned(&run), &s3()).iter().any(|p| p.field == "spec.queue"));
-}
-
-#[test]
-fn onboard_cameras_are_refused_on_a_cluster_naming_the_field() {
-    let mut run = piloted(1).tap_rendering();
-    run.spec.fleet[0].cameras = vec![sadesim_crds::camera::Camera {
-        name: "down".into(),
-        width_px: 160,
-        height_px: 120,
-        horizontal_fov_deg: 90.0,
-        rate_hz: 10.0,
-        record_rate_hz: None,
-        mount: Default::default(),
-        depth: false,
-    }];
-    let found = problems(&planned(&run), &s3());
-    let p = found.iter().find(|p| p.field == "spec.fleet[0].cameras").expect("refused");
-    assert!(p.fatal && p.message.contains("local runs"), "{p:?}");
-    run.spec.fleet[0].cameras.clear();
-    assert!(!problems(&planned(&run), &s3()).iter().any(|p| p.field.contains("cameras")));
 }

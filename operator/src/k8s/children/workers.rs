@@ -199,6 +199,9 @@ pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
     }
     // The authority checks the bearer credentials the pilot presents.
     env.extend(ctx.credential_env());
+    if has_cameras(ctx.plan) {
+        renders_cameras(ctx, &mut c);
+    }
     c.env_from = ctx.object_store_env();
     c.ports = Some(coordinator_ports(ctx).into_iter().map(|(name, number)| port(name, number, "TCP")).collect());
     c.readiness_probe = Some(tcp_probe("airspace"));
@@ -214,6 +217,24 @@ pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
         metadata.annotations = Some(BTreeMap::from([(STOP_ANNOTATION.to_string(), reason.to_string())]));
     }
     Pod { metadata, spec: Some(spec), ..Default::default() }
+}
+
+fn has_cameras(plan: &sadesim_crds::plan::RunPlan) -> bool {
+    plan.spec.fleet.iter().any(|g| !g.cameras.is_empty())
+}
+
+/// Makes the coordinator `c` able to render the onboard cameras: the worker image with
+/// Mesa's Vulkan drivers (lavapipe renders on the CPU, whose cost the planner added to the
+/// coordinator's request), and `spec.rendering.gpus` GPUs when asked. NVIDIA's container
+/// runtime mounts its Vulkan driver (ICD) only when the `graphics` capability is asked;
+/// wgpu then prefers the GPU over lavapipe, and a pod scheduled without one still renders.
+fn renders_cameras(ctx: &Context, c: &mut k8s_openapi::api::core::v1::Container) {
+    c.image = Some(ctx.settings.camera_image.clone());
+    if let Some(gpus) = ctx.plan.spec.rendering().gpus {
+        let limits = c.resources.get_or_insert_with(Default::default).limits.get_or_insert_with(BTreeMap::new);
+        limits.insert(GPU_RESOURCE.into(), k8s_openapi::apimachinery::pkg::api::resource::Quantity(gpus.to_string()));
+        c.env.get_or_insert_with(Vec::new).push(super::pod::env("NVIDIA_DRIVER_CAPABILITIES", "graphics,utility"));
+    }
 }
 
 /// A downward-API volume with one file, `annotations` (mounted at [`CONTROL_DIR`], so it is
@@ -394,7 +415,8 @@ pub(super) fn renderer_service(ctx: &Context) -> Service {
 /// `<run>-renderer`: `sim-worker renderer --plan P --listen 0.0.0.0:<renderer port> --feed
 /// <run>-airspace:<renderer port>` (the coordinator's live stream), one replica, replaced
 /// (not rolled) on change. It loads the world's bundle as the shards do (for the city it
-/// draws) and asks `spec.rendering.gpus` GPUs when set.
+/// draws). It asks no GPU: browsers draw the view, and the onboard cameras render in the
+/// coordinator (`spec.rendering.gpus` goes there).
 pub(super) fn renderer_deployment(ctx: &Context) -> Deployment {
     let port_no = ctx.plan.services.renderer_http;
     let feed = format!("{}:{port_no}", names::airspace_host(ctx.name, ctx.namespace));
@@ -408,10 +430,6 @@ pub(super) fn renderer_deployment(ctx: &Context) -> Deployment {
     // The bundle, or without one the world's own files, are read with the object-store
     // credentials, as by the shards.
     c.env_from = ctx.object_store_env();
-    if let Some(gpus) = ctx.plan.spec.rendering().gpus {
-        let limits = c.resources.get_or_insert_with(Default::default).limits.get_or_insert_with(BTreeMap::new);
-        limits.insert(GPU_RESOURCE.into(), k8s_openapi::apimachinery::pkg::api::resource::Quantity(gpus.to_string()));
-    }
     c.ports = Some(vec![port("http", port_no, "TCP")]);
     c.readiness_probe = Some(tcp_probe("http"));
     let spec = pod_spec(vec![c], vec![config_volume(names::config(ctx.name)), empty_dir("tmp")], "Always");

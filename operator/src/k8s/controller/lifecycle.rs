@@ -632,6 +632,7 @@ fn endpoints(plan: &RunPlan) -> Endpoints {
             .rendering()
             .enabled
             .then(|| format!("http://{}.{ns}.svc:{}", names::renderer(run), plan.services.renderer_http)),
+        cameras: sadesim_planner::cluster_cameras_url(plan),
     }
 }
 

@@ -262,6 +262,16 @@ fn released_pilots_start_running_and_create_the_pilot_job() {
     assert_eq!(d.status.shards.len(), 1);
     assert!(d.status.shards[0].ready);
     assert!(d.status.endpoints.as_ref().unwrap().airspace.as_ref().unwrap().contains("test-run-airspace.default.svc"));
+    assert_eq!(d.status.endpoints.as_ref().unwrap().cameras, None, "no cameras, no camera endpoint");
+}
+
+#[test]
+fn a_run_with_onboard_cameras_lists_their_frames_among_its_endpoints() {
+    let run = RunBuilder::test().with_camera(sadesim_crds::fixtures::down_camera()).build();
+    let plan = sadesim_planner::plan(&run).unwrap();
+    let e = endpoints(&plan);
+    assert_eq!(e.cameras.as_deref(), Some("http://test-run-airspace.default.svc:8490/cameras"));
+    assert_eq!(e.renderer.as_deref(), Some("http://test-run-renderer.default.svc:8490"));
 }
 
 /// The coordinator Pod among the applied children, with its annotations.
