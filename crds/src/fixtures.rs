@@ -48,6 +48,7 @@ impl RunBuilder {
             archive: None,
             criteria: vec![],
             queue: None,
+            ground_stations: None,
             abort: false,
         };
         let mut run = SimulationRun::new("test-run", spec);

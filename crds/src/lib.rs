@@ -15,6 +15,7 @@ pub mod fixtures;
 pub mod fleet;
 pub mod fleet_file;
 pub mod geo;
+pub mod ground_stations;
 pub mod outcome;
 pub mod plan;
 pub mod polygon;

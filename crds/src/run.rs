@@ -45,7 +45,7 @@ pub const DEFAULT_WORLD_EXTENT_M: f64 = 3000.0;
     printcolumn = r#"{"name":"Age","type":"date","jsonPath":".metadata.creationTimestamp"}"#
 )]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
-#[x_kube(validation = Rule::new("has(self.clock) == has(oldSelf.clock) && has(self.physicsRateHz) == has(oldSelf.physicsRateHz) && has(self.seed) == has(oldSelf.seed) && has(self.world) == has(oldSelf.world) && has(self.environment) == has(oldSelf.environment) && has(self.zones) == has(oldSelf.zones) && has(self.pilot) == has(oldSelf.pilot) && has(self.rendering) == has(oldSelf.rendering) && has(self.sharding) == has(oldSelf.sharding) && has(self.recording) == has(oldSelf.recording) && has(self.archive) == has(oldSelf.archive) && has(self.criteria) == has(oldSelf.criteria) && has(self.queue) == has(oldSelf.queue)").message("spec fields cannot be added or removed once the run exists: only spec.abort may change (create a new run instead)"))]
+#[x_kube(validation = Rule::new("has(self.clock) == has(oldSelf.clock) && has(self.physicsRateHz) == has(oldSelf.physicsRateHz) && has(self.seed) == has(oldSelf.seed) && has(self.world) == has(oldSelf.world) && has(self.environment) == has(oldSelf.environment) && has(self.zones) == has(oldSelf.zones) && has(self.pilot) == has(oldSelf.pilot) && has(self.rendering) == has(oldSelf.rendering) && has(self.sharding) == has(oldSelf.sharding) && has(self.recording) == has(oldSelf.recording) && has(self.archive) == has(oldSelf.archive) && has(self.criteria) == has(oldSelf.criteria) && has(self.queue) == has(oldSelf.queue) && has(self.groundStations) == has(oldSelf.groundStations)").message("spec fields cannot be added or removed once the run exists: only spec.abort may change (create a new run instead)"))]
 #[x_kube(validation = Rule::new("has(self.pilot) || self.fleet.all(g, has(g.mission))").message("spec.pilot is required: a fleet group without a mission is flown over MAVLink by the pilot"))]
 pub struct SimulationRunSpec {
     /// Geodetic origin of the run's local ENU frame, on the ground at the centre of the world.
@@ -117,6 +117,11 @@ pub struct SimulationRunSpec {
     #[schemars(length(min = 1, max = 63), pattern(r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"))]
     #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
     pub queue: Option<String>,
+    /// Who outside the run may reach its MAVLink routers, drones and airspace API, and MAVLink
+    /// signing for ground stations.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
+    pub ground_stations: Option<crate::ground_stations::GroundStations>,
     /// Set to true to stop the run: pilot first, then shards, then the archive is written.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub abort: bool,

@@ -102,6 +102,9 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
     if let Some(queue) = &spec.queue {
         p.dns_label("spec.queue", queue, 63);
     }
+    if let Some(stations) = &spec.ground_stations {
+        check_ground_stations(stations, p);
+    }
     let rendering = spec.rendering();
     if let Some(gpus) = rendering.gpus {
         p.range_int("spec.rendering.gpus", gpus.into(), 1, 8);
@@ -117,6 +120,34 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
         }
     }
     criteria::check_criteria(spec, &group_names, &zone_names, p);
+}
+
+fn check_ground_stations(stations: &crate::ground_stations::GroundStations, p: &mut Problems) {
+    for (i, cidr) in stations.allow_from.iter().enumerate() {
+        if let Err(why) = parse_cidr(cidr) {
+            p.add(format!("spec.groundStations.allowFrom[{i}]"), format!("{why}, got {cidr:?}"));
+        }
+    }
+    if stations.signing.is_some() {
+        p.add("spec.groundStations.signing", "MAVLink signing is not supported yet: remove it");
+    }
+}
+
+/// An address range as NetworkPolicy `ipBlock.cidr` takes it: `address/prefix`, IPv4 with a
+/// prefix of 0..=32 or IPv6 with 0..=128.
+pub fn parse_cidr(cidr: &str) -> Result<(std::net::IpAddr, u8), String> {
+    let expected = "must be an address range in CIDR notation such as 10.20.0.0/16 or fd00::/8";
+    let (addr, prefix) = cidr.split_once('/').ok_or(expected)?;
+    let addr: std::net::IpAddr = addr.parse().map_err(|_| expected)?;
+    let prefix: u8 = prefix.parse().map_err(|_| expected)?;
+    let max = if addr.is_ipv4() { 32 } else { 128 };
+    if prefix > max {
+        return Err(format!(
+            "the prefix length of an {} range is at most {max}",
+            if max == 32 { "IPv4" } else { "IPv6" }
+        ));
+    }
+    Ok((addr, prefix))
 }
 
 fn check_archive_url(url: &str, p: &mut Problems) {

@@ -253,6 +253,12 @@ fn cluster_only_notices(plan: &RunPlan) -> Vec<String> {
             "spec.queue: the Kueue LocalQueue {queue:?} admits the run on Kubernetes only; this local run starts at once"
         ));
     }
+    if let Some(stations) = plan.spec.ground_stations.as_ref().filter(|s| !s.allow_from.is_empty()) {
+        out.push(format!(
+            "spec.groundStations.allowFrom: the {} range(s) open the run's NetworkPolicy on Kubernetes only; locally every service listens on 127.0.0.1",
+            stations.allow_from.len()
+        ));
+    }
     if let Some(gpus) = plan.spec.rendering().gpus {
         out.push(format!(
             "spec.rendering.gpus: the {gpus} GPU(s) are asked for the pod that renders the onboard cameras on Kubernetes only; locally they render on this machine's Vulkan device (named below)"

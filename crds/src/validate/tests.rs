@@ -426,3 +426,22 @@ fn cameras_and_markers_name_their_bad_fields() {
     let unseen = run(vec![], true, vec![marker(1)]);
     assert!(unseen[0].starts_with("spec.world.markers: only onboard cameras see markers"), "{unseen:?}");
 }
+
+#[test]
+fn ground_station_ranges_must_be_cidrs_naming_the_entry() {
+    use crate::ground_stations::GroundStations;
+    let with = |cidrs: &[&str]| {
+        let allow_from = cidrs.iter().map(|c| c.to_string()).collect();
+        problems_of(move |r| r.spec.ground_stations = Some(GroundStations { allow_from, signing: None }))
+    };
+    assert!(with(&["10.20.0.0/16", "192.168.1.7/32", "fd00::/8", "0.0.0.0/0"]).is_empty());
+    let bad = with(&["10.20.0.0/16", "10.20.0.0", "10.0.0.0/33", "fd00::/129", "example.org/8"]);
+    assert_eq!(bad.len(), 4, "{bad:?}");
+    assert!(
+        bad[0].starts_with("spec.groundStations.allowFrom[1]: must be an address range in CIDR notation"),
+        "{bad:?}"
+    );
+    assert!(bad[1].starts_with("spec.groundStations.allowFrom[2]: the prefix length of an IPv4 range is at most 32"));
+    assert!(bad[2].starts_with("spec.groundStations.allowFrom[3]: the prefix length of an IPv6 range is at most 128"));
+    assert!(bad[3].contains("\"example.org/8\""), "{bad:?}");
+}
