@@ -219,7 +219,9 @@ def test_a_replay_scrubs_to_where_the_trajectory_says(live, sadesim, tmp_path):
         ])
     finally:
         viewer.send_signal(signal.SIGINT)
-        viewer.communicate(timeout=30)
+        output, _ = viewer.communicate(timeout=30)
+    # 0: the viewer's own handler stopped it (killed by the signal it would be -2).
+    assert viewer.returncode == 0, output
     shot = results[-1]
     keep(shot["path"])
     assert abs(shot["time"] - t) < 1e-9
@@ -308,17 +310,23 @@ def test_the_renderer_role_serves_the_coordinators_stream(sadesim, sim_worker, t
 
 
 def replay_json(sadesim, location, env):
-    """`sadesim view LOCATION` on a free port: its /replay.json, then the viewer is stopped."""
+    """`sadesim view LOCATION` on a free port: its /replay.json, then the viewer is stopped
+    with Ctrl-C. It starts with SIGINT ignored, as `sadesim view ... &` in a script starts
+    it: the viewer must still stop (it handles SIGINT itself)."""
     import urllib.request
 
     viewer = subprocess.Popen([sadesim, "view", location, "--listen", "127.0.0.1:0"], stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True, env={**os.environ, **env})
+                              stderr=subprocess.STDOUT, text=True, env={**os.environ, **env},
+                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     try:
         url = read_line_matching(viewer, r"(http://127\.0\.0\.1:\d+/)", 120).group(1)
-        return json.load(urllib.request.urlopen(url + "replay.json"))
+        replay = json.load(urllib.request.urlopen(url + "replay.json"))
     finally:
         viewer.send_signal(signal.SIGINT)
-        viewer.communicate(timeout=30)
+        output, _ = viewer.communicate(timeout=30)
+    # 0: the viewer's own handler stopped it (killed by the signal it would be -2).
+    assert viewer.returncode == 0, output
+    return replay
 
 
 def test_an_archived_run_replays_as_its_folder_does(live, sadesim, s3, tmp_path):

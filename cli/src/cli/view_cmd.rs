@@ -75,9 +75,18 @@ pub fn view(location: &str, listen: SocketAddr, rate_hz: f64, out: &mut dyn Writ
     )?;
     writeln!(out, "serving until Ctrl-C")?;
     out.flush()?;
-    loop {
-        std::thread::park();
-    }
+    // Ctrl-C ends the replay. The handler is installed rather than left to the default
+    // action: a program started in the background by a non-interactive shell (`cmd &` in a
+    // script, CI) inherits SIGINT ignored, and would then never stop.
+    let (stopped, wait) = std::sync::mpsc::channel();
+    ctrlc::set_handler(move || {
+        let _ = stopped.send(());
+    })
+    .map_err(|e| failed(format!("cannot handle Ctrl-C: {e}")))?;
+    let _ = wait.recv();
+    drop(server);
+    writeln!(out, "stopped")?;
+    Ok(Outcome::Success)
 }
 
 /// Where the run's files are: a local folder, or an archive (each file checked against the
