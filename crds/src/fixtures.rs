@@ -88,6 +88,7 @@ impl RunBuilder {
         self.run.spec.pilot = Some(Pilot {
             image: None,
             command: command.iter().map(|s| s.to_string()).collect(),
+            container_command: None,
             env: vec![],
             on_exit: None,
             resources: None,

@@ -59,7 +59,7 @@ pub struct FleetGroup {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub geofence: Option<GeofenceAction>,
     /// Onboard cameras of every drone of the group (needs `spec.rendering.enabled`); their
-    /// frames are served to pilots over HTTP. Local runs only in this version.
+    /// frames are served to pilots over HTTP.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 4))]
     pub cameras: Vec<crate::camera::Camera>,

@@ -415,10 +415,17 @@ pub struct Pilot {
     #[schemars(length(min = 1, max = 512))]
     pub image: Option<String>,
     /// Program and arguments. Required for local runs (`sadesim run` starts it from the
-    /// scenario file's folder); on Kubernetes it overrides the image's entrypoint when set.
+    /// scenario file's folder); on Kubernetes it overrides the image's entrypoint when set,
+    /// unless `containerCommand` is given.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 64), inner(length(max = 4096)))]
     pub command: Vec<String>,
+    /// Program and arguments in the pilot container on Kubernetes, when they differ from the
+    /// local `command` (e.g. `cargo run ...` locally, the built binary in the image); `[]`
+    /// runs the image's own entrypoint. Needs `image`. Default: `command`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(length(max = 64), inner(length(max = 4096)))]
+    pub container_command: Option<Vec<String>>,
     /// Extra environment. `SADESIM_FLEET` (the fleet file) is always set.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     #[schemars(length(max = 128))]

@@ -26,6 +26,10 @@ TAG=${TAG:-e2e}
 OPERATOR_IMAGE=ghcr.io/sadesim/sadesim:$TAG
 WORKER_IMAGE=ghcr.io/sadesim/sim-worker:$TAG
 CAMERA_IMAGE=ghcr.io/sadesim/sim-worker-camera:$TAG
+# The pilot images under the names the examples give (spec.pilot.image), so the examples
+# apply unchanged.
+PILOT_BASE_IMAGE=ghcr.io/sadesim/pilot-python:0.1.0
+PILOT_EXAMPLES_IMAGE=ghcr.io/sadesim/pilot-examples:0.1.0
 MINIO_IMAGE=${MINIO_IMAGE:-quay.io/minio/minio:latest}
 MC_IMAGE=${MC_IMAGE:-quay.io/minio/mc:latest}
 SYSTEM_NS=sadesim-system
@@ -79,11 +83,13 @@ step "building images"
 docker build -f images/operator.Dockerfile -t "$OPERATOR_IMAGE" .
 docker build -f images/sim-worker.Dockerfile -t "$WORKER_IMAGE" .
 docker build -f images/sim-worker-camera.Dockerfile -t "$CAMERA_IMAGE" .
+docker build -f images/pilot-python.Dockerfile -t "$PILOT_BASE_IMAGE" .
+docker build -f images/pilot-examples.Dockerfile --build-arg BASE="$PILOT_BASE_IMAGE" -t "$PILOT_EXAMPLES_IMAGE" .
 
 step "importing images into the cluster"
 case "$TOOL" in
-  k3d) k3d image import -c "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" "$CAMERA_IMAGE" ;;
-  kind) kind load docker-image --name "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" "$CAMERA_IMAGE" ;;
+  k3d) k3d image import -c "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" "$CAMERA_IMAGE" "$PILOT_EXAMPLES_IMAGE" ;;
+  kind) kind load docker-image --name "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" "$CAMERA_IMAGE" "$PILOT_EXAMPLES_IMAGE" ;;
 esac
 
 step "starting MinIO (the archive) with bucket $BUCKET"
@@ -211,6 +217,18 @@ kubectl logs -n "$RUN_NS" archive-verify
 verdict=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.verdict.passed}')
 [ "$verdict" = true ] || { echo "e2e: verdict.passed is '$verdict'" >&2; exit 1; }
 
+# A piloted example as a user applies it: the pymavlink quickstart's pilot runs from the
+# example pilots' image, flies the four drones through the run's router and Services,
+# and ends the run when it exits.
+PILOTED_RUN=quickstart-pymavlink
+step "applying examples/$PILOTED_RUN.yaml (its pilot from $PILOT_EXAMPLES_IMAGE)"
+kubectl delete simrun "$PILOTED_RUN" -n "$RUN_NS" --ignore-not-found --wait
+kubectl apply -n "$RUN_NS" -f "examples/$PILOTED_RUN.yaml"
+wait_succeeded "$PILOTED_RUN"
+kubectl logs -n "$RUN_NS" "job/$PILOTED_RUN-pilot" --tail=5 || true
+verdict=$(kubectl get simrun "$PILOTED_RUN" -n "$RUN_NS" -o jsonpath='{.status.verdict.passed}')
+[ "$verdict" = true ] || { echo "e2e: $PILOTED_RUN verdict.passed is '$verdict'" >&2; exit 1; }
+
 # A pilot Job that exits ends its run (onExit: endRun): the operator annotates the
 # coordinator Pod sadesim.io/stop=pilotExited and the coordinator ends the run, in real
 # time, about 30 s in instead of at its 10-minute duration.
@@ -274,4 +292,4 @@ while kubectl get deployment -n "$RUN_NS" "$VIEW_RUN-renderer" >/dev/null 2>&1; 
   sleep 3
 done
 
-step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified; $PILOT_RUN ended by its pilot at ${sim} s; the live view streamed $frames frames; a camera frame of $size bytes"
+step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified; $PILOTED_RUN flown by its pilot image; $PILOT_RUN ended by its pilot at ${sim} s; the live view streamed $frames frames; a camera frame of $size bytes"

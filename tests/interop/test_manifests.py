@@ -70,11 +70,20 @@ def test_manifests_name_the_children_the_operator_creates(sadesim):
     # 32 drones, 16 per shard: one Indexed Job of 2 pods; one router segment.
     assert "Job/chicago-museum-shard" in names
     assert "Pod/chicago-museum-router-0" in names and "Pod/chicago-museum-router-1" not in names
-    job = next(d for d in yaml.safe_load_all(text) if d and d["kind"] == "Job")
+    job = next(d for d in yaml.safe_load_all(text) if d and d["kind"] == "Job" and d["metadata"]["name"].endswith("-shard"))
     assert job["spec"]["completions"] == 2 and job["spec"]["completionMode"] == "Indexed"
     assert all(d["metadata"]["namespace"] == "team-a" for d in yaml.safe_load_all(text) if d)
-    # The example's pilot has no image: the output says the operator would refuse it.
+    assert "Job/chicago-museum-pilot" in names
+
+
+def test_manifests_say_why_the_operator_would_refuse_a_run(sadesim, tmp_path):
+    doc = yaml.safe_load((REPO / "examples" / "quickstart-pymavlink.yaml").read_text())
+    del doc["spec"]["pilot"]["image"]
+    scenario = tmp_path / "no-image.yaml"
+    scenario.write_text(yaml.safe_dump(doc))
+    text = manifests(sadesim, str(scenario))
     assert "spec.pilot.image: required on Kubernetes" in text
+    assert "Job/quickstart-pymavlink-pilot" not in kinds(text)
 
 
 def test_kubernetes_validate_rejects_a_broken_manifest(sadesim, venv_bin):
@@ -219,3 +228,55 @@ def test_the_shell_scripts_pass_shellcheck(venv_bin):
     assert REPO / "tests" / "e2e" / "run.sh" in scripts
     result = subprocess.run([str(venv_bin / "shellcheck"), *map(str, scripts)], capture_output=True, text=True)
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+PILOTED = [name for name in EXAMPLES if "pilot" in yaml.safe_load((REPO / "examples" / name).read_text())["spec"]]
+
+
+@pytest.mark.parametrize("example", PILOTED)
+def test_every_piloted_example_runs_its_pilot_from_an_image_we_build(sadesim, example):
+    """`kubectl apply` of a piloted example starts its pilot: the Job runs the image the
+    example names, which one of images/*.Dockerfile builds, with a command that exists there."""
+    assert len(PILOTED) >= 5, PILOTED
+    spec = yaml.safe_load((REPO / "examples" / example).read_text())["spec"]
+    image = spec["pilot"]["image"]
+    repository, tag = image.rsplit(":", 1)
+    assert repository.startswith("ghcr.io/sadesim/") and tag, image
+    dockerfile = REPO / "images" / (repository.removeprefix("ghcr.io/sadesim/") + ".Dockerfile")
+    assert dockerfile.exists(), f"{example}: no {dockerfile.relative_to(REPO)} builds {image}"
+    docs = [d for d in yaml.safe_load_all(manifests(sadesim, f"examples/{example}")) if d]
+    job = next(d for d in docs if d["kind"] == "Job" and d["metadata"]["name"].endswith("-pilot"))
+    container = job["spec"]["template"]["spec"]["containers"][0]
+    assert container["image"] == image
+    env = {e["name"]: e.get("value") for e in container["env"]}
+    assert env["SADESIM_FLEET"] == "/etc/sadesim/fleet.json" and env["SADESIM_SCENARIO"] == "/etc/sadesim/scenario.json"
+    text = dockerfile.read_text()
+    command = container.get("command")
+    if command and command[0] == "python3":
+        # The Python examples run from /pilot with the scripts under /pilot/pilots.
+        script = command[1]
+        assert script.startswith("pilots/") and (REPO / "examples" / script).exists(), command
+        assert "COPY examples/pilots/*.py /pilot/pilots/" in text, dockerfile
+        assert "WORKDIR /pilot" in (REPO / "images" / "pilot-python.Dockerfile").read_text()
+    else:
+        # The Rust pilot: its entrypoint, or the binary the scenario names.
+        binary = command[0] if command else None
+        entrypoint = json.loads(text.split("ENTRYPOINT", 1)[1].strip().splitlines()[0])[0]
+        assert binary in (None, entrypoint), (binary, entrypoint)
+        assert "cargo build --release --locked -p chicago-pilot" in text
+
+
+def test_the_pilot_images_pin_the_versions_the_tests_fly_with():
+    """The base and example pilot images install exactly the MAVSDK, pymavlink and OpenCV the
+    interop tests use, so a pilot that passes here behaves the same in its image."""
+    def pins(path):
+        lines = [l.split("#")[0].strip() for l in path.read_text().splitlines()]
+        return dict(l.split("==") for l in lines if l)
+    tested = pins(REPO / "tests" / "requirements.txt")
+    for name in ["pilot-python.requirements.txt", "pilot-examples.requirements.txt"]:
+        image = pins(REPO / "images" / name)
+        assert image, name
+        for package, version in image.items():
+            if package in tested:
+                assert tested[package] == version, (name, package, version, tested[package])
+    assert {"mavsdk", "pymavlink"} <= set(pins(REPO / "images" / "pilot-python.requirements.txt"))

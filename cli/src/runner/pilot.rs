@@ -107,7 +107,8 @@ impl Launch {
     ///
     /// The pilot's environment is `sadesim`'s, plus `spec.pilot.env`, plus `SADESIM_FLEET`
     /// (absolute path of `fleet.json`), `SADESIM_RUN` (run name), `SADESIM_OUT` (absolute
-    /// output folder) and, for each group with a credential, `SADESIM_CREDENTIAL_<GROUP>`;
+    /// output folder), `SADESIM_SCENARIO` (absolute path of the scenario file, when the run
+    /// was read from one) and, for each group with a credential, `SADESIM_CREDENTIAL_<GROUP>`;
     /// a run with onboard cameras adds `SADESIM_CAMERAS_URL` ([`Self::set_cameras_url`]).
     ///
     /// # Errors
@@ -134,6 +135,9 @@ impl Launch {
         env.push(("SADESIM_FLEET".into(), fleet.display().to_string()));
         env.push(("SADESIM_RUN".into(), plan.run.name.clone()));
         env.push(("SADESIM_OUT".into(), out_dir.display().to_string()));
+        if let Some(file) = scenario {
+            env.push(("SADESIM_SCENARIO".into(), absolute(file)?.display().to_string()));
+        }
         let dir = match scenario.and_then(Path::parent) {
             Some(p) if !p.as_os_str().is_empty() => absolute(p)?,
             _ => absolute(Path::new("."))?,
@@ -369,6 +373,7 @@ mod tests {
         Pilot {
             image: None,
             command: command.iter().map(|s| s.to_string()).collect(),
+            container_command: None,
             env: vec![EnvVar { name: "MY_VAR".into(), value: "1".into() }],
             on_exit: None,
             resources: None,
@@ -382,7 +387,18 @@ mod tests {
             Launch::prepare(&plan, &pilot(&["python3", "p.py"]), Some(Path::new("/s/scen.yaml")), Path::new("/o/r/t"))
                 .unwrap();
         let names: Vec<&str> = launch.env.iter().map(|(k, _)| k.as_str()).collect();
-        assert_eq!(names, ["MY_VAR", "SADESIM_CREDENTIAL_BETA_TEAM", "SADESIM_FLEET", "SADESIM_RUN", "SADESIM_OUT"]);
+        assert_eq!(
+            names,
+            [
+                "MY_VAR",
+                "SADESIM_CREDENTIAL_BETA_TEAM",
+                "SADESIM_FLEET",
+                "SADESIM_RUN",
+                "SADESIM_OUT",
+                "SADESIM_SCENARIO"
+            ]
+        );
+        assert_eq!(launch.env[5].1, "/s/scen.yaml");
         assert_eq!(launch.env[1].1, "s3cret");
         assert_eq!(launch.env[2].1, "/o/r/t/fleet.json");
         assert_eq!(launch.env[3].1, "test-run");

@@ -188,6 +188,15 @@ pub(super) fn check_pilot(spec: &SimulationRunSpec, p: &mut Problems) {
                 p.add("spec.pilot.command[0]", "must name a program");
             }
             p.max_items("spec.pilot.command", pilot.command.len(), 64);
+            if let Some(container) = &pilot.container_command {
+                if pilot.image.is_none() {
+                    p.add("spec.pilot.containerCommand", "is the command in the pilot's image: it needs spec.pilot.image");
+                }
+                if container.first().is_some_and(|c| c.trim().is_empty()) {
+                    p.add("spec.pilot.containerCommand[0]", "must name a program");
+                }
+                p.max_items("spec.pilot.containerCommand", container.len(), 64);
+            }
             p.max_items("spec.pilot.env", pilot.env.len(), 128);
             let mut seen = HashSet::new();
             for (k, e) in pilot.env.iter().enumerate() {

@@ -445,3 +445,25 @@ fn ground_station_ranges_must_be_cidrs_naming_the_entry() {
     assert!(bad[2].starts_with("spec.groundStations.allowFrom[3]: the prefix length of an IPv6 range is at most 128"));
     assert!(bad[3].contains("\"example.org/8\""), "{bad:?}");
 }
+
+#[test]
+fn a_container_command_needs_an_image_and_a_program() {
+    let with = |image: Option<&str>, container: Vec<&str>| {
+        let image = image.map(str::to_string);
+        let container: Vec<String> = container.into_iter().map(str::to_string).collect();
+        problems_of(move |r| {
+            let pilot = r.spec.pilot.get_or_insert_with(|| {
+                crate::fixtures::RunBuilder::test().with_pilot(&["./p"]).build().spec.pilot.unwrap()
+            });
+            pilot.image = image;
+            pilot.container_command = Some(container);
+        })
+    };
+    assert!(with(Some("registry.example/p:1"), vec!["/usr/local/bin/p", "--flag"]).is_empty());
+    assert!(with(Some("registry.example/p:1"), vec![]).is_empty(), "[]: the image's entrypoint");
+    assert_eq!(
+        with(None, vec!["p"]),
+        ["spec.pilot.containerCommand: is the command in the pilot's image: it needs spec.pilot.image"]
+    );
+    assert_eq!(with(Some("registry.example/p:1"), vec![" "]), ["spec.pilot.containerCommand[0]: must name a program"]);
+}

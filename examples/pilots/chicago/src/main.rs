@@ -21,8 +21,9 @@ struct Args {
     /// The scenario file: its parks (`world.openAreas`, park-style home `areas`) are where
     /// hobbyists fly, the only ground known to be free of buildings at hobby altitudes, and
     /// its wind is the forecast for the way home. Without it hobbyists wander within 300 m
-    /// of home and every way home is planned against a headwind.
-    #[arg(long, value_name = "FILE")]
+    /// of home and every way home is planned against a headwind. `sadesim run` and the
+    /// operator set SADESIM_SCENARIO to the run's own.
+    #[arg(long, env = "SADESIM_SCENARIO", value_name = "FILE")]
     scenario: Option<PathBuf>,
     /// The zone of the case study. Default: the first zone the authority lists.
     #[arg(long, value_name = "NAME")]

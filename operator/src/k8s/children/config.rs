@@ -27,9 +27,17 @@ pub(super) fn fleet_json(plan: &RunPlan) -> String {
     serde_json::to_string(&fleet_file(plan, &Addressing::Cluster)).expect("a fleet file always serializes")
 }
 
+/// `scenario.json`, beside `fleet.json`: the run as applied (name, namespace, spec), for
+/// pilots that read the scenario they fly in (`SADESIM_SCENARIO`, as locally).
+pub(super) fn scenario_json(plan: &RunPlan) -> String {
+    let mut run = sadesim_crds::SimulationRun::new(&plan.run.name, plan.spec.clone());
+    run.metadata.namespace = Some(plan.run.namespace.clone());
+    serde_json::to_string(&run).expect("a SimulationRun always serializes")
+}
+
 /// Bytes of `plan.json` and `fleet.json` as the ConfigMaps store them.
 pub fn config_map_sizes(plan: &RunPlan) -> (usize, usize) {
-    (plan_json(plan).len(), fleet_json(plan).len())
+    (plan_json(plan).len(), fleet_json(plan).len() + scenario_json(plan).len())
 }
 
 /// Files too big for a ConfigMap.
@@ -49,18 +57,21 @@ pub(super) fn size_problems(plan: &RunPlan) -> Vec<Problem> {
         .collect()
 }
 
-fn config_map(ctx: &Context, name: String, key: &str, value: String) -> ConfigMap {
+fn config_map(ctx: &Context, name: String, files: &[(&str, String)]) -> ConfigMap {
     let mut meta = ctx.meta(name, Role::Config);
     meta.annotations = Some(BTreeMap::from([(ASSET_KEY_ANNOTATION.to_string(), ctx.plan.asset_cache_key.clone())]));
-    ConfigMap { metadata: meta, data: Some(BTreeMap::from([(key.to_string(), value)])), ..Default::default() }
+    let data = files.iter().map(|(key, value)| (key.to_string(), value.clone())).collect();
+    ConfigMap { metadata: meta, data: Some(data), ..Default::default() }
 }
 
 /// `<run>-config`: `plan.json`.
 pub(super) fn plan_config_map(ctx: &Context) -> ConfigMap {
-    config_map(ctx, names::config(ctx.name), "plan.json", plan_json(ctx.plan))
+    config_map(ctx, names::config(ctx.name), &[("plan.json", plan_json(ctx.plan))])
 }
 
-/// `<run>-fleet`: `fleet.json` with in-cluster addresses.
+/// `<run>-fleet`: the pilot's files, `fleet.json` with in-cluster addresses and
+/// `scenario.json`.
 pub(super) fn fleet_config_map(ctx: &Context) -> ConfigMap {
-    config_map(ctx, names::fleet(ctx.name), "fleet.json", fleet_json(ctx.plan))
+    let files = [("fleet.json", fleet_json(ctx.plan)), ("scenario.json", scenario_json(ctx.plan))];
+    config_map(ctx, names::fleet(ctx.name), &files)
 }

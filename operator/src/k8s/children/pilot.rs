@@ -6,14 +6,16 @@ use k8s_openapi::api::core::v1::{Container, PodTemplateSpec};
 use sadesim_crds::plan::RoleResources;
 
 use super::pod::{
-    CONFIG_DIR, Context, FLEET_PATH, OUT_DIR, TMP_DIR, config_volume, container_security, empty_dir, env, mount,
-    pod_spec, resources,
+    CONFIG_DIR, Context, FLEET_PATH, OUT_DIR, SCENARIO_PATH, TMP_DIR, config_volume, container_security, empty_dir,
+    env, mount, pod_spec, resources,
 };
 use super::{Role, kueue, names};
 
 /// `<run>-pilot`, or `None` when the run has no pilot or its pilot has no image (see
-/// `problems`). Environment, in order: `spec.pilot.env`, `SADESIM_FLEET` (the mounted
-/// fleet file, in-cluster addresses), `SADESIM_RUN`, `SADESIM_NAMESPACE`, `SADESIM_RUN_UID`,
+/// `problems`). Its command is `spec.pilot.containerCommand`, else `spec.pilot.command`
+/// (none: the image's entrypoint). Environment, in order: `spec.pilot.env`, `SADESIM_FLEET`
+/// (the mounted fleet file, in-cluster addresses), `SADESIM_SCENARIO` (the run as applied,
+/// JSON), `SADESIM_RUN`, `SADESIM_NAMESPACE`, `SADESIM_RUN_UID`,
 /// `SADESIM_OUT` (a writable folder), `HOME` (`/tmp` unless `spec.pilot.env` sets it: the
 /// root filesystem is read-only), `SADESIM_CREDENTIAL_<GROUP>` per group with a
 /// credential and, with onboard cameras, `SADESIM_CAMERAS_URL` (the coordinator's frame
@@ -23,6 +25,7 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
     let image = pilot.image.clone()?;
     let mut vars: Vec<_> = pilot.env.iter().map(|e| env(&e.name, e.value.clone())).collect();
     vars.push(env("SADESIM_FLEET", FLEET_PATH));
+    vars.push(env("SADESIM_SCENARIO", SCENARIO_PATH));
     vars.extend(ctx.run_env());
     vars.push(env("SADESIM_OUT", OUT_DIR));
     if !pilot.env.iter().any(|e| e.name == "HOME") {
@@ -36,7 +39,8 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
     let container = Container {
         name: Role::Pilot.label().into(),
         image: Some(image),
-        command: (!pilot.command.is_empty()).then(|| pilot.command.clone()),
+        // `containerCommand` when given (`[]`: the image's entrypoint), else `command`.
+        command: Some(pilot.container_command.as_ref().unwrap_or(&pilot.command)).filter(|c| !c.is_empty()).cloned(),
         env: Some(vars),
         resources: Some(resources(planned)),
         security_context: Some(container_security()),

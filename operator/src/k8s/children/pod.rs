@@ -25,6 +25,8 @@ pub const CONFIG_DIR: &str = "/etc/sadesim";
 pub const PLAN_PATH: &str = "/etc/sadesim/plan.json";
 /// `fleet.json` in the pilot's pod (`SADESIM_FLEET`).
 pub const FLEET_PATH: &str = "/etc/sadesim/fleet.json";
+/// The run as applied, in the pilot's pod (the fleet ConfigMap's `scenario.json`).
+pub const SCENARIO_PATH: &str = "/etc/sadesim/scenario.json";
 /// Writable output folder (emptyDir): the coordinator's run folder, the pilot's `SADESIM_OUT`.
 pub const OUT_DIR: &str = "/var/run/sadesim/out";
 /// The coordinator's downward-API file of its Pod's annotations (`--control-file`): the

@@ -607,6 +607,31 @@ fn the_pilot_gets_the_fleet_file_run_and_credentials_from_secrets() {
     assert_eq!(volume.config_map.unwrap().name, "test-run-fleet");
 }
 
+/// The pilot reads the scenario it flies in, as locally (`SADESIM_SCENARIO`), and runs
+/// `containerCommand` in its image when the local `command` would not work there.
+#[test]
+fn the_pilot_gets_its_scenario_and_its_container_command() {
+    let mut run = piloted(3);
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let env = container(&children, "test-run-pilot").env.unwrap();
+    let scenario = env.iter().find(|e| e.name == "SADESIM_SCENARIO").and_then(|e| e.value.clone());
+    assert_eq!(scenario.as_deref(), Some("/etc/sadesim/scenario.json"));
+    let Some(Child::ConfigMap(cm)) = children.iter().find(|c| c.name() == "test-run-fleet") else { panic!() };
+    let text = &cm.data.as_ref().unwrap()["scenario.json"];
+    let parsed = sadesim_crds::document::parse_run(text).expect("a scenario sadesim reads");
+    assert_eq!(parsed.spec, run.spec);
+    assert_eq!(parsed.metadata.namespace.as_deref(), Some("default"));
+    let command_of = |run: &SimulationRun| container(&children_of(run), "test-run-pilot").command;
+    assert_eq!(command_of(&run), Some(vec!["python3".to_string(), "/app/pilot.py".to_string()]));
+    let pilot = run.spec.pilot.as_mut().unwrap();
+    pilot.command = vec!["cargo".into(), "run".into(), "-p".into(), "my-pilot".into()];
+    pilot.container_command = Some(vec!["/usr/local/bin/my-pilot".into()]);
+    assert_eq!(command_of(&run), Some(vec!["/usr/local/bin/my-pilot".to_string()]));
+    run.spec.pilot.as_mut().unwrap().container_command = Some(vec![]);
+    assert_eq!(command_of(&run), None, "[]: the image's own entrypoint");
+}
+
 #[test]
 fn a_pilot_without_an_image_is_refused_on_a_cluster_and_gets_no_job() {
     let run = with_uid(RunBuilder::test().with_pilot(&["./pilot.sh"]).build());
