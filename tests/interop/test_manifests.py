@@ -177,6 +177,8 @@ def test_a_run_with_onboard_cameras_and_gpus_passes_kubernetes_validate_strict(s
     doc = yaml.safe_load((REPO / "examples" / "precision-landing.yaml").read_text())
     doc["spec"]["rendering"] = {"enabled": True, "gpus": 1}
     doc["spec"]["pilot"]["image"] = "registry.example/team-a/landing:1"
+    # Ground stations from two ranges: the NetworkPolicy's ipBlock rule is validated too.
+    doc["spec"]["groundStations"] = {"allowFrom": ["10.20.0.0/16", "fd00::/8"]}
     scenario = tmp_path / "cameras.yaml"
     scenario.write_text(yaml.safe_dump(doc))
     text = manifests(sadesim, str(scenario))
@@ -202,6 +204,8 @@ def test_a_run_with_onboard_cameras_and_gpus_passes_kubernetes_validate_strict(s
     assert all(d["cameras"]["down"] == f"{url}/{d['name']}/down/" for d in fleet["drones"]), fleet["drones"]
     renderer = next(d for d in docs if d["kind"] == "Deployment")
     assert renderer["metadata"]["ownerReferences"][0]["kind"] == "SimulationRun"
+    policy = next(d for d in docs if d["kind"] == "NetworkPolicy")
+    assert [p["ipBlock"]["cidr"] for p in policy["spec"]["ingress"][1]["from"]] == ["10.20.0.0/16", "fd00::/8"]
 
 
 def test_every_dockerfile_passes_hadolint(venv_bin):
@@ -280,3 +284,24 @@ def test_the_pilot_images_pin_the_versions_the_tests_fly_with():
             if package in tested:
                 assert tested[package] == version, (name, package, version, tested[package])
     assert {"mavsdk", "pymavlink"} <= set(pins(REPO / "images" / "pilot-python.requirements.txt"))
+
+
+def test_the_chart_lets_the_operator_apply_and_delete_every_kind_of_child(sadesim):
+    """Every kind `sadesim manifests` prints for the examples (the children the operator
+    server-side applies and deletes by label) is in the chart's ClusterRole with those verbs."""
+    docs = [d for d in yaml.safe_load_all(helm_template()) if d]
+    rules = next(d for d in docs if d["kind"] == "ClusterRole")["rules"]
+    plural = {"NetworkPolicy": "networkpolicies"}
+    needed = set()
+    for example in EXAMPLES:
+        for d in yaml.safe_load_all(manifests(sadesim, f"examples/{example}")):
+            if d:
+                group = d["apiVersion"].rsplit("/", 1)[0] if "/" in d["apiVersion"] else ""
+                needed.add((group, plural.get(d["kind"], d["kind"].lower() + "s")))
+    assert ("networking.k8s.io", "networkpolicies") in needed and ("apps", "deployments") in needed, needed
+    for group, resource in sorted(needed):
+        verbs = set()
+        for rule in rules:
+            if group in rule["apiGroups"] and resource in rule["resources"]:
+                verbs |= set(rule["verbs"])
+        assert {"get", "list", "create", "patch", "deletecollection"} <= verbs, (group, resource, verbs)

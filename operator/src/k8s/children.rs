@@ -3,7 +3,8 @@
 //! | child | kind | name | why |
 //! |---|---|---|---|
 //! | config | ConfigMap | `<run>-config` | `plan.json`, read by every role |
-//! | config | ConfigMap | `<run>-fleet` | `fleet.json`, read by the pilot |
+//! | config | ConfigMap | `<run>-fleet` | `fleet.json` and `scenario.json`, read by the pilot |
+//! | network | NetworkPolicy | `<run>-isolation` | only the run's pods and `spec.groundStations.allowFrom` reach its pods |
 //! | assets | Job | `<run>-assets` | builds the world into the asset cache (cache miss only) |
 //! | coordinator | Service | `<run>-airspace` | shard link (TCP 7400) and airspace API (HTTP 8480) |
 //! | coordinator | Pod | `<run>-coordinator` | lockstep clock, recorder, airspace authority, archive upload; annotation `sadesim.io/stop` ends the run |
@@ -27,6 +28,7 @@
 
 mod config;
 mod kueue;
+mod network;
 mod pilot;
 mod pod;
 mod workers;
@@ -34,6 +36,7 @@ mod workers;
 use k8s_openapi::api::apps::v1::Deployment;
 use k8s_openapi::api::batch::v1::Job;
 use k8s_openapi::api::core::v1::{ConfigMap, Pod, Service};
+use k8s_openapi::api::networking::v1::NetworkPolicy;
 use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
 use serde::Serialize;
@@ -49,6 +52,8 @@ pub use sadesim_crds::outcome::control::STOP_ANNOTATION;
 pub enum Role {
     /// The ConfigMaps with `plan.json` and `fleet.json`.
     Config,
+    /// The NetworkPolicy that isolates the run's pods.
+    Network,
     /// The Job that builds the world into the asset cache.
     Assets,
     /// Lockstep clock, recorder, airspace authority, end of run (one Pod and its Service).
@@ -65,13 +70,23 @@ pub enum Role {
 
 impl Role {
     /// Every role, in apply order.
-    pub const ALL: [Role; 7] =
-        [Role::Config, Role::Assets, Role::Coordinator, Role::Router, Role::Shard, Role::Renderer, Role::Pilot];
+    pub const ALL: [Role; 8] = [
+        Role::Config,
+        Role::Network,
+        Role::Assets,
+        Role::Coordinator,
+        Role::Router,
+        Role::Shard,
+        Role::Renderer,
+        Role::Pilot,
+    ];
 
-    /// The label value (`config`, `assets`, `coordinator`, `router`, `shard`, `renderer`, `pilot`).
+    /// The label value (`config`, `network`, `assets`, `coordinator`, `router`, `shard`,
+    /// `renderer`, `pilot`).
     pub const fn label(self) -> &'static str {
         match self {
             Role::Config => "config",
+            Role::Network => "network",
             Role::Assets => "assets",
             Role::Coordinator => "coordinator",
             Role::Router => "router",
@@ -102,6 +117,7 @@ pub enum Kind {
     Service,
     Pod,
     Deployment,
+    NetworkPolicy,
 }
 
 impl Kind {
@@ -113,6 +129,7 @@ impl Kind {
             Kind::Service => "Service",
             Kind::Pod => "Pod",
             Kind::Deployment => "Deployment",
+            Kind::NetworkPolicy => "NetworkPolicy",
         }
     }
 }
@@ -202,6 +219,7 @@ pub enum Child {
     Service(Service),
     Pod(Pod),
     Deployment(Deployment),
+    NetworkPolicy(NetworkPolicy),
 }
 
 impl Child {
@@ -213,6 +231,7 @@ impl Child {
             Child::Service(_) => Kind::Service,
             Child::Pod(_) => Kind::Pod,
             Child::Deployment(_) => Kind::Deployment,
+            Child::NetworkPolicy(_) => Kind::NetworkPolicy,
         }
     }
 
@@ -229,6 +248,7 @@ impl Child {
             Child::Service(o) => &o.metadata,
             Child::Pod(o) => &o.metadata,
             Child::Deployment(o) => &o.metadata,
+            Child::NetworkPolicy(o) => &o.metadata,
         };
         meta.name.as_deref().unwrap_or_default()
     }
@@ -241,6 +261,7 @@ impl Child {
             Child::Service(o) => o.metadata.labels.as_ref(),
             Child::Pod(o) => o.metadata.labels.as_ref(),
             Child::Deployment(o) => o.metadata.labels.as_ref(),
+            Child::NetworkPolicy(o) => o.metadata.labels.as_ref(),
         }
     }
 }
@@ -296,7 +317,12 @@ pub mod names {
     pub fn mavlink_service(run: &str, segment: u32) -> String {
         format!("{run}-mavlink-{segment}")
     }
-    /// Renderer Deployment and Service.
+    /// The run's NetworkPolicy.
+    pub fn isolation(run: &str) -> String {
+        format!("{run}-isolation")
+    }
+
+    /// Deployment and Service of the browser 3D view.
     pub fn renderer(run: &str) -> String {
         format!("{run}-renderer")
     }
@@ -443,15 +469,18 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
 }
 
 /// The children of `run` (planned as `plan`) at `stage`, in apply order: ConfigMaps, the
-/// assets Job, coordinator Service and Pod, router Services and Pods, the shards' headless
+/// NetworkPolicy, the assets Job, coordinator Service and Pod, router Services and Pods, the shards' headless
 /// Service and Job, the renderer, the pilot Job.
 ///
 /// The pilot Job is left out when `spec.pilot` has no image and the assets Job when the
 /// run has no object-store archive to cache into; [`problems`] says why.
 pub fn children(run: &SimulationRun, plan: &RunPlan, settings: &ClusterSettings, stage: Stage) -> Vec<Child> {
     let ctx = pod::Context::new(run, plan, settings);
-    let mut out =
-        vec![Child::ConfigMap(config::plan_config_map(&ctx)), Child::ConfigMap(config::fleet_config_map(&ctx))];
+    let mut out = vec![
+        Child::ConfigMap(config::plan_config_map(&ctx)),
+        Child::ConfigMap(config::fleet_config_map(&ctx)),
+        Child::NetworkPolicy(network::network_policy(&ctx)),
+    ];
     if stage.assets_job
         && let Some(job) = workers::assets_job(&ctx)
     {

@@ -11,6 +11,7 @@ use k8s_openapi::NamespaceResourceScope;
 use k8s_openapi::api::apps::v1::Deployment;
 use k8s_openapi::api::batch::v1::Job;
 use k8s_openapi::api::core::v1::{ConfigMap, Pod, ResourceQuota, Service};
+use k8s_openapi::api::networking::v1::NetworkPolicy;
 use k8s_openapi::jiff::Timestamp;
 use kube::api::{Api, DeleteParams, ListParams, LogParams, Patch, PatchParams};
 use kube::runtime::controller::Action;
@@ -297,6 +298,7 @@ async fn apply_child(client: &Client, ns: &str, child: &Child) -> Result<(), Err
         Child::Service(o) => apply_one::<Service>(client, ns, o).await,
         Child::Pod(o) => apply_one::<Pod>(client, ns, o).await,
         Child::Deployment(o) => apply_one::<Deployment>(client, ns, o).await,
+        Child::NetworkPolicy(o) => apply_one::<NetworkPolicy>(client, ns, o).await,
     }
 }
 
@@ -378,6 +380,7 @@ async fn execute(
             Kind::Job => delete_collection::<Job>(client, ns, &labels).await?,
             Kind::Pod => delete_collection::<Pod>(client, ns, &labels).await?,
             Kind::Deployment => delete_collection::<Deployment>(client, ns, &labels).await?,
+            Kind::NetworkPolicy => delete_collection::<NetworkPolicy>(client, ns, &labels).await?,
             Kind::Service => delete_collection::<Service>(client, ns, &labels).await?,
         }
     }

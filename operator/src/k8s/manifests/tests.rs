@@ -47,6 +47,7 @@ fn every_child_is_one_yaml_document_with_the_placeholder_uid_explained() {
         [
             "ConfigMap/demo-config",
             "ConfigMap/demo-fleet",
+            "NetworkPolicy/demo-isolation",
             "Service/demo-airspace",
             "Pod/demo-coordinator",
             "Service/demo-mavlink-0",
@@ -80,7 +81,7 @@ fn several_runs_are_printed_one_after_the_other() {
     let two = format!("{RUN}\n---\n{}", RUN.replace("name: demo", "name: other"));
     let text = render(&two, None).unwrap();
     let docs = documents(&text);
-    assert_eq!(docs.len(), 16);
+    assert_eq!(docs.len(), 18);
     assert!(docs.iter().any(|d| d["metadata"]["name"] == "other-shard"));
 }
 
