@@ -17,6 +17,7 @@ pub mod fleet_file;
 pub mod geo;
 pub mod ground_stations;
 pub mod outcome;
+pub mod parts;
 pub mod plan;
 pub mod polygon;
 pub mod random;

@@ -139,6 +139,16 @@ enum Role {
     },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
+    /// Joins a file the operator stored in parts (`FILE.part-000`, ... and `FILE.sha256`,
+    /// side by side) into `--out`, checking its digest; a whole FILE is copied. The pilot's
+    /// pod runs it first when its fleet file is too big for one ConfigMap.
+    Join {
+        /// The file, as if whole (e.g. /etc/sadesim/fleet.json).
+        file: PathBuf,
+        /// Where to write it.
+        #[arg(long)]
+        out: PathBuf,
+    },
     Router {
         /// RunPlan JSON written by the planner.
         #[arg(long)]
@@ -265,6 +275,12 @@ fn main() -> ExitCode {
             roles::read_plan(&plan).and_then(|plan| {
                 let world = roles::world(&plan, assets.as_deref())?;
                 roles::renderer::run(&plan, &world, listen, &feed, &stop)
+            })
+        }
+        Role::Join { file, out } => {
+            sadesim_crds::parts::read(&file).map_err(roles::RoleError::from).and_then(|bytes| {
+                std::fs::write(&out, bytes)
+                    .map_err(|source| roles::RoleError::Write { path: out.display().to_string(), source })
             })
         }
         Role::Router { plan, segment, bind, drone_host } => {

@@ -124,6 +124,28 @@ fn trajectories_do_not_depend_on_sharding_or_on_processes() {
     std::fs::remove_dir_all(&root).unwrap();
 }
 
+/// A 10 000-drone run on a cluster is 100 shard pods: the coordinator's lockstep over 100
+/// shard processes (one drone each, TCP over loopback) flies the same run as 2 shards.
+#[test]
+fn a_coordinator_runs_a_hundred_shard_processes_as_two_shards() {
+    let root = out_root("hundred");
+    let mut hundred = scenario(100, 1);
+    let mut two = scenario(100, 50);
+    for r in [&mut hundred, &mut two] {
+        r.spec.duration = "4s".parse().unwrap();
+    }
+    let processes = run(&hundred, &root.join("processes"), true).unwrap();
+    let threads = run(&two, &root.join("two"), false).unwrap();
+    assert_eq!((processes.summary.shards, threads.summary.shards), (100, 2));
+    assert_same(
+        &bytes(&threads.out_dir, "trajectory.csv"),
+        &bytes(&processes.out_dir, "trajectory.csv"),
+        "trajectories",
+    );
+    assert!(processes.out_dir.join("shard-99.log").exists());
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
 #[test]
 fn urban_gnss_does_not_depend_on_sharding_or_on_processes() {
     // The ranging receiver under the synthetic GPS + Galileo sky: the same pseudoranges

@@ -2,7 +2,7 @@
 //!
 //! | child | kind | name | why |
 //! |---|---|---|---|
-//! | config | ConfigMap | `<run>-config` | `plan.json`, read by every role |
+//! | config | ConfigMap | `<run>-config` (`-1`, `-2`, ...) | `plan.json`, read by every role, in parts when it is large |
 //! | config | ConfigMap | `<run>-fleet` | `fleet.json` and `scenario.json`, read by the pilot |
 //! | network | NetworkPolicy | `<run>-isolation` | only the run's pods and `spec.groundStations.allowFrom` reach its pods |
 //! | assets | Job | `<run>-assets` | builds the world into the asset cache (cache miss only) |
@@ -317,6 +317,10 @@ pub mod names {
     pub fn mavlink_service(run: &str, segment: u32) -> String {
         format!("{run}-mavlink-{segment}")
     }
+    /// Part `index` (1, 2, ...) of the ConfigMap `base` that holds a file too big for one.
+    pub fn part(base: &str, index: usize) -> String {
+        format!("{base}-{index}")
+    }
     /// The run's NetworkPolicy.
     pub fn isolation(run: &str) -> String {
         format!("{run}-isolation")
@@ -449,7 +453,6 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
             fatal: true,
         });
     }
-    out.extend(config::size_problems(plan));
     match archive_url(plan, settings) {
         None => out.push(Problem {
             field: "spec.archive.url".into(),
@@ -476,11 +479,9 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
 /// run has no object-store archive to cache into; [`problems`] says why.
 pub fn children(run: &SimulationRun, plan: &RunPlan, settings: &ClusterSettings, stage: Stage) -> Vec<Child> {
     let ctx = pod::Context::new(run, plan, settings);
-    let mut out = vec![
-        Child::ConfigMap(config::plan_config_map(&ctx)),
-        Child::ConfigMap(config::fleet_config_map(&ctx)),
-        Child::NetworkPolicy(network::network_policy(&ctx)),
-    ];
+    let mut out: Vec<Child> = config::plan_config_maps(&ctx).into_iter().map(Child::ConfigMap).collect();
+    out.extend(config::fleet_config_maps(&ctx).into_iter().map(Child::ConfigMap));
+    out.push(Child::NetworkPolicy(network::network_policy(&ctx)));
     if stage.assets_job
         && let Some(job) = workers::assets_job(&ctx)
     {

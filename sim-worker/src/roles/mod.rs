@@ -21,6 +21,11 @@ use crate::env::urban_wind_field;
 pub enum RoleError {
     #[error("failed to read the plan {path}: {source}")]
     ReadPlan { path: String, source: std::io::Error },
+    #[error("failed to write {path}: {source}")]
+    Write { path: String, source: std::io::Error },
+    /// A file stored in parts (`sadesim_crds::parts`) that does not join.
+    #[error("{0}")]
+    Parts(#[from] sadesim_crds::parts::PartsError),
     #[error("the plan {path} is not a RunPlan: {source}")]
     ParsePlan { path: String, source: serde_json::Error },
     #[error("the plan {path} has format version {found}; this sim-worker reads version {PLAN_FORMAT_VERSION}")]
@@ -156,13 +161,16 @@ pub fn surroundings(
     Ok(crate::shard::Surroundings { world, sky, wind: Some(Arc::new(field)) })
 }
 
-/// Reads a RunPlan written by the planner (`plan.json`).
+/// Reads a RunPlan written by the planner (`plan.json`), whole or, as the operator stores a
+/// large plan, in parts beside it (`plan.json.part-000`, ..., checked against
+/// `plan.json.sha256`).
 ///
 /// # Errors
-/// Unreadable file, not a plan, or another plan format version.
+/// Unreadable file or parts, parts that do not join, not a plan, or another plan format
+/// version.
 pub fn read_plan(path: &Path) -> Result<RunPlan, RoleError> {
     let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| RoleError::ReadPlan { path: name.clone(), source })?;
+    let bytes = sadesim_crds::parts::read(path)?;
     let plan: RunPlan =
         serde_json::from_slice(&bytes).map_err(|source| RoleError::ParsePlan { path: name.clone(), source })?;
     if plan.format_version != PLAN_FORMAT_VERSION {

@@ -1,17 +1,21 @@
-//! The run's ConfigMaps: `plan.json` (every role) and `fleet.json` (the pilot), one
-//! ConfigMap each so each file has the whole ConfigMap limit to itself.
+//! The run's ConfigMaps: `plan.json` (every role) and the pilot's files (`fleet.json`,
+//! `scenario.json`).
 //!
 //! Sizes, compact JSON: a 1000-drone plan is about 0.46 MB and its fleet file 0.40 MB; both
-//! grow linearly, so a ConfigMap holds a plan of roughly 2200 drones. Bigger runs are
-//! refused with a message (`problems`) rather than failing at apply time.
+//! grow linearly. A file over [`sadesim_crds::parts::PART_BYTES`] is stored in parts
+//! (`plan.json.part-000`, ... and `plan.json.sha256`), one ConfigMap each (`<run>-config`,
+//! `<run>-config-1`, ...), all mounted in one folder by a projected volume: a 10 000-drone
+//! plan is 6 ConfigMaps. `sim-worker` joins and checks them (`sadesim_crds::parts::read`); the
+//! pilot's fleet file is joined by an init container into the file the pilot reads.
 
 use std::collections::BTreeMap;
 
-use k8s_openapi::api::core::v1::ConfigMap;
+use k8s_openapi::api::core::v1::{ConfigMap, ConfigMapProjection, ProjectedVolumeSource, Volume, VolumeProjection};
+use sadesim_crds::parts::{PART_BYTES, digest_name, part_name, sha256_hex, split};
 use sadesim_crds::plan::RunPlan;
 
 use super::pod::Context;
-use super::{ASSET_KEY_ANNOTATION, Problem, Role, names};
+use super::{ASSET_KEY_ANNOTATION, Role, names};
 use sadesim_planner::{Addressing, fleet_file};
 
 /// Most bytes of `data` the API server accepts in one ConfigMap (1 MiB).
@@ -35,43 +39,71 @@ pub(super) fn scenario_json(plan: &RunPlan) -> String {
     serde_json::to_string(&run).expect("a SimulationRun always serializes")
 }
 
-/// Bytes of `plan.json` and `fleet.json` as the ConfigMaps store them.
+/// Bytes of `plan.json` and of the pilot's files as stored (before any split).
 pub fn config_map_sizes(plan: &RunPlan) -> (usize, usize) {
     (plan_json(plan).len(), fleet_json(plan).len() + scenario_json(plan).len())
 }
 
-/// Files too big for a ConfigMap.
-pub(super) fn size_problems(plan: &RunPlan) -> Vec<Problem> {
-    let (plan_bytes, fleet_bytes) = config_map_sizes(plan);
-    let drones = plan.drones.len();
-    [("plan.json", plan_bytes), ("fleet.json", fleet_bytes)]
-        .into_iter()
-        .filter(|(_, bytes)| *bytes > CONFIG_MAP_LIMIT_BYTES)
-        .map(|(file, bytes)| Problem {
-            field: "spec.fleet".into(),
-            message: format!(
-                "{drones} drones make a {file} of {bytes} bytes, over the {CONFIG_MAP_LIMIT_BYTES}-byte ConfigMap limit: not supported on Kubernetes yet (split the fleet into several runs)"
-            ),
-            fatal: true,
-        })
-        .collect()
+/// Whether `fleet.json` is stored in parts (the pilot's pod then joins it first).
+pub(super) fn fleet_in_parts(plan: &RunPlan) -> bool {
+    fleet_json(plan).len() > PART_BYTES
 }
 
-fn config_map(ctx: &Context, name: String, files: &[(&str, String)]) -> ConfigMap {
+fn config_map(ctx: &Context, name: String, files: Vec<(String, String)>) -> ConfigMap {
     let mut meta = ctx.meta(name, Role::Config);
     meta.annotations = Some(BTreeMap::from([(ASSET_KEY_ANNOTATION.to_string(), ctx.plan.asset_cache_key.clone())]));
-    let data = files.iter().map(|(key, value)| (key.to_string(), value.clone())).collect();
-    ConfigMap { metadata: meta, data: Some(data), ..Default::default() }
+    ConfigMap { metadata: meta, data: Some(files.into_iter().collect()), ..Default::default() }
 }
 
-/// `<run>-config`: `plan.json`.
-pub(super) fn plan_config_map(ctx: &Context) -> ConfigMap {
-    config_map(ctx, names::config(ctx.name), &[("plan.json", plan_json(ctx.plan))])
+/// The ConfigMaps that hold `file` (`text`): `base` alone with the whole file and `extra`
+/// when it fits one part; otherwise `base` with `extra`, the digest and part 0, and
+/// `<base>-<i>` with part i.
+fn stored(ctx: &Context, base: String, file: &str, text: &str, extra: Vec<(String, String)>) -> Vec<ConfigMap> {
+    if text.len() <= PART_BYTES {
+        let mut files = extra;
+        files.push((file.to_string(), text.to_string()));
+        return vec![config_map(ctx, base, files)];
+    }
+    let parts = split(text, PART_BYTES);
+    let mut first = extra;
+    first.push((digest_name(file), sha256_hex(text.as_bytes())));
+    first.push((part_name(file, 0), parts[0].to_string()));
+    let mut out = vec![config_map(ctx, base.clone(), first)];
+    for (i, part) in parts.iter().enumerate().skip(1) {
+        out.push(config_map(ctx, names::part(&base, i), vec![(part_name(file, i), part.to_string())]));
+    }
+    out
 }
 
-/// `<run>-fleet`: the pilot's files, `fleet.json` with in-cluster addresses and
-/// `scenario.json`.
-pub(super) fn fleet_config_map(ctx: &Context) -> ConfigMap {
-    let files = [("fleet.json", fleet_json(ctx.plan)), ("scenario.json", scenario_json(ctx.plan))];
-    config_map(ctx, names::fleet(ctx.name), &files)
+/// `<run>-config` (and its parts): `plan.json`.
+pub(super) fn plan_config_maps(ctx: &Context) -> Vec<ConfigMap> {
+    stored(ctx, names::config(ctx.name), "plan.json", &plan_json(ctx.plan), Vec::new())
+}
+
+/// `<run>-fleet` (and its parts): the pilot's files, `fleet.json` with in-cluster addresses
+/// and `scenario.json`.
+pub(super) fn fleet_config_maps(ctx: &Context) -> Vec<ConfigMap> {
+    let scenario = vec![("scenario.json".to_string(), scenario_json(ctx.plan))];
+    stored(ctx, names::fleet(ctx.name), "fleet.json", &fleet_json(ctx.plan), scenario)
+}
+
+/// A volume named `volume` with every ConfigMap of `maps` in one folder (a projected
+/// volume: the parts of a split file side by side).
+pub(super) fn volume(volume: &str, maps: &[ConfigMap]) -> Volume {
+    let sources = maps
+        .iter()
+        .map(|cm| VolumeProjection {
+            config_map: Some(ConfigMapProjection {
+                name: cm.metadata.name.clone().expect("our ConfigMaps are named"),
+                optional: Some(false),
+                items: None,
+            }),
+            ..Default::default()
+        })
+        .collect();
+    Volume {
+        name: volume.into(),
+        projected: Some(ProjectedVolumeSource { sources: Some(sources), default_mode: None }),
+        ..Default::default()
+    }
 }

@@ -6,10 +6,14 @@ use k8s_openapi::api::core::v1::{Container, PodTemplateSpec};
 use sadesim_crds::plan::RoleResources;
 
 use super::pod::{
-    CONFIG_DIR, Context, FLEET_PATH, OUT_DIR, SCENARIO_PATH, TMP_DIR, config_volume, container_security, empty_dir,
-    env, mount, pod_spec, resources,
+    CONFIG_DIR, Context, FLEET_PATH, OUT_DIR, SCENARIO_PATH, SIM_WORKER, TMP_DIR, container_security, empty_dir, env,
+    mount, pod_spec, resources, worker_container,
 };
-use super::{Role, kueue, names};
+use super::{Role, config, kueue, names};
+
+/// Where the joined fleet file is when `fleet.json` is stored in parts (an emptyDir the
+/// `join` init container writes).
+const JOINED_DIR: &str = "/var/run/sadesim/fleet";
 
 /// `<run>-pilot`, or `None` when the run has no pilot or its pilot has no image (see
 /// `problems`). Its command is `spec.pilot.containerCommand`, else `spec.pilot.command`
@@ -24,7 +28,11 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
     let pilot = ctx.plan.spec.pilot.as_ref()?;
     let image = pilot.image.clone()?;
     let mut vars: Vec<_> = pilot.env.iter().map(|e| env(&e.name, e.value.clone())).collect();
-    vars.push(env("SADESIM_FLEET", FLEET_PATH));
+    // A fleet file in parts is joined first (and checked against its digest) by an init
+    // container from the worker image, into a file the pilot reads like any other.
+    let in_parts = config::fleet_in_parts(ctx.plan);
+    let joined = format!("{JOINED_DIR}/fleet.json");
+    vars.push(env("SADESIM_FLEET", if in_parts { joined.as_str() } else { FLEET_PATH }));
     vars.push(env("SADESIM_SCENARIO", SCENARIO_PATH));
     vars.extend(ctx.run_env());
     vars.push(env("SADESIM_OUT", OUT_DIR));
@@ -52,12 +60,39 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
         termination_message_policy: Some("FallbackToLogsOnError".into()),
         ..Default::default()
     };
-    let mut fleet = config_volume(names::fleet(ctx.name));
-    fleet.name = "fleet".into();
-    let spec = pod_spec(vec![container], vec![fleet, empty_dir("tmp"), empty_dir("out")], "Never");
+    let fleet = config::volume("fleet", &config::fleet_config_maps(ctx));
+    let mut volumes = vec![fleet, empty_dir("tmp"), empty_dir("out")];
+    let mut init = None;
+    let mut container = container;
+    if in_parts {
+        container.volume_mounts.get_or_insert_with(Vec::new).push(mount("joined", JOINED_DIR, true));
+        let args = vec!["join".to_string(), FLEET_PATH.to_string(), "--out".to_string(), joined];
+        let mut join = worker_container(
+            ctx,
+            Role::Pilot,
+            vec![SIM_WORKER.into()],
+            args,
+            RoleResources { cpu_millis: 100, memory_mib: 128 },
+        );
+        join.name = "join-fleet".into();
+        join.volume_mounts = Some(vec![mount("fleet", CONFIG_DIR, true), mount("joined", JOINED_DIR, false)]);
+        volumes.push(empty_dir("joined"));
+        init = Some(vec![join]);
+    }
+    Some(job(ctx, container, volumes, init))
+}
+
+fn job(
+    ctx: &Context,
+    container: Container,
+    volumes: Vec<k8s_openapi::api::core::v1::Volume>,
+    init: Option<Vec<Container>>,
+) -> Job {
+    let mut spec = pod_spec(vec![container], volumes, "Never");
+    spec.init_containers = init;
     let mut meta = ctx.meta(names::pilot_job(ctx.name), Role::Pilot);
     kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
-    Some(Job {
+    Job {
         metadata: meta,
         spec: Some(JobSpec {
             backoff_limit: Some(0),
@@ -65,5 +100,5 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
             ..Default::default()
         }),
         ..Default::default()
-    })
+    }
 }

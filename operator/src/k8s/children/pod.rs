@@ -4,9 +4,8 @@
 use std::collections::BTreeMap;
 
 use k8s_openapi::api::core::v1::{
-    Capabilities, ConfigMapVolumeSource, Container, EmptyDirVolumeSource, EnvFromSource, EnvVar, EnvVarSource,
-    PodSecurityContext, PodSpec, ResourceRequirements, SeccompProfile, SecretEnvSource, SecretKeySelector,
-    SecurityContext, Volume, VolumeMount,
+    Capabilities, Container, EmptyDirVolumeSource, EnvFromSource, EnvVar, EnvVarSource, PodSecurityContext, PodSpec,
+    ResourceRequirements, SeccompProfile, SecretEnvSource, SecretKeySelector, SecurityContext, Volume, VolumeMount,
 };
 use k8s_openapi::apimachinery::pkg::api::resource::Quantity;
 use k8s_openapi::apimachinery::pkg::apis::meta::v1::{ObjectMeta, OwnerReference};
@@ -214,15 +213,6 @@ pub fn pod_spec(containers: Vec<Container>, volumes: Vec<Volume>, restart_policy
             seccomp_profile: Some(runtime_default()),
             ..Default::default()
         }),
-        ..Default::default()
-    }
-}
-
-/// A ConfigMap mounted read-only at [`CONFIG_DIR`].
-pub fn config_volume(config_map: String) -> Volume {
-    Volume {
-        name: "config".into(),
-        config_map: Some(ConfigMapVolumeSource { name: config_map, optional: Some(false), ..Default::default() }),
         ..Default::default()
     }
 }

@@ -605,7 +605,10 @@ fn the_pilot_gets_the_fleet_file_run_and_credentials_from_secrets() {
     let spec = pod_specs(&children).into_iter().find(|(n, _)| n == "test-run-pilot").unwrap().1;
     let fleet_mount = mounts.iter().find(|m| m.mount_path == CONFIG_DIR).unwrap();
     let volume = spec.volumes.unwrap().into_iter().find(|v| v.name == fleet_mount.name).unwrap();
-    assert_eq!(volume.config_map.unwrap().name, "test-run-fleet");
+    let sources = volume.projected.unwrap().sources.unwrap();
+    let names: Vec<_> = sources.iter().map(|s| s.config_map.as_ref().unwrap().name.as_str()).collect();
+    assert_eq!(names, ["test-run-fleet"]);
+    assert!(spec.init_containers.is_none(), "a small fleet file needs no joining");
 }
 
 /// The pilot reads the scenario it flies in, as locally (`SADESIM_SCENARIO`), and runs
@@ -672,15 +675,66 @@ fn a_thousand_drones_make_ten_shard_pods_four_routers_and_configmaps_under_the_l
     assert_eq!(stored, plan);
 }
 
+/// 10 000 drones: the plan (4.6 MB) and the fleet file no longer fit one ConfigMap, so they
+/// are stored in parts, each ConfigMap and every other object under the API server's limits,
+/// 100 shard pods; the worker pods mount every part of the plan in one folder, and the
+/// pilot's pod joins its fleet file before the pilot starts.
 #[test]
-fn a_fleet_too_big_for_a_configmap_is_refused_with_its_size() {
-    let run = with_uid(RunBuilder::test().with_drones(4000).build());
+fn ten_thousand_drones_store_the_plan_in_parts_every_object_under_its_limit() {
+    let run = with_uid(
+        RunBuilder::test()
+            .with_drones(10_000)
+            .with_pilot(&["python3", "/app/pilot.py"])
+            .with(|r| r.spec.pilot.as_mut().unwrap().image = Some("registry.example/p:1".into()))
+            .build(),
+    );
     let plan = planned(&run);
-    let (plan_bytes, _) = config_map_sizes(&plan);
-    assert!(plan_bytes > CONFIG_MAP_LIMIT_BYTES);
-    let p = problems(&plan, &s3());
-    let size = p.iter().find(|p| p.fatal && p.message.contains("plan.json")).expect("a size problem");
-    assert!(size.message.contains("4000 drones") && size.message.contains(&plan_bytes.to_string()), "{size}");
+    assert_eq!(plan.shards.len(), 100);
+    let (plan_bytes, fleet_bytes) = config_map_sizes(&plan);
+    assert!(plan_bytes > 4 * CONFIG_MAP_LIMIT_BYTES && fleet_bytes > 3 * CONFIG_MAP_LIMIT_BYTES);
+    assert_eq!(problems(&plan, &s3()), vec![], "10 000 drones run on a cluster");
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let mut config = std::collections::BTreeMap::new();
+    let mut fleet = std::collections::BTreeMap::new();
+    for c in &children {
+        let size = serde_json::to_vec(c).unwrap().len();
+        assert!(size < 1024 * 1024, "{} is {size} bytes: over etcd's 1.5 MiB with the request around it", c.name());
+        if let Child::ConfigMap(cm) = c {
+            let data = cm.data.clone().unwrap();
+            let bytes: usize = data.iter().map(|(k, v)| k.len() + v.len()).sum();
+            assert!(bytes < CONFIG_MAP_LIMIT_BYTES, "{}: {bytes} bytes", c.name());
+            let into = if c.name().starts_with("test-run-config") { &mut config } else { &mut fleet };
+            into.extend(data);
+        }
+    }
+    // The parts, written side by side as the projected volume does, read back as the plan.
+    let dir = std::env::temp_dir().join(format!("sadesim-plan-parts-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (file, text) in config.iter().chain(&fleet) {
+        std::fs::write(dir.join(file), text).unwrap();
+    }
+    assert!(config.len() >= 6 && !config.contains_key("plan.json"), "{:?}", config.keys());
+    let read: RunPlan = serde_json::from_slice(&sadesim_crds::parts::read(&dir.join("plan.json")).unwrap()).unwrap();
+    assert_eq!(read, plan);
+    let joined = sadesim_crds::parts::read(&dir.join("fleet.json")).unwrap();
+    assert_eq!(joined, serde_json::to_vec(&fleet_file(&plan, &Addressing::Cluster)).unwrap());
+    std::fs::remove_dir_all(&dir).unwrap();
+    // Every worker pod mounts every part of the plan.
+    let config_maps: Vec<String> =
+        children.iter().filter(|c| c.name().starts_with("test-run-config")).map(|c| c.name().to_string()).collect();
+    for (name, spec) in pod_specs(&children).into_iter().filter(|(n, _)| n != "test-run-pilot") {
+        let volume = spec.volumes.unwrap().into_iter().find(|v| v.name == "config").unwrap();
+        let sources = volume.projected.unwrap().sources.unwrap();
+        let names: Vec<String> = sources.iter().map(|s| s.config_map.as_ref().unwrap().name.clone()).collect();
+        assert_eq!(names, config_maps, "{name}");
+    }
+    // The pilot reads the fleet file an init container joined.
+    let spec = pod_specs(&children).into_iter().find(|(n, _)| n == "test-run-pilot").unwrap().1;
+    let join = &spec.init_containers.as_ref().unwrap()[0];
+    assert_eq!(join.args.as_ref().unwrap()[..2], ["join".to_string(), FLEET_PATH.to_string()]);
+    let out = join.args.as_ref().unwrap()[3].clone();
+    let pilot_env = spec.containers[0].env.clone().unwrap();
+    assert_eq!(pilot_env.iter().find(|e| e.name == "SADESIM_FLEET").and_then(|e| e.value.clone()), Some(out));
 }
 
 #[test]
