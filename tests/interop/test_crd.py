@@ -129,3 +129,96 @@ def test_spec_is_immutable_after_creation_except_abort(sadesim, repo):
     both = copy.deepcopy(aborted)
     both["duration"] = "1m"
     assert update_allowed(rules, old, both) == ["duration"], "abort does not carry other changes through"
+
+
+def all_rules(sadesim):
+    """Every CEL rule of the CRD that does not compare with `oldSelf`, as (path, rule):
+    `.spec.fleet[]` is the rule of each item of `spec.fleet`."""
+    crd = yaml.safe_load(crd_text(sadesim))
+    found = []
+
+    def walk(schema, path):
+        found.extend((path, r["rule"]) for r in schema.get("x-kubernetes-validations", []) if "oldSelf" not in r["rule"])
+        for name, prop in schema.get("properties", {}).items():
+            walk(prop, f"{path}.{name}")
+        if "items" in schema:
+            walk(schema["items"], f"{path}[]")
+
+    walk(crd["spec"]["versions"][0]["schema"]["openAPIV3Schema"], "")
+    return found
+
+
+EXPLICIT = [{"latitudeDeg": 41.88, "longitudeDeg": -87.62}]
+ZONE = {"reference": "agl", "heightM": 120}
+# For each rule (path, then a word of the rule to tell rules at one path apart): objects the
+# rule accepts (True) and refuses (False), as `self` at that path.
+CEL_CASES = {
+    (".spec", "pilot"): [
+        ({"fleet": [{"mission": {}}]}, True),
+        ({"pilot": {"command": ["p"]}, "fleet": [{}]}, True),
+        ({"fleet": [{"mission": {}}, {}]}, False),
+    ],
+    (".spec.clock", "scaled"): [
+        ({"mode": "scaled", "factor": 4}, True),
+        ({"mode": "realtime"}, True),
+        ({"mode": "scaled"}, False),
+        ({"mode": "asFastAsPossible", "factor": 2}, False),
+    ],
+    (".spec.fleet[]", "explicit"): [
+        ({"count": 1, "homes": {"explicit": EXPLICIT}}, True),
+        ({"count": 3, "homes": {"randomInArea": {}}}, True),
+        ({"count": 2, "homes": {"explicit": EXPLICIT}}, False),
+    ],
+    (".spec.fleet[].altitude", "minAglM"): [
+        ({"maxAglM": 120}, True),
+        ({"minAglM": 30, "maxAglM": 120}, True),
+        ({"minAglM": 120, "maxAglM": 120}, False),
+    ],
+    (".spec.world", "== has(self.osm)"): [
+        ({"source": "osm", "osm": {"file": "a.pbf"}}, True),
+        ({"source": "procedural"}, True),
+        ({}, True),
+        ({"source": "osm"}, False),
+        ({"osm": {"file": "a.pbf"}}, False),
+    ],
+    (".spec.world", "openAreas"): [
+        ({"source": "osm", "osm": {"file": "a.pbf"}}, True),
+        ({"city": {}, "openAreas": []}, True),
+        ({"source": "osm", "osm": {"file": "a.pbf"}, "city": {}}, False),
+        ({"source": "osm", "osm": {"file": "a.pbf"}, "openAreas": []}, False),
+    ],
+    (".spec.zones[]", "floor"): [
+        ({"ceiling": ZONE}, True),
+        ({"floor": {"reference": "agl", "heightM": 30}, "ceiling": ZONE}, True),
+        ({"floor": {"reference": "msl", "heightM": 300}, "ceiling": ZONE}, True),
+        ({"floor": {"reference": "agl", "heightM": 120}, "ceiling": ZONE}, False),
+    ],
+    (".spec.zones[].policy", "minAltitudeAglM"): [
+        ({}, True),
+        ({"minAltitudeAglM": 100, "maxAltitudeAglM": 120}, True),
+        ({"minAltitudeAglM": 130, "maxAltitudeAglM": 120}, False),
+    ],
+}
+
+
+def test_every_cel_rule_accepts_and_refuses_what_it_should(sadesim):
+    """Every `x-kubernetes-validations` rule of the CRD (the transition rules are tested
+    above) evaluated with cel-python, an independent CEL implementation, on at least one
+    object it must accept and one it must refuse; a new rule without cases fails here."""
+    import celpy
+
+    env = celpy.Environment()
+    rules = all_rules(sadesim)
+    assert len(rules) >= 8, rules
+    covered = set()
+    for path, rule in rules:
+        keys = [k for k in CEL_CASES if k[0] == path and k[1] in rule]
+        assert len(keys) == 1, f"no case (or several) for the rule at {path}: {rule}"
+        covered.add(keys[0])
+        cases = CEL_CASES[keys[0]]
+        assert {True, False} <= {expected for _, expected in cases}, keys[0]
+        program = env.program(env.compile(rule))
+        for value, expected in cases:
+            got = bool(program.evaluate({"self": celpy.json_to_cel(value)}))
+            assert got == expected, f"{path}: {rule}\n  on {value}: {got}, expected {expected}"
+    assert covered == set(CEL_CASES), set(CEL_CASES) - covered
