@@ -7,6 +7,14 @@ use serde::{Deserialize, Serialize};
 
 use crate::fleet::Credential;
 
+/// Shortest passphrase accepted for `signing.key`, characters: anything shorter is guessed
+/// offline from one signed frame in moments.
+pub const MIN_PASSPHRASE_CHARS: usize = 8;
+
+/// The environment variable that hands the passphrase to `sim-worker router` (never a flag,
+/// which `ps` would show).
+pub const SIGNING_KEY_ENV: &str = "SADESIM_MAVLINK_SIGNING_KEY";
+
 /// Ground stations (QGroundControl, MAVSDK or pymavlink scripts, MAVProxy) outside the run.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
@@ -24,12 +32,14 @@ pub struct GroundStations {
 }
 
 /// MAVLink 2 signing (the MAVLink signing protocol): the routers accept only ground-station
-/// frames signed with the key, and sign what they send to ground stations.
+/// frames signed with the key (and with timestamps that never go back), and sign what they
+/// send to ground stations. The drones' own endpoints stay unsigned.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct Signing {
     /// The passphrase the 32-byte secret key is derived from, as QGroundControl and MAVProxy
-    /// derive it: SHA-256 of its UTF-8 bytes. A Secret's key on Kubernetes (`secretKeyRef`),
-    /// or an inline `value` for local runs and tests.
+    /// derive it: SHA-256 of its UTF-8 bytes (a trailing line break counts). A Secret's key on
+    /// Kubernetes (`secretKeyRef`), or an inline `value` of at least 8 characters for local
+    /// runs and tests.
     pub key: Credential,
 }

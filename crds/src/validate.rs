@@ -19,6 +19,8 @@ mod schema;
 mod world;
 mod zones;
 
+use crate::fleet::Credential;
+use crate::ground_stations::{GroundStations, MIN_PASSPHRASE_CHARS, Signing};
 use crate::run::{ClockMode, SimulationRun, SimulationRunSpec};
 
 use problems::Problems;
@@ -122,14 +124,22 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
     criteria::check_criteria(spec, &group_names, &zone_names, p);
 }
 
-fn check_ground_stations(stations: &crate::ground_stations::GroundStations, p: &mut Problems) {
+fn check_ground_stations(stations: &GroundStations, p: &mut Problems) {
     for (i, cidr) in stations.allow_from.iter().enumerate() {
         if let Err(why) = parse_cidr(cidr) {
             p.add(format!("spec.groundStations.allowFrom[{i}]"), format!("{why}, got {cidr:?}"));
         }
     }
-    if stations.signing.is_some() {
-        p.add("spec.groundStations.signing", "MAVLink signing is not supported yet: remove it");
+    // A Secret's value is checked by the router that reads it (same minimum).
+    if let Some(Signing { key: Credential::Value(passphrase) }) = &stations.signing {
+        let min = MIN_PASSPHRASE_CHARS;
+        let chars = passphrase.chars().count();
+        if chars < min {
+            p.add(
+                "spec.groundStations.signing.key.value",
+                format!("the passphrase must be at least {min} characters, got {chars}"),
+            );
+        }
     }
 }
 

@@ -15,6 +15,7 @@ use serde_json::Value;
 use sadesim_crds::airframe::AIRFRAME_PRESETS;
 use sadesim_crds::document::{API_VERSION, KIND};
 use sadesim_crds::fleet::MAX_DRONES;
+use sadesim_crds::ground_stations::MIN_PASSPHRASE_CHARS;
 use sadesim_crds::validate::{MAX_DURATION_S, MAX_RUN_NAME_LEN};
 use sadesim_crds::zones::MAX_POLYGON_VERTICES;
 
@@ -197,8 +198,9 @@ fn writing_a_scenario(out: &mut String) {
          ```\n\n\
          The API server enforces the types, limits, defaults and rules on this page; the semantic \
          checks at the end need `sadesim validate`, so run it before applying. Some fields only \
-         matter on Kubernetes: `pilot.image`, `pilot.resources`, `queue` and \
-         `credential.secretKeyRef`.\n\n",
+         matter on Kubernetes: `pilot.image`, `pilot.resources`, `queue`, \
+         `credential.secretKeyRef`, `groundStations.allowFrom` and \
+         `groundStations.signing.key.secretKeyRef`.\n\n",
     );
 }
 
@@ -542,6 +544,7 @@ fn semantic_checks(out: &mut String) {
         "Pilot environment variable names are valid (`[A-Za-z_][A-Za-z0-9_]*`), unique, and do not start with `SADESIM_` (reserved for variables the platform sets).".to_string(),
         "`archive.url` uses `file`, `s3`, `gs` or `az`; `file://` needs a folder and the others a bucket or container.".to_string(),
         "`queue` is a DNS label.".to_string(),
+        format!("`groundStations.allowFrom` entries are CIDR ranges; an inline `groundStations.signing.key.value` has at least {MIN_PASSPHRASE_CHARS} characters."),
         "`reachZone` and `zoneVerdicts` criteria name existing groups and zones.".to_string(),
     ];
     for c in checks {

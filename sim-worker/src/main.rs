@@ -137,8 +137,6 @@ enum Role {
         #[arg(long, env = "SADESIM_ASSETS_URL", value_name = "URL")]
         assets: Option<String>,
     },
-    /// Serve one router segment's drones to ground stations (QGroundControl) on the
-    /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM.
     /// Joins a file the operator stored in parts (`FILE.part-000`, ... and `FILE.sha256`,
     /// side by side) into `--out`, checking its digest; a whole FILE is copied. The pilot's
     /// pod runs it first when its fleet file is too big for one ConfigMap.
@@ -149,6 +147,10 @@ enum Role {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Serve one router segment's drones to ground stations (QGroundControl) on the
+    /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM. With
+    /// `SADESIM_MAVLINK_SIGNING_KEY` set (the passphrase), ground stations must sign their
+    /// MAVLink 2 frames with it and everything sent to them is signed.
     Router {
         /// RunPlan JSON written by the planner.
         #[arg(long)]
@@ -290,8 +292,13 @@ fn main() -> ExitCode {
             // caught here and ends the process at once, which is fine for a router: it
             // holds nothing that needs flushing.
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
-            let options = roles::router::RouterOptions { segment, bind, drone_host };
-            roles::read_plan(&plan).and_then(|plan| roles::router::run(&plan, &options, &stop).map(|_| ()))
+            // The signing passphrase is read from the environment only: a flag would show
+            // it in `ps` to every user of the machine.
+            let key = std::env::var_os(sadesim_crds::ground_stations::SIGNING_KEY_ENV);
+            roles::router::signing_key(key).and_then(|signing| {
+                let options = roles::router::RouterOptions { segment, bind, drone_host, signing };
+                roles::read_plan(&plan).and_then(|plan| roles::router::run(&plan, &options, &stop).map(|_| ()))
+            })
         }
     };
     match result {

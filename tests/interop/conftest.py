@@ -49,15 +49,16 @@ def venv_bin() -> pathlib.Path:
 
 @pytest.fixture(scope="session")
 def start_run(sadesim, tmp_path_factory):
-    """`start_run(doc)` -> a `simrun.SimRun` context manager for the SimulationRun `doc`:
-    `sadesim run --no-pilot` in a fresh temporary folder, stopped with SIGINT on exit.
+    """`start_run(doc, *args)` -> a `simrun.SimRun` context manager for the SimulationRun
+    `doc`: `sadesim run --no-pilot [args]` in a fresh temporary folder, stopped with SIGINT on
+    exit.
 
     The MAVLink ports are fixed, so use it from module-scoped fixtures and never run the
     interop tests in parallel (no `pytest -n`) or beside another run that uses MAVLink.
     """
     from simrun import SimRun
 
-    def start(doc):
-        return SimRun(sadesim, tmp_path_factory.mktemp(doc["metadata"]["name"]), doc)
+    def start(doc, *args):
+        return SimRun(sadesim, tmp_path_factory.mktemp(doc["metadata"]["name"]), doc, args)
 
     return start

@@ -14,13 +14,19 @@ GCS_COMPONENT_ID = 190  # MAV_COMP_ID_MISSIONPLANNER
 
 
 class Client:
-    """One pymavlink connection (`udpout:127.0.0.1:24600`, `tcp:127.0.0.1:5760`, ...)."""
+    """One pymavlink connection (`udpout:127.0.0.1:24600`, `tcp:127.0.0.1:5760`, ...).
 
-    def __init__(self, url: str, system_id: int = GCS_SYSTEM_ID):
+    With `signing_key` (32 bytes, e.g. `hashlib.sha256(passphrase).digest()`) every frame is
+    signed from the first heartbeat on, and pymavlink drops received frames that are not
+    signed with that key."""
+
+    def __init__(self, url: str, system_id: int = GCS_SYSTEM_ID, signing_key: bytes | None = None):
         self.url = url
         self.conn = mavutil.mavlink_connection(
             url, source_system=system_id, source_component=GCS_COMPONENT_ID, autoreconnect=False
         )
+        if signing_key is not None:
+            self.conn.setup_signing(signing_key, sign_outgoing=True)
         self._next_heartbeat = 0.0
         self.heartbeat()
 

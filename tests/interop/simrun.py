@@ -222,16 +222,17 @@ class Trajectory:
 
 
 class SimRun:
-    """`sadesim run SCENARIO --no-pilot --out OUT` as a child process.
+    """`sadesim run SCENARIO --no-pilot --out OUT [args]` as a child process.
 
     Use as a context manager: the run is started, awaited (run folder, trajectory rows,
     a heartbeat on drone 0's API link) and always stopped with SIGINT at the end (SIGKILL
     to its process group if it does not exit), also when the test fails.
     """
 
-    def __init__(self, sadesim: str, tmp: pathlib.Path, doc: dict):
+    def __init__(self, sadesim: str, tmp: pathlib.Path, doc: dict, args: tuple = ()):
         self.sadesim = sadesim
         self.doc = doc
+        self.args = list(args)
         self.name = doc["metadata"]["name"]
         clock = doc["spec"]["clock"]
         self.clock_factor = {"realtime": 1.0, "scaled": clock.get("factor", 1.0)}.get(clock["mode"])
@@ -251,7 +252,7 @@ class SimRun:
         self.scenario.write_text(yaml.safe_dump(self.doc, sort_keys=False))
         self.log = open(self.log_path, "wb")
         self.proc = subprocess.Popen(
-            [self.sadesim, "run", str(self.scenario), "--no-pilot", "--out", str(self.out_root), "-q"],
+            [self.sadesim, "run", str(self.scenario), "--no-pilot", "--out", str(self.out_root), "-q", *self.args],
             stdout=self.log,
             stderr=subprocess.STDOUT,
             stdin=subprocess.DEVNULL,

@@ -10,6 +10,7 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use indicatif::{ProgressBar, ProgressStyle};
 use sadesim_crds::SimulationRun;
+use sadesim_crds::fleet::Credential;
 use sadesim_crds::plan::RunPlan;
 use sadesim_evidence::archive::is_object_store;
 use sadesim_evidence::assets::{AssetsError, AssetsOutcome, ensure_bundle};
@@ -20,6 +21,7 @@ use sim_worker::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use sim_worker::coordinator::{self, CoordinatorError, ObserverError, RunObserver, ShardLink};
 use sim_worker::events::{Event, EventKind};
 use sim_worker::mavlink::router::RouterHandle;
+use sim_worker::mavlink::signing::SecretKey;
 use sim_worker::protocol::{DroneSnapshot, FleetCounts};
 use sim_worker::record::{Recorder, RunSummary};
 use sim_worker::roles::coordinator::close_failed_run;
@@ -97,6 +99,11 @@ pub enum RunError {
     /// The scenario asks for something this build cannot do yet.
     #[error("not supported yet: {0}")]
     NotSupported(String),
+    /// A signing passphrase that only Kubernetes can resolve.
+    #[error(
+        "spec.groundStations.signing.key.secretKeyRef: not supported locally (Secret {secret:?} lives in Kubernetes); give the passphrase as `value` for local runs"
+    )]
+    SigningSecretRef { secret: String },
     /// Groups flown over MAVLink in a run without MAVLink endpoints (`--no-mavlink`).
     #[error(
         "spec.fleet: groups {groups} have no mission, so the pilot (spec.pilot) flies them over MAVLink: external pilots need the MAVLink endpoints; drop --no-mavlink"
@@ -382,8 +389,16 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     let (assets, world) = run_world(run, &world_data, options.asset_cache.as_deref(), options.progress)?;
     let plan = planner::plan_in(run, &world_data, &world)?;
     check_supported(&plan, options)?;
+    // The routers' passphrase is resolved before anything is written, like the pilot's
+    // credentials; only runs with MAVLink have routers.
+    let signing = if options.mavlink { signing_passphrase(&plan)? } else { None };
     for notice in cluster_only_notices(&plan) {
         eprintln!("note: {notice}");
+    }
+    if signing.is_some() {
+        eprintln!(
+            "note: spec.groundStations.signing: the MAVLink routers take only MAVLink 2 frames signed with the scenario's passphrase from ground stations, and sign what they send them"
+        );
     }
     // The orbit file is read before anything is written: a bad one fails the run at once.
     let sky = sadesim_evidence::gnss::load_sky(&plan.spec)?.map(Arc::new);
@@ -468,7 +483,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         workers::run(
             &plan,
             options.worker.as_deref(),
-            options.mavlink,
+            options.mavlink.then_some(signing.as_deref()),
             &out_dir,
             &bar,
             &stop,
@@ -480,7 +495,9 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     } else {
         let surroundings = sim_worker::shard::Surroundings { world: world.clone(), sky, wind };
         let view = live_view.as_ref().map(|v| v.feed.clone());
-        let links = ShardInputs { surroundings, mavlink: options.mavlink, view, cameras };
+        let signing = signing.as_deref().map(SecretKey::from_passphrase);
+        let routers = options.mavlink.then_some(signing);
+        let links = ShardInputs { surroundings, routers, view, cameras };
         run_threads(&plan, links, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
     bar.finish_and_clear();
@@ -526,12 +543,27 @@ fn free_local_address(port: u16) -> std::net::SocketAddr {
     probe.and_then(|l| l.local_addr()).unwrap_or(planned)
 }
 
-/// The MAVLink routers of a local run: one per segment, on 127.0.0.1, drones on 127.0.0.1.
-fn start_routers(plan: &RunPlan) -> Result<Vec<RouterHandle>, RunError> {
+/// The passphrase of `spec.groundStations.signing` for the routers of a local run (`None`:
+/// no signing).
+///
+/// # Errors
+/// [`RunError::SigningSecretRef`]: a Secret's key, which only a cluster resolves.
+fn signing_passphrase(plan: &RunPlan) -> Result<Option<String>, RunError> {
+    match plan.spec.ground_stations.as_ref().and_then(|g| g.signing.as_ref()).map(|s| &s.key) {
+        None => Ok(None),
+        Some(Credential::Value(passphrase)) => Ok(Some(passphrase.clone())),
+        Some(Credential::SecretKeyRef(r)) => Err(RunError::SigningSecretRef { secret: r.name.clone() }),
+    }
+}
+
+/// The MAVLink routers of a local run: one per segment, on 127.0.0.1, drones on 127.0.0.1,
+/// signing on the GCS side with `signing`.
+fn start_routers(plan: &RunPlan, signing: Option<&SecretKey>) -> Result<Vec<RouterHandle>, RunError> {
     let options = |segment| RouterOptions {
         segment,
         bind: std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST),
         drone_host: sim_worker::roles::router::DEFAULT_DRONE_HOST.to_string(),
+        signing: signing.cloned(),
     };
     plan.segments
         .iter()
@@ -550,8 +582,9 @@ fn start_routers(plan: &RunPlan) -> Result<Vec<RouterHandle>, RunError> {
 struct ShardInputs {
     /// The world, the GNSS sky and the urban wind field.
     surroundings: sim_worker::shard::Surroundings,
-    /// Whether the drones get MAVLink endpoints.
-    mavlink: bool,
+    /// Whether the drones get MAVLink endpoints and the segments routers: `None` for
+    /// neither, else the routers' signing key (`None` inside: no signing).
+    routers: Option<Option<SecretKey>>,
     /// The live view's feed (`spec.rendering.enabled`).
     view: Option<Arc<sim_worker::view::Feed>>,
     /// The onboard cameras (`spec.fleet[].cameras`).
@@ -569,12 +602,15 @@ fn run_threads(
     pilot: Option<&mut Supervisor>,
     airspace: &mut Airspace,
 ) -> Result<RunSummary, RunError> {
-    let ShardInputs { surroundings, mavlink, view, cameras } = inputs;
+    let ShardInputs { surroundings, routers, view, cameras } = inputs;
     let world = &surroundings.world;
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
-    let mavlink_options = mavlink.then(MavlinkOptions::local);
-    let _routers = if mavlink { start_routers(plan)? } else { Vec::new() };
+    let mavlink_options = routers.is_some().then(MavlinkOptions::local);
+    let _routers = match &routers {
+        Some(signing) => start_routers(plan, signing.as_ref())?,
+        None => Vec::new(),
+    };
     for shard in &plan.shards {
         let (link, handle) = transport::spawn_thread(plan, shard.index, &surroundings, mavlink_options.as_ref())
             .map_err(|source| RunError::Shard { shard: shard.index, source })?;
@@ -648,6 +684,29 @@ mod tests {
         assert_eq!(notices.len(), 1);
         assert!(notices[0].starts_with("spec.queue: the Kueue LocalQueue \"team-a\""), "{notices:?}");
         assert!(cluster_only_notices(&plan_with(None)).is_empty());
+    }
+
+    #[test]
+    fn a_secret_signing_key_is_refused_locally_naming_the_field() {
+        use sadesim_crds::fixtures::RunBuilder;
+        use sadesim_crds::fleet::SecretKeyRef;
+        use sadesim_crds::ground_stations::{GroundStations, Signing};
+        let plan_with = |key: Option<Credential>| {
+            let run = RunBuilder::test()
+                .with(|r| {
+                    let signing = key.map(|key| Signing { key });
+                    r.spec.ground_stations = Some(GroundStations { allow_from: vec![], signing });
+                })
+                .build();
+            sadesim_planner::plan(&run).unwrap()
+        };
+        let secret = Credential::SecretKeyRef(SecretKeyRef { name: "gcs-signing".into(), key: "passphrase".into() });
+        let err = signing_passphrase(&plan_with(Some(secret))).unwrap_err().to_string();
+        assert!(err.starts_with("spec.groundStations.signing.key.secretKeyRef: not supported locally"), "{err}");
+        assert!(err.contains("\"gcs-signing\"") && err.contains("`value`"), "{err}");
+        let inline = signing_passphrase(&plan_with(Some(Credential::Value("a passphrase".into())))).unwrap();
+        assert_eq!(inline.as_deref(), Some("a passphrase"));
+        assert_eq!(signing_passphrase(&plan_with(None)).unwrap(), None);
     }
 
     #[test]

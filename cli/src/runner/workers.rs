@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use indicatif::ProgressBar;
+use sadesim_crds::ground_stations::SIGNING_KEY_ENV;
 use sadesim_crds::plan::RunPlan;
 use sim_worker::record::RunSummary;
 use sim_worker::roles::control::Control;
@@ -62,12 +63,14 @@ fn interrupt(child: &Child) {
     let _ = Command::new("kill").args(["-INT", &child.id().to_string()]).status();
 }
 
-/// Runs the plan written at `out_dir/plan.json` with worker processes.
+/// Runs the plan written at `out_dir/plan.json` with worker processes. `routers`: `None`
+/// for a run without MAVLink, else the routers' signing passphrase (`None` inside: no
+/// signing), handed to them in `SADESIM_MAVLINK_SIGNING_KEY`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn run(
     plan: &RunPlan,
     worker: Option<&Path>,
-    mavlink: bool,
+    routers: Option<Option<&str>>,
     out_dir: &Path,
     bar: &ProgressBar,
     stop: &AtomicBool,
@@ -120,10 +123,9 @@ pub(super) fn run(
     };
     // One process per shard, then one router per segment, like the pods of a cluster run;
     // each logs to `<role>-<index>.log`.
-    let start = |role: &str, index_flag: &str, index: u32, extra: &[&str]| {
+    let start = |mut cmd: Command, role: &str, index_flag: &str, index: u32, extra: &[&str]| {
         spawn(
-            Command::new(&worker)
-                .args([role, "--plan"])
+            cmd.args([role, "--plan"])
                 .arg(&plan_path)
                 .args([index_flag, &index.to_string()])
                 .args(extra)
@@ -132,6 +134,7 @@ pub(super) fn run(
             role,
         )
     };
+    let mavlink = routers.is_some();
     let mut shards = Vec::new();
     for shard in &plan.shards {
         let mut extra = vec!["--coordinator", &address];
@@ -143,11 +146,18 @@ pub(super) fn run(
         if let Some(url) = assets {
             extra.extend(["--assets", url]);
         }
-        shards.push(start("shard", "--shard", shard.index, &extra)?);
+        shards.push(start(Command::new(&worker), "shard", "--shard", shard.index, &extra)?);
     }
-    if mavlink {
+    if let Some(signing) = routers {
         for segment in &plan.segments {
-            shards.push(start("router", "--segment", segment.index, &[])?);
+            // The passphrase travels in the environment, never on the command line (`ps`);
+            // without signing a variable inherited from the user's shell must not turn it on.
+            let mut cmd = Command::new(&worker);
+            match signing {
+                Some(passphrase) => cmd.env(SIGNING_KEY_ENV, passphrase),
+                None => cmd.env_remove(SIGNING_KEY_ENV),
+            };
+            shards.push(start(cmd, "router", "--segment", segment.index, &[])?);
         }
     }
     // Progress lines arrive on a reader thread so Ctrl-C is noticed between them.

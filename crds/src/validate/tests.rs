@@ -467,3 +467,20 @@ fn a_container_command_needs_an_image_and_a_program() {
     );
     assert_eq!(with(Some("registry.example/p:1"), vec![" "]), ["spec.pilot.containerCommand[0]: must name a program"]);
 }
+
+#[test]
+fn a_signing_passphrase_needs_eight_characters_and_a_secret_is_taken_as_is() {
+    use crate::fleet::{Credential, SecretKeyRef};
+    use crate::ground_stations::{GroundStations, Signing};
+    let with = |key: Credential| {
+        problems_of(move |r| {
+            r.spec.ground_stations = Some(GroundStations { allow_from: vec![], signing: Some(Signing { key }) })
+        })
+    };
+    assert_eq!(with(Credential::Value("8 chars!".into())), Vec::<String>::new());
+    // Counted in characters, not bytes: "äöüäöüä" is 14 bytes.
+    let short = with(Credential::Value("äöüäöüä".into()));
+    assert_eq!(short, ["spec.groundStations.signing.key.value: the passphrase must be at least 8 characters, got 7"]);
+    let secret = Credential::SecretKeyRef(SecretKeyRef { name: "gcs-signing".into(), key: "passphrase".into() });
+    assert_eq!(with(secret), Vec::<String>::new(), "signing is supported: no refusal");
+}

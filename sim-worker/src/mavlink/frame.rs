@@ -8,23 +8,27 @@
 //! an incomplete tail for the next call. Message (de)serialisation itself is the `mavlink`
 //! crate's generated code for the common dialect.
 //!
-//! MAVLink 1 frames (STX 0xFE) are skipped: PX4 answers MAVLink 2 to MAVLink 2 peers and
-//! every client we target (QGroundControl, MAVSDK, pymavlink with `MAVLINK20=1`) speaks 2.
+//! MAVLink 1 frames (STX 0xFE) are skipped (and counted): PX4 answers MAVLink 2 to MAVLink 2
+//! peers and every client we target (QGroundControl, MAVSDK, pymavlink with `MAVLINK20=1`)
+//! speaks 2.
 
 use ::mavlink::dialects::common::MavMessage;
 use ::mavlink::error::ParserError;
 use ::mavlink::{MavHeader, MavlinkVersion, Message};
 
+use super::signing::{IFLAG_SIGNED, SIGNATURE_BLOCK_LEN};
+
 /// MAVLink 2 start-of-frame marker.
 pub const STX_V2: u8 = 0xFD;
+/// MAVLink 1 start-of-frame marker.
+const STX_V1: u8 = 0xFE;
 /// Header after the STX: len, incompat flags, compat flags, seq, sysid, compid, msgid (3).
 const HEADER_LEN: usize = 9;
+/// MAVLink 1 header after the STX: len, seq, sysid, compid, msgid (1).
+const HEADER_LEN_V1: usize = 5;
 const CHECKSUM_LEN: usize = 2;
-const SIGNATURE_LEN: usize = 13;
-/// Incompatibility flag: the frame carries a 13-byte signature.
-const IFLAG_SIGNED: u8 = 0x01;
-/// Largest MAVLink 2 frame: STX + header + 255 payload + checksum + signature.
-pub const MAX_FRAME_LEN: usize = 1 + HEADER_LEN + 255 + CHECKSUM_LEN + SIGNATURE_LEN;
+/// Largest MAVLink 2 frame: STX + header + 255 payload + checksum + signature block.
+pub const MAX_FRAME_LEN: usize = 1 + HEADER_LEN + 255 + CHECKSUM_LEN + SIGNATURE_BLOCK_LEN;
 /// Message ids of COMMAND_INT and COMMAND_LONG (both carry the command id at byte 28).
 const COMMAND_INT_ID: u32 = 75;
 const COMMAND_LONG_ID: u32 = 76;
@@ -66,8 +70,10 @@ pub struct ParseStats {
     pub frames: u64,
     /// Frames whose checksum did not match (dropped).
     pub bad_checksum: u64,
-    /// Bytes skipped while looking for a start marker.
+    /// Bytes skipped while looking for a start marker (MAVLink 1 frames not included).
     pub skipped_bytes: u64,
+    /// Complete MAVLink 1 frames with a good checksum (skipped whole).
+    pub mavlink1_frames: u64,
 }
 
 /// Incremental MAVLink 2 parser for one byte stream (a TCP connection) or a sequence of
@@ -139,6 +145,11 @@ impl FrameParser {
         let mut frames = Vec::new();
         let mut at = 0;
         while at < self.buf.len() {
+            if let Some(len) = mavlink1_frame_len(&self.buf[at..]) {
+                self.stats.mavlink1_frames += 1;
+                at += len;
+                continue;
+            }
             if self.buf[at] != STX_V2 {
                 at += 1;
                 self.stats.skipped_bytes += 1;
@@ -150,7 +161,7 @@ impl FrameParser {
             }
             let payload_len = rest[1] as usize;
             let signed = rest[2] & IFLAG_SIGNED != 0;
-            let total = 1 + HEADER_LEN + payload_len + CHECKSUM_LEN + if signed { SIGNATURE_LEN } else { 0 };
+            let total = 1 + HEADER_LEN + payload_len + CHECKSUM_LEN + if signed { SIGNATURE_BLOCK_LEN } else { 0 };
             if rest.len() < total {
                 break; // frame incomplete
             }
@@ -182,6 +193,19 @@ impl FrameParser {
         }
         frames
     }
+}
+
+/// The length of the MAVLink 1 frame at the start of `bytes`, if a complete one with a good
+/// checksum is there. Only counted, never decoded: a router that requires signed frames
+/// says "MAVLink 1" rather than "garbage" when refusing one.
+fn mavlink1_frame_len(bytes: &[u8]) -> Option<usize> {
+    if bytes.first() != Some(&STX_V1) || bytes.len() < 1 + HEADER_LEN_V1 {
+        return None;
+    }
+    let crc_at = 1 + HEADER_LEN_V1 + usize::from(bytes[1]);
+    let crc = bytes.get(crc_at..crc_at + CHECKSUM_LEN)?;
+    let extra = MavMessage::extra_crc(u32::from(bytes[5]));
+    (checksum(&bytes[1..crc_at], extra) == u16::from_le_bytes([crc[0], crc[1]])).then_some(crc_at + CHECKSUM_LEN)
 }
 
 /// Decodes a checksummed payload (possibly truncated: MAVLink 2 drops trailing zeros).
@@ -411,6 +435,25 @@ mod tests {
         let bytes = encode_command_ack(header(4), 31_999, MavResult::MAV_RESULT_UNSUPPORTED, (255, 0));
         assert_eq!(u16::from_le_bytes([bytes[10], bytes[11]]), 31_999);
         assert_eq!(FrameParser::new().push(&bytes).len(), 1, "checksum is right");
+    }
+
+    #[test]
+    fn mavlink1_frames_are_skipped_whole_and_counted() {
+        // A MAVLink 1 HEARTBEAT from a GCS laid out by hand: STX, len, seq, sysid, compid,
+        // msgid, payload, CRC with the heartbeat's CRC_EXTRA.
+        let mut v1 = vec![STX_V1, 9, 0, 255, 190, 0, 0, 0, 0, 0, 6, 8, 0, 4, 3];
+        let crc = checksum(&v1[1..], MavMessage::extra_crc(0));
+        v1.extend(crc.to_le_bytes());
+        let mut p = FrameParser::new();
+        let frames = p.push(&[v1.clone(), encode(header(2), &heartbeat())].concat());
+        assert_eq!(frames.len(), 1, "the MAVLink 2 frame after it");
+        assert_eq!((p.stats.mavlink1_frames, p.stats.skipped_bytes), (1, 0));
+        // With a wrong checksum it is garbage, as any other bytes.
+        let last = v1.len() - 1;
+        v1[last] ^= 0xFF;
+        assert!(p.push(&v1).is_empty());
+        assert_eq!(p.stats.mavlink1_frames, 1);
+        assert!(p.stats.skipped_bytes > 0);
     }
 
     #[test]

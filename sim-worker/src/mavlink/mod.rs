@@ -1,5 +1,6 @@
-//! The MAVLink edge of a drone: PX4's flight-mode encoding, framing, the per-drone session
-//! state machine (pure), the socket endpoint that carries it, and the fleet router.
+//! The MAVLink edge of a drone: PX4's flight-mode encoding, framing, message signing, the
+//! per-drone session state machine (pure), the socket endpoint that carries it, and the
+//! fleet router.
 //!
 //! Frames at this edge are MAVLink's: NED (x north, y east, z down) for local positions,
 //! WGS84 lat/lon in 1e-7 degrees, altitudes in metres AMSL or relative to home. The engine
@@ -12,5 +13,6 @@ pub mod params;
 pub mod px4_mode;
 pub mod router;
 pub mod session;
+pub mod signing;
 pub mod streams;
 pub mod telemetry;

@@ -4,20 +4,27 @@
 //! port; only the host of the drone endpoints depends on where the run is deployed, so it
 //! is a flag: `127.0.0.1` locally, the shard pods' DNS names on Kubernetes.
 //!
+//! MAVLink signing on the GCS side (`spec.groundStations.signing`): the passphrase comes from
+//! the environment variable `SADESIM_MAVLINK_SIGNING_KEY` ([`signing_key`]), never from a
+//! flag, which `ps` shows to every user of the machine.
+//!
 //! Reports are JSON lines on stdout: `{"type":"listening",...}` once the sockets are bound,
 //! `{"type":"stopped","stats":{...}}` at the end.
 
 use std::collections::HashMap;
+use std::ffi::OsString;
 use std::io::Write;
 use std::net::{IpAddr, SocketAddr, ToSocketAddrs};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use sadesim_crds::ground_stations::{MIN_PASSPHRASE_CHARS, SIGNING_KEY_ENV};
 use sadesim_crds::plan::RunPlan;
 use serde::Serialize;
 
 use super::RoleError;
 use crate::mavlink::router::{self, RoutedDrone, RouterConfig, RouterStats};
+use crate::mavlink::signing::SecretKey;
 
 /// `--drone-host` when not given: every shard runs on this machine.
 pub const DEFAULT_DRONE_HOST: &str = "127.0.0.1";
@@ -40,14 +47,17 @@ pub struct RouterOptions {
     /// `{run}-shard-{shard}.{run}-shards` names pod `{shard}` of the Indexed Job
     /// `<run>-shard` behind the headless Service `<run>-shards`.
     pub drone_host: String,
+    /// MAVLink signing key for the GCS side; required when the plan asks for signing
+    /// (`spec.groundStations.signing`).
+    pub signing: Option<SecretKey>,
 }
 
 /// One line of the router's stdout.
 #[derive(Serialize, Clone, Debug, PartialEq)]
 #[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
 pub enum Report {
-    /// Bound and routing.
-    Listening { segment: u32, gcs_udp: String, gcs_tcp: String, drones: usize },
+    /// Bound and routing; `signing`: ground stations must sign their frames.
+    Listening { segment: u32, gcs_udp: String, gcs_tcp: String, drones: usize, signing: bool },
     /// Stopped (SIGINT/SIGTERM); the counters of the whole run.
     Stopped { stats: RouterStats },
 }
@@ -74,12 +84,14 @@ pub fn run(plan: &RunPlan, options: &RouterOptions, stop: &AtomicBool) -> Result
         }
     })?;
     let drones = config.drones.len();
+    let signing = config.signing.is_some();
     let mut handle = router::start(config)?;
     report(&Report::Listening {
         segment: options.segment,
         gcs_udp: handle.gcs_udp().to_string(),
         gcs_tcp: handle.gcs_tcp().to_string(),
         drones,
+        signing,
     });
     while !stop.load(Ordering::Relaxed) {
         std::thread::sleep(Duration::from_millis(100));
@@ -94,12 +106,21 @@ pub fn run(plan: &RunPlan, options: &RouterOptions, stop: &AtomicBool) -> Result
 /// (called once per distinct host).
 ///
 /// # Errors
-/// Unknown segment, bad `--drone-host` template, or a host `resolve` fails on.
+/// Unknown segment, bad `--drone-host` template, a host `resolve` fails on, or a plan that
+/// asks for signing without a key in `options` (a router must never serve such a run
+/// unsigned).
 pub fn config(
     plan: &RunPlan,
     options: &RouterOptions,
     resolve: &mut dyn FnMut(&str) -> std::io::Result<IpAddr>,
 ) -> Result<RouterConfig, RoleError> {
+    let wants_signing = plan.spec.ground_stations.as_ref().is_some_and(|g| g.signing.is_some());
+    if wants_signing && options.signing.is_none() {
+        return Err(RoleError::RouterSetup(format!(
+            "spec.groundStations.signing is set but {SIGNING_KEY_ENV} is not: give the router the passphrase \
+             in that environment variable"
+        )));
+    }
     let segment = plan.segments.get(options.segment as usize).ok_or_else(|| {
         RoleError::RouterSetup(format!(
             "--segment {}: the plan has {} router segment(s), numbered from 0",
@@ -128,7 +149,36 @@ pub fn config(
         gcs_udp: SocketAddr::new(options.bind, segment.gcs_udp),
         gcs_tcp: SocketAddr::new(options.bind, segment.gcs_tcp),
         drones,
+        signing: options.signing.clone(),
     })
+}
+
+/// The signing key from the value of `SADESIM_MAVLINK_SIGNING_KEY` (`None`: not set, no
+/// signing): SHA-256 of the passphrase's UTF-8 bytes, all of them.
+///
+/// # Errors
+/// A value that is not UTF-8 or shorter than 8 characters (the scenario's rule for an inline
+/// passphrase, which a Secret's value escapes).
+pub fn signing_key(value: Option<OsString>) -> Result<Option<SecretKey>, RoleError> {
+    let Some(value) = value else { return Ok(None) };
+    let passphrase = value
+        .into_string()
+        .map_err(|_| RoleError::RouterSetup(format!("{SIGNING_KEY_ENV}: the passphrase is not valid UTF-8")))?;
+    let chars = passphrase.chars().count();
+    if chars < MIN_PASSPHRASE_CHARS {
+        return Err(RoleError::RouterSetup(format!(
+            "{SIGNING_KEY_ENV}: the passphrase must be at least {MIN_PASSPHRASE_CHARS} characters, got {chars}"
+        )));
+    }
+    if passphrase.ends_with(['\n', '\r']) {
+        // Not trimmed: the key is the hash of every byte, as the ground stations compute it.
+        eprintln!(
+            "warning: {SIGNING_KEY_ENV} ends with a line break, which is part of the passphrase: ground stations \
+             must use it too (a Secret made with `kubectl create secret generic --from-file` keeps the file's \
+             last line break; `--from-literal` does not)"
+        );
+    }
+    Ok(Some(SecretKey::from_passphrase(&passphrase)))
 }
 
 /// Expands `{run}` and `{shard}` in a `--drone-host` template.
@@ -181,7 +231,7 @@ mod tests {
     }
 
     fn options(segment: u32, drone_host: &str) -> RouterOptions {
-        RouterOptions { segment, bind: IpAddr::V4(Ipv4Addr::UNSPECIFIED), drone_host: drone_host.into() }
+        RouterOptions { segment, bind: IpAddr::V4(Ipv4Addr::UNSPECIFIED), drone_host: drone_host.into(), signing: None }
     }
 
     #[test]
@@ -223,6 +273,32 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("failed to resolve nowhere"), "{e}");
+    }
+
+    #[test]
+    fn a_plan_with_signing_needs_the_key_and_passes_it_on() {
+        use sadesim_crds::fleet::Credential;
+        use sadesim_crds::ground_stations::{GroundStations, Signing};
+        let mut plan = plan(2, 100);
+        let signing = Signing { key: Credential::Value("a long passphrase".into()) };
+        plan.spec.ground_stations = Some(GroundStations { allow_from: vec![], signing: Some(signing) });
+        let mut opts = options(0, DEFAULT_DRONE_HOST);
+        let e = config(&plan, &opts, &mut resolve).unwrap_err().to_string();
+        assert!(e.contains("spec.groundStations.signing") && e.contains(SIGNING_KEY_ENV), "{e}");
+        opts.signing = Some(SecretKey::from_passphrase("a long passphrase"));
+        assert_eq!(config(&plan, &opts, &mut resolve).unwrap().signing, opts.signing);
+    }
+
+    #[test]
+    fn the_signing_key_comes_from_the_variable_and_short_ones_are_refused() {
+        assert_eq!(signing_key(None).unwrap(), None);
+        let key = signing_key(Some("correct horse".into())).unwrap();
+        assert_eq!(key, Some(SecretKey::from_passphrase("correct horse")));
+        let e = signing_key(Some("short".into())).unwrap_err().to_string();
+        assert!(e.starts_with(SIGNING_KEY_ENV) && e.contains("at least 8 characters, got 5"), "{e}");
+        // A line break is part of the passphrase (warned about, not trimmed).
+        let with_newline = signing_key(Some("correct horse\n".into())).unwrap();
+        assert_ne!(with_newline, key);
     }
 
     #[test]

@@ -11,6 +11,7 @@ use k8s_openapi::apimachinery::pkg::api::resource::Quantity;
 use k8s_openapi::apimachinery::pkg::apis::meta::v1::{ObjectMeta, OwnerReference};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::fleet::Credential;
+use sadesim_crds::ground_stations::SIGNING_KEY_ENV;
 use sadesim_crds::plan::{RoleResources, RunPlan};
 
 use super::{ClusterSettings, OWNER_API_VERSION, OWNER_KIND, ROLE_LABEL, RUN_LABEL, Role};
@@ -122,25 +123,16 @@ impl<'a> Context<'a> {
             .spec
             .fleet
             .iter()
-            .filter_map(|g| {
-                let name = credential_env_var(&g.name);
-                match g.credential.as_ref()? {
-                    Credential::Value(v) => Some(EnvVar { name, value: Some(v.clone()), value_from: None }),
-                    Credential::SecretKeyRef(r) => Some(EnvVar {
-                        name,
-                        value: None,
-                        value_from: Some(EnvVarSource {
-                            secret_key_ref: Some(SecretKeySelector {
-                                name: r.name.clone(),
-                                key: r.key.clone(),
-                                optional: Some(false),
-                            }),
-                            ..Default::default()
-                        }),
-                    }),
-                }
-            })
+            .filter_map(|g| Some(credential_var(credential_env_var(&g.name), g.credential.as_ref()?)))
             .collect()
+    }
+
+    /// `SADESIM_MAVLINK_SIGNING_KEY` when the run signs MAVLink on the GCS side
+    /// (`spec.groundStations.signing`): the passphrase from the Secret key it names, or
+    /// inline. For the routers only: no other role needs it.
+    pub fn signing_env(&self) -> Option<EnvVar> {
+        let signing = self.plan.spec.ground_stations.as_ref()?.signing.as_ref()?;
+        Some(credential_var(SIGNING_KEY_ENV.into(), &signing.key))
     }
 
     /// `SADESIM_RUN`, `SADESIM_NAMESPACE` and `SADESIM_RUN_UID`.
@@ -154,6 +146,26 @@ impl<'a> Context<'a> {
         .into_iter()
         .map(|(k, v)| env(k, v))
         .collect()
+    }
+}
+
+/// Variable `name` holding `credential`: from the Secret key it names (which must exist:
+/// the pod does not start without it), or inline.
+fn credential_var(name: String, credential: &Credential) -> EnvVar {
+    match credential {
+        Credential::Value(v) => EnvVar { name, value: Some(v.clone()), value_from: None },
+        Credential::SecretKeyRef(r) => EnvVar {
+            name,
+            value: None,
+            value_from: Some(EnvVarSource {
+                secret_key_ref: Some(SecretKeySelector {
+                    name: r.name.clone(),
+                    key: r.key.clone(),
+                    optional: Some(false),
+                }),
+                ..Default::default()
+            }),
+        },
     }
 }
 

@@ -637,6 +637,41 @@ fn the_pilot_gets_its_scenario_and_its_container_command() {
 }
 
 #[test]
+fn only_the_routers_get_the_signing_passphrase_from_its_secret() {
+    use sadesim_crds::ground_stations::{GroundStations, SIGNING_KEY_ENV, Signing};
+    let mut run = piloted(600).with_drones_per_shard_of(100);
+    let key = Credential::SecretKeyRef(SecretKeyRef { name: "gcs-signing".into(), key: "passphrase".into() });
+    run.spec.ground_stations = Some(GroundStations { allow_from: vec![], signing: Some(Signing { key }) });
+    let plan = planned(&run);
+    let children = children(&run, &plan, &s3(), Stage::ALL);
+    let mut routers = 0;
+    for (name, spec) in pod_specs(&children) {
+        for c in spec.containers.iter().chain(spec.init_containers.iter().flatten()) {
+            let env = c.env.iter().flatten().filter(|e| e.name == SIGNING_KEY_ENV).collect::<Vec<_>>();
+            if !name.starts_with("test-run-router-") {
+                assert!(env.is_empty(), "{name} must not get the signing passphrase");
+                continue;
+            }
+            routers += 1;
+            assert_eq!(env.len(), 1, "{name}");
+            assert_eq!(env[0].value, None, "{name}: the passphrase is not written into the pod");
+            let from = env[0].value_from.as_ref().unwrap().secret_key_ref.as_ref().unwrap();
+            assert_eq!(
+                (from.name.as_str(), from.key.as_str(), from.optional),
+                ("gcs-signing", "passphrase", Some(false))
+            );
+            // Never on the command line.
+            assert!(!c.args.iter().flatten().any(|a| a.contains("signing")), "{name}: {:?}", c.args);
+        }
+    }
+    assert_eq!(routers, 3, "one router per segment of 250 drones");
+    // Without signing the routers get no such variable.
+    let plain = piloted(3);
+    let router = container(&children_of(&plain), "test-run-router-0");
+    assert!(!router.env.unwrap().iter().any(|e| e.name == SIGNING_KEY_ENV));
+}
+
+#[test]
 fn a_pilot_without_an_image_is_refused_on_a_cluster_and_gets_no_job() {
     let run = with_uid(RunBuilder::test().with_pilot(&["./pilot.sh"]).build());
     let plan = planned(&run);

@@ -304,6 +304,8 @@ pub(super) fn router_pod(ctx: &Context, segment: &RouterSegment) -> Pod {
         names::drone_host_template(ctx.namespace),
     ];
     let mut c = worker_container(ctx, Role::Router, strings(&[SIM_WORKER]), args, ctx.plan.resources.router);
+    // MAVLink signing: the passphrase in the environment (from the Secret), never an argument.
+    c.env.get_or_insert_with(Vec::new).extend(ctx.signing_env());
     c.ports = Some(vec![port("mavlink-udp", segment.gcs_udp, "UDP"), port("mavlink-tcp", segment.gcs_tcp, "TCP")]);
     c.readiness_probe = Some(tcp_probe("mavlink-tcp"));
     let spec = pod_spec(

@@ -7,6 +7,8 @@ use std::time::Duration;
 
 use serde::Serialize;
 
+use crate::mavlink::signing::SecretKey;
+
 /// The router's own system id: outside the drones' 1..=250 and below the 255 ground stations
 /// use by default (254 is MAVProxy's and some companion computers'), so it clashes with
 /// neither.
@@ -52,6 +54,10 @@ pub struct RouterConfig {
     pub gcs_tcp: SocketAddr,
     /// The segment's drones (at most [`MAX_DRONES`], distinct system ids).
     pub drones: Vec<RoutedDrone>,
+    /// MAVLink 2 signing on the GCS side: with a key, only frames signed with it are taken
+    /// from ground stations, and everything sent to them is signed. `None`: neither (frames
+    /// pass byte for byte).
+    pub signing: Option<SecretKey>,
 }
 
 /// Why a router could not start.
@@ -106,6 +112,14 @@ pub struct RouterStats {
     pub dropped_gcs_backlog: u64,
     /// TCP connections refused because [`MAX_TCP_GCS`] were open.
     pub refused_tcp_clients: u64,
+    /// With signing: GCS frames dropped for carrying no signature (MAVLink 1 frames
+    /// included, which cannot carry one).
+    pub refused_unsigned: u64,
+    /// With signing: GCS frames dropped for a signature that does not match the key.
+    pub refused_bad_signature: u64,
+    /// With signing: GCS frames dropped for a timestamp not after the last one of their
+    /// stream (a replay), or a new stream starting over a minute in the past.
+    pub refused_old_timestamp: u64,
     /// UDP ground stations currently served.
     pub gcs_udp_clients: usize,
     /// TCP ground stations currently connected.

@@ -8,6 +8,7 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 
 use super::config::{POLL, RouterConfig, RouterError, RouterStats, bind_error, check_drones};
+use super::gcs_signing::GcsSigning;
 use super::routing_table::{Counters, PeerTable, Shared, lock};
 use super::sockets::{accept_tcp, drone_side, gcs_udp_side};
 
@@ -67,6 +68,7 @@ pub fn start(config: RouterConfig) -> Result<RouterHandle, RouterError> {
         tcp_threads: Mutex::new(Vec::new()),
         next_tcp_id: AtomicU64::new(0),
         counters: Arc::default(),
+        signing: config.signing.map(|key| GcsSigning::new(key, config.segment)),
     });
     let mut handle = RouterHandle {
         gcs_udp: shared.gcs_udp.local_addr()?,
@@ -117,6 +119,9 @@ impl RouterHandle {
             garbage_bytes: get(&c.garbage_bytes),
             dropped_gcs_backlog: get(&c.dropped_gcs_backlog),
             refused_tcp_clients: get(&c.refused_tcp_clients),
+            refused_unsigned: get(&c.refused_unsigned),
+            refused_bad_signature: get(&c.refused_bad_signature),
+            refused_old_timestamp: get(&c.refused_old_timestamp),
             gcs_udp_clients: self.shared.as_ref().map_or(0, |s| lock(&s.udp_peers).peers.len()),
             gcs_tcp_clients: self
                 .shared

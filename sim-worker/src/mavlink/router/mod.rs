@@ -24,6 +24,23 @@
 //! Frames are forwarded byte for byte, never re-encoded: sequence numbers, signatures and
 //! extension fields survive, and a frame costs one checksum check and a copy.
 //!
+//! # Signing
+//! With a key ([`RouterConfig::signing`], `spec.groundStations.signing`), the GCS side speaks
+//! signed MAVLink 2 only (<https://mavlink.io/en/guide/message_signing.html>):
+//! - A ground station's frame is taken only when signed with the key, with a timestamp after
+//!   the last one of its stream (link id, system id, component id); others are dropped,
+//!   counted ([`RouterStats::refused_unsigned`] and the next two) and logged on stderr, the
+//!   first per source address at once, then a sum every 10 s. A UDP sender becomes a client
+//!   only with a frame that passes.
+//! - Drone frames are signed on their way to the ground stations (flag set, CRC recomputed,
+//!   link id [`ROUTER_LINK_ID`], timestamps from the wall clock, strictly increasing).
+//!   Frames from one ground station reach the others as they came, signed by their sender,
+//!   except SETUP_SIGNING, which carries the key in plain text and goes nowhere.
+//! - The drone side stays unsigned: it is inside the run.
+//!
+//! Signing authenticates, it does not encrypt: a TCP client that connects still reads the
+//! telemetry. `spec.groundStations.allowFrom` limits who can connect at all.
+//!
 //! # Threads
 //! Plain std threads with blocking sockets and short read timeouts ([`POLL`]), so
 //! [`RouterHandle::stop`] returns within about 100 ms: one for the drone side, one for GCS
@@ -37,13 +54,18 @@
 //!   heartbeats (forwarded to every drone) count as a ground station.
 //! - Within one GCS datagram, frames keep their order per drone; frames to different drones
 //!   are sent as separate datagrams.
+//! - With signing, two ground stations that use the same system id, component id and link
+//!   id at once share one replay stream, so each loses the frames whose timestamps fall
+//!   behind the other's: give each its own system id (as MAVLink requires anyway).
 //!
 //! # Layout
 //! `config` (what a router serves, its limits, errors and counters), `handle` (start and
 //! stop), `routing_table` (the state the threads share and how a frame is routed),
-//! `sockets` (the threads), `tests` (against real sockets on loopback).
+//! `gcs_signing` (signing state and the log of refusals), `sockets` (the threads), `tests`
+//! (against real sockets on loopback).
 
 mod config;
+mod gcs_signing;
 mod handle;
 mod routing_table;
 mod sockets;
@@ -52,6 +74,7 @@ pub use config::{
     MAX_DRONES, MAX_TCP_GCS, MAX_UDP_GCS, POLL, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone, RouterConfig,
     RouterError, RouterStats,
 };
+pub use gcs_signing::ROUTER_LINK_ID;
 pub use handle::{RouterHandle, start};
 
 #[cfg(test)]

@@ -8,12 +8,15 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{SyncSender, TrySendError};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
+use std::time::{Instant, SystemTime};
 
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
 
 use super::config::{MAX_UDP_GCS, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone};
+use super::gcs_signing::{GcsSigning, SETUP_SIGNING_ID};
 use crate::mavlink::frame::{Decoded, Frame, FrameParser, encode, target_system};
+use crate::mavlink::signing::{Refusal, SIGNATURE_BLOCK_LEN, timestamp_at};
 
 /// A poisoned lock only means another router thread panicked; the tables stay usable.
 pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -76,6 +79,9 @@ pub(super) struct Counters {
     pub(super) garbage_bytes: AtomicU64,
     pub(super) dropped_gcs_backlog: AtomicU64,
     pub(super) refused_tcp_clients: AtomicU64,
+    pub(super) refused_unsigned: AtomicU64,
+    pub(super) refused_bad_signature: AtomicU64,
+    pub(super) refused_old_timestamp: AtomicU64,
 }
 
 pub(super) fn add(counter: &AtomicU64, n: u64) {
@@ -100,6 +106,8 @@ pub(super) struct Shared {
     pub(super) tcp_threads: Mutex<Vec<JoinHandle<()>>>,
     pub(super) next_tcp_id: AtomicU64,
     pub(super) counters: Arc<Counters>,
+    /// MAVLink 2 signing on the GCS side, when configured.
+    pub(super) signing: Option<GcsSigning>,
 }
 
 impl Shared {
@@ -116,12 +124,60 @@ impl Shared {
         frames
     }
 
-    /// Sends the router's HEARTBEAT to every drone endpoint, which makes the endpoint send
-    /// its telemetry here.
+    /// Parses bytes from the ground station at `source`. With signing, only the frames that
+    /// pass the signature and replay checks are returned; the others (and MAVLink 1 frames)
+    /// are counted and logged.
+    pub(super) fn parse_gcs(&self, parser: &mut FrameParser, bytes: &[u8], source: SocketAddr) -> Vec<Frame> {
+        let mavlink1_before = parser.stats.mavlink1_frames;
+        let mut frames = self.parse(parser, bytes);
+        let Some(signing) = &self.signing else { return frames };
+        let mut refused: Vec<Refusal> =
+            (mavlink1_before..parser.stats.mavlink1_frames).map(|_| Refusal::Mavlink1).collect();
+        if !frames.is_empty() {
+            let now = timestamp_at(SystemTime::now());
+            let mut verifier = lock(&signing.verifier);
+            frames.retain(|f| verifier.check(&f.bytes, now).map_err(|why| refused.push(why)).is_ok());
+            // SETUP_SIGNING (QGroundControl's "send to vehicle") carries the secret key in
+            // plain text: passed on, it would reach every ground station, including TCP
+            // clients without the key. The run's key is the scenario's; nothing to set up.
+            frames.retain(|f| f.message_id != SETUP_SIGNING_ID);
+        }
+        if refused.is_empty() {
+            return frames;
+        }
+        let now = Instant::now();
+        let mut log = lock(&signing.refusals);
+        for why in refused {
+            let counter = match why {
+                Refusal::Unsigned | Refusal::Mavlink1 => &self.counters.refused_unsigned,
+                Refusal::BadSignature => &self.counters.refused_bad_signature,
+                Refusal::OldTimestamp => &self.counters.refused_old_timestamp,
+            };
+            add(counter, 1);
+            if let Some(line) = log.refused(source, why, now) {
+                eprintln!("{line}");
+            }
+        }
+        frames
+    }
+
+    /// Logs the sums of refused frames that are due (with signing; called often by the GCS
+    /// UDP thread).
+    pub(super) fn report_refusals(&self) {
+        if let Some(signing) = &self.signing {
+            for line in lock(&signing.refusals).due(Instant::now()) {
+                eprintln!("{line}");
+            }
+        }
+    }
+
+    /// Whether any ground station would receive telemetry.
     pub(super) fn has_ground_stations(&self) -> bool {
         !lock(&self.udp_peers).peers.is_empty() || !lock(&self.tcp_clients).is_empty()
     }
 
+    /// Sends the router's HEARTBEAT to every drone endpoint, which makes the endpoint send
+    /// its telemetry here.
     pub(super) fn register_with_drones(&self, sequence: u8) {
         let header = MavHeader { system_id: u32::from(ROUTER_SYSTEM_ID), component_id: ROUTER_COMPONENT_ID, sequence };
         let heartbeat = encode(
@@ -141,7 +197,8 @@ impl Shared {
         }
     }
 
-    /// A datagram on the drone socket: to every ground station, unchanged when it is clean.
+    /// A datagram on the drone socket: to every ground station, unchanged when it is clean
+    /// (without signing), each frame signed (with signing).
     pub(super) fn forward_drone_datagram(&self, datagram: &[u8], from: SocketAddr, parser: &mut FrameParser) {
         if !self.endpoints.contains(&from) {
             add(&self.counters.dropped_unknown_source, 1);
@@ -156,7 +213,14 @@ impl Shared {
             f.header.system_id == u32::from(ROUTER_SYSTEM_ID) && f.header.component_id == ROUTER_COMPONENT_ID
         };
         let clean = frames.iter().map(|f| f.bytes.len()).sum::<usize>() == datagram.len() && !frames.iter().any(own);
-        let out: Cow<'_, [u8]> = if clean {
+        let out: Cow<'_, [u8]> = if let Some(signing) = &self.signing {
+            let now = timestamp_at(SystemTime::now());
+            let mut signed = Vec::with_capacity(datagram.len() + frames.len() * SIGNATURE_BLOCK_LEN);
+            for f in frames.iter().filter(|f| !own(f)) {
+                signing.signer.sign_into(&mut signed, &f.bytes, now);
+            }
+            Cow::Owned(signed)
+        } else if clean {
             Cow::Borrowed(datagram)
         } else {
             Cow::Owned(frames.iter().filter(|f| !own(f)).flat_map(|f| f.bytes.iter().copied()).collect())

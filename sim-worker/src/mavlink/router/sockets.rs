@@ -2,7 +2,7 @@
 //! reader and a writer per TCP ground station.
 
 use std::io::{self, Read, Write};
-use std::net::{Shutdown, TcpListener, TcpStream};
+use std::net::{Shutdown, SocketAddr, TcpListener, TcpStream};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
@@ -49,12 +49,16 @@ pub(super) fn gcs_udp_side(shared: &Shared) {
     let mut buf = vec![0u8; MAX_DATAGRAM];
     let mut parser = FrameParser::new();
     while !shared.stopping() {
+        // Every POLL at the latest: the sums of refused frames appear on time even when
+        // the refusals have stopped.
+        shared.report_refusals();
         match shared.gcs_udp.recv_from(&mut buf) {
             Ok((n, from)) => {
                 parser.reset();
-                let frames = shared.parse(&mut parser, &buf[..n]);
-                // Only a sender of at least one valid frame becomes a client, so a port
-                // scan or stray traffic does not subscribe to the telemetry.
+                let frames = shared.parse_gcs(&mut parser, &buf[..n], from);
+                // Only a sender of at least one valid frame (with signing: validly signed)
+                // becomes a client, so a port scan or stray traffic does not subscribe to
+                // the telemetry.
                 if !frames.is_empty() {
                     lock(&shared.udp_peers).heard(from);
                 }
@@ -71,8 +75,8 @@ pub(super) fn accept_tcp(shared: &Arc<Shared>, listener: &TcpListener) {
     while !shared.stopping() {
         match listener.accept() {
             // A client that cannot be set up is simply not served.
-            Ok((stream, _)) => {
-                let _ = add_tcp_client(shared, stream);
+            Ok((stream, peer)) => {
+                let _ = add_tcp_client(shared, stream, peer);
             }
             Err(_) => std::thread::sleep(POLL),
         }
@@ -87,7 +91,7 @@ pub(super) fn accept_tcp(shared: &Arc<Shared>, listener: &TcpListener) {
     }
 }
 
-pub(super) fn add_tcp_client(shared: &Arc<Shared>, stream: TcpStream) -> io::Result<()> {
+pub(super) fn add_tcp_client(shared: &Arc<Shared>, stream: TcpStream, peer: SocketAddr) -> io::Result<()> {
     // Accepted sockets may inherit the listener's non-blocking mode on some platforms.
     stream.set_nonblocking(false)?;
     stream.set_nodelay(true)?;
@@ -109,7 +113,7 @@ pub(super) fn add_tcp_client(shared: &Arc<Shared>, stream: TcpStream) -> io::Res
 
     let mut threads = lock(&shared.tcp_threads);
     let (s, c) = (shared.clone(), closed.clone());
-    let reader = spawn(format!("router-tcp-{id}-in"), move || tcp_reader(&s, stream, id, &c));
+    let reader = spawn(format!("router-tcp-{id}-in"), move || tcp_reader(&s, stream, peer, id, &c));
     let (s, c) = (shared.clone(), closed.clone());
     let writer = spawn(format!("router-tcp-{id}-out"), move || tcp_writer(&s, writer_stream, &outgoing, &c));
     for t in [reader, writer] {
@@ -125,15 +129,15 @@ pub(super) fn add_tcp_client(shared: &Arc<Shared>, stream: TcpStream) -> io::Res
     Ok(())
 }
 
-/// Reads one TCP ground station's stream and routes its frames.
-pub(super) fn tcp_reader(shared: &Shared, mut stream: TcpStream, id: u64, closed: &AtomicBool) {
+/// Reads one TCP ground station's stream (from `peer`) and routes its frames.
+pub(super) fn tcp_reader(shared: &Shared, mut stream: TcpStream, peer: SocketAddr, id: u64, closed: &AtomicBool) {
     let mut parser = FrameParser::new();
     let mut buf = vec![0u8; 16 * 1024];
     while !shared.stopping() && !closed.load(Ordering::Relaxed) {
         match stream.read(&mut buf) {
             Ok(0) => break,
             Ok(n) => {
-                let frames = shared.parse(&mut parser, &buf[..n]);
+                let frames = shared.parse_gcs(&mut parser, &buf[..n], peer);
                 shared.route_gcs_frames(&frames, GcsOrigin::Tcp(id));
             }
             Err(e) if is_timeout(&e) => {}

@@ -3,7 +3,7 @@
 use std::collections::BTreeSet;
 use std::thread;
 
-use ::mavlink::dialects::common::{ATTITUDE_DATA, COMMAND_LONG_DATA, MavCmd};
+use ::mavlink::dialects::common::{ATTITUDE_DATA, COMMAND_LONG_DATA, MavCmd, SETUP_SIGNING_DATA};
 
 use super::config::{
     HEARTBEAT_PERIOD, MAX_DATAGRAM, MAX_UDP_GCS, ROUTER_SYSTEM_ID, RoutedDrone, RouterConfig, RouterError,
@@ -21,6 +21,7 @@ use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
 
 use crate::mavlink::frame::{Decoded, Frame, FrameParser, encode};
+use crate::mavlink::signing::{IFLAG_SIGNED, Refusal, SecretKey, Signer, Verifier, timestamp_at};
 
 const DEADLINE: Duration = Duration::from_secs(5);
 const GCS_SYSID: u32 = 255;
@@ -135,6 +136,11 @@ impl Drop for FakeDrone {
 }
 
 fn fleet(n: u8) -> (Vec<FakeDrone>, RouterHandle) {
+    fleet_signing(n, None)
+}
+
+/// `n` fake drones behind a router that signs on the GCS side when given a key.
+fn fleet_signing(n: u8, signing: Option<SecretKey>) -> (Vec<FakeDrone>, RouterHandle) {
     let drones: Vec<FakeDrone> = (1..=n).map(FakeDrone::start).collect();
     let config = RouterConfig {
         segment: 0,
@@ -145,6 +151,7 @@ fn fleet(n: u8) -> (Vec<FakeDrone>, RouterHandle) {
             .enumerate()
             .map(|(i, d)| RoutedDrone { system_id: i as u8 + 1, endpoint: d.addr })
             .collect(),
+        signing,
     };
     let router = start(config).unwrap();
     (drones, router)
@@ -189,6 +196,7 @@ fn a_gcs_sees_every_drone_of_the_segment_but_not_the_router() {
     });
     let frames = udp_until(&gcs, "32 system ids", |f| sysids(f).len() >= 32);
     assert_eq!(sysids(&frames), (1..=32).collect());
+    assert!(frames.iter().all(|f| f.bytes[2] & IFLAG_SIGNED == 0), "without a key nothing is signed");
     assert!(router.stats().datagrams_to_gcs > 0);
     assert_eq!(router.stats().gcs_udp_clients, 1);
 }
@@ -299,6 +307,7 @@ fn an_echoed_router_heartbeat_is_taken_out_of_a_drone_datagram() {
         gcs_udp: "127.0.0.1:0".parse().unwrap(),
         gcs_tcp: "127.0.0.1:0".parse().unwrap(),
         drones: vec![RoutedDrone { system_id: 5, endpoint: drone.local_addr().unwrap() }],
+        signing: None,
     })
     .unwrap();
     let gcs = udp_gcs(&router);
@@ -323,9 +332,14 @@ fn an_echoed_router_heartbeat_is_taken_out_of_a_drone_datagram() {
 fn a_port_in_use_is_named_in_the_error() {
     let taken = UdpSocket::bind("127.0.0.1:0").unwrap();
     let addr = taken.local_addr().unwrap();
-    let err =
-        start(RouterConfig { segment: 0, gcs_udp: addr, gcs_tcp: "127.0.0.1:0".parse().unwrap(), drones: Vec::new() })
-            .unwrap_err();
+    let err = start(RouterConfig {
+        segment: 0,
+        gcs_udp: addr,
+        gcs_tcp: "127.0.0.1:0".parse().unwrap(),
+        drones: Vec::new(),
+        signing: None,
+    })
+    .unwrap_err();
     let message = err.to_string();
     assert!(message.contains(&addr.to_string()) && message.contains("in use"), "{message}");
 }
@@ -338,6 +352,7 @@ fn invalid_drone_lists_are_refused() {
         gcs_udp: "127.0.0.1:0".parse().unwrap(),
         gcs_tcp: "127.0.0.1:0".parse().unwrap(),
         drones,
+        signing: None,
     };
     assert!(matches!(start(config(vec![d(3), d(3)])), Err(RouterError::DuplicateSystemId(3))));
     assert!(matches!(start(config(vec![d(0)])), Err(RouterError::InvalidSystemId(0))));
@@ -379,4 +394,92 @@ fn the_least_recently_heard_udp_gcs_is_evicted() {
     let peers: BTreeSet<u16> = table.peers.iter().map(|p| p.0.port()).collect();
     assert_eq!(peers.len(), MAX_UDP_GCS);
     assert!(peers.contains(&0) && peers.contains(&100) && !peers.contains(&1));
+}
+
+/// A ground station's signer: link id 1, timestamps from the wall clock.
+fn signed(signer: &Signer, frame: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    signer.sign_into(&mut out, frame, timestamp_at(std::time::SystemTime::now()));
+    out
+}
+
+#[test]
+fn with_signing_only_signed_gcs_frames_pass_and_the_gcs_gets_signed_frames() {
+    let key = SecretKey::from_passphrase("router test passphrase");
+    let (drones, router) = fleet_signing(2, Some(key.clone()));
+    let gcs_signer = Signer::new(key.clone(), 1);
+    let stranger = Signer::new(SecretKey::from_passphrase("another passphrase"), 1);
+
+    // Without the key: unsigned frames, MAVLink 1 and another key's signature go nowhere,
+    // and their sender does not become a client.
+    let unsigned = UdpSocket::bind("127.0.0.1:0").unwrap();
+    unsigned.send_to(&frame(GCS_SYSID, &heartbeat(MavType::MAV_TYPE_GCS)), router.gcs_udp()).unwrap();
+    unsigned.send_to(&frame(GCS_SYSID, &command(1, 1.0)), router.gcs_udp()).unwrap();
+    let mut v1 = vec![0xFE, 9, 0, 255, 190, 0, 0, 0, 0, 0, 6, 8, 0, 4, 3];
+    let crc = crate::mavlink::frame::checksum(&v1[1..], 50); // HEARTBEAT's CRC_EXTRA
+    v1.extend(crc.to_le_bytes());
+    unsigned.send_to(&v1, router.gcs_udp()).unwrap();
+    unsigned.send_to(&signed(&stranger, &frame(GCS_SYSID, &command(1, 2.0))), router.gcs_udp()).unwrap();
+    wait_for("the refusals counted", || {
+        let s = router.stats();
+        (s.refused_unsigned == 3 && s.refused_bad_signature == 1).then_some(())
+    });
+    assert_eq!(router.stats().gcs_udp_clients, 0);
+
+    // With the key: the heartbeat registers the GCS, the command reaches its drone.
+    let gcs = UdpSocket::bind("127.0.0.1:0").unwrap();
+    gcs.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+    gcs.send_to(&signed(&gcs_signer, &frame(GCS_SYSID, &heartbeat(MavType::MAV_TYPE_GCS))), router.gcs_udp()).unwrap();
+    let command_datagram = signed(&gcs_signer, &frame(GCS_SYSID, &command(1, 3.0)));
+    gcs.send_to(&command_datagram, router.gcs_udp()).unwrap();
+    wait_for("drone 1 to get the signed command", || (drones[0].commands() == [3.0]).then_some(()));
+    assert_eq!(router.stats().gcs_udp_clients, 1);
+    // The drone side is unsigned: drones get the GCS's frames as they came.
+    assert!(drones[0].received.lock().unwrap().iter().all(|f| f.bytes[2] & IFLAG_SIGNED != 0));
+
+    // SETUP_SIGNING carries the key in plain text: not passed on, even signed. (The router
+    // sends to a drone in order, so the command after it shows it would have arrived.)
+    let setup =
+        MavMessage::SETUP_SIGNING(SETUP_SIGNING_DATA { target_system: 1, target_component: 1, ..Default::default() });
+    gcs.send_to(&signed(&gcs_signer, &frame(GCS_SYSID, &setup)), router.gcs_udp()).unwrap();
+    gcs.send_to(&signed(&gcs_signer, &frame(GCS_SYSID, &command(1, 6.0))), router.gcs_udp()).unwrap();
+    wait_for("the command after SETUP_SIGNING", || (drones[0].commands() == [3.0, 6.0]).then_some(()));
+    assert!(!drones[0].received.lock().unwrap().iter().any(|f| f.message_id == 256), "SETUP_SIGNING forwarded");
+
+    // The same datagram again is a replay.
+    gcs.send_to(&command_datagram, router.gcs_udp()).unwrap();
+    wait_for("the replay counted", || (router.stats().refused_old_timestamp == 1).then_some(()));
+
+    // Telemetry arrives signed with the key, every frame, and passes a receiver's checks
+    // (strictly increasing timestamps per drone stream).
+    let frames = udp_until(&gcs, "signed telemetry from both drones", |f| sysids(f).len() == 2 && f.len() >= 20);
+    let mut receiver = Verifier::new(key.clone());
+    let now = timestamp_at(std::time::SystemTime::now());
+    for f in &frames {
+        assert_ne!(f.bytes[2] & IFLAG_SIGNED, 0, "frame from {} unsigned", f.header.system_id);
+        assert_eq!(f.bytes[f.bytes.len() - 13], super::ROUTER_LINK_ID);
+        assert_eq!(receiver.check(&f.bytes, now), Ok(()), "frame from {}", f.header.system_id);
+    }
+    assert_eq!(Verifier::new(SecretKey::from_passphrase("x")).check(&frames[0].bytes, now), Err(Refusal::BadSignature));
+
+    // TCP: the same rules.
+    let mut tcp = TcpStream::connect(router.gcs_tcp()).unwrap();
+    tcp.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+    tcp.write_all(&frame(254, &command(2, 4.0))).unwrap();
+    wait_for("the unsigned TCP frame refused", || (router.stats().refused_unsigned == 4).then_some(()));
+    tcp.write_all(&signed(&Signer::new(key.clone(), 2), &frame(254, &command(2, 5.0)))).unwrap();
+    wait_for("drone 2 to get the signed TCP command", || (drones[1].commands() == [5.0]).then_some(()));
+    let mut parser = FrameParser::new();
+    let mut buf = [0u8; 4096];
+    let mut over_tcp = Vec::new();
+    wait_for("signed telemetry over TCP", || {
+        if let Ok(n) = tcp.read(&mut buf) {
+            over_tcp.extend(parser.push(&buf[..n]));
+        }
+        (over_tcp.len() >= 4).then_some(())
+    });
+    assert!(over_tcp.iter().all(|f| receiver.check(&f.bytes, now).is_ok()));
+    assert!(drones[0].commands() == [3.0, 6.0] && drones[1].commands() == [5.0], "nothing refused got through");
+    let stats = router.stats();
+    assert_eq!((stats.refused_unsigned, stats.refused_bad_signature, stats.refused_old_timestamp), (4, 1, 1));
 }
