@@ -228,6 +228,32 @@ fn each_verdict_over_http() {
     assert_eq!(kinds.iter().filter(|k| **k == "denied").count(), 6);
 }
 
+/// Two runs of the same scenario on one cluster, each with its team's Secret: a token valid
+/// in one run is worth nothing in the other, whichever pod presents it (the NetworkPolicy
+/// keeps other runs' pods out; this is the check behind it).
+#[test]
+fn another_run_s_credential_is_refused() {
+    let serve_with = |dps_token: &str| {
+        let token = dps_token.to_string();
+        let mut run = chicago_run();
+        let dps = run.spec.fleet.iter_mut().find(|g| g.operator == "chicago-dps").expect("the DPS group");
+        dps.credential = Some(sadesim_crds::fleet::Credential::Value(token));
+        let state = Arc::new(Mutex::new(AirspaceState::new(&plan_of(run), &|_| None)));
+        start(state, "127.0.0.1:0".parse().unwrap()).expect("the service starts")
+    };
+    let (team_a, team_b) = (serve_with("team-a-dps-token"), serve_with("team-b-dps-token"));
+    let request = entry("public-safety-0", "chicago-dps", 107.0, 121.0);
+    let verdict = |service: &ServiceHandle, token: &str| {
+        let b = body(&client(service.addr).post_json(ZONE_PATH, Some(token), &request).unwrap());
+        (b["verdict"].as_str().unwrap().to_string(), b["reason"].as_str().map(str::to_string))
+    };
+    let refused = ("denied".to_string(), Some("insufficient_credentials".to_string()));
+    assert_eq!(verdict(&team_a, "team-b-dps-token"), refused, "run B's token in run A");
+    assert_eq!(verdict(&team_b, "team-a-dps-token"), refused, "run A's token in run B");
+    assert_eq!(verdict(&team_a, "team-a-dps-token").0, "granted");
+    assert_eq!(verdict(&team_b, "team-b-dps-token").0, "granted");
+}
+
 #[test]
 fn leases_are_read_renewed_and_released_by_their_holder_only() {
     let (service, state) = serve();
