@@ -131,6 +131,10 @@ impl SimulationRunSpec {
     pub fn clock(&self) -> Clock {
         self.clock.clone().unwrap_or_default()
     }
+    /// Whether any group has onboard cameras (`spec.fleet[].cameras`).
+    pub fn has_cameras(&self) -> bool {
+        self.fleet.iter().any(|g| !g.cameras.is_empty())
+    }
     pub fn physics_rate_hz(&self) -> u32 {
         self.physics_rate_hz.unwrap_or(DEFAULT_PHYSICS_RATE_HZ)
     }

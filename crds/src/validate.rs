@@ -112,7 +112,7 @@ fn check_spec(spec: &SimulationRunSpec, p: &mut Problems) {
         p.range_int("spec.rendering.gpus", gpus.into(), 1, 8);
         if !rendering.enabled {
             p.add("spec.rendering.gpus", "asks GPUs for a renderer that is off: set spec.rendering.enabled to true");
-        } else if spec.fleet.iter().all(|g| g.cameras.is_empty()) {
+        } else if !spec.has_cameras() {
             // GPUs go to the pod that renders onboard cameras; the live view draws in each
             // browser, so without cameras a GPU would be reserved and never used.
             p.add(

@@ -29,7 +29,7 @@ pub const CAMERAS_URL_ENV: &str = "SADESIM_CAMERAS_URL";
 /// `<run>-airspace` (port `view-feed`). Locally the address is known only once the server
 /// listens (see [`add_camera_urls`]).
 pub fn cluster_cameras_url(plan: &RunPlan) -> Option<String> {
-    plan.spec.fleet.iter().any(|g| !g.cameras.is_empty()).then(|| {
+    plan.spec.has_cameras().then(|| {
         let (run, ns) = (&plan.run.name, &plan.run.namespace);
         format!("http://{run}-airspace.{ns}.svc:{}/cameras", plan.services.renderer_http)
     })

@@ -90,7 +90,7 @@ impl Cameras {
         // Frames are recorded only into recording.mcap.
         let recording = plan.spec.recording().mcap;
         let spec = &plan.spec;
-        if spec.fleet.iter().all(|g| g.cameras.is_empty()) {
+        if !spec.has_cameras() {
             return Ok(None);
         }
         let frame = LocalFrame::new(spec.origin.geo());

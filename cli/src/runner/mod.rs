@@ -462,7 +462,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     // With --processes the coordinator process serves the view and the cameras' frames.
     let processes_view =
         (options.processes && plan.spec.rendering().enabled).then(|| free_local_address(plan.services.renderer_http));
-    let has_cameras = plan.spec.fleet.iter().any(|g| !g.cameras.is_empty());
+    let has_cameras = plan.spec.has_cameras();
     let cameras_url = match (&live_view, &cameras, processes_view) {
         (Some(view), Some(_), _) => Some(format!("{}cameras", view.server.url())),
         (_, _, Some(addr)) if has_cameras => Some(format!("http://{addr}/cameras")),

@@ -105,7 +105,7 @@ pub(super) fn run(
             if let Some(shown) = shown {
                 bar.suspend(|| eprintln!("live view: http://{shown}/"));
                 // The coordinator process renders the cameras and serves their frames.
-                if plan.spec.fleet.iter().any(|g| !g.cameras.is_empty()) {
+                if plan.spec.has_cameras() {
                     bar.suspend(|| {
                         eprintln!("onboard cameras: http://{shown}/cameras (rendered by the coordinator process)")
                     });

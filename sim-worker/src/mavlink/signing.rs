@@ -271,6 +271,13 @@ mod tests {
         SecretKey::from_passphrase(PASSPHRASE)
     }
 
+    /// `frame` signed with `key` on `link_id` at `timestamp` (10 µs units since 2015).
+    fn signed(frame: &[u8], key: &SecretKey, link_id: u8, timestamp: u64) -> Vec<u8> {
+        let mut out = Vec::new();
+        sign_into(&mut out, frame, key, link_id, timestamp);
+        out
+    }
+
     fn heartbeat_frame(system_id: u32) -> Vec<u8> {
         encode(
             MavHeader { system_id, component_id: 190, sequence: 0 },
@@ -307,12 +314,10 @@ mod tests {
     fn signing_reproduces_pymavlinks_bytes() {
         // pymavlink's heartbeat, unsigned as our encoder writes it, then signed here.
         let unsigned = heartbeat_frame(255);
-        let mut out = Vec::new();
-        sign_into(&mut out, &unsigned, &key(), 7, PYMAVLINK_TIMESTAMP);
+        let out = signed(&unsigned, &key(), 7, PYMAVLINK_TIMESTAMP);
         assert_eq!(out, hex(PYMAVLINK_HEARTBEAT));
         // Re-signing a signed frame replaces its signature block.
-        let mut again = Vec::new();
-        sign_into(&mut again, &out, &key(), 7, PYMAVLINK_TIMESTAMP);
+        let again = signed(&out, &key(), 7, PYMAVLINK_TIMESTAMP);
         assert_eq!(again, out);
     }
 
@@ -365,16 +370,13 @@ mod tests {
         // Another system id is another stream, which may start up to a minute behind the
         // local timestamp (the clock, or the latest accepted timestamp, `second`'s now + 1)...
         let local = now + 1;
-        let mut other = Vec::new();
-        sign_into(&mut other, &heartbeat_frame(254), &key(), 3, local - NEW_STREAM_WINDOW);
+        let other = signed(&heartbeat_frame(254), &key(), 3, local - NEW_STREAM_WINDOW);
         assert_eq!(verifier.check(&other, now), Ok(()));
         // ... but not more.
-        let mut stale = Vec::new();
-        sign_into(&mut stale, &heartbeat_frame(253), &key(), 3, local - NEW_STREAM_WINDOW - 1);
+        let stale = signed(&heartbeat_frame(253), &key(), 3, local - NEW_STREAM_WINDOW - 1);
         assert_eq!(verifier.check(&stale, now), Err(Refusal::OldTimestamp));
         // A refused frame leaves no trace: the stream is still new for a frame of now.
-        let mut fresh = Vec::new();
-        sign_into(&mut fresh, &heartbeat_frame(253), &key(), 3, now);
+        let fresh = signed(&heartbeat_frame(253), &key(), 3, now);
         assert_eq!(verifier.check(&fresh, now), Ok(()));
     }
 
@@ -384,11 +386,9 @@ mod tests {
         // stream (pymavlink records the timestamp before checking the signature).
         let mut verifier = Verifier::new(key());
         let now = 1_000_000_000;
-        let mut forged = Vec::new();
-        sign_into(&mut forged, &heartbeat_frame(255), &SecretKey::from_passphrase("guess"), 0, now + 1_000_000);
+        let forged = signed(&heartbeat_frame(255), &SecretKey::from_passphrase("guess"), 0, now + 1_000_000);
         assert_eq!(verifier.check(&forged, now), Err(Refusal::BadSignature));
-        let mut real = Vec::new();
-        sign_into(&mut real, &heartbeat_frame(255), &key(), 0, now);
+        let real = signed(&heartbeat_frame(255), &key(), 0, now);
         assert_eq!(verifier.check(&real, now), Ok(()));
     }
 

@@ -44,9 +44,16 @@ pub fn config_map_sizes(plan: &RunPlan) -> (usize, usize) {
     (plan_json(plan).len(), fleet_json(plan).len() + scenario_json(plan).len())
 }
 
-/// Whether `fleet.json` is stored in parts (the pilot's pod then joins it first).
-pub(super) fn fleet_in_parts(plan: &RunPlan) -> bool {
-    fleet_json(plan).len() > PART_BYTES
+/// Whether a file of `text` is stored in parts rather than whole.
+pub(super) fn in_parts(text: &str) -> bool {
+    text.len() > PART_BYTES
+}
+
+/// The names of the ConfigMaps that hold a file of `text` stored under `base`: `base`, then
+/// `<base>-1`, `<base>-2`, ... one per part beyond the first.
+fn stored_names(base: &str, text: &str) -> Vec<String> {
+    let parts = if in_parts(text) { split(text, PART_BYTES).len() } else { 1 };
+    (0..parts).map(|i| if i == 0 { base.to_string() } else { names::part(base, i) }).collect()
 }
 
 fn config_map(ctx: &Context, name: String, files: Vec<(String, String)>) -> ConfigMap {
@@ -55,49 +62,59 @@ fn config_map(ctx: &Context, name: String, files: Vec<(String, String)>) -> Conf
     ConfigMap { metadata: meta, data: Some(files.into_iter().collect()), ..Default::default() }
 }
 
-/// The ConfigMaps that hold `file` (`text`): `base` alone with the whole file and `extra`
-/// when it fits one part; otherwise `base` with `extra`, the digest and part 0, and
-/// `<base>-<i>` with part i.
-fn stored(ctx: &Context, base: String, file: &str, text: &str, extra: Vec<(String, String)>) -> Vec<ConfigMap> {
-    if text.len() <= PART_BYTES {
+/// The ConfigMaps that hold `file` (`text`), named by [`stored_names`]: `base` alone with
+/// the whole file and `extra` when it fits one part; otherwise `base` with `extra`, the
+/// digest and part 0, and `<base>-<i>` with part i.
+fn stored(ctx: &Context, base: &str, file: &str, text: &str, extra: Vec<(String, String)>) -> Vec<ConfigMap> {
+    if !in_parts(text) {
         let mut files = extra;
         files.push((file.to_string(), text.to_string()));
-        return vec![config_map(ctx, base, files)];
+        return vec![config_map(ctx, base.to_string(), files)];
     }
-    let parts = split(text, PART_BYTES);
+    // The digest and `extra` go with part 0.
     let mut first = extra;
     first.push((digest_name(file), sha256_hex(text.as_bytes())));
-    first.push((part_name(file, 0), parts[0].to_string()));
-    let mut out = vec![config_map(ctx, base.clone(), first)];
-    for (i, part) in parts.iter().enumerate().skip(1) {
-        out.push(config_map(ctx, names::part(&base, i), vec![(part_name(file, i), part.to_string())]));
-    }
-    out
+    let names = stored_names(base, text);
+    let parts = split(text, PART_BYTES);
+    let files = std::iter::once(first).chain(std::iter::repeat_with(Vec::new));
+    (names.into_iter().zip(parts).zip(files).enumerate())
+        .map(|(i, ((name, part), mut files))| {
+            files.push((part_name(file, i), part.to_string()));
+            config_map(ctx, name, files)
+        })
+        .collect()
 }
 
 /// `<run>-config` (and its parts): `plan.json`.
 pub(super) fn plan_config_maps(ctx: &Context) -> Vec<ConfigMap> {
-    stored(ctx, names::config(ctx.name), "plan.json", &plan_json(ctx.plan), Vec::new())
+    stored(ctx, &names::config(ctx.name), "plan.json", &ctx.plan_json, Vec::new())
 }
 
 /// `<run>-fleet` (and its parts): the pilot's files, `fleet.json` with in-cluster addresses
 /// and `scenario.json`.
 pub(super) fn fleet_config_maps(ctx: &Context) -> Vec<ConfigMap> {
     let scenario = vec![("scenario.json".to_string(), scenario_json(ctx.plan))];
-    stored(ctx, names::fleet(ctx.name), "fleet.json", &fleet_json(ctx.plan), scenario)
+    stored(ctx, &names::fleet(ctx.name), "fleet.json", &ctx.fleet_json, scenario)
 }
 
-/// A volume named `volume` with every ConfigMap of `maps` in one folder (a projected
+/// Volume `config`: every ConfigMap of `plan.json` in one folder, [`super::pod::CONFIG_DIR`]
+/// in the worker pods.
+pub(super) fn plan_volume(ctx: &Context) -> Volume {
+    volume("config", &stored_names(&names::config(ctx.name), &ctx.plan_json))
+}
+
+/// Volume `fleet`: every ConfigMap of the pilot's files in one folder.
+pub(super) fn fleet_volume(ctx: &Context) -> Volume {
+    volume("fleet", &stored_names(&names::fleet(ctx.name), &ctx.fleet_json))
+}
+
+/// A volume named `volume` with the ConfigMaps `config_maps` in one folder (a projected
 /// volume: the parts of a split file side by side).
-pub(super) fn volume(volume: &str, maps: &[ConfigMap]) -> Volume {
-    let sources = maps
+fn volume(volume: &str, config_maps: &[String]) -> Volume {
+    let sources = config_maps
         .iter()
-        .map(|cm| VolumeProjection {
-            config_map: Some(ConfigMapProjection {
-                name: cm.metadata.name.clone().expect("our ConfigMaps are named"),
-                optional: Some(false),
-                items: None,
-            }),
+        .map(|name| VolumeProjection {
+            config_map: Some(ConfigMapProjection { name: name.clone(), optional: Some(false), items: None }),
             ..Default::default()
         })
         .collect();

@@ -30,7 +30,7 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
     let mut vars: Vec<_> = pilot.env.iter().map(|e| env(&e.name, e.value.clone())).collect();
     // A fleet file in parts is joined first (and checked against its digest) by an init
     // container from the worker image, into a file the pilot reads like any other.
-    let in_parts = config::fleet_in_parts(ctx.plan);
+    let in_parts = config::in_parts(&ctx.fleet_json);
     let joined = format!("{JOINED_DIR}/fleet.json");
     vars.push(env("SADESIM_FLEET", if in_parts { joined.as_str() } else { FLEET_PATH }));
     vars.push(env("SADESIM_SCENARIO", SCENARIO_PATH));
@@ -44,7 +44,7 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
         vars.push(env(sadesim_planner::CAMERAS_URL_ENV, url));
     }
     let planned = ctx.plan.resources.pilot.unwrap_or(RoleResources { cpu_millis: 500, memory_mib: 512 });
-    let container = Container {
+    let mut container = Container {
         name: Role::Pilot.label().into(),
         image: Some(image),
         // `containerCommand` when given (`[]`: the image's entrypoint), else `command`.
@@ -60,10 +60,8 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
         termination_message_policy: Some("FallbackToLogsOnError".into()),
         ..Default::default()
     };
-    let fleet = config::volume("fleet", &config::fleet_config_maps(ctx));
-    let mut volumes = vec![fleet, empty_dir("tmp"), empty_dir("out")];
+    let mut volumes = vec![config::fleet_volume(ctx), empty_dir("tmp"), empty_dir("out")];
     let mut init = None;
-    let mut container = container;
     if in_parts {
         container.volume_mounts.get_or_insert_with(Vec::new).push(mount("joined", JOINED_DIR, true));
         let args = vec!["join".to_string(), FLEET_PATH.to_string(), "--out".to_string(), joined];

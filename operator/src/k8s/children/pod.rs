@@ -50,11 +50,23 @@ pub(super) struct Context<'a> {
     /// Run name.
     pub name: &'a str,
     pub namespace: &'a str,
+    /// `plan.json` and `fleet.json` as stored, serialized once: the ConfigMaps hold them,
+    /// and every pod's volume names the ConfigMaps their size asks for.
+    pub plan_json: String,
+    pub fleet_json: String,
 }
 
 impl<'a> Context<'a> {
     pub fn new(run: &'a SimulationRun, plan: &'a RunPlan, settings: &'a ClusterSettings) -> Self {
-        Self { run, plan, settings, name: &plan.run.name, namespace: &plan.run.namespace }
+        Self {
+            run,
+            plan,
+            settings,
+            name: &plan.run.name,
+            namespace: &plan.run.namespace,
+            plan_json: super::config::plan_json(plan),
+            fleet_json: super::config::fleet_json(plan),
+        }
     }
 
     /// `sadesim.io/run` and `sadesim.io/role` (and the recommended `app.kubernetes.io/*`).

@@ -92,11 +92,7 @@ pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
     }
     container.env_from = ctx.object_store_env();
     container.termination_message_path = Some(TERMINATION_LOG.into());
-    let spec = pod_spec(
-        vec![container],
-        vec![super::config::volume("config", &super::config::plan_config_maps(ctx)), empty_dir("tmp")],
-        "Never",
-    );
+    let spec = pod_spec(vec![container], vec![super::config::plan_volume(ctx), empty_dir("tmp")], "Never");
     let mut meta = ctx.meta(names::assets_job(ctx.name), Role::Assets);
     meta.annotations = Some(BTreeMap::from([(ASSET_KEY_ANNOTATION.to_string(), ctx.plan.asset_cache_key.clone())]));
     kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
@@ -202,7 +198,7 @@ pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
     }
     // The authority checks the bearer credentials the pilot presents.
     env.extend(ctx.credential_env());
-    if has_cameras(ctx.plan) {
+    if ctx.plan.spec.has_cameras() {
         renders_cameras(ctx, &mut c);
     }
     c.env_from = ctx.object_store_env();
@@ -211,12 +207,8 @@ pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
     let mounts = c.volume_mounts.get_or_insert_with(Vec::new);
     mounts.push(mount("out", OUT_DIR, false));
     mounts.push(mount("control", CONTROL_DIR, true));
-    let volumes = vec![
-        super::config::volume("config", &super::config::plan_config_maps(ctx)),
-        empty_dir("tmp"),
-        empty_dir("out"),
-        annotations_volume("control"),
-    ];
+    let volumes =
+        vec![super::config::plan_volume(ctx), empty_dir("tmp"), empty_dir("out"), annotations_volume("control")];
     let mut spec = pod_spec(vec![c], volumes, "Never");
     spec.termination_grace_period_seconds = Some(COORDINATOR_GRACE_S);
     let mut metadata = ctx.meta(names::coordinator_pod(ctx.name), Role::Coordinator);
@@ -224,10 +216,6 @@ pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
         metadata.annotations = Some(BTreeMap::from([(STOP_ANNOTATION.to_string(), reason.to_string())]));
     }
     Pod { metadata, spec: Some(spec), ..Default::default() }
-}
-
-fn has_cameras(plan: &sadesim_crds::plan::RunPlan) -> bool {
-    plan.spec.fleet.iter().any(|g| !g.cameras.is_empty())
 }
 
 /// Makes the coordinator `c` able to render the onboard cameras: the worker image with
@@ -308,11 +296,7 @@ pub(super) fn router_pod(ctx: &Context, segment: &RouterSegment) -> Pod {
     c.env.get_or_insert_with(Vec::new).extend(ctx.signing_env());
     c.ports = Some(vec![port("mavlink-udp", segment.gcs_udp, "UDP"), port("mavlink-tcp", segment.gcs_tcp, "TCP")]);
     c.readiness_probe = Some(tcp_probe("mavlink-tcp"));
-    let spec = pod_spec(
-        vec![c],
-        vec![super::config::volume("config", &super::config::plan_config_maps(ctx)), empty_dir("tmp")],
-        "Always",
-    );
+    let spec = pod_spec(vec![c], vec![super::config::plan_volume(ctx), empty_dir("tmp")], "Always");
     let mut meta = ctx.meta(names::router_pod(ctx.name, segment.index), Role::Router);
     meta.labels.get_or_insert_with(BTreeMap::new).insert(SEGMENT_LABEL.into(), segment.index.to_string());
     Pod { metadata: meta, spec: Some(spec), ..Default::default() }
@@ -373,11 +357,7 @@ pub(super) fn shard_job(ctx: &Context) -> Job {
     if assets.is_some() || !sadesim_evidence::world::world_files(&ctx.plan.spec).is_empty() {
         c.env_from = ctx.object_store_env();
     }
-    let mut spec = pod_spec(
-        vec![c],
-        vec![super::config::volume("config", &super::config::plan_config_maps(ctx)), empty_dir("tmp")],
-        "Never",
-    );
+    let mut spec = pod_spec(vec![c], vec![super::config::plan_volume(ctx), empty_dir("tmp")], "Never");
     spec.subdomain = Some(names::shard_service(ctx.name));
     let mut meta = ctx.meta(names::shard_job(ctx.name), Role::Shard);
     kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
@@ -449,11 +429,7 @@ pub(super) fn renderer_deployment(ctx: &Context) -> Deployment {
     c.env_from = ctx.object_store_env();
     c.ports = Some(vec![port("http", port_no, "TCP")]);
     c.readiness_probe = Some(tcp_probe("http"));
-    let spec = pod_spec(
-        vec![c],
-        vec![super::config::volume("config", &super::config::plan_config_maps(ctx)), empty_dir("tmp")],
-        "Always",
-    );
+    let spec = pod_spec(vec![c], vec![super::config::plan_volume(ctx), empty_dir("tmp")], "Always");
     Deployment {
         metadata: ctx.meta(names::renderer(ctx.name), Role::Renderer),
         spec: Some(DeploymentSpec {
