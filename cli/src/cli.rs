@@ -113,8 +113,8 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             Ok(Outcome::Success)
         }
         Command::View { run, listen, rate } => view_cmd::view(&run, listen, rate, out),
-        Command::Manifests { files, namespace } => {
-            let settings = sadesim_operator::k8s::children::ClusterSettings::default();
+        Command::Manifests { files, namespace, kueue } => {
+            let settings = sadesim_operator::k8s::children::ClusterSettings { kueue, ..Default::default() };
             for (i, file) in files.iter().enumerate() {
                 let text = read_scenario(file)?;
                 if i > 0 {

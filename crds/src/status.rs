@@ -81,6 +81,9 @@ pub struct SimulationRunStatus {
     /// Where to connect while the run is live.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub endpoints: Option<Endpoints>,
+    /// The run's Kueue Workload (runs with `spec.queue` under an operator with Kueue on).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kueue: Option<KueueStatus>,
     /// Where the evidence is.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub archive: Option<ArchiveStatus>,
@@ -123,6 +126,31 @@ pub struct Endpoints {
     /// URLs) when the run has cameras; pilots find the same URLs in their fleet file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cameras: Option<String>,
+}
+
+/// The whole run as one Kueue Workload: its state, and while it waits, its place in the
+/// queue.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase")]
+pub struct KueueStatus {
+    /// Name of the Workload (`kubectl get workload <name>`).
+    pub workload: String,
+    /// `Pending` (no quota reserved yet), `QuotaReserved`, `Admitted`, `Evicted` or
+    /// `Finished`, from the Workload's conditions.
+    pub state: String,
+    /// The ClusterQueue that reserved quota, once one did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cluster_queue: Option<String>,
+    /// 0-based place among the LocalQueue's pending Workloads (Kueue's visibility API),
+    /// while pending.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position_in_local_queue: Option<i32>,
+    /// 0-based place among the ClusterQueue's pending Workloads, while pending.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub position_in_cluster_queue: Option<i32>,
+    /// Kueue's latest word (why it waits, who evicted it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub message: Option<String>,
 }
 
 /// The run's archive.

@@ -147,6 +147,12 @@ enum Role {
         #[arg(long)]
         out: PathBuf,
     },
+    /// Waits until the coordinator has released the pilots: polls URL (the airspace API's
+    /// `/healthz`) until it says `pilotsReleased: true`. The pilot pod's init container.
+    WaitRelease {
+        /// e.g. http://<run>-airspace.<namespace>.svc:8480/healthz
+        url: String,
+    },
     /// Serve one router segment's drones to ground stations (QGroundControl) on the
     /// segment's GCS ports (UDP 14550+N, TCP 5760+N) until SIGINT/SIGTERM. With
     /// `SADESIM_MAVLINK_SIGNING_KEY` set (the passphrase), ground stations must sign their
@@ -284,6 +290,12 @@ fn main() -> ExitCode {
                 std::fs::write(&out, bytes)
                     .map_err(|source| roles::RoleError::Write { path: out.display().to_string(), source })
             })
+        }
+        Role::WaitRelease { url } => {
+            let stop = Arc::new(AtomicBool::new(false));
+            let flag = stop.clone();
+            let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+            roles::wait_release::run(&url, &stop)
         }
         Role::Router { plan, segment, bind, drone_host } => {
             let stop = Arc::new(AtomicBool::new(false));

@@ -186,6 +186,10 @@ pub enum Command {
         /// Namespace of the run (default: the document's, else `default`).
         #[arg(long)]
         namespace: Option<String>,
+        /// As an operator with its Kueue integration on (Helm `kueue.enabled`): a run with
+        /// `spec.queue` starts as one Kueue Workload listing every pod of the run.
+        #[arg(long)]
+        kueue: bool,
     },
     /// A scenario's world assets: build them into the asset cache, or preview the world.
     ///

@@ -12,7 +12,8 @@
 //! | shard | Service (headless) | `<run>-shards` | DNS `<run>-shard-<i>.<run>-shards.<ns>.svc` per shard pod |
 //! | shard | Job (Indexed) | `<run>-shard` | one pod per shard, `JOB_COMPLETION_INDEX` = shard |
 //! | renderer | Service, Deployment | `<run>-renderer` | browser 3D view (rendering on only) |
-//! | pilot | Job | `<run>-pilot` | the user's image, once every shard is ready |
+//! | pilot | Job | `<run>-pilot` | the user's image; an init container holds it until the pilots are released |
+//! | queue | Workload | `<run>` | the whole run as one Kueue gang (`spec.queue` with Kueue on) |
 //!
 //! The Service and host names are the ones the planner writes into the fleet file
 //! ([`sadesim_planner::Addressing::Cluster`]), so a pilot and the router reach the same pods.
@@ -23,11 +24,12 @@
 //! - Every pod runs as uid/gid 65532, non-root, read-only root filesystem, no privilege
 //!   escalation, every capability dropped, seccomp `RuntimeDefault`, no service-account
 //!   token.
-//! - No object sets `spec.suspend`: with Kueue, Kueue owns it (docs/kubernetes.md).
+//! - No object sets `spec.suspend` or Kueue's queue label: with Kueue the run is admitted
+//!   as a whole through its Workload before any of them exists (docs/kubernetes.md).
 //! - The result depends only on the inputs (same run, same bytes).
 
 mod config;
-mod kueue;
+pub mod kueue;
 mod network;
 mod pilot;
 mod pod;
@@ -42,7 +44,11 @@ use sadesim_crds::plan::RunPlan;
 use serde::Serialize;
 
 pub use config::{CONFIG_MAP_LIMIT_BYTES, config_map_sizes};
-pub use kueue::{KUEUE_QUEUE_LABEL, kueue_queue};
+pub use kueue::condition as workload_condition;
+pub use kueue::{
+    FlavorPlacement, KUEUE_API_VERSION, KUEUE_QUEUE_LABEL, PendingWorkload, PendingWorkloadsSummary, PodSetAssignment,
+    ResourceFlavor, Workload, kueue_queue, pending_workloads_path, place, status_of,
+};
 pub use pod::{CONFIG_DIR, CONTROL_FILE, FLEET_PATH, OUT_DIR, PLAN_PATH, RUN_AS_ID};
 pub use sadesim_crds::outcome::control::STOP_ANNOTATION;
 
@@ -66,11 +72,14 @@ pub enum Role {
     Renderer,
     /// The user's pilot image (a Job).
     Pilot,
+    /// The run's Kueue Workload (the whole run as one gang).
+    Queue,
 }
 
 impl Role {
     /// Every role, in apply order.
-    pub const ALL: [Role; 8] = [
+    pub const ALL: [Role; 9] = [
+        Role::Queue,
         Role::Config,
         Role::Network,
         Role::Assets,
@@ -93,6 +102,7 @@ impl Role {
             Role::Shard => "shard",
             Role::Renderer => "renderer",
             Role::Pilot => "pilot",
+            Role::Queue => "queue",
         }
     }
 
@@ -118,6 +128,7 @@ pub enum Kind {
     Pod,
     Deployment,
     NetworkPolicy,
+    Workload,
 }
 
 impl Kind {
@@ -130,6 +141,7 @@ impl Kind {
             Kind::Pod => "Pod",
             Kind::Deployment => "Deployment",
             Kind::NetworkPolicy => "NetworkPolicy",
+            Kind::Workload => "Workload",
         }
     }
 }
@@ -197,7 +209,7 @@ impl Default for ClusterSettings {
 pub struct Stage {
     /// The asset cache misses: create the assets Job.
     pub assets_job: bool,
-    /// Every shard reported ready: create the pilot Job.
+    /// Create the pilot Job (its init container waits until the pilots are released).
     pub pilot: bool,
     /// Ask the coordinator to end the run with this reason (e.g. `pilotExited`): the
     /// coordinator Pod carries the annotation [`STOP_ANNOTATION`], which it reads through a
@@ -220,6 +232,7 @@ pub enum Child {
     Pod(Pod),
     Deployment(Deployment),
     NetworkPolicy(NetworkPolicy),
+    Workload(Workload),
 }
 
 impl Child {
@@ -232,6 +245,7 @@ impl Child {
             Child::Pod(_) => Kind::Pod,
             Child::Deployment(_) => Kind::Deployment,
             Child::NetworkPolicy(_) => Kind::NetworkPolicy,
+            Child::Workload(_) => Kind::Workload,
         }
     }
 
@@ -249,6 +263,7 @@ impl Child {
             Child::Pod(o) => &o.metadata,
             Child::Deployment(o) => &o.metadata,
             Child::NetworkPolicy(o) => &o.metadata,
+            Child::Workload(o) => &o.metadata,
         };
         meta.name.as_deref().unwrap_or_default()
     }
@@ -262,6 +277,7 @@ impl Child {
             Child::Pod(o) => o.metadata.labels.as_ref(),
             Child::Deployment(o) => o.metadata.labels.as_ref(),
             Child::NetworkPolicy(o) => o.metadata.labels.as_ref(),
+            Child::Workload(o) => o.metadata.labels.as_ref(),
         }
     }
 }
@@ -333,6 +349,10 @@ pub mod names {
     /// The pilot Job.
     pub fn pilot_job(run: &str) -> String {
         format!("{run}-pilot")
+    }
+    /// The run's Kueue Workload: the run's own name (`kubectl get workload <run>`).
+    pub fn workload(run: &str) -> String {
+        run.to_string()
     }
 }
 
@@ -471,7 +491,8 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
     out
 }
 
-/// The children of `run` (planned as `plan`) at `stage`, in apply order: ConfigMaps, the
+/// The children of `run` (planned as `plan`) at `stage`, in apply order: the Kueue
+/// Workload (with `spec.queue` and Kueue on; it lists the pods of every other child), ConfigMaps, the
 /// NetworkPolicy, the assets Job, coordinator Service and Pod, router Services and Pods, the shards' headless
 /// Service and Job, the renderer, the pilot Job.
 ///
@@ -503,6 +524,14 @@ pub fn children(run: &SimulationRun, plan: &RunPlan, settings: &ClusterSettings,
         && let Some(job) = pilot::pilot_job(&ctx)
     {
         out.push(Child::Job(job));
+    }
+    if let Some(queue) = kueue_queue(plan, settings) {
+        // Every pod the run will ever have, whatever the stage asked for.
+        let all = if stage == Stage::ALL { None } else { Some(children(run, plan, settings, Stage::ALL)) };
+        let pods = all.as_deref().unwrap_or(&out);
+        let meta = ctx.meta(names::workload(&plan.run.name), Role::Queue);
+        let workload = kueue::workload(queue, meta, pods);
+        out.insert(0, Child::Workload(workload));
     }
     out
 }

@@ -33,6 +33,8 @@ use kube::api::{Api, ListParams};
 use kube::runtime::{Controller, watcher};
 use kube::{Client, Config};
 use sadesim_crds::SimulationRun;
+
+use super::children::Workload;
 use tokio::sync::watch;
 
 use self::metrics::Metrics;
@@ -172,9 +174,14 @@ async fn operate(options: OperatorOptions) -> Result<(), OperatorError> {
 
     let ctx = Arc::new(Context::new(client.clone(), options.settings.clone(), options.max_concurrent_runs, metrics));
     log::info("reconciling SimulationRuns", &[("kueue", &options.settings.kueue.to_string())]);
-    Controller::new(runs, watcher::Config::default())
+    let mut controller = Controller::new(runs, watcher::Config::default())
         .owns(Api::<Job>::all(client.clone()), watcher::Config::default())
-        .owns(Api::<Pod>::all(client.clone()), watcher::Config::default())
+        .owns(Api::<Pod>::all(client.clone()), watcher::Config::default());
+    if options.settings.kueue {
+        // Kueue's admission (or eviction) of a run's Workload wakes its reconcile.
+        controller = controller.owns(Api::<Workload>::all(client.clone()), watcher::Config::default());
+    }
+    controller
         .graceful_shutdown_on(stop_or_lost)
         .run(reconcile, error_policy, ctx)
         .for_each(|result| async move {

@@ -2,7 +2,8 @@
 //! (like `helm template`), for review in GitOps pull requests.
 //!
 //! Every object of the run's life is printed ([`Stage::ALL`]): the assets Job exists on a
-//! cluster only while the asset cache misses, the pilot Job only once every shard is ready.
+//! cluster only while the asset cache misses; with Kueue, the Workload comes first and the
+//! rest only once Kueue admits it.
 //! Comment lines at the top of each run's output say what a cluster would do differently
 //! (placeholder uid, missing archive, a run the operator refuses).
 
@@ -66,7 +67,12 @@ pub fn write_manifests(
             "# sadesim manifests: the children of SimulationRun {}/{}, in apply order.\n",
             plan.run.namespace, plan.run.name
         ));
-        rendered.push_str("# The assets Job exists only while the asset cache misses, the pilot Job only once every shard is ready.\n");
+        rendered.push_str("# The assets Job exists only while the asset cache misses.\n");
+        if super::children::kueue_queue(&plan, settings).is_some() {
+            rendered.push_str(
+                "# With Kueue, only the Workload exists until Kueue admits the whole run; then the rest is created.\n",
+            );
+        }
         if placeholder {
             rendered.push_str(&format!(
                 "# ownerReferences[].uid and SADESIM_RUN_UID are the placeholder {PLACEHOLDER_UID}: the document has no metadata.uid; on a cluster the operator uses the run's real uid.\n"

@@ -44,6 +44,9 @@ pub struct AirspaceState {
     /// Sim time of the latest window, seconds: requests between windows are decided and
     /// stamped at it.
     pub time_s: f64,
+    /// The coordinator has released the pilots (every shard ready): `/healthz` says so, and
+    /// a pilot pod's init container waits for it.
+    pub pilots_released: bool,
     /// Every airspace event of the run so far (requests, verdicts, leases, entries,
     /// violations), served by `GET /events`; index + 1 is the event's sequence number.
     pub history: Vec<Event>,
@@ -65,6 +68,7 @@ impl AirspaceState {
             zone_specs: plan.spec.zones.clone(),
             frame,
             time_s: 0.0,
+            pilots_released: false,
             history: Vec::new(),
             unrecorded: Vec::new(),
         }

@@ -99,6 +99,7 @@ impl Airspace {
         let shared = self.shared.clone();
         let mut state = shared.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         state.time_s = time_s;
+        state.pilots_released |= events.iter().any(|e| matches!(e.kind, EventKind::PilotsReleased));
         state.authority.expire(time_s);
         state.collect_authority_events();
         let authority = &state.authority;
@@ -209,5 +210,27 @@ impl RunObserver for WithAirspace<'_> {
 
     fn on_clock_started(&mut self, started: std::time::Instant) {
         self.inner.on_clock_started(started);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::airspace::monitor::test_plan::plan_of;
+
+    /// `/healthz` says `pilotsReleased` from the window that carries the event on, and
+    /// keeps saying it: the pilot pod's init container polls it.
+    #[test]
+    fn the_release_is_remembered_from_its_window_on() {
+        let run = sadesim_crds::parse_run(include_str!("../../../examples/chicago-museum.yaml")).unwrap();
+        let plan = plan_of(run);
+        let mut airspace = Airspace::new(&plan, &|_| None);
+        airspace.on_window(0.1, &[], &[]);
+        assert!(!airspace.shared().lock().unwrap().pilots_released);
+        let release = Event { time_s: 0.2, drone: None, kind: EventKind::PilotsReleased };
+        airspace.on_window(0.2, &[], &[release]);
+        assert!(airspace.shared().lock().unwrap().pilots_released);
+        airspace.on_window(0.3, &[], &[]);
+        assert!(airspace.shared().lock().unwrap().pilots_released, "still released a window later");
     }
 }

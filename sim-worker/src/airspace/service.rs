@@ -286,8 +286,11 @@ async fn method_not_allowed(request: Request) -> ApiError {
 }
 
 async fn healthz(State(state): State<SharedAirspace>) -> Response {
-    let time_s = lock(&state).time_s;
-    axum::Json(json!({"status": "ok", "simTimeS": time_s})).into_response()
+    let (time_s, released) = {
+        let state = lock(&state);
+        (state.time_s, state.pilots_released)
+    };
+    axum::Json(json!({"status": "ok", "simTimeS": time_s, "pilotsReleased": released})).into_response()
 }
 
 async fn list_zones(State(state): State<SharedAirspace>) -> Response {

@@ -7,6 +7,7 @@ pub mod coordinator;
 pub mod renderer;
 pub mod router;
 pub mod shard;
+pub mod wait_release;
 
 use std::path::Path;
 use std::sync::Arc;

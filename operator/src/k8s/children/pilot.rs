@@ -1,5 +1,6 @@
 //! The pilot under test as a Job from the user's image (DESIGN §3, role "pilot"): the
-//! cluster counterpart of `runner::pilot`, with the same environment.
+//! cluster counterpart of `runner::pilot`, with the same environment. The Job is created
+//! with the other workers; an init container holds the pilot until the pilots are released.
 
 use k8s_openapi::api::batch::v1::{Job, JobSpec};
 use k8s_openapi::api::core::v1::{Container, PodTemplateSpec};
@@ -9,7 +10,7 @@ use super::pod::{
     CONFIG_DIR, Context, FLEET_PATH, OUT_DIR, SCENARIO_PATH, SIM_WORKER, TMP_DIR, container_security, empty_dir, env,
     mount, pod_spec, resources, worker_container,
 };
-use super::{Role, config, kueue, names};
+use super::{Role, config, names};
 
 /// Where the joined fleet file is when `fleet.json` is stored in parts (an emptyDir the
 /// `join` init container writes).
@@ -61,7 +62,7 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
         ..Default::default()
     };
     let mut volumes = vec![config::fleet_volume(ctx), empty_dir("tmp"), empty_dir("out")];
-    let mut init = None;
+    let mut init = Vec::new();
     if in_parts {
         container.volume_mounts.get_or_insert_with(Vec::new).push(mount("joined", JOINED_DIR, true));
         let args = vec!["join".to_string(), FLEET_PATH.to_string(), "--out".to_string(), joined];
@@ -75,9 +76,35 @@ pub(super) fn pilot_job(ctx: &Context) -> Option<Job> {
         join.name = "join-fleet".into();
         join.volume_mounts = Some(vec![mount("fleet", CONFIG_DIR, true), mount("joined", JOINED_DIR, false)]);
         volumes.push(empty_dir("joined"));
-        init = Some(vec![join]);
+        init.push(join);
     }
-    Some(job(ctx, container, volumes, init))
+    init.push(wait_release(ctx));
+    Some(job(ctx, container, volumes, Some(init)))
+}
+
+/// The init container that holds the pilot until the coordinator releases the pilots
+/// (every shard ready, simulated time about to run): it polls the airspace API's
+/// `/healthz` for `pilotsReleased`, as `sadesim run` starts the pilot process on the
+/// `pilotsReleased` event. The pilot's pod is created, scheduled and its image pulled with
+/// the rest of the run, so the pilot starts within one poll (0.2 s) of the release instead
+/// of after a pod start.
+fn wait_release(ctx: &Context) -> Container {
+    let url = format!(
+        "http://{}:{}/healthz",
+        names::airspace_host(&ctx.plan.run.name, &ctx.plan.run.namespace),
+        ctx.plan.services.airspace_http
+    );
+    let args = vec!["wait-release".to_string(), url];
+    let mut wait = worker_container(
+        ctx,
+        Role::Pilot,
+        vec![SIM_WORKER.into()],
+        args,
+        RoleResources { cpu_millis: 50, memory_mib: 32 },
+    );
+    wait.name = "wait-release".into();
+    wait.volume_mounts = Some(vec![mount("tmp", TMP_DIR, false)]);
+    wait
 }
 
 fn job(
@@ -88,8 +115,7 @@ fn job(
 ) -> Job {
     let mut spec = pod_spec(vec![container], volumes, "Never");
     spec.init_containers = init;
-    let mut meta = ctx.meta(names::pilot_job(ctx.name), Role::Pilot);
-    kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
+    let meta = ctx.meta(names::pilot_job(ctx.name), Role::Pilot);
     Job {
         metadata: meta,
         spec: Some(JobSpec {

@@ -300,22 +300,79 @@ fn router_fleet_file_and_dns_agree_on_every_address() {
     }
 }
 
+/// With Kueue, the run is one Workload: a podSet per role with the pods' own templates and
+/// counts, so Kueue reserves exactly what the run's pods request, all at once. No Job is
+/// labelled for Kueue or suspended (the run is admitted before any Job exists).
 #[test]
-fn a_queued_run_hands_its_jobs_to_kueue_and_never_sets_suspend() {
-    let run = piloted(3).with_queue("team-a");
+fn a_queued_run_is_one_kueue_workload_with_a_pod_set_per_role() {
+    let mut run = piloted(3).with_queue("team-a");
+    run.spec.fleet[0].count = 600; // 3 shards, 3 router segments
     let plan = planned(&run);
     let settings = ClusterSettings { kueue: true, ..s3() };
     let children = children(&run, &plan, &settings, Stage::ALL);
-    let all = json(&children);
-    assert_eq!(count_key(&all, "suspend"), 0, "Kueue owns spec.suspend");
-    for c in &children {
-        let queue = c.labels().and_then(|l| l.get(KUEUE_QUEUE_LABEL)).map(String::as_str);
-        match c {
-            Child::Job(_) => assert_eq!(queue, Some("team-a"), "{}", c.name()),
-            _ => assert_eq!(queue, None, "{}", c.name()),
-        }
+    assert_eq!(count_key(&json(&children), "suspend"), 0);
+    let Some(Child::Workload(w)) = children.first() else { panic!("the Workload comes first: {:?}", children[0]) };
+    assert_eq!(w.metadata.name.as_deref(), Some("test-run"));
+    assert_eq!(w.spec.queue_name, "team-a");
+    assert_eq!(w.metadata.labels.as_ref().unwrap()[KUEUE_QUEUE_LABEL], "team-a");
+    let owner = &w.metadata.owner_references.as_ref().unwrap()[0];
+    assert_eq!((owner.kind.as_str(), owner.controller), ("SimulationRun", Some(true)));
+    for c in &children[1..] {
+        assert!(c.labels().unwrap().get(KUEUE_QUEUE_LABEL).is_none(), "{} is not queued by itself", c.name());
+    }
+    let sets: Vec<(&str, i32)> = w.spec.pod_sets.iter().map(|p| (p.name.as_str(), p.count)).collect();
+    let (shards, segments) = (plan.shards.len() as i32, plan.segments.len() as i32);
+    assert!(shards >= 2 && segments >= 2, "{shards} shards, {segments} segments");
+    assert_eq!(sets, [("assets", 1), ("coordinator", 1), ("router", segments), ("shard", shards), ("pilot", 1)]);
+    // Each podSet's requests are its pods' requests.
+    let requests = |spec: &k8s_openapi::api::core::v1::PodSpec| {
+        spec.containers.iter().map(|c| c.resources.as_ref().unwrap().requests.clone()).collect::<Vec<_>>()
+    };
+    for (name, spec) in pod_specs(&children) {
+        let role = children.iter().find(|c| c.name() == name).and_then(|c| c.role()).unwrap();
+        let set = w.spec.pod_sets.iter().find(|p| p.name == role.label()).expect("a podSet per role");
+        assert_eq!(requests(set.template.spec.as_ref().unwrap()), requests(&spec), "{name}");
     }
     assert_eq!(kueue_queue(&plan, &settings), Some("team-a"));
+    // The Workload validates as Kueue's CRD would have it: at most 8 podSets, DNS-label names.
+    assert!(w.spec.pod_sets.len() <= 8);
+    let value = serde_json::to_value(w).unwrap();
+    assert_eq!(value["apiVersion"], "kueue.x-k8s.io/v1beta2");
+    assert_eq!(value["kind"], "Workload");
+}
+
+/// Kueue's admission names a ResourceFlavor per podSet: each role's pods get that flavor's
+/// node labels and tolerations, and only that role's.
+#[test]
+fn admitted_pods_go_to_the_flavor_kueue_chose_for_their_role() {
+    use k8s_openapi::api::core::v1::Toleration;
+    let run = piloted(3).with_queue("team-a");
+    let plan = planned(&run);
+    let settings = ClusterSettings { kueue: true, ..s3() };
+    let mut children = children(&run, &plan, &settings, Stage::ALL);
+    let assignments = vec![
+        PodSetAssignment {
+            name: "shard".into(),
+            flavors: [("cpu".into(), "spot".into()), ("memory".into(), "spot".into())].into(),
+        },
+        PodSetAssignment { name: "coordinator".into(), flavors: [("cpu".into(), "on-demand".into())].into() },
+    ];
+    let spot = FlavorPlacement {
+        node_labels: [("cloud.example.com/capacity".into(), "spot".into())].into(),
+        tolerations: vec![Toleration {
+            key: Some("spot".into()),
+            operator: Some("Exists".into()),
+            ..Default::default()
+        }],
+    };
+    let flavors = [("spot".to_string(), spot.clone()), ("on-demand".to_string(), FlavorPlacement::default())].into();
+    place(&mut children, &assignments, &flavors);
+    for (name, spec) in pod_specs(&children) {
+        let on_spot = name.starts_with("test-run-shard");
+        let selector = spec.node_selector.clone().unwrap_or_default();
+        assert_eq!(selector == spot.node_labels, on_spot, "{name}: {selector:?}");
+        assert_eq!(spec.tolerations.clone().unwrap_or_default() == spot.tolerations, on_spot, "{name}");
+    }
 }
 
 #[test]
@@ -608,7 +665,11 @@ fn the_pilot_gets_the_fleet_file_run_and_credentials_from_secrets() {
     let sources = volume.projected.unwrap().sources.unwrap();
     let names: Vec<_> = sources.iter().map(|s| s.config_map.as_ref().unwrap().name.as_str()).collect();
     assert_eq!(names, ["test-run-fleet"]);
-    assert!(spec.init_containers.is_none(), "a small fleet file needs no joining");
+    // A small fleet file needs no joining: the only init container holds the pilot until
+    // the coordinator releases the pilots, polling the airspace API's health.
+    let init = spec.init_containers.unwrap();
+    assert_eq!(init.iter().map(|c| c.name.as_str()).collect::<Vec<_>>(), ["wait-release"]);
+    assert_eq!(init[0].args.as_deref().unwrap(), ["wait-release", "http://test-run-airspace.default.svc:8480/healthz"]);
 }
 
 /// The pilot reads the scenario it flies in, as locally (`SADESIM_SCENARIO`), and runs

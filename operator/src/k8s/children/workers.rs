@@ -18,9 +18,7 @@ use sadesim_crds::plan::{RoleResources, RouterSegment};
 use super::pod::{
     CONTROL_DIR, CONTROL_FILE, Context, OUT_DIR, PLAN_PATH, SIM_WORKER, empty_dir, mount, pod_spec, worker_container,
 };
-use super::{
-    ASSET_KEY_ANNOTATION, Role, SEGMENT_LABEL, STOP_ANNOTATION, asset_cache_location, kueue, names, upload_url,
-};
+use super::{ASSET_KEY_ANNOTATION, Role, SEGMENT_LABEL, STOP_ANNOTATION, asset_cache_location, names, upload_url};
 
 /// The extended resource of NVIDIA's device plugin (the common one; other vendors' plugins
 /// name theirs differently).
@@ -95,7 +93,6 @@ pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
     let spec = pod_spec(vec![container], vec![super::config::plan_volume(ctx), empty_dir("tmp")], "Never");
     let mut meta = ctx.meta(names::assets_job(ctx.name), Role::Assets);
     meta.annotations = Some(BTreeMap::from([(ASSET_KEY_ANNOTATION.to_string(), ctx.plan.asset_cache_key.clone())]));
-    kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
     Some(Job {
         metadata: meta,
         spec: Some(JobSpec {
@@ -359,8 +356,7 @@ pub(super) fn shard_job(ctx: &Context) -> Job {
     }
     let mut spec = pod_spec(vec![c], vec![super::config::plan_volume(ctx), empty_dir("tmp")], "Never");
     spec.subdomain = Some(names::shard_service(ctx.name));
-    let mut meta = ctx.meta(names::shard_job(ctx.name), Role::Shard);
-    kueue::label_job(&mut meta.labels, ctx.plan, ctx.settings);
+    let meta = ctx.meta(names::shard_job(ctx.name), Role::Shard);
     Job {
         metadata: meta,
         spec: Some(JobSpec {

@@ -15,7 +15,9 @@
 //! - A terminal phase is never left.
 //! - Pod logs are archived before the workload that owns them is deleted, and the
 //!   finalizer is removed only once archiving is done.
-//! - Applied children never carry `spec.suspend` (Kueue owns it).
+//! - Applied children never carry `spec.suspend`.
+//! - With Kueue, nothing but the run's Workload exists until Kueue admits the whole run; an
+//!   eviction ends the run (a simulation cannot be paused and resumed elsewhere).
 
 use std::time::Duration;
 
@@ -56,6 +58,8 @@ pub mod stop_reason {
     pub const ROLE_FAILED: &str = "roleFailed";
     /// The spec no longer plans.
     pub const INVALID: &str = "invalidSpec";
+    /// Kueue evicted the run's Workload.
+    pub const EVICTED: &str = "evicted";
 }
 
 /// Requeue periods: polls while children move (they also wake the controller by watch).
@@ -76,6 +80,8 @@ pub mod outcome {
     pub const ABORTED: &str = "Aborted";
     /// The run was deleted before it ended.
     pub const DELETED: &str = "Deleted";
+    /// Kueue evicted the run's Workload (preemption, deactivation, a time limit).
+    pub const EVICTED: &str = "Evicted";
     /// Not an end: the pilot Job ended while the run is Running (the Running condition
     /// stays True with this reason until the coordinator's summary arrives).
     pub const PILOT_EXITED: &str = "PilotExited";
@@ -230,14 +236,16 @@ pub fn condition<'a>(status: &'a SimulationRunStatus, type_: &str) -> Option<&'a
     status.conditions.iter().find(|c| c.type_ == type_)
 }
 
-/// The children of `plan` at `stage` whose role `keep` accepts, Jobs without `spec.suspend`.
+/// The children of `plan` at `stage` whose role `keep` accepts, Jobs without `spec.suspend`;
+/// with Kueue, each pod on the ResourceFlavor Kueue admitted its role to.
 fn children_for(input: &Input, plan: &RunPlan, stage: Stage, keep: impl Fn(Role) -> bool) -> Vec<Child> {
-    children::children(input.run, plan, input.settings, stage)
+    let mut out: Vec<Child> = children::children(input.run, plan, input.settings, stage)
         .into_iter()
         .filter(|c| c.role().is_some_and(&keep))
         .map(|c| match c {
             Child::Job(mut job) => {
-                // Kueue owns `suspend`: an applied value would fight its admission.
+                // The run is admitted as a whole (or by the built-in queue) before any Job
+                // exists: a suspended Job would never start.
                 if let Some(spec) = job.spec.as_mut() {
                     spec.suspend = None;
                 }
@@ -245,7 +253,13 @@ fn children_for(input: &Input, plan: &RunPlan, stage: Stage, keep: impl Fn(Role)
             }
             other => other,
         })
-        .collect()
+        .collect();
+    if let Some(queue) = &input.observed.queue
+        && let Some(admission) = queue.workload.status.as_ref().and_then(|s| s.admission.as_ref())
+    {
+        children::place(&mut out, &admission.pod_set_assignments, &queue.flavors);
+    }
+    out
 }
 
 fn kueue_mode(input: &Input) -> bool {
@@ -296,6 +310,9 @@ pub fn decide(input: &Input) -> Decision {
         return d;
     }
     d.status.observed_generation = generation;
+    if let Some(q) = &input.observed.queue {
+        d.status.kueue = Some(children::status_of(&q.workload, q.pending.as_ref()));
+    }
 
     // Valid locally is not enough: a cluster needs e.g. a pilot image (children::problems).
     let problems = input.plan.as_ref().map(|p| children::problems(p, input.settings)).unwrap_or_default();
@@ -398,33 +415,39 @@ fn first_stage(input: &Input, plan: &RunPlan) -> Vec<Child> {
 fn queued(d: &mut Decision, input: &Input, plan: &RunPlan) {
     let (now, generation) = (input.now, input.run.metadata.generation);
     if kueue_mode(input) {
-        // Kueue admits through the Jobs' queue-name label: create them and let Kueue hold
-        // them (suspended) until the LocalQueue admits the run.
-        d.apply = first_stage(input, plan);
-        let has_assets = d.apply.iter().any(|c| c.kind() == Kind::Job && c.role() == Some(Role::Assets));
-        let held = has_assets && (!input.observed.has_job(Role::Assets) || input.observed.suspended(Role::Assets));
+        // Only the Workload until Kueue admits the whole run.
+        d.apply = children_for(input, plan, Stage::ALL, |r| r == Role::Queue);
         let queue = input.run.spec.queue.as_deref().unwrap_or_default();
-        if held {
-            d.condition(
-                ct::SCHEDULED,
-                false,
-                "KueuePending",
-                format!("waiting for Kueue LocalQueue {queue} to admit the run"),
-                now,
-                generation,
-            );
-            d.requeue_at_most(REQUEUE_QUEUED);
-            return;
+        match &input.observed.queue {
+            Some(q) if q.admitted() => {
+                let cq = d.status.kueue.as_ref().and_then(|k| k.cluster_queue.clone()).unwrap_or_default();
+                let message = format!("admitted by Kueue as one gang (LocalQueue {queue}, ClusterQueue {cq})");
+                d.condition(ct::SCHEDULED, true, "AdmittedByKueue", message.clone(), now, generation);
+                d.enter(Phase::GeneratingAssets, message);
+                d.admitted = true;
+                d.apply.clear();
+            }
+            observed => {
+                let mut message = format!("waiting for Kueue LocalQueue {queue} to admit the whole run");
+                if let Some(k) = &d.status.kueue {
+                    if let Some(p) = k.position_in_local_queue {
+                        message.push_str(&format!(" (position {p} in the LocalQueue"));
+                        if let Some(c) = k.position_in_cluster_queue {
+                            message.push_str(&format!(", {c} in the ClusterQueue"));
+                        }
+                        message.push(')');
+                    }
+                    if let Some(said) = &k.message {
+                        message.push_str(&format!(": {said}"));
+                    }
+                } else if observed.is_none() {
+                    message.push_str(": creating its Workload");
+                }
+                d.condition(ct::SCHEDULED, false, "KueuePending", message.clone(), now, generation);
+                d.status.message = Some(format!("queued: {message}"));
+                d.requeue_at_most(REQUEUE_QUEUED);
+            }
         }
-        d.condition(
-            ct::SCHEDULED,
-            true,
-            "AdmittedByKueue",
-            format!("admitted by Kueue LocalQueue {queue}"),
-            now,
-            generation,
-        );
-        d.enter(Phase::GeneratingAssets, format!("admitted by Kueue LocalQueue {queue}"));
         return;
     }
     match &input.admission {
@@ -442,8 +465,31 @@ fn queued(d: &mut Decision, input: &Input, plan: &RunPlan) {
     }
 }
 
+/// Kueue took the run's quota back (`Evicted`, or `Admitted` no longer true): the run ends.
+fn evicted(d: &mut Decision, input: &Input) -> bool {
+    if !kueue_mode(input) {
+        return false;
+    }
+    let Some(queue) = &input.observed.queue else { return false };
+    let why = match queue.evicted() {
+        Some(why) => why,
+        None if !queue.admitted() => "the Workload is no longer admitted".to_string(),
+        None => return false,
+    };
+    end(
+        d,
+        input,
+        outcome::EVICTED,
+        format!("evicted by Kueue ({why}): a simulation cannot be paused; stopping and archiving"),
+    );
+    true
+}
+
 fn generating_assets(d: &mut Decision, input: &Input, plan: &RunPlan) {
     let (now, generation) = (input.now, input.run.metadata.generation);
+    if evicted(d, input) {
+        return;
+    }
     let apply = first_stage(input, plan);
     let has_assets_job = apply.iter().any(|c| c.kind() == Kind::Job && c.role() == Some(Role::Assets));
     d.apply = apply;
@@ -499,6 +545,9 @@ fn generating_assets(d: &mut Decision, input: &Input, plan: &RunPlan) {
 fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
     let (now, generation) = (input.now, input.run.metadata.generation);
     let observed = input.observed;
+    if evicted(d, input) {
+        return;
+    }
     let coordinator_failure = observed.coordinator.as_ref().and_then(|r| r.failed.clone());
     if let Some((role, reason)) = coordinator_failure.or_else(|| observed.failure()) {
         end(d, input, outcome::ROLE_FAILED, format!("role {role} failed: {reason}"));
@@ -512,23 +561,12 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
     }
     let running = d.phase() == Phase::Running;
     let stop = if running { pilot_exited(d, input, plan) } else { None };
-    d.apply = children_for(input, plan, Stage { assets_job: false, pilot: running, stop }, |r| r != Role::Assets);
+    // The pilot Job comes with the other workers: its pod is scheduled and its image pulled
+    // while the shards start, and its init container releases it with the pilots.
+    d.apply = children_for(input, plan, Stage { assets_job: false, pilot: true, stop }, |r| {
+        !matches!(r, Role::Assets | Role::Queue)
+    });
     d.status.endpoints = Some(endpoints(plan));
-
-    // Kueue may hold the shards' Job even after the assets were admitted.
-    if kueue_mode(input) && observed.suspended(Role::Shard) {
-        let queue = input.run.spec.queue.as_deref().unwrap_or_default();
-        d.condition(
-            ct::SCHEDULED,
-            false,
-            "KueuePending",
-            format!("the shards wait for Kueue LocalQueue {queue}"),
-            now,
-            generation,
-        );
-    } else if kueue_mode(input) {
-        d.condition(ct::SCHEDULED, true, "AdmittedByKueue", "admitted by Kueue", now, generation);
-    }
 
     // Progress.
     let shard_pods: Vec<_> = observed.pods_of(Role::Shard).collect();
@@ -651,7 +689,7 @@ fn end(d: &mut Decision, input: &Input, reason: &str, message: impl Into<String>
         now,
         generation,
     );
-    if reason == outcome::ROLE_FAILED || reason == outcome::INVALID {
+    if reason == outcome::ROLE_FAILED || reason == outcome::INVALID || reason == outcome::EVICTED {
         d.events.push(Note { warning: true, reason: reason.into(), message: message.clone() });
     }
     d.enter(Phase::Archiving, message);
@@ -685,6 +723,7 @@ fn coordinator_to_stop(input: &Input, status: &SimulationRunStatus, waited_s: i1
         outcome::DELETED => stop_reason::DELETED,
         outcome::ROLE_FAILED => stop_reason::ROLE_FAILED,
         outcome::INVALID => stop_reason::INVALID,
+        outcome::EVICTED => stop_reason::EVICTED,
         _ => return None,
     };
     let plan = input.plan.as_ref().ok()?;
@@ -748,6 +787,11 @@ fn archive_step(d: &mut Decision, input: &Input) {
             .into_iter()
             .map(|kind| Delete { kind, role: None })
             .collect();
+    }
+    // The Workload goes last: Kueue gives the run's quota back to the queue when it is
+    // deleted (no pod of the run is left to use it).
+    if kueue_mode(input) && (observed.queue.is_some() || children_may_exist(&d.status, observed)) {
+        d.delete.push(Delete { kind: Kind::Workload, role: None });
     }
     match d.archive.clone() {
         Some(folder) => {

@@ -4,8 +4,10 @@
 use k8s_openapi::api::batch::v1::Job;
 use k8s_openapi::api::core::v1::Pod;
 
+use std::collections::BTreeMap;
+
 use super::progress::CoordinatorReport;
-use crate::k8s::children::{Kind, ROLE_LABEL, Role};
+use crate::k8s::children::{FlavorPlacement, Kind, PendingWorkload, ROLE_LABEL, Role, Workload as KueueWorkload};
 
 /// Label Kubernetes puts on the pods of an Indexed Job: the shard index.
 pub const COMPLETION_INDEX_LABEL: &str = "batch.kubernetes.io/job-completion-index";
@@ -61,6 +63,41 @@ pub struct Observed {
     pub pods: Vec<Workload>,
     /// The coordinator's log tail, when its pod has started.
     pub coordinator: Option<CoordinatorReport>,
+    /// The run's Kueue Workload, when it exists (runs admitted through Kueue).
+    pub queue: Option<QueueObservation>,
+}
+
+/// The run's Kueue Workload and what Kueue says around it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct QueueObservation {
+    pub workload: KueueWorkload,
+    /// Its entry in the LocalQueue's pending list (Kueue's visibility API), while pending
+    /// and when the API answers.
+    pub pending: Option<PendingWorkload>,
+    /// The ResourceFlavors its admission names, by name.
+    pub flavors: BTreeMap<String, FlavorPlacement>,
+}
+
+impl QueueObservation {
+    fn is(&self, type_: &str) -> bool {
+        let conditions = self.workload.status.as_ref().map(|s| s.conditions.as_slice()).unwrap_or_default();
+        conditions.iter().any(|c| c.type_ == type_ && c.status == "True")
+    }
+
+    /// Kueue admitted the whole run (and has not evicted it since).
+    pub fn admitted(&self) -> bool {
+        self.is(crate::k8s::children::workload_condition::ADMITTED) && self.evicted().is_none()
+    }
+
+    /// Kueue evicted the Workload (preempted by a higher priority, deactivated, timed out):
+    /// `reason: message`.
+    pub fn evicted(&self) -> Option<String> {
+        let conditions = self.workload.status.as_ref().map(|s| s.conditions.as_slice()).unwrap_or_default();
+        conditions
+            .iter()
+            .find(|c| c.type_ == crate::k8s::children::workload_condition::EVICTED && c.status == "True")
+            .map(|c| format!("{}: {}", c.reason, c.message))
+    }
 }
 
 impl Observed {
@@ -70,6 +107,7 @@ impl Observed {
             jobs: jobs.iter().map(job_workload).collect(),
             pods: pods.iter().map(pod_workload).collect(),
             coordinator,
+            queue: None,
         }
     }
 

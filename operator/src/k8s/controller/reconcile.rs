@@ -25,11 +25,15 @@ use serde_json::json;
 
 use super::lifecycle::{self, Decision, FINALIZER, Input, Sample};
 use super::metrics::Metrics;
+use super::observe::QueueObservation;
 use super::observe::{Observed, WorkState};
 use super::planning::{self, ObjectStoreFiles, PlanFailure, WorldFiles};
 use super::progress::{self, TAIL_LINES};
 use super::queue::{self, Gang, QueueView, QueuedRun};
-use crate::k8s::children::{Child, ClusterSettings, Kind, ROLE_LABEL, RUN_LABEL, Role, RunFolder, names};
+use crate::k8s::children::{
+    Child, ClusterSettings, FlavorPlacement, Kind, PendingWorkload, PendingWorkloadsSummary, ROLE_LABEL, RUN_LABEL,
+    ResourceFlavor, Role, RunFolder, Workload, names, pending_workloads_path,
+};
 use sadesim_crds::plan::RunPlan;
 
 /// Field manager of every server-side apply (children and status).
@@ -209,7 +213,11 @@ pub async fn reconcile(run: Arc<SimulationRun>, ctx: Arc<Context>) -> Result<Act
     let waiting = matches!(phase, Phase::Pending | Phase::Queued);
     let observe =
         if deleting { !phase.is_terminal() } else { !phase.is_terminal() && (!waiting || kueue || run.spec.abort) };
-    let observed = if observe { observe_children(&ctx.client, &ns, &name).await? } else { Observed::default() };
+    let mut observed = if observe { observe_children(&ctx.client, &ns, &name).await? } else { Observed::default() };
+    if kueue && !phase.is_terminal() {
+        observed.queue =
+            observe_workload(&ctx.client, &ns, &name, run.spec.queue.as_deref().unwrap_or_default()).await?;
+    }
     let admission = match plan {
         Ok(p) if !deleting && waiting && !kueue && !run.spec.abort => {
             let view = queue_view(&ctx, &ns).await?;
@@ -244,6 +252,60 @@ async fn observe_children(client: &Client, ns: &str, run: &str) -> Result<Observ
         }
     }
     Ok(observed)
+}
+
+/// The run's Kueue Workload; while it waits, its place in the LocalQueue (Kueue's
+/// visibility API; left out when that API does not answer: it is optional in Kueue and
+/// needs its own RBAC); once admitted, the ResourceFlavors its admission names.
+async fn observe_workload(
+    client: &Client,
+    ns: &str,
+    run: &str,
+    queue: &str,
+) -> Result<Option<QueueObservation>, Error> {
+    let workloads: Api<Workload> = Api::namespaced(client.clone(), ns);
+    let name = names::workload(run);
+    let Some(workload) =
+        workloads.get_opt(&name).await.map_err(kube_err(format!("read the Kueue Workload {ns}/{name}")))?
+    else {
+        return Ok(None);
+    };
+    let mut observation = QueueObservation { workload, pending: None, flavors: Default::default() };
+    let admission = observation.workload.status.as_ref().and_then(|s| s.admission.clone());
+    match admission {
+        None => {
+            let request = http::Request::get(pending_workloads_path(ns, queue)).body(Vec::new());
+            if let Ok(request) = request {
+                match client.request::<PendingWorkloadsSummary>(request).await {
+                    Ok(summary) => {
+                        observation.pending = summary
+                            .items
+                            .into_iter()
+                            .find(|p: &PendingWorkload| p.metadata.name.as_deref() == Some(&name));
+                    }
+                    Err(e) => super::log::info(
+                        "no queue position from Kueue's visibility API",
+                        &[("run", &format!("{ns}/{run}")), ("error", &e.to_string())],
+                    ),
+                }
+            }
+        }
+        Some(admission) => {
+            let flavors: Api<ResourceFlavor> = Api::all(client.clone());
+            let mut wanted: Vec<String> =
+                admission.pod_set_assignments.iter().flat_map(|a| a.flavors.values().cloned()).collect();
+            wanted.sort();
+            wanted.dedup();
+            for flavor in wanted {
+                let found =
+                    flavors.get_opt(&flavor).await.map_err(kube_err(format!("read the ResourceFlavor {flavor}")))?;
+                if let Some(f) = found {
+                    observation.flavors.insert(flavor, FlavorPlacement::clone(&f.spec));
+                }
+            }
+        }
+    }
+    Ok(Some(observation))
 }
 
 /// The namespace's runs and ResourceQuotas.
@@ -299,6 +361,7 @@ async fn apply_child(client: &Client, ns: &str, child: &Child) -> Result<(), Err
         Child::Pod(o) => apply_one::<Pod>(client, ns, o).await,
         Child::Deployment(o) => apply_one::<Deployment>(client, ns, o).await,
         Child::NetworkPolicy(o) => apply_one::<NetworkPolicy>(client, ns, o).await,
+        Child::Workload(o) => apply_one::<Workload>(client, ns, o).await,
     }
 }
 
@@ -382,6 +445,7 @@ async fn execute(
             Kind::Deployment => delete_collection::<Deployment>(client, ns, &labels).await?,
             Kind::NetworkPolicy => delete_collection::<NetworkPolicy>(client, ns, &labels).await?,
             Kind::Service => delete_collection::<Service>(client, ns, &labels).await?,
+            Kind::Workload => delete_collection::<Workload>(client, ns, &labels).await?,
         }
     }
     // 5. Status, on the status subresource, only when it changed.

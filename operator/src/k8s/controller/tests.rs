@@ -63,6 +63,12 @@ struct Cluster {
     quotas: Vec<ResourceQuota>,
     /// Where the operator reads mapped worlds' files (default: object storage).
     world_files: Option<Arc<dyn WorldFiles>>,
+    /// The run's Kueue Workload as Kueue has it (404 when `None`).
+    workload: Option<Value>,
+    /// Kueue's visibility API answer for the LocalQueue (404 when `None`: not installed).
+    pending: Option<Value>,
+    /// ResourceFlavors by name.
+    flavors: BTreeMap<String, Value>,
 }
 
 fn list(kind: &str, items: Vec<Value>) -> Value {
@@ -71,6 +77,11 @@ fn list(kind: &str, items: Vec<Value>) -> Value {
 
 fn to_values<T: serde::Serialize>(items: &[T]) -> Vec<Value> {
     items.iter().map(|i| serde_json::to_value(i).unwrap()).collect()
+}
+
+fn not_found() -> (u16, Vec<u8>) {
+    let status = json!({"kind": "Status", "apiVersion": "v1", "status": "Failure", "code": 404, "reason": "NotFound", "message": "not found"});
+    (404, serde_json::to_vec(&status).unwrap())
 }
 
 /// The fake API server's answer to `seen`.
@@ -89,6 +100,18 @@ fn answer(cluster: &Cluster, seen: &Seen) -> (u16, Vec<u8>) {
                 ),
             }
         }
+        Method::GET if p.contains("/workloads/") => match &cluster.workload {
+            Some(w) => json(w.clone()),
+            None => not_found(),
+        },
+        Method::GET if p.ends_with("/pendingworkloads") => match &cluster.pending {
+            Some(summary) => json(summary.clone()),
+            None => not_found(),
+        },
+        Method::GET if p.contains("/resourceflavors/") => match cluster.flavors.get(p.rsplit('/').next().unwrap()) {
+            Some(f) => json(f.clone()),
+            None => not_found(),
+        },
         Method::GET if p.ends_with("/jobs") => json(list("JobList", to_values(&cluster.jobs))),
         Method::GET if p.ends_with("/pods") => json(list("PodList", to_values(&cluster.pods))),
         Method::GET if p.ends_with("/resourcequotas") => json(list("ResourceQuotaList", to_values(&cluster.quotas))),
@@ -652,35 +675,145 @@ async fn deleting_a_finished_run_only_removes_the_finalizer() {
     assert_eq!(seen[0].body["metadata"]["finalizers"], json!([]));
 }
 
+const WORKLOAD: &str = "/apis/kueue.x-k8s.io/v1beta2/namespaces/team-a/workloads/test-run";
+
+/// The run's Workload as Kueue shows it, with `conditions` (`type`, `status`, `reason`,
+/// `message`) and, once quota is reserved, every podSet admitted to the flavor `spot`.
+fn kueue_workload(conditions: &[(&str, &str, &str, &str)]) -> Value {
+    let reserved = conditions.iter().any(|c| c.0 == "QuotaReserved" && c.1 == "True");
+    let conditions: Vec<Value> = conditions
+        .iter()
+        .map(|(t, st, r, m)| {
+            json!({"type": t, "status": st, "reason": r, "message": m, "lastTransitionTime": "2027-01-15T08:00:00Z"})
+        })
+        .collect();
+    let assignments: Vec<Value> = ["assets", "coordinator", "router", "shard", "pilot"]
+        .iter()
+        .map(|name| json!({"name": name, "flavors": {"cpu": "spot", "memory": "spot"}, "count": 1}))
+        .collect();
+    let mut status = json!({"conditions": conditions});
+    if reserved {
+        status["admission"] = json!({"clusterQueue": "shared-cq", "podSetAssignments": assignments});
+    }
+    json!({
+        "apiVersion": "kueue.x-k8s.io/v1beta2",
+        "kind": "Workload",
+        "metadata": {"name": "test-run", "namespace": NS, "resourceVersion": "7"},
+        "spec": {"queueName": "team-a-queue", "podSets": []},
+        "status": status,
+    })
+}
+
+/// With Kueue the whole run is one Workload: while Kueue holds it, the operator applies
+/// only the Workload (no Job, Pod or ConfigMap exists), reads the queue position from
+/// Kueue's visibility API and shows it; once Kueue admits it, every role is created —
+/// the pilot with the shards, none labelled for Kueue or suspended — on the flavor Kueue
+/// chose.
 #[tokio::test]
-async fn with_kueue_jobs_carry_the_queue_label_and_no_patch_sets_suspend() {
-    let mut run = new_run();
+async fn with_kueue_the_whole_run_is_one_workload_admitted_at_once() {
+    let mut run = pilot_run();
     run.spec.queue = Some("team-a-queue".into());
     let settings = ClusterSettings { kueue: true, ..s3_settings() };
+
+    // 1. New: the Workload is applied, nothing else; no quota or queue of our own is read.
     let cluster = Cluster { run: Some(run.clone()), ..Default::default() };
     let (seen, _) = reconcile_once(cluster, settings.clone(), t0()).await;
-    // Kueue admits: the operator reads no quota and no queue.
     assert!(!seen.iter().any(|s| s.path.ends_with("/resourcequotas") || s.path == RUNS), "{:?}", paths(&seen));
-    let jobs: Vec<&Seen> = applies(&seen).into_iter().filter(|s| s.path.contains("/jobs/")).collect();
-    assert!(!jobs.is_empty());
-    for s in applies(&seen) {
-        assert!(!s.body.to_string().contains("\"suspend\""), "{} sets suspend", s.path);
-    }
-    for j in jobs {
-        assert_eq!(j.body["metadata"]["labels"][KUEUE_QUEUE_LABEL], "team-a-queue");
-    }
+    let applied = applies(&seen);
+    assert_eq!(applied.iter().map(|s| s.path.as_str()).collect::<Vec<_>>(), [WORKLOAD], "{:?}", paths(&seen));
+    assert_apply(applied[0]);
+    let body = &applied[0].body;
+    assert_eq!(
+        (body["apiVersion"].as_str(), body["kind"].as_str()),
+        (Some("kueue.x-k8s.io/v1beta2"), Some("Workload"))
+    );
+    assert_eq!(body["spec"]["queueName"], "team-a-queue");
+    let sets: Vec<&str> =
+        body["spec"]["podSets"].as_array().unwrap().iter().map(|p| p["name"].as_str().unwrap()).collect();
+    assert_eq!(sets, ["assets", "coordinator", "router", "shard", "pilot"]);
+    assert_eq!(body["metadata"]["ownerReferences"][0]["kind"], "SimulationRun");
     let status = the_status_write(&seen);
     assert_eq!(status.phase, Some(Phase::Queued));
     assert_eq!(condition(&status, ct::SCHEDULED).reason, "KueuePending");
 
-    // Later: Kueue admitted everything; the workers' applies still never carry suspend.
+    // 2. Pending behind another team's run: position from the visibility API, Kueue's reason.
+    let queued = in_phase(run.clone(), Phase::Queued);
+    let pending = json!({"kind": "PendingWorkloadsSummary", "apiVersion": "visibility.kueue.x-k8s.io/v1beta2", "metadata": {}, "items": [
+        {"metadata": {"name": "other-run", "namespace": NS}, "priority": 0, "localQueueName": "team-a-queue", "positionInClusterQueue": 0, "positionInLocalQueue": 0},
+        {"metadata": {"name": "test-run", "namespace": NS}, "priority": 0, "localQueueName": "team-a-queue", "positionInClusterQueue": 2, "positionInLocalQueue": 1}
+    ]});
+    let waiting = kueue_workload(&[(
+        "QuotaReserved",
+        "False",
+        "Pending",
+        "couldn't assign flavors to pod set shard: insufficient unused quota for cpu in flavor spot",
+    )]);
+    let cluster =
+        Cluster { run: Some(queued.clone()), workload: Some(waiting), pending: Some(pending), ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, settings.clone(), t0()).await;
+    assert!(seen.iter().any(|s| s.path
+        == "/apis/visibility.kueue.x-k8s.io/v1beta2/namespaces/team-a/localqueues/team-a-queue/pendingworkloads"));
+    assert!(!applies(&seen).iter().any(|s| !s.path.contains("/workloads/")), "{:?}", paths(&seen));
+    let status = the_status_write(&seen);
+    let k = status.kueue.as_ref().unwrap();
+    assert_eq!((k.workload.as_str(), k.state.as_str()), ("test-run", "Pending"));
+    assert_eq!((k.position_in_local_queue, k.position_in_cluster_queue), (Some(1), Some(2)));
+    assert!(k.message.as_deref().unwrap().contains("insufficient unused quota"));
+    assert!(condition(&status, ct::SCHEDULED).message.contains("position 1 in the LocalQueue"));
+
+    // A Kueue without the visibility API: no position, and the run still waits.
+    let waiting = kueue_workload(&[("QuotaReserved", "False", "Pending", "")]);
+    let cluster = Cluster { run: Some(queued.clone()), workload: Some(waiting), ..Default::default() };
+    let (seen, _) = reconcile_once(cluster, settings.clone(), t0()).await;
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Queued));
+    assert_eq!(status.kueue.unwrap().position_in_local_queue, None);
+
+    // 3. Admitted onto the flavor `spot`: the config and assets Job start, on spot nodes.
+    let admitted = kueue_workload(&[
+        ("QuotaReserved", "True", "QuotaReserved", "Quota reserved in ClusterQueue shared-cq"),
+        ("Admitted", "True", "Admitted", "The workload is admitted"),
+    ]);
+    let spot = json!({"apiVersion": "kueue.x-k8s.io/v1beta2", "kind": "ResourceFlavor", "metadata": {"name": "spot"},
+        "spec": {"nodeLabels": {"instance-type": "spot"}, "tolerations": [{"key": "spot", "operator": "Exists", "effect": "NoSchedule"}]}});
+    let flavors = BTreeMap::from([("spot".to_string(), spot)]);
+    let cluster =
+        Cluster { run: Some(queued), workload: Some(admitted.clone()), flavors: flavors.clone(), ..Default::default() };
+    let (seen, metrics) = reconcile_once(cluster, settings.clone(), t0()).await;
+    assert!(seen.iter().any(|s| s.path == "/apis/kueue.x-k8s.io/v1beta2/resourceflavors/spot"));
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::GeneratingAssets));
+    assert_eq!(condition(&status, ct::SCHEDULED).reason, "AdmittedByKueue");
+    assert_eq!(status.kueue.as_ref().unwrap().cluster_queue.as_deref(), Some("shared-cq"));
+    let assets = applies(&seen).into_iter().find(|s| s.path.ends_with("/jobs/test-run-assets")).expect("assets Job");
+    assert_eq!(assets.body["spec"]["template"]["spec"]["nodeSelector"]["instance-type"], "spot");
+    assert!(!applies(&seen).iter().any(|s| s.path.contains("/workloads/")), "the Workload is not re-applied");
+    assert!(
+        metrics.encode().contains("sadesim_operator_queue_wait_seconds_count 1"),
+        "the wait for admission is measured"
+    );
+
+    // 4. Starting: shards and pilot together, unlabelled, never suspended, on spot.
     let mut started = in_phase(run, Phase::Starting);
     started.status.as_mut().unwrap().conditions = vec![];
-    let cluster = Cluster { run: Some(started), jobs: vec![job("shard", None, 1)], ..Default::default() };
+    let cluster = Cluster {
+        run: Some(started),
+        jobs: vec![job("shard", None, 1)],
+        workload: Some(admitted),
+        flavors,
+        ..Default::default()
+    };
     let (seen, _) = reconcile_once(cluster, settings, t0()).await;
-    let shard = applies(&seen).into_iter().find(|s| s.path.ends_with("/jobs/test-run-shard")).expect("shards applied");
-    assert_eq!(shard.body["metadata"]["labels"][KUEUE_QUEUE_LABEL], "team-a-queue");
-    assert!(shard.body["spec"].get("suspend").is_none());
+    let jobs: Vec<&Seen> = applies(&seen).into_iter().filter(|s| s.path.contains("/jobs/")).collect();
+    let names: Vec<&str> = jobs.iter().map(|s| s.path.rsplit('/').next().unwrap()).collect();
+    assert_eq!(names, ["test-run-shard", "test-run-pilot"]);
+    for j in jobs {
+        assert!(j.body["metadata"]["labels"].get(KUEUE_QUEUE_LABEL).is_none(), "{}", j.path);
+        assert!(j.body["spec"].get("suspend").is_none(), "{}", j.path);
+        let spec = &j.body["spec"]["template"]["spec"];
+        assert_eq!(spec["nodeSelector"]["instance-type"], "spot", "{}", j.path);
+        assert_eq!(spec["tolerations"][0]["key"], "spot", "{}", j.path);
+    }
 }
 
 /// An SRTM tile as the object store would hand it out, counting the reads.

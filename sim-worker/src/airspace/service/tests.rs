@@ -97,12 +97,15 @@ fn assert_error(response: &HttpResponse, status: u16, code: &str, words: &[&str]
 }
 
 #[test]
-fn health_reports_the_sim_time() {
+fn health_reports_the_sim_time_and_the_release() {
     let (service, state) = serve();
     let mut c = client(service.addr);
-    assert_eq!(body(&c.get("/healthz").unwrap()), json!({"status": "ok", "simTimeS": 0.0}));
+    assert_eq!(body(&c.get("/healthz").unwrap()), json!({"status": "ok", "simTimeS": 0.0, "pilotsReleased": false}));
     state.lock().unwrap().time_s = 12.5;
-    assert_eq!(body(&c.get("/healthz").unwrap())["simTimeS"], 12.5);
+    state.lock().unwrap().pilots_released = true;
+    let health = body(&c.get("/healthz").unwrap());
+    assert_eq!(health["simTimeS"], 12.5);
+    assert_eq!(health["pilotsReleased"], true);
 }
 
 #[test]

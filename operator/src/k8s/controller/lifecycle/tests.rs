@@ -115,7 +115,7 @@ fn workers(coordinator: WorkState) -> Observed {
             pod("test-run-coordinator", "coordinator", coordinator, false),
             pod("test-run-router-0", "router", WorkState::Running, false),
         ],
-        coordinator: None,
+        ..Default::default()
     }
 }
 
@@ -201,7 +201,7 @@ fn a_mapped_world_on_a_local_path_is_refused_on_a_cluster() {
 }
 
 #[test]
-fn assets_built_start_the_workers_without_the_pilot() {
+fn assets_built_start_every_worker_and_the_pilot_held_by_its_init_container() {
     let run = with_phase(pilot_run(), Phase::GeneratingAssets, true);
     let observed = Observed { jobs: vec![job("assets", WorkState::Succeeded)], ..Default::default() };
     let d = decide_with(&run, &observed, None, t0());
@@ -210,7 +210,10 @@ fn assets_built_start_the_workers_without_the_pilot() {
     let applied = roles(&d.apply);
     assert!(applied.contains(&"Pod coordinator".to_string()), "{applied:?}");
     assert!(applied.contains(&"Job shard".to_string()), "{applied:?}");
-    assert!(!applied.iter().any(|r| r.ends_with("pilot") || r.ends_with("assets")), "{applied:?}");
+    // The pilot is never started late: its Job comes now, with the shards, and waits in
+    // its init container for the release instead of being created after it.
+    assert!(applied.contains(&"Job pilot".to_string()), "{applied:?}");
+    assert!(!applied.iter().any(|r| r.ends_with("assets")), "{applied:?}");
     assert_eq!(cond(&d, ct::RUNNING).reason, "Starting");
 }
 
@@ -625,33 +628,164 @@ fn a_terminal_phase_is_never_left() {
     }
 }
 
-#[test]
-fn with_kueue_jobs_are_labelled_never_suspended_and_the_run_waits_for_admission() {
-    let settings = ClusterSettings { kueue: true, ..settings() };
-    let mut run = new_run();
+fn kueue_run() -> (SimulationRun, ClusterSettings) {
+    let mut run = pilot_run();
     run.spec.queue = Some("team-a".into());
+    (run, ClusterSettings { kueue: true, ..settings() })
+}
+
+/// The run's Workload as Kueue would show it: `conditions` as `(type, status, reason,
+/// message)`, admitted to `team-cq` with the flavor `default-flavor` when `Admitted`.
+fn kueue_observed(conditions: &[(&str, &str, &str, &str)], pending: Option<(i32, i32)>) -> Observed {
+    use crate::k8s::children::kueue::{WorkloadAdmission, WorkloadSpec, WorkloadStatus};
+    use crate::k8s::children::{PendingWorkload, PodSetAssignment, Workload as KueueWorkload};
+    use k8s_openapi::apimachinery::pkg::apis::meta::v1::{Condition, ObjectMeta};
+    let admitted = conditions.iter().any(|c| c.0 == "QuotaReserved" && c.1 == "True");
+    let status = WorkloadStatus {
+        conditions: conditions
+            .iter()
+            .map(|(t, st, r, m)| Condition {
+                type_: t.to_string(),
+                status: st.to_string(),
+                reason: r.to_string(),
+                message: m.to_string(),
+                last_transition_time: Time(t0()),
+                observed_generation: None,
+            })
+            .collect(),
+        admission: admitted.then(|| WorkloadAdmission {
+            cluster_queue: "team-cq".into(),
+            pod_set_assignments: vec![PodSetAssignment {
+                name: "shard".into(),
+                flavors: [("cpu".into(), "default-flavor".into())].into(),
+            }],
+        }),
+    };
+    let workload = KueueWorkload {
+        metadata: ObjectMeta { name: Some("test-run".into()), ..Default::default() },
+        spec: WorkloadSpec { queue_name: "team-a".into(), pod_sets: Vec::new() },
+        status: Some(status),
+    };
+    let pending = pending.map(|(local, cluster)| PendingWorkload {
+        position_in_local_queue: local,
+        position_in_cluster_queue: cluster,
+        ..Default::default()
+    });
+    Observed {
+        queue: Some(crate::k8s::controller::observe::QueueObservation {
+            workload,
+            pending,
+            flavors: Default::default(),
+        }),
+        ..Default::default()
+    }
+}
+
+/// With Kueue the run is only its Workload until Kueue admits it as a whole: no ConfigMap,
+/// no Job, no Pod. The status says where it waits.
+#[test]
+fn with_kueue_only_the_workload_exists_until_the_whole_run_is_admitted() {
+    let (run, settings) = kueue_run();
     let d = decide_full(&run, &settings, &Observed::default(), None, t0(), None);
     assert_eq!(d.status.phase, Some(Phase::Queued));
+    assert_eq!(roles(&d.apply), ["Workload queue"]);
+    let Child::Workload(w) = &d.apply[0] else { unreachable!() };
+    let sets: Vec<_> = w.spec.pod_sets.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(sets, ["assets", "coordinator", "router", "shard", "pilot"], "the pilot is in the gang");
     assert_eq!(cond(&d, ct::SCHEDULED).reason, "KueuePending");
-    let jobs: Vec<_> = d
-        .apply
-        .iter()
-        .filter_map(|c| match c {
-            Child::Job(j) => Some(j),
-            _ => None,
-        })
-        .collect();
-    assert_eq!(jobs.len(), 1);
-    for j in &jobs {
-        assert_eq!(j.metadata.labels.as_ref().unwrap().get(KUEUE_QUEUE_LABEL).map(String::as_str), Some("team-a"));
-        assert_eq!(j.spec.as_ref().unwrap().suspend, None);
-    }
-    // Kueue admitted the assets Job (it runs, unsuspended).
+    assert!(cond(&d, ct::SCHEDULED).message.contains("creating its Workload"));
+
+    // Pending in the queue: the position and Kueue's reason are in the status.
     let run = with_phase(run, Phase::Queued, true);
-    let observed = Observed { jobs: vec![job("assets", WorkState::Running)], ..Default::default() };
-    let d = decide_full(&run, &settings, &observed, None, t0(), None);
+    let waiting = kueue_observed(
+        &[(
+            "QuotaReserved",
+            "False",
+            "Pending",
+            "couldn't assign flavors to pod set shard: insufficient quota for cpu",
+        )],
+        Some((1, 3)),
+    );
+    let d = decide_full(&run, &settings, &waiting, None, t0(), None);
+    assert_eq!(d.status.phase, Some(Phase::Queued));
+    assert_eq!(roles(&d.apply), ["Workload queue"]);
+    let k = d.status.kueue.as_ref().unwrap();
+    assert_eq!(
+        (k.state.as_str(), k.position_in_local_queue, k.position_in_cluster_queue),
+        ("Pending", Some(1), Some(3))
+    );
+    let message = &cond(&d, ct::SCHEDULED).message;
+    assert!(message.contains("position 1 in the LocalQueue, 3 in the ClusterQueue"), "{message}");
+    assert!(message.contains("insufficient quota for cpu"), "{message}");
+    assert!(!d.admitted);
+
+    // Quota reserved but admission checks pending: still waiting.
+    let reserved = kueue_observed(&[("QuotaReserved", "True", "QuotaReserved", "")], None);
+    let d = decide_full(&run, &settings, &reserved, None, t0(), None);
+    assert_eq!(d.status.phase, Some(Phase::Queued));
+    assert_eq!(d.status.kueue.as_ref().unwrap().state, "QuotaReserved");
+
+    // Admitted: every role starts from here (config and assets first, then the workers
+    // with the pilot, none of them queued by itself).
+    let admitted =
+        kueue_observed(&[("QuotaReserved", "True", "QuotaReserved", ""), ("Admitted", "True", "Admitted", "")], None);
+    let d = decide_full(&run, &settings, &admitted, None, t0(), None);
     assert_eq!(d.status.phase, Some(Phase::GeneratingAssets));
     assert_eq!(cond(&d, ct::SCHEDULED).reason, "AdmittedByKueue");
+    assert!(d.admitted);
+    let k = d.status.kueue.as_ref().unwrap();
+    assert_eq!((k.state.as_str(), k.cluster_queue.as_deref()), ("Admitted", Some("team-cq")));
+    let applied = roles(&d.apply);
+    assert!(
+        applied.contains(&"Job assets".to_string()) && !applied.contains(&"Workload queue".to_string()),
+        "{applied:?}"
+    );
+    for c in &d.apply {
+        assert!(c.labels().unwrap().get(KUEUE_QUEUE_LABEL).is_none(), "{}", c.name());
+    }
+    let started = with_phase(run.clone(), Phase::Starting, true);
+    let d = decide_full(&started, &settings, &admitted, None, t0(), None);
+    let applied = roles(&d.apply);
+    assert!(applied.contains(&"Job shard".to_string()) && applied.contains(&"Job pilot".to_string()), "{applied:?}");
+    assert!(!applied.contains(&"Workload queue".to_string()), "{applied:?}");
+}
+
+/// Kueue evicting the Workload (a higher-priority run preempts it) ends the run: it is
+/// stopped and archived, fails with the reason, and its Workload is deleted last.
+#[test]
+fn an_evicted_run_is_stopped_archived_and_gives_its_workload_back() {
+    let (run, settings) = kueue_run();
+    let run = with_phase(run, Phase::Running, true);
+    let mut observed = kueue_observed(
+        &[
+            ("QuotaReserved", "False", "Preempted", ""),
+            ("Admitted", "False", "Preempted", ""),
+            (
+                "Evicted",
+                "True",
+                "Preempted",
+                "Preempted to accommodate a workload (UID: 42) due to prioritization in the ClusterQueue",
+            ),
+        ],
+        None,
+    );
+    let queue = observed.queue.take();
+    observed = Observed { queue, ..workers(WorkState::Running) };
+    let d = decide_full(&run, &settings, &observed, None, t0(), None);
+    assert_eq!(d.status.phase, Some(Phase::Archiving));
+    let running = cond(&d, ct::RUNNING);
+    assert_eq!(running.reason, "Evicted");
+    assert!(running.message.contains("Preempted to accommodate"), "{}", running.message);
+    assert_eq!(d.status.kueue.as_ref().unwrap().state, "Evicted");
+    // Archiving to the end: nothing of the run left but the Workload, deleted last.
+    let archiving = Decision { status: d.status.clone(), ..d };
+    let mut run = run;
+    run.status = Some(archiving.status);
+    observed.jobs.clear();
+    observed.pods.clear();
+    let end = decide_full(&run, &settings, &observed, None, later(200), None);
+    assert_eq!(end.status.phase, Some(Phase::Failed));
+    assert_eq!(end.delete.last().map(|d| d.kind), Some(Kind::Workload));
 }
 
 #[test]
