@@ -14,6 +14,8 @@
 # Not part of tests/run.sh: it needs a Docker engine, which CI's test machine lacks.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
+# shellcheck source=tests/e2e/lib.sh
+. tests/e2e/lib.sh
 
 TOOL=${1:-}
 case "$TOOL" in
@@ -63,21 +65,14 @@ cleanup() {
   if [ -n "${FORWARD_PID:-}" ]; then kill "$FORWARD_PID" 2>/dev/null || true; fi
   if [ "${KEEP_CLUSTER:-0}" != 1 ]; then
     step "deleting cluster $CLUSTER (KEEP_CLUSTER=1 keeps it)"
-    case "$TOOL" in
-      k3d) k3d cluster delete "$CLUSTER" || true ;;
-      kind) kind delete cluster --name "$CLUSTER" || true ;;
-    esac
+    e2e_delete_cluster "$TOOL" "$CLUSTER"
   fi
   exit "$status"
 }
 trap cleanup EXIT
 
 step "creating $TOOL cluster $CLUSTER"
-case "$TOOL" in
-  k3d) k3d cluster create "$CLUSTER" --agents 1 --wait --timeout 180s ;;
-  kind) kind create cluster --name "$CLUSTER" --wait 180s ;;
-esac
-kubectl cluster-info
+e2e_create_cluster "$TOOL" "$CLUSTER"
 
 step "building images"
 docker build -f images/operator.Dockerfile -t "$OPERATOR_IMAGE" .
@@ -87,74 +82,13 @@ docker build -f images/pilot-python.Dockerfile -t "$PILOT_BASE_IMAGE" .
 docker build -f images/pilot-examples.Dockerfile --build-arg BASE="$PILOT_BASE_IMAGE" -t "$PILOT_EXAMPLES_IMAGE" .
 
 step "importing images into the cluster"
-case "$TOOL" in
-  k3d) k3d image import -c "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" "$CAMERA_IMAGE" "$PILOT_EXAMPLES_IMAGE" ;;
-  kind) kind load docker-image --name "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" "$CAMERA_IMAGE" "$PILOT_EXAMPLES_IMAGE" ;;
-esac
+e2e_import_images "$TOOL" "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE" "$CAMERA_IMAGE" "$PILOT_EXAMPLES_IMAGE"
 
 step "starting MinIO (the archive) with bucket $BUCKET"
-kubectl create namespace minio --dry-run=client -o yaml | kubectl apply -f -
-kubectl apply -n minio -f - <<YAML
-apiVersion: apps/v1
-kind: Deployment
-metadata: {name: minio}
-spec:
-  selector: {matchLabels: {app: minio}}
-  template:
-    metadata: {labels: {app: minio}}
-    spec:
-      containers:
-        - name: minio
-          image: $MINIO_IMAGE
-          args: [server, /data]
-          env:
-            - {name: MINIO_ROOT_USER, value: $MINIO_USER}
-            - {name: MINIO_ROOT_PASSWORD, value: $MINIO_PASSWORD}
-          ports: [{containerPort: 9000}]
-          readinessProbe: {httpGet: {path: /minio/health/ready, port: 9000}}
-          volumeMounts: [{name: data, mountPath: /data}]
-      volumes: [{name: data, emptyDir: {}}]
----
-apiVersion: v1
-kind: Service
-metadata: {name: minio}
-spec:
-  selector: {app: minio}
-  ports: [{port: 9000, targetPort: 9000}]
-YAML
-kubectl rollout status -n minio deployment/minio --timeout=180s
-kubectl delete job -n minio make-bucket --ignore-not-found
-kubectl apply -n minio -f - <<YAML
-apiVersion: batch/v1
-kind: Job
-metadata: {name: make-bucket}
-spec:
-  backoffLimit: 3
-  template:
-    spec:
-      restartPolicy: Never
-      containers:
-        - name: mc
-          image: $MC_IMAGE
-          command: [sh, -c, "mc alias set e2e http://minio:9000 $MINIO_USER $MINIO_PASSWORD && mc mb --ignore-existing e2e/$BUCKET"]
-YAML
-kubectl wait -n minio --for=condition=complete job/make-bucket --timeout=180s
+e2e_start_minio "$MINIO_IMAGE" "$MC_IMAGE" "$MINIO_USER" "$MINIO_PASSWORD" "$BUCKET"
 
 step "installing the chart"
-ENDPOINT=http://minio.minio.svc:9000
-"$HELM" upgrade --install sadesim charts/sadesim -n "$SYSTEM_NS" --create-namespace --wait --timeout 180s \
-  --set image.tag="$TAG" \
-  --set workerImage.tag="$TAG" \
-  --set cameraImage.tag="$TAG" \
-  --set defaultArchiveUrl="s3://$BUCKET" \
-  --set objectStore.create=true \
-  --set objectStore.secretName=sadesim-object-store \
-  --set "objectStore.namespaces={$RUN_NS}" \
-  --set objectStore.env.AWS_ACCESS_KEY_ID="$MINIO_USER" \
-  --set objectStore.env.AWS_SECRET_ACCESS_KEY="$MINIO_PASSWORD" \
-  --set objectStore.env.AWS_REGION=us-east-1 \
-  --set objectStore.env.AWS_ENDPOINT_URL="$ENDPOINT" \
-  --set-string objectStore.env.AWS_ALLOW_HTTP=true
+e2e_install_chart "$HELM" "$SYSTEM_NS" "$TAG" "$BUCKET" "$MINIO_USER" "$MINIO_PASSWORD" "$RUN_NS"
 kubectl get crd simulationruns.sadesim.io
 
 # Waits for run $1 to reach Succeeded (fails early on Failed/Aborted, with its message).

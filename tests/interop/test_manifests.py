@@ -3,6 +3,7 @@ Kubernetes' own schemas: kubernetes-validate --strict for Kubernetes 1.33 (the A
 operator is built against, k8s-openapi feature v1_33)."""
 import json
 import pathlib
+import re
 import subprocess
 
 import pytest
@@ -217,13 +218,69 @@ def test_every_dockerfile_passes_hadolint(venv_bin):
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-@pytest.mark.parametrize("scenario", sorted(p.name for p in (REPO / "tests" / "e2e").glob("*.yaml")))
+E2E_RUNS = sorted(
+    p.name
+    for p in (REPO / "tests" / "e2e").glob("*.yaml")
+    if next(yaml.safe_load_all(p.read_text()))["kind"] == "SimulationRun"
+)
+
+
+@pytest.mark.parametrize("scenario", E2E_RUNS)
 def test_the_end_to_end_scenarios_make_valid_manifests(sadesim, venv_bin, scenario):
-    """tests/e2e/run.sh cannot run here (no container engine): what it applies must at least
-    make objects Kubernetes accepts."""
-    text = manifests(sadesim, f"tests/e2e/{scenario}")
+    """tests/e2e/run.sh and teams.sh cannot run here (no container engine): what they apply
+    must at least make objects Kubernetes accepts (as an operator with Kueue on, which
+    teams.sh installs; the other runs name no queue)."""
+    text = manifests(sadesim, "--kueue", f"tests/e2e/{scenario}")
     result = kubernetes_validate(venv_bin, text)
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+def pod_count(doc):
+    """How many pods a child object makes."""
+    spec = doc.get("spec", {})
+    if doc["kind"] == "Pod":
+        return 1
+    if doc["kind"] == "Job":
+        return spec.get("parallelism", spec.get("completions", 1))
+    if doc["kind"] == "Deployment":
+        return spec.get("replicas", 1)
+    return 0
+
+
+@pytest.mark.parametrize("scenario", ["team-a.yaml", "team-b.yaml"])
+def test_a_queued_run_is_one_kueue_workload_counting_every_pod(sadesim, venv_bin, scenario, tmp_path):
+    """teams.sh's runs as Kueue sees them: the Workload comes first, its podSets follow
+    Kueue's rules (1 to 8, DNS-label names, counts of at least 1), each role's podSet holds
+    exactly that role's pods with their template (validated as a Pod), and no other object
+    is queued by itself. kubernetes-validate has no schema for Kueue's kinds, so the
+    Workload is checked here."""
+    # With an archive (as on the cluster), so the assets Job is in the gang too.
+    run = yaml.safe_load((REPO / "tests" / "e2e" / scenario).read_text())
+    run["spec"]["archive"] = {"url": "s3://sadesim-runs"}
+    path = tmp_path / scenario
+    path.write_text(yaml.safe_dump(run))
+    docs = [d for d in yaml.safe_load_all(manifests(sadesim, "--kueue", str(path))) if d]
+    workload, children = docs[0], docs[1:]
+    assert (workload["apiVersion"], workload["kind"]) == ("kueue.x-k8s.io/v1beta2", "Workload")
+    assert workload["spec"]["queueName"] == run["spec"]["queue"]
+    assert workload["metadata"]["labels"]["kueue.x-k8s.io/queue-name"] == run["spec"]["queue"]
+    assert workload["metadata"]["ownerReferences"][0]["kind"] == "SimulationRun"
+    sets = workload["spec"]["podSets"]
+    assert 1 <= len(sets) <= 8
+    pods = {}
+    for d in children:
+        assert "kueue.x-k8s.io/queue-name" not in d["metadata"].get("labels", {}), d["metadata"]["name"]
+        role = d["metadata"]["labels"]["sadesim.io/role"]
+        pods[role] = pods.get(role, 0) + pod_count(d)
+    pods = {role: n for role, n in pods.items() if n}
+    assert {s["name"]: s["count"] for s in sets} == pods
+    assert "assets" in pods
+    for s in sets:
+        assert re.fullmatch(r"[a-z0-9]([-a-z0-9]*[a-z0-9])?", s["name"]) and s["count"] >= 1, s
+        pod = {"apiVersion": "v1", "kind": "Pod", "metadata": {"name": s["name"], **s["template"].get("metadata", {})},
+               "spec": s["template"]["spec"]}
+        result = kubernetes_validate(venv_bin, yaml.safe_dump(pod))
+        assert result.returncode == 0, (s["name"], result.stdout + result.stderr)
 
 
 def test_the_shell_scripts_pass_shellcheck(venv_bin):
@@ -299,9 +356,23 @@ def test_the_chart_lets_the_operator_apply_and_delete_every_kind_of_child(sadesi
                 group = d["apiVersion"].rsplit("/", 1)[0] if "/" in d["apiVersion"] else ""
                 needed.add((group, plural.get(d["kind"], d["kind"].lower() + "s")))
     assert ("networking.k8s.io", "networkpolicies") in needed and ("apps", "deployments") in needed, needed
-    for group, resource in sorted(needed):
-        verbs = set()
-        for rule in rules:
-            if group in rule["apiGroups"] and resource in rule["resources"]:
-                verbs |= set(rule["verbs"])
-        assert {"get", "list", "create", "patch", "deletecollection"} <= verbs, (group, resource, verbs)
+
+    def check(rules, needed):
+        for group, resource in sorted(needed):
+            verbs = set()
+            for rule in rules:
+                if group in rule["apiGroups"] and resource in rule["resources"]:
+                    verbs |= set(rule["verbs"])
+            assert {"get", "list", "create", "patch", "deletecollection"} <= verbs, (group, resource, verbs)
+
+    check(rules, needed)
+    # With Kueue on: the run's Workload too, the flavors it is admitted to, and the queue
+    # position (Kueue's visibility API).
+    kueue_docs = [d for d in yaml.safe_load_all(helm_template("--set", "kueue.enabled=true")) if d]
+    kueue_rules = next(d for d in kueue_docs if d["kind"] == "ClusterRole")["rules"]
+    queued = [d for d in yaml.safe_load_all(manifests(sadesim, "--kueue", "tests/e2e/team-a.yaml")) if d]
+    assert queued[0]["kind"] == "Workload"
+    check(kueue_rules, {("kueue.x-k8s.io", "workloads")})
+    granted = {(g, r, v) for rule in kueue_rules for g in rule["apiGroups"] for r in rule["resources"] for v in rule["verbs"]}
+    assert ("kueue.x-k8s.io", "resourceflavors", "get") in granted
+    assert ("visibility.kueue.x-k8s.io", "localqueues/pendingworkloads", "get") in granted
