@@ -26,7 +26,8 @@ pub struct OperatorArgs {
     #[arg(long, env = "SADESIM_ROUTER_SERVICE_TYPE", default_value = "ClusterIP",
           value_parser = ["ClusterIP", "NodePort", "LoadBalancer"])]
     pub router_service_type: String,
-    /// Let Kueue admit runs whose spec.queue names a LocalQueue (true|false).
+    /// Let Kueue admit runs whose spec.queue names a LocalQueue, each as one Kueue Workload
+    /// (kueue.x-k8s.io/v1beta2, Kueue 0.15 or later) (true|false).
     #[arg(long, env = "SADESIM_KUEUE", value_name = "BOOL", num_args = 0..=1, default_value = "false",
           default_missing_value = "true", action = clap::ArgAction::Set,
           value_parser = clap::builder::BoolishValueParser::new())]

@@ -421,6 +421,56 @@ async fn a_run_waiting_in_queue_creates_nothing() {
     assert_eq!(event_reasons(&seen), ["Queued"]);
 }
 
+/// Admission without Kueue across two runs of a namespace: while the first run's pods hold
+/// the quota, the second waits whole (no child); once the first has ended and its pods are
+/// gone, the second is admitted and starts.
+#[tokio::test]
+async fn quota_admission_holds_a_second_run_until_the_first_ends() {
+    let q = |v: &str| Quantity(v.into());
+    let quota = |used: &str| {
+        let mut quota = ResourceQuota::default();
+        quota.metadata.name = Some("team-a".into());
+        quota.status = Some(ResourceQuotaStatus {
+            hard: Some(BTreeMap::from([("requests.cpu".to_string(), q("2"))])),
+            used: Some(BTreeMap::from([("requests.cpu".to_string(), q(used))])),
+        });
+        quota
+    };
+    let mut first = in_phase(new_run(), Phase::Running);
+    first.metadata.name = Some("first-run".into());
+    let mut second = new_run();
+    second.metadata.creation_timestamp = Some(Time(t0() + SignedDuration::from_secs(60)));
+
+    // The first run's pods use 1.5 of 2 CPUs; the second's gang needs more than the rest.
+    let cluster = Cluster {
+        run: Some(second.clone()),
+        runs: vec![first.clone(), second.clone()],
+        quotas: vec![quota("1500m")],
+        ..Default::default()
+    };
+    let (seen, _) = reconcile_once(cluster, s3_settings(), t0()).await;
+    assert!(applies(&seen).is_empty(), "{:?}", paths(&seen));
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::Queued));
+    assert_eq!(condition(&status, ct::SCHEDULED).reason, "QuotaExceeded");
+
+    // The first run ended: its pods are deleted and the quota is free again.
+    first.status.as_mut().unwrap().phase = Some(Phase::Succeeded);
+    let waiting = in_phase(second.clone(), Phase::Queued);
+    let cluster = Cluster {
+        run: Some(waiting.clone()),
+        runs: vec![first, waiting],
+        quotas: vec![quota("0")],
+        ..Default::default()
+    };
+    let (seen, metrics) = reconcile_once(cluster, s3_settings(), t0()).await;
+    let status = the_status_write(&seen);
+    assert_eq!(status.phase, Some(Phase::GeneratingAssets));
+    assert_eq!(condition(&status, ct::SCHEDULED).reason, "Admitted");
+    assert!(applies(&seen).iter().any(|s| s.path.ends_with("/jobs/test-run-assets")), "{:?}", paths(&seen));
+    assert!(metrics.encode().contains("sadesim_operator_queue_wait_seconds_count 1"));
+}
+
 #[tokio::test]
 async fn assets_ready_moves_to_starting_and_applies_the_workers() {
     let run = in_phase(new_run(), Phase::GeneratingAssets);
