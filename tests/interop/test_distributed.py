@@ -538,6 +538,37 @@ def test_the_stop_annotation_ends_the_run_with_its_reason(sadesim, cluster, tmp_
     assert_recordings_closed(out, json.loads(plan.read_text()))
 
 
+def test_the_pilot_pods_wait_release_holds_the_pilot_until_the_coordinator_releases_it(sadesim, sim_worker, cluster, tmp_path):
+    """The cluster path of "the pilot starts on the release": the pilot pod's init
+    container `sim-worker wait-release`, on another host, polls the coordinator's airspace
+    API `/healthz`. It must still wait while the shards are not there (no release), and
+    exit 0 only once the coordinator has reported `pilotsReleased`."""
+    doc = scenario("released", "20s", {"mode": "scaled", "factor": 2})
+    _, plan = write_plan(sadesim, doc, tmp_path)
+    c = cluster(plan, tmp_path / "out")
+    c.start_coordinator()
+    log = c._log("wait-release.log")
+    wait = subprocess.Popen(
+        ["ip", "netns", "exec", c.net.shards[0], sim_worker, "wait-release",
+         f"http://{COORDINATOR_IP}:{AIRSPACE_PORT}/healthz"],
+        stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT, start_new_session=True,
+    )
+    try:
+        time.sleep(3)
+        assert wait.poll() is None, f"wait-release ended before any shard was there\n{c.tail()}"
+        c.start_shards()
+        released = c.next_report(120, lambda r: r["type"] in ("pilotsReleased", "failed"))
+        assert released["type"] == "pilotsReleased", f"{released}\n{c.tail()}"
+        assert wait.wait(timeout=30) == 0, c.tail()
+        assert "pilots released after" in (c.logs / "wait-release.log").read_text()
+        codes = c.wait_all(120)
+        assert codes == {"coordinator": 0, **{f"shard {i}": 0 for i in range(SHARDS)}}, f"{codes}\n{c.tail()}"
+    finally:
+        if wait.poll() is None:
+            wait.kill()
+            wait.wait(timeout=10)
+
+
 def test_a_missing_control_file_stops_the_coordinator_before_it_listens(sim_worker, tmp_path):
     plan = tmp_path / "plan.json"
     plan.write_text("{}")
