@@ -50,8 +50,42 @@ pub(crate) fn gauss_markov_step(b: f64, walk_per_sqrt_s: f64, tau_s: f64, dt_s: 
 }
 
 /// `(e^{-dt/τ}, q · sqrt(τ/2 · (1 - e^{-2dt/τ})))` of [`gauss_markov_step`]; `(1, q·√dt)` for
-/// τ = ∞. Two transcendentals: computed once per step and shared by the axes.
+/// τ = ∞. Two transcendentals, which depend only on `(q, τ, dt)`: with the fixed physics
+/// step every sensor asks the same few triples every step, so the last [`MEMO`] triples
+/// of this thread are remembered and their coefficients reused, bit for bit.
 fn gauss_markov_coefficients(walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64) -> (f64, f64) {
+    let key = [walk_per_sqrt_s.to_bits(), tau_s.to_bits(), dt_s.to_bits()];
+    COEFFICIENTS.with(|memo| {
+        let mut memo = memo.borrow_mut();
+        if let Some(&(_, value)) = memo.entries.iter().flatten().find(|(k, _)| *k == key) {
+            return value;
+        }
+        let value = compute_gauss_markov_coefficients(walk_per_sqrt_s, tau_s, dt_s);
+        let slot = memo.next;
+        memo.entries[slot] = Some((key, value));
+        memo.next = (slot + 1) % MEMO;
+        value
+    })
+}
+
+/// How many `(q, τ, dt)` triples a thread remembers: IMU accel and gyro biases, the
+/// magnetometer's, the barometer's drift and GNSS at their own steps fit.
+const MEMO: usize = 8;
+
+/// `(q, τ, dt)` as bits, and their `(decay, sigma)`.
+type Entry = ([u64; 3], (f64, f64));
+
+#[derive(Default)]
+struct Memo {
+    entries: [Option<Entry>; MEMO],
+    next: usize,
+}
+
+thread_local! {
+    static COEFFICIENTS: std::cell::RefCell<Memo> = std::cell::RefCell::new(Memo::default());
+}
+
+fn compute_gauss_markov_coefficients(walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64) -> (f64, f64) {
     let dt_s = dt_s.max(0.0);
     if tau_s.is_infinite() {
         return (1.0, walk_per_sqrt_s * dt_s.sqrt());
@@ -76,6 +110,28 @@ pub(crate) fn gauss_markov_step3(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The remembered coefficients are the computed ones, for more triples than the memo
+    /// holds, asked in turn and again.
+    #[test]
+    fn remembered_coefficients_are_the_computed_ones() {
+        let triples: Vec<(f64, f64, f64)> = (0..20)
+            .map(|i| {
+                (
+                    0.01 * f64::from(i + 1),
+                    if i % 5 == 0 { f64::INFINITY } else { 100.0 + f64::from(i) },
+                    0.001 * f64::from(1 + i % 3),
+                )
+            })
+            .collect();
+        for _ in 0..3 {
+            for &(q, tau, dt) in triples.iter().chain(triples.iter().take(3)) {
+                let got = gauss_markov_coefficients(q, tau, dt);
+                let want = compute_gauss_markov_coefficients(q, tau, dt);
+                assert_eq!((got.0.to_bits(), got.1.to_bits()), (want.0.to_bits(), want.1.to_bits()));
+            }
+        }
+    }
 
     #[test]
     fn sensor_streams_are_distinct_and_reproducible() {

@@ -23,6 +23,10 @@ pub struct Motor {
     pub time_constant_down_s: f64,
     omega_rad_s: f64,
     command: f64,
+    /// `([dt, τ_up, τ_down], 1 − e^{−dt/τ_up}, 1 − e^{−dt/τ_down})` of the last step: the
+    /// physics step is fixed, so the two exponentials are computed once, not per motor per
+    /// step (recomputed whenever dt or a time constant differs).
+    lag: Option<([f64; 3], f64, f64)>,
 }
 
 impl Motor {
@@ -40,6 +44,7 @@ impl Motor {
             time_constant_down_s: airframe.motor_time_constant_down_s,
             omega_rad_s: 0.0,
             command: 0.0,
+            lag: None,
         }
     }
 
@@ -62,8 +67,17 @@ impl Motor {
     pub fn step(&mut self, command: f64, dt_s: f64) {
         self.command = if command.is_finite() { command.clamp(0.0, 1.0) } else { 0.0 };
         let target = self.command * self.max_omega_rad_s;
-        let tau = if target > self.omega_rad_s { self.time_constant_up_s } else { self.time_constant_down_s };
-        let alpha = if tau > 0.0 { 1.0 - (-dt_s / tau).exp() } else { 1.0 };
+        let alpha = |tau: f64| if tau > 0.0 { 1.0 - (-dt_s / tau).exp() } else { 1.0 };
+        let key = [dt_s, self.time_constant_up_s, self.time_constant_down_s];
+        let (up, down) = match self.lag {
+            Some((k, up, down)) if k == key => (up, down),
+            _ => {
+                let (up, down) = (alpha(self.time_constant_up_s), alpha(self.time_constant_down_s));
+                self.lag = Some((key, up, down));
+                (up, down)
+            }
+        };
+        let alpha = if target > self.omega_rad_s { up } else { down };
         self.omega_rad_s += (target - self.omega_rad_s) * alpha;
     }
 

@@ -12,7 +12,13 @@ pub enum ControlError {
     /// spin the same way, or they sit on one line).
     #[error("failed to build the mixer for airframe {0}: rotor layout cannot control thrust, roll, pitch and yaw")]
     Unallocatable(String),
+    /// More rotors than the mixer (and the snapshot's `motor_commands`) carry.
+    #[error("failed to build the mixer for airframe {name}: {rotors} rotors, at most {MAX_ROTORS} are supported")]
+    TooManyRotors { name: String, rotors: usize },
 }
+
+/// Rotors a mixer handles: an octocopter (the snapshot's `motor_commands` has 8 slots).
+pub const MAX_ROTORS: usize = 8;
 
 /// Per-rotor thrusts of one allocation and how much of the request survived saturation.
 #[derive(Clone, Debug, PartialEq)]
@@ -48,6 +54,9 @@ impl Mixer {
     /// [`ControlError::Unallocatable`] when `B Bᵀ` is singular or some rotor would not
     /// contribute to collective thrust.
     pub fn new(airframe: &Airframe) -> Result<Self, ControlError> {
+        if airframe.rotors.len() > MAX_ROTORS {
+            return Err(ControlError::TooManyRotors { name: airframe.name.clone(), rotors: airframe.rotors.len() });
+        }
         let km = airframe.torque_coeff_m;
         let columns: Vec<Vector4<f64>> = airframe
             .rotors
@@ -82,24 +91,33 @@ impl Mixer {
     pub fn allocate(&self, thrust_n: f64, torque_body_nm: &Vector3<f64>) -> Allocation {
         let t_max = self.max_rotor_thrust_n;
         let tau = torque_body_nm;
-        // Rotor i's roll/pitch thrust rp_i, and ratio_i = rp_i / c0_i (c0 = collective column).
-        let rp = |row: &[f64; 4]| row[1] * tau.x + row[2] * tau.y;
-        let ratio = |row: &[f64; 4]| rp(row) / row[0];
+        // Rotor i's roll/pitch thrust rp_i, and ratio_i = rp_i / c0_i (c0 = collective column),
+        // computed once per rotor into stack arrays (no allocation until the result).
+        let n = self.pinv.len();
+        let mut rp = [0.0; MAX_ROTORS];
+        let mut ratio = [0.0; MAX_ROTORS];
+        for ((rp, ratio), row) in rp.iter_mut().zip(ratio.iter_mut()).zip(&self.pinv) {
+            *rp = row[1] * tau.x + row[2] * tau.y;
+            *ratio = *rp / row[0];
+        }
+        let (rp, ratio) = (&rp[..n], &ratio[..n]);
         // Some collective F keeps F c0_i + s rp_i in [0, T_max] for all i iff, for all i, j,
-        // s (ratio_j − ratio_i) ≤ T_max / c0_j: take the largest such s ≤ 1.
+        // s (ratio_j − ratio_i) ≤ T_max / c0_j: take the largest such s ≤ 1. For each j the
+        // binding i is the one with the smallest ratio (the largest spread; division by a
+        // larger positive number never rounds to a larger quotient), so one pass over the
+        // rotors gives the same s as every pair: n divisions instead of n².
+        let min_ratio = ratio.iter().copied().fold(f64::INFINITY, f64::min);
         let mut s: f64 = 1.0;
-        for row_j in &self.pinv {
-            for row_i in &self.pinv {
-                let spread = ratio(row_j) - ratio(row_i);
-                if spread > 0.0 {
-                    s = s.min(t_max / row_j[0] / spread);
-                }
+        for (row_j, ratio_j) in self.pinv.iter().zip(ratio) {
+            let spread = ratio_j - min_ratio;
+            if spread > 0.0 {
+                s = s.min(t_max / row_j[0] / spread);
             }
         }
-        let lo = self.pinv.iter().map(|row| -s * ratio(row)).fold(f64::NEG_INFINITY, f64::max);
-        let hi = self.pinv.iter().map(|row| t_max / row[0] - s * ratio(row)).fold(f64::INFINITY, f64::min);
+        let lo = ratio.iter().map(|r| -s * r).fold(f64::NEG_INFINITY, f64::max);
+        let hi = self.pinv.iter().zip(ratio).map(|(row, r)| t_max / row[0] - s * r).fold(f64::INFINITY, f64::min);
         let f = if lo <= hi { thrust_n.clamp(lo, hi) } else { 0.5 * (lo + hi) };
-        let mut t: Vec<f64> = self.pinv.iter().map(|row| f * row[0] + s * rp(row)).collect();
+        let mut t: Vec<f64> = self.pinv.iter().zip(rp).map(|(row, rp)| f * row[0] + s * rp).collect();
         // Yaw gets what headroom is left.
         let mut k: f64 = 1.0;
         for (ti, row) in t.iter().zip(&self.pinv) {

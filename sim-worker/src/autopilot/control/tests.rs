@@ -382,6 +382,30 @@ proptest::proptest! {
         proptest::prop_assert!((delivered - expected).norm() < 1e-9, "{} vs {}", delivered, expected);
         proptest::prop_assert!((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&alloc.yaw_scale));
     }
+
+    /// The mixer's one-pass roll/pitch scale is bit for bit the scale of the definition,
+    /// the minimum over every rotor pair (i, j) of `T_max / c0_j / (ratio_j − ratio_i)`.
+    #[test]
+    fn control_mixer_scale_equals_the_pairwise_definition(
+        frame in 0usize..2,
+        tx in -30.0f64..30.0, ty in -30.0f64..30.0,
+    ) {
+        let a = preset(PRESETS[frame]).unwrap();
+        let m = Mixer::new(&a).unwrap();
+        let tau = Vector3::new(tx, ty, 0.0);
+        let ratio = |row: &[f64; 4]| (row[1] * tau.x + row[2] * tau.y) / row[0];
+        let mut pairwise: f64 = 1.0;
+        for row_j in &m.pinv {
+            for row_i in &m.pinv {
+                let spread = ratio(row_j) - ratio(row_i);
+                if spread > 0.0 {
+                    pairwise = pairwise.min(m.max_rotor_thrust_n / row_j[0] / spread);
+                }
+            }
+        }
+        let s = m.allocate(a.weight_n(), &tau).roll_pitch_scale;
+        proptest::prop_assert_eq!(s.to_bits(), pairwise.to_bits(), "{} vs {}", s, pairwise);
+    }
 }
 
 #[test]
@@ -389,6 +413,16 @@ fn control_mixer_rejects_rotors_that_cannot_yaw() {
     let mut a = preset("x500").unwrap();
     a.rotors.iter_mut().for_each(|r| r.spin = crate::vehicle::Spin::Cw);
     assert_eq!(Mixer::new(&a), Err(ControlError::Unallocatable("x500".to_owned())));
+}
+
+#[test]
+fn control_mixer_refuses_more_rotors_than_it_carries() {
+    let mut a = preset("x500").unwrap();
+    let extra: Vec<_> = a.rotors.iter().chain(&a.rotors).cloned().collect();
+    a.rotors = a.rotors.iter().chain(&extra).cloned().collect(); // 12 rotors
+    let e = Mixer::new(&a).unwrap_err();
+    assert_eq!(e, ControlError::TooManyRotors { name: "x500".into(), rotors: 12 });
+    assert!(e.to_string().contains("12 rotors, at most 8"), "{e}");
 }
 
 #[test]
