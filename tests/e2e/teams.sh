@@ -3,7 +3,7 @@
 # "Teams sharing a cluster"): create a k3d or kind cluster, build and import the images,
 # install Kueue (pinned), MinIO as the archive and the chart with its Kueue integration on;
 # create two team namespaces with ResourceQuotas, a cohort of two ClusterQueues and a
-# LocalQueue each (tests/e2e/kueue.yaml); apply team A's run, then team B's while A's runs.
+# LocalQueue each (tests/e2e/cluster/kueue-teams.yaml); apply team A's run, then team B's while A's runs.
 # Checks: each run is one Kueue Workload; B's run waits as a whole (Queued, no pod of it
 # exists, its Workload pending with its reason) until A's run ends, then is admitted and
 # succeeds; both runs are archived.
@@ -99,11 +99,11 @@ kubectl wait --for=condition=Available apiservice/v1beta2.visibility.kueue.x-k8s
 step "starting MinIO (the archive)"
 e2e_start_minio "$MINIO_IMAGE" "$MC_IMAGE" "$MINIO_USER" "$MINIO_PASSWORD" "$BUCKET"
 
-step "the teams' namespaces, quotas and queues (tests/e2e/kueue.yaml)"
+step "the teams' namespaces, quotas and queues (tests/e2e/cluster/kueue-teams.yaml)"
 # Kueue's webhooks answer only once its controller is up: retry the first apply.
 for attempt in 1 2 3 4 5 6; do
-  kubectl apply --server-side -f tests/e2e/kueue.yaml && break
-  [ "$attempt" -lt 6 ] || { echo "teams: Kueue refused tests/e2e/kueue.yaml" >&2; exit 1; }
+  kubectl apply --server-side -f tests/e2e/cluster/kueue-teams.yaml && break
+  [ "$attempt" -lt 6 ] || { echo "teams: Kueue refused tests/e2e/cluster/kueue-teams.yaml" >&2; exit 1; }
   sleep 10
 done
 kubectl wait --for=condition=Active clusterqueue/team-a clusterqueue/team-b --timeout=120s
