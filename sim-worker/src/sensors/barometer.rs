@@ -4,7 +4,7 @@
 use sadesim_crds::random::Rng;
 
 use super::imu::STANDARD_GRAVITY_MPS2;
-use super::noise::{SensorStream, gauss_markov_step, sensor_rng};
+use super::noise::{GaussMarkov, SensorStream, sensor_rng};
 
 /// ISA sea-level pressure, Pa.
 pub const ISA_SEA_LEVEL_PRESSURE_PA: f64 = 101_325.0;
@@ -66,19 +66,20 @@ pub struct Barometer {
     config: BarometerConfig,
     rng: Rng,
     drift_m: f64,
+    drift: GaussMarkov,
 }
 
 impl Barometer {
     /// Noise from the drone's `(seed, global index, Purpose::Sensors)` stream.
     pub fn new(config: BarometerConfig, seed: u64, drone_global_index: u32) -> Self {
-        Self { config, rng: sensor_rng(seed, drone_global_index, SensorStream::Barometer), drift_m: 0.0 }
+        let rng = sensor_rng(seed, drone_global_index, SensorStream::Barometer);
+        Self { config, rng, drift_m: 0.0, drift: GaussMarkov::default() }
     }
 
     /// One reading after `dt_s` since the previous one (two normals per call).
     pub fn measure(&mut self, true_alt_msl_m: f64, dt_s: f64) -> BaroSample {
         let c = self.config;
-        self.drift_m =
-            gauss_markov_step(self.drift_m, c.drift_walk_m_per_sqrt_s, c.drift_tau_s, dt_s, self.rng.normal());
+        self.drift_m = self.drift.step(self.drift_m, c.drift_walk_m_per_sqrt_s, c.drift_tau_s, dt_s, self.rng.normal());
         let alt_msl_m = true_alt_msl_m + self.drift_m + c.noise_sigma_m * self.rng.normal();
         BaroSample {
             alt_msl_m,

@@ -12,7 +12,7 @@ use sadesim_crds::random::{Purpose, Rng};
 use sadesim_gnss::{RangingReceiver, RunSky};
 use sadesim_world::World;
 
-use super::noise::{gauss_markov_step3, normal3};
+use super::noise::{GaussMarkov, normal3};
 use crate::env::GnssCondition;
 
 /// MAVLink `GPS_FIX_TYPE_NO_FIX`: receiver present, no position.
@@ -126,6 +126,7 @@ pub struct GnssReceiver {
     config: GnssConfig,
     rng: Rng,
     bias_enu_m: Vector3<f64>,
+    bias: GaussMarkov,
     /// Time of the last fix epoch, s (`None` before the first).
     last_epoch_s: Option<f64>,
     /// Index of the next fix epoch; epoch k is due at k / rate_hz.
@@ -138,7 +139,15 @@ impl GnssReceiver {
     /// Noise from the drone's `(seed, global index, Purpose::Gnss)` stream.
     pub fn new(config: GnssConfig, seed: u64, drone_global_index: u32) -> Self {
         let rng = Rng::stream(seed, u64::from(drone_global_index), Purpose::Gnss);
-        Self { config, rng, bias_enu_m: Vector3::zeros(), last_epoch_s: None, next_epoch: 0, ranging: None }
+        Self {
+            config,
+            rng,
+            bias_enu_m: Vector3::zeros(),
+            bias: GaussMarkov::default(),
+            last_epoch_s: None,
+            next_epoch: 0,
+            ranging: None,
+        }
     }
 
     /// The ranging receiver: fixes solved from pseudoranges to `sky`'s satellites as the
@@ -188,7 +197,7 @@ impl GnssReceiver {
         }
 
         self.bias_enu_m =
-            gauss_markov_step3(self.bias_enu_m, c.bias_walk_m_per_sqrt_s, f64::INFINITY, dt_s, &mut self.rng);
+            self.bias.step3(self.bias_enu_m, c.bias_walk_m_per_sqrt_s, f64::INFINITY, dt_s, &mut self.rng);
         let scale = cond.sigma_scale;
         let sigma_pos = Vector3::new(c.horizontal_sigma_m, c.horizontal_sigma_m, c.vertical_sigma_m) * scale;
         let sigma_vel = Vector3::new(

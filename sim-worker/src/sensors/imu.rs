@@ -3,7 +3,7 @@
 use nalgebra::{UnitQuaternion, Vector3};
 use sadesim_crds::random::Rng;
 
-use super::noise::{SensorStream, gauss_markov_step3, normal3, sensor_rng, white_sigma};
+use super::noise::{GaussMarkov, SensorStream, normal3, sensor_rng, white_sigma};
 
 /// Standard gravity, m/s² (CGPM 1901).
 pub const STANDARD_GRAVITY_MPS2: f64 = 9.806_65;
@@ -56,13 +56,22 @@ pub struct Imu {
     rng: Rng,
     accel_bias_body_mps2: Vector3<f64>,
     gyro_bias_body_rps: Vector3<f64>,
+    accel_bias: GaussMarkov,
+    gyro_bias: GaussMarkov,
 }
 
 impl Imu {
     /// Noise from the drone's `(seed, global index, Purpose::Sensors)` stream.
     pub fn new(config: ImuConfig, seed: u64, drone_global_index: u32) -> Self {
         let rng = sensor_rng(seed, drone_global_index, SensorStream::Imu);
-        Self { config, rng, accel_bias_body_mps2: Vector3::zeros(), gyro_bias_body_rps: Vector3::zeros() }
+        Self {
+            config,
+            rng,
+            accel_bias_body_mps2: Vector3::zeros(),
+            gyro_bias_body_rps: Vector3::zeros(),
+            accel_bias: GaussMarkov::default(),
+            gyro_bias: GaussMarkov::default(),
+        }
     }
 
     /// One reading after `dt_s` since the previous one.
@@ -80,10 +89,15 @@ impl Imu {
     ) -> ImuSample {
         let c = self.config;
         // Fixed draw order (12 normals): accel bias, gyro bias, accel noise, gyro noise.
-        self.accel_bias_body_mps2 =
-            gauss_markov_step3(self.accel_bias_body_mps2, c.accel_bias_walk, c.accel_bias_tau_s, dt_s, &mut self.rng);
+        self.accel_bias_body_mps2 = self.accel_bias.step3(
+            self.accel_bias_body_mps2,
+            c.accel_bias_walk,
+            c.accel_bias_tau_s,
+            dt_s,
+            &mut self.rng,
+        );
         self.gyro_bias_body_rps =
-            gauss_markov_step3(self.gyro_bias_body_rps, c.gyro_bias_walk, c.gyro_bias_tau_s, dt_s, &mut self.rng);
+            self.gyro_bias.step3(self.gyro_bias_body_rps, c.gyro_bias_walk, c.gyro_bias_tau_s, dt_s, &mut self.rng);
         let accel_noise = normal3(&mut self.rng, white_sigma(c.accel_noise_density, dt_s));
         let gyro_noise = normal3(&mut self.rng, white_sigma(c.gyro_noise_density, dt_s));
 

@@ -3,7 +3,7 @@
 use nalgebra::{UnitQuaternion, Vector3};
 use sadesim_crds::random::Rng;
 
-use super::noise::{SensorStream, gauss_markov_step3, normal3, sensor_rng, white_sigma};
+use super::noise::{GaussMarkov, SensorStream, normal3, sensor_rng, white_sigma};
 
 /// A fixed geomagnetic field (no variation over a city-scale world).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -68,20 +68,21 @@ pub struct Magnetometer {
     config: MagnetometerConfig,
     rng: Rng,
     bias_body_gauss: Vector3<f64>,
+    bias: GaussMarkov,
 }
 
 impl Magnetometer {
     /// Noise from the drone's `(seed, global index, Purpose::Sensors)` stream.
     pub fn new(config: MagnetometerConfig, seed: u64, drone_global_index: u32) -> Self {
         let rng = sensor_rng(seed, drone_global_index, SensorStream::Magnetometer);
-        Self { config, rng, bias_body_gauss: Vector3::zeros() }
+        Self { config, rng, bias_body_gauss: Vector3::zeros(), bias: GaussMarkov::default() }
     }
 
     /// One reading after `dt_s` since the previous one; `attitude` rotates body FLU into
     /// world ENU. B_body = attitude⁻¹ · B_enu + bias + noise (σ = density / √dt).
     pub fn measure(&mut self, attitude: &UnitQuaternion<f64>, dt_s: f64) -> MagSample {
         let c = self.config;
-        self.bias_body_gauss = gauss_markov_step3(self.bias_body_gauss, c.bias_walk, c.bias_tau_s, dt_s, &mut self.rng);
+        self.bias_body_gauss = self.bias.step3(self.bias_body_gauss, c.bias_walk, c.bias_tau_s, dt_s, &mut self.rng);
         let noise = normal3(&mut self.rng, white_sigma(c.noise_density, dt_s));
         let field = attitude.inverse_transform_vector(&c.field.field_enu_gauss());
         MagSample { field_body_gauss: field + self.bias_body_gauss + noise }

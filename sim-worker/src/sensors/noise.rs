@@ -43,49 +43,61 @@ pub(crate) fn white_sigma(density: f64, dt_s: f64) -> f64 {
 /// b ← e^{-dt/τ} b + q · sqrt(τ/2 · (1 - e^{-2dt/τ})) · n          [q in unit/√s, τ in s]
 ///
 /// For dt ≪ τ it is a random walk (std q·√t); τ bounds it at q·sqrt(τ/2). τ = ∞ gives the
-/// pure random walk b ← b + q·√dt·n. `n` is a standard normal draw.
+/// pure random walk b ← b + q·√dt·n. `n` is a standard normal draw. The sensors step
+/// through [`GaussMarkov`], which remembers the coefficients; this is the definition the
+/// tests hold it to.
+#[cfg(test)]
 pub(crate) fn gauss_markov_step(b: f64, walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64, n: f64) -> f64 {
     let (decay, sigma) = gauss_markov_coefficients(walk_per_sqrt_s, tau_s, dt_s);
     decay * b + sigma * n
 }
 
-/// `(e^{-dt/τ}, q · sqrt(τ/2 · (1 - e^{-2dt/τ})))` of [`gauss_markov_step`]; `(1, q·√dt)` for
-/// τ = ∞. Two transcendentals, which depend only on `(q, τ, dt)`: with the fixed physics
-/// step every sensor asks the same few triples every step, so the last [`MEMO`] triples
-/// of this thread are remembered and their coefficients reused, bit for bit.
-fn gauss_markov_coefficients(walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64) -> (f64, f64) {
-    let key = [walk_per_sqrt_s.to_bits(), tau_s.to_bits(), dt_s.to_bits()];
-    COEFFICIENTS.with(|memo| {
-        let mut memo = memo.borrow_mut();
-        if let Some(&(_, value)) = memo.entries.iter().flatten().find(|(k, _)| *k == key) {
-            return value;
+/// One Gauss-Markov process's discretisation, remembered: `(e^{-dt/τ}, σ)` of the exact
+/// step (b ← e^{-dt/τ} b + σ n, σ = q · sqrt(τ/2 · (1 - e^{-2dt/τ}))) depend only on `(q, τ, dt)`, which stay the same step after step
+/// with the fixed physics step, so the two transcendentals are computed when they change
+/// instead of every step. The values are the computed ones, bit for bit.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct GaussMarkov {
+    /// `(q, τ, dt)` as bits, and their `(decay, sigma)`.
+    last: Option<([u64; 3], (f64, f64))>,
+}
+
+impl GaussMarkov {
+    fn coefficients(&mut self, walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64) -> (f64, f64) {
+        let key = [walk_per_sqrt_s.to_bits(), tau_s.to_bits(), dt_s.to_bits()];
+        match self.last {
+            Some((k, value)) if k == key => value,
+            _ => {
+                let value = gauss_markov_coefficients(walk_per_sqrt_s, tau_s, dt_s);
+                self.last = Some((key, value));
+                value
+            }
         }
-        let value = compute_gauss_markov_coefficients(walk_per_sqrt_s, tau_s, dt_s);
-        let slot = memo.next;
-        memo.entries[slot] = Some((key, value));
-        memo.next = (slot + 1) % MEMO;
-        value
-    })
+    }
+
+    /// One exact step of the bias `b` with the standard normal draw `n`.
+    pub(crate) fn step(&mut self, b: f64, walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64, n: f64) -> f64 {
+        let (decay, sigma) = self.coefficients(walk_per_sqrt_s, tau_s, dt_s);
+        decay * b + sigma * n
+    }
+
+    /// One exact step on each axis, drawing three normals.
+    pub(crate) fn step3(
+        &mut self,
+        b: Vector3<f64>,
+        walk_per_sqrt_s: f64,
+        tau_s: f64,
+        dt_s: f64,
+        rng: &mut Rng,
+    ) -> Vector3<f64> {
+        let (decay, sigma) = self.coefficients(walk_per_sqrt_s, tau_s, dt_s);
+        b.map(|axis| decay * axis + sigma * rng.normal())
+    }
 }
 
-/// How many `(q, τ, dt)` triples a thread remembers: IMU accel and gyro biases, the
-/// magnetometer's, the barometer's drift and GNSS at their own steps fit.
-const MEMO: usize = 8;
-
-/// `(q, τ, dt)` as bits, and their `(decay, sigma)`.
-type Entry = ([u64; 3], (f64, f64));
-
-#[derive(Default)]
-struct Memo {
-    entries: [Option<Entry>; MEMO],
-    next: usize,
-}
-
-thread_local! {
-    static COEFFICIENTS: std::cell::RefCell<Memo> = std::cell::RefCell::new(Memo::default());
-}
-
-fn compute_gauss_markov_coefficients(walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64) -> (f64, f64) {
+/// `(e^{-dt/τ}, q · sqrt(τ/2 · (1 - e^{-2dt/τ})))` of the exact step; `(1, q·√dt)` for
+/// τ = ∞. Two transcendentals: computed once per step and shared by the axes.
+fn gauss_markov_coefficients(walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64) -> (f64, f64) {
     let dt_s = dt_s.max(0.0);
     if tau_s.is_infinite() {
         return (1.0, walk_per_sqrt_s * dt_s.sqrt());
@@ -95,40 +107,27 @@ fn compute_gauss_markov_coefficients(walk_per_sqrt_s: f64, tau_s: f64, dt_s: f64
     (decay, sigma)
 }
 
-/// [`gauss_markov_step`] on each axis, drawing three normals.
-pub(crate) fn gauss_markov_step3(
-    b: Vector3<f64>,
-    walk_per_sqrt_s: f64,
-    tau_s: f64,
-    dt_s: f64,
-    rng: &mut Rng,
-) -> Vector3<f64> {
-    let (decay, sigma) = gauss_markov_coefficients(walk_per_sqrt_s, tau_s, dt_s);
-    b.map(|axis| decay * axis + sigma * rng.normal())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The remembered coefficients are the computed ones, for more triples than the memo
-    /// holds, asked in turn and again.
+    /// The remembered coefficients are the computed ones, for triples asked in turn, again
+    /// and after a change of step.
     #[test]
     fn remembered_coefficients_are_the_computed_ones() {
+        let mut gm = GaussMarkov::default();
         let triples: Vec<(f64, f64, f64)> = (0..20)
             .map(|i| {
-                (
-                    0.01 * f64::from(i + 1),
-                    if i % 5 == 0 { f64::INFINITY } else { 100.0 + f64::from(i) },
-                    0.001 * f64::from(1 + i % 3),
-                )
+                let tau = if i % 5 == 0 { f64::INFINITY } else { 100.0 + f64::from(i) };
+                (0.01 * f64::from(i + 1), tau, 0.001 * f64::from(1 + i % 3))
             })
             .collect();
-        for _ in 0..3 {
-            for &(q, tau, dt) in triples.iter().chain(triples.iter().take(3)) {
-                let got = gauss_markov_coefficients(q, tau, dt);
-                let want = compute_gauss_markov_coefficients(q, tau, dt);
+        for &(q, tau, dt) in triples.iter().chain(&triples) {
+            for _ in 0..2 {
+                let got = gm.coefficients(q, tau, dt);
+                let want = gauss_markov_coefficients(q, tau, dt);
                 assert_eq!((got.0.to_bits(), got.1.to_bits()), (want.0.to_bits(), want.1.to_bits()));
+                assert_eq!(gm.step(2.0, q, tau, dt, 0.5).to_bits(), gauss_markov_step(2.0, q, tau, dt, 0.5).to_bits());
             }
         }
     }
