@@ -491,47 +491,54 @@ pub fn problems(plan: &RunPlan, settings: &ClusterSettings) -> Vec<Problem> {
     out
 }
 
-/// The children of `run` (planned as `plan`) at `stage`, in apply order: the Kueue
-/// Workload (with `spec.queue` and Kueue on; it lists the pods of every other child), ConfigMaps, the
+/// The children of `run` (planned as `plan`) at `stage`, in apply order: ConfigMaps, the
 /// NetworkPolicy, the assets Job, coordinator Service and Pod, router Services and Pods, the shards' headless
 /// Service and Job, the renderer, the pilot Job.
 ///
 /// The pilot Job is left out when `spec.pilot` has no image and the assets Job when the
-/// run has no object-store archive to cache into; [`problems`] says why.
+/// run has no object-store archive to cache into; [`problems`] says why. A queued run's
+/// Kueue Workload is not among them: see [`workload`].
 pub fn children(run: &SimulationRun, plan: &RunPlan, settings: &ClusterSettings, stage: Stage) -> Vec<Child> {
+    children_in(&pod::Context::new(run, plan, settings), stage)
+}
+
+/// The run's Kueue Workload, with `spec.queue` and Kueue on: a podSet per role of every
+/// child of the run's life ([`Stage::ALL`]). It is the only object of a run Kueue has not
+/// admitted yet, so it is built apart from [`children`], only while it is needed.
+pub fn workload(run: &SimulationRun, plan: &RunPlan, settings: &ClusterSettings) -> Option<Child> {
+    let queue = kueue_queue(plan, settings)?;
     let ctx = pod::Context::new(run, plan, settings);
-    let mut out: Vec<Child> = config::plan_config_maps(&ctx).into_iter().map(Child::ConfigMap).collect();
-    out.extend(config::fleet_config_maps(&ctx).into_iter().map(Child::ConfigMap));
-    out.push(Child::NetworkPolicy(network::network_policy(&ctx)));
+    let pods = children_in(&ctx, Stage::ALL);
+    let meta = ctx.meta(names::workload(&plan.run.name), Role::Queue);
+    Some(Child::Workload(kueue::workload(queue, meta, &pods)))
+}
+
+fn children_in(ctx: &pod::Context, stage: Stage) -> Vec<Child> {
+    let plan = ctx.plan;
+    let mut out: Vec<Child> = config::plan_config_maps(ctx).into_iter().map(Child::ConfigMap).collect();
+    out.extend(config::fleet_config_maps(ctx).into_iter().map(Child::ConfigMap));
+    out.push(Child::NetworkPolicy(network::network_policy(ctx)));
     if stage.assets_job
-        && let Some(job) = workers::assets_job(&ctx)
+        && let Some(job) = workers::assets_job(ctx)
     {
         out.push(Child::Job(job));
     }
-    out.push(Child::Service(workers::airspace_service(&ctx)));
-    out.push(Child::Pod(workers::coordinator_pod(&ctx, stage.stop)));
+    out.push(Child::Service(workers::airspace_service(ctx)));
+    out.push(Child::Pod(workers::coordinator_pod(ctx, stage.stop)));
     for segment in &plan.segments {
-        out.push(Child::Service(workers::mavlink_service(&ctx, segment)));
-        out.push(Child::Pod(workers::router_pod(&ctx, segment)));
+        out.push(Child::Service(workers::mavlink_service(ctx, segment)));
+        out.push(Child::Pod(workers::router_pod(ctx, segment)));
     }
-    out.push(Child::Service(workers::shard_service(&ctx)));
-    out.push(Child::Job(workers::shard_job(&ctx)));
+    out.push(Child::Service(workers::shard_service(ctx)));
+    out.push(Child::Job(workers::shard_job(ctx)));
     if plan.spec.rendering().enabled {
-        out.push(Child::Service(workers::renderer_service(&ctx)));
-        out.push(Child::Deployment(workers::renderer_deployment(&ctx)));
+        out.push(Child::Service(workers::renderer_service(ctx)));
+        out.push(Child::Deployment(workers::renderer_deployment(ctx)));
     }
     if stage.pilot
-        && let Some(job) = pilot::pilot_job(&ctx)
+        && let Some(job) = pilot::pilot_job(ctx)
     {
         out.push(Child::Job(job));
-    }
-    if let Some(queue) = kueue_queue(plan, settings) {
-        // Every pod the run will ever have, whatever the stage asked for.
-        let all = if stage == Stage::ALL { None } else { Some(children(run, plan, settings, Stage::ALL)) };
-        let pods = all.as_deref().unwrap_or(&out);
-        let meta = ctx.meta(names::workload(&plan.run.name), Role::Queue);
-        let workload = kueue::workload(queue, meta, pods);
-        out.insert(0, Child::Workload(workload));
     }
     out
 }

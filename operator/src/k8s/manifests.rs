@@ -11,7 +11,7 @@ use std::io::Write;
 
 use sadesim_crds::document::parse_runs;
 
-use super::children::{ClusterSettings, Stage, children, problems};
+use super::children::{ClusterSettings, Stage, children, problems, workload};
 use super::controller::planning::{ObjectStoreFiles, PlanFailure, plan_blocking};
 use sadesim_planner::{DEFAULT_NAMESPACE, PlanError};
 
@@ -86,7 +86,7 @@ pub fn write_manifests(
             };
             rendered.push_str(&format!("# {what}: {p}\n"));
         }
-        for child in children(&run, &plan, settings, Stage::ALL) {
+        for child in workload(&run, &plan, settings).into_iter().chain(children(&run, &plan, settings, Stage::ALL)) {
             let yaml = serde_yaml::to_string(&child)
                 .map_err(|e| format!("failed to write {} {} as YAML: {e}", child.kind(), child.name()))?;
             rendered.push_str("---\n");

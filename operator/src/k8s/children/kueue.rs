@@ -94,6 +94,18 @@ pub struct WorkloadStatus {
     pub admission: Option<WorkloadAdmission>,
 }
 
+impl Workload {
+    /// Kueue's condition `type_`, when it has set one.
+    pub fn condition(&self, type_: &str) -> Option<&Condition> {
+        self.status.as_ref()?.conditions.iter().find(|c| c.type_ == type_)
+    }
+
+    /// Kueue's condition `type_` is `True`.
+    pub fn is(&self, type_: &str) -> bool {
+        self.condition(type_).is_some_and(|c| c.status == "True")
+    }
+}
+
 /// Where Kueue admitted the Workload.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default)]
 #[serde(rename_all = "camelCase")]
@@ -204,8 +216,7 @@ pub(super) fn workload(queue: &str, mut meta: ObjectMeta, children: &[Child]) ->
 
 /// The state of the run's Workload as the run's status shows it.
 pub fn status_of(workload: &Workload, pending: Option<&PendingWorkload>) -> KueueStatus {
-    let status = workload.status.clone().unwrap_or_default();
-    let is = |t: &str| status.conditions.iter().any(|c| c.type_ == t && c.status == "True");
+    let is = |t: &str| workload.is(t);
     let state = if is(condition::FINISHED) {
         condition::FINISHED
     } else if is(condition::EVICTED) {
@@ -219,8 +230,7 @@ pub fn status_of(workload: &Workload, pending: Option<&PendingWorkload>) -> Kueu
     };
     // Kueue's word: why it evicted, else why it waits (QuotaReserved=False says "couldn't
     // assign flavors ..." or "LocalQueue x doesn't exist").
-    let said =
-        |t: &str| status.conditions.iter().find(|c| c.type_ == t).map(|c| c.message.clone()).filter(|m| !m.is_empty());
+    let said = |t: &str| workload.condition(t).map(|c| c.message.clone()).filter(|m| !m.is_empty());
     let message = match state {
         condition::EVICTED => said(condition::EVICTED),
         "Pending" => said(condition::QUOTA_RESERVED),
@@ -229,7 +239,12 @@ pub fn status_of(workload: &Workload, pending: Option<&PendingWorkload>) -> Kueu
     KueueStatus {
         workload: workload.metadata.name.clone().unwrap_or_default(),
         state: state.into(),
-        cluster_queue: status.admission.as_ref().map(|a| a.cluster_queue.clone()).filter(|q| !q.is_empty()),
+        cluster_queue: workload
+            .status
+            .as_ref()
+            .and_then(|s| s.admission.as_ref())
+            .map(|a| a.cluster_queue.clone())
+            .filter(|q| !q.is_empty()),
         position_in_local_queue: pending.map(|p| p.position_in_local_queue),
         position_in_cluster_queue: pending.map(|p| p.position_in_cluster_queue),
         message,

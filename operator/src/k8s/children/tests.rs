@@ -311,13 +311,14 @@ fn a_queued_run_is_one_kueue_workload_with_a_pod_set_per_role() {
     let settings = ClusterSettings { kueue: true, ..s3() };
     let children = children(&run, &plan, &settings, Stage::ALL);
     assert_eq!(count_key(&json(&children), "suspend"), 0);
-    let Some(Child::Workload(w)) = children.first() else { panic!("the Workload comes first: {:?}", children[0]) };
+    let Some(Child::Workload(w)) = workload(&run, &plan, &settings) else { panic!("a queued run has a Workload") };
+    let w = &w;
     assert_eq!(w.metadata.name.as_deref(), Some("test-run"));
     assert_eq!(w.spec.queue_name, "team-a");
     assert_eq!(w.metadata.labels.as_ref().unwrap()[KUEUE_QUEUE_LABEL], "team-a");
     let owner = &w.metadata.owner_references.as_ref().unwrap()[0];
     assert_eq!((owner.kind.as_str(), owner.controller), ("SimulationRun", Some(true)));
-    for c in &children[1..] {
+    for c in &children {
         assert!(c.labels().unwrap().get(KUEUE_QUEUE_LABEL).is_none(), "{} is not queued by itself", c.name());
     }
     let sets: Vec<(&str, i32)> = w.spec.pod_sets.iter().map(|p| (p.name.as_str(), p.count)).collect();

@@ -416,7 +416,7 @@ fn queued(d: &mut Decision, input: &Input, plan: &RunPlan) {
     let (now, generation) = (input.now, input.run.metadata.generation);
     if kueue_mode(input) {
         // Only the Workload until Kueue admits the whole run.
-        d.apply = children_for(input, plan, Stage::ALL, |r| r == Role::Queue);
+        d.apply = children::workload(input.run, plan, input.settings).into_iter().collect();
         let queue = input.run.spec.queue.as_deref().unwrap_or_default();
         match &input.observed.queue {
             Some(q) if q.admitted() => {
@@ -563,9 +563,7 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
     let stop = if running { pilot_exited(d, input, plan) } else { None };
     // The pilot Job comes with the other workers: its pod is scheduled and its image pulled
     // while the shards start, and its init container releases it with the pilots.
-    d.apply = children_for(input, plan, Stage { assets_job: false, pilot: true, stop }, |r| {
-        !matches!(r, Role::Assets | Role::Queue)
-    });
+    d.apply = children_for(input, plan, Stage { assets_job: false, pilot: true, stop }, |r| r != Role::Assets);
     d.status.endpoints = Some(endpoints(plan));
 
     // Progress.

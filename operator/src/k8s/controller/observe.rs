@@ -7,7 +7,9 @@ use k8s_openapi::api::core::v1::Pod;
 use std::collections::BTreeMap;
 
 use super::progress::CoordinatorReport;
-use crate::k8s::children::{FlavorPlacement, Kind, PendingWorkload, ROLE_LABEL, Role, Workload as KueueWorkload};
+use crate::k8s::children::{
+    FlavorPlacement, Kind, PendingWorkload, ROLE_LABEL, Role, Workload as KueueWorkload, workload_condition,
+};
 
 /// Label Kubernetes puts on the pods of an Indexed Job: the shard index.
 pub const COMPLETION_INDEX_LABEL: &str = "batch.kubernetes.io/job-completion-index";
@@ -79,24 +81,16 @@ pub struct QueueObservation {
 }
 
 impl QueueObservation {
-    fn is(&self, type_: &str) -> bool {
-        let conditions = self.workload.status.as_ref().map(|s| s.conditions.as_slice()).unwrap_or_default();
-        conditions.iter().any(|c| c.type_ == type_ && c.status == "True")
-    }
-
     /// Kueue admitted the whole run (and has not evicted it since).
     pub fn admitted(&self) -> bool {
-        self.is(crate::k8s::children::workload_condition::ADMITTED) && self.evicted().is_none()
+        self.workload.is(workload_condition::ADMITTED) && self.evicted().is_none()
     }
 
     /// Kueue evicted the Workload (preempted by a higher priority, deactivated, timed out):
     /// `reason: message`.
     pub fn evicted(&self) -> Option<String> {
-        let conditions = self.workload.status.as_ref().map(|s| s.conditions.as_slice()).unwrap_or_default();
-        conditions
-            .iter()
-            .find(|c| c.type_ == crate::k8s::children::workload_condition::EVICTED && c.status == "True")
-            .map(|c| format!("{}: {}", c.reason, c.message))
+        let evicted = self.workload.condition(workload_condition::EVICTED).filter(|c| c.status == "True")?;
+        Some(format!("{}: {}", evicted.reason, evicted.message))
     }
 }
 
