@@ -2,6 +2,25 @@
 # Shared steps of the end-to-end scripts (tests/e2e/run.sh, tests/e2e/teams.sh), sourced by
 # them. Every function takes what it needs as arguments.
 
+# step MESSAGE: a heading in the script's output.
+step() { echo; echo "==> $*"; }
+
+# e2e_require_tools PREFIX k3d|kind: exits 2, naming what is missing, without docker,
+# kubectl, the cluster tool, helm, or a Docker engine that answers.
+e2e_require_tools() {
+  local prefix=$1 tool
+  for tool in docker kubectl "$2"; do
+    command -v "$tool" >/dev/null || { echo "$prefix: $tool not found on PATH" >&2; exit 2; }
+  done
+  [ -n "$(e2e_helm)" ] || { echo "$prefix: helm not found (run tests/install-tools.sh)" >&2; exit 2; }
+  docker info >/dev/null 2>&1 || { echo "$prefix: no Docker engine answers (docker info failed)" >&2; exit 2; }
+}
+
+# e2e_helm: the helm to use, .tools/bin/helm (tests/install-tools.sh) or helm on PATH.
+e2e_helm() {
+  if [ -x .tools/bin/helm ]; then echo .tools/bin/helm; else command -v helm || true; fi
+}
+
 # e2e_create_cluster k3d|kind NAME: a cluster with one agent (k3d) or one node (kind).
 e2e_create_cluster() {
   case "$1" in

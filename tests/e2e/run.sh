@@ -43,15 +43,8 @@ MINIO_USER=sadesim
 MINIO_PASSWORD=sadesim-e2e-secret
 TIMEOUT=${TIMEOUT:-900}
 
-HELM=.tools/bin/helm
-[ -x "$HELM" ] || HELM=$(command -v helm || true)
-for tool in docker kubectl "$TOOL"; do
-  command -v "$tool" >/dev/null || { echo "e2e: $tool not found on PATH" >&2; exit 2; }
-done
-[ -n "$HELM" ] || { echo "e2e: helm not found (run tests/install-tools.sh)" >&2; exit 2; }
-docker info >/dev/null 2>&1 || { echo "e2e: no Docker engine answers (docker info failed)" >&2; exit 2; }
-
-step() { echo; echo "==> $*"; }
+e2e_require_tools e2e "$TOOL"
+HELM=$(e2e_helm)
 
 cleanup() {
   status=$?

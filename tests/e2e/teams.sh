@@ -37,15 +37,8 @@ MINIO_USER=sadesim
 MINIO_PASSWORD=sadesim-e2e-secret
 TIMEOUT=${TIMEOUT:-900}
 
-HELM=.tools/bin/helm
-[ -x "$HELM" ] || HELM=$(command -v helm || true)
-for tool in docker kubectl "$TOOL"; do
-  command -v "$tool" >/dev/null || { echo "teams: $tool not found on PATH" >&2; exit 2; }
-done
-[ -n "$HELM" ] || { echo "teams: helm not found (run tests/install-tools.sh)" >&2; exit 2; }
-docker info >/dev/null 2>&1 || { echo "teams: no Docker engine answers (docker info failed)" >&2; exit 2; }
-
-step() { echo; echo "==> $*"; }
+e2e_require_tools teams "$TOOL"
+HELM=$(e2e_helm)
 
 cleanup() {
   status=$?
