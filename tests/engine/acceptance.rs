@@ -5,7 +5,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::{Mission, MissionItem};
 use sadesim_crds::geo::{Enu, LocalFrame};
-use sadesim_integration_tests::plan;
+use sadesim_integration_tests::{median, over_seeds, plan};
 use sim_worker::autopilot::control::{Controller, EstimatedState, Setpoint};
 use sim_worker::events::{Event, EventKind};
 use sim_worker::protocol::DroneSnapshot;
@@ -115,19 +115,26 @@ fn horizontal(a: [f64; 3], e: f64, n: f64) -> f64 {
 
 #[test]
 fn takeoff_to_30_m_settles_within_half_a_metre() {
-    let run = RunBuilder::test()
-        .with(|r| {
-            r.spec.fleet[0].mission = Some(Mission {
-                items: vec![MissionItem::Takeoff { altitude_agl_m: 30.0 }, MissionItem::Loiter { hold_s: 60.0 }],
-                speed_mps: None,
+    // Judged over ten noise realizations (`SEEDS`): the median flight settles within
+    // 0.5 m, and no realization strays twice as far. What remains is mostly the height
+    // estimate's error at arming (home altitude), which the arming check bounds.
+    let worst = over_seeds(|seed| {
+        let run = RunBuilder::test()
+            .with_seed(seed)
+            .with(|r| {
+                r.spec.fleet[0].mission = Some(Mission {
+                    items: vec![MissionItem::Takeoff { altitude_agl_m: 30.0 }, MissionItem::Loiter { hold_s: 60.0 }],
+                    speed_mps: None,
+                })
             })
-        })
-        .build();
-    let (_, track) = fly(&run, 50);
-    // Takeoff climbs at 1.5 m/s: 20 s. From 30 s on, the altitude has settled.
-    let settled: Vec<f64> = track[3000..].iter().map(|s| s.height_agl_m).collect();
-    let worst = settled.iter().map(|h| (h - 30.0).abs()).fold(0.0, f64::max);
-    assert!(worst < 0.5, "altitude above ground strays {worst:.2} m from 30 m after settling");
+            .build();
+        let (_, track) = fly(&run, 50);
+        // Takeoff climbs at 1.5 m/s: 20 s. From 30 s on, the altitude has settled.
+        track[3000..].iter().map(|s| (s.height_agl_m - 30.0).abs()).fold(0.0, f64::max)
+    });
+    let m = median(&worst);
+    assert!(m < 0.5, "altitude above ground strays a median {m:.2} m from 30 m after settling: {worst:.2?}");
+    assert!(worst.iter().all(|w| *w < 1.0), "one realization strays 1 m or more: {worst:.2?}");
 }
 
 #[test]

@@ -38,7 +38,7 @@ pub mod rate_control;
 mod tests;
 
 pub use attitude_control::AttitudeController;
-pub use cascade::{ControlOutput, Controller, EstimatedState, Setpoint};
+pub use cascade::{AttitudeTarget, ControlOutput, Controller, EstimatedState, Setpoint};
 pub use control_allocation::{Allocation, ControlError, Mixer};
 pub use gains::Gains;
 pub use pid::{Pid, PidGains, PidTerms};

@@ -27,6 +27,14 @@ const ACCEL_PROCESS_SIGMA_MPS2: f64 = 0.35;
 const GNSS_VEL_SIGMA_MPS: f64 = 0.15;
 /// Barometric height noise, m (1 sigma).
 const BARO_SIGMA_M: f64 = 0.5;
+/// The barometer's offset from GNSS height must be known to this (1 sigma, m) before the
+/// vehicle arms ([`Estimator::height_settled`]): home altitude is the estimate at arming, so
+/// its error becomes every altitude target's. About 3 s of fixes at 5 Hz in open sky.
+pub const HEIGHT_SETTLED_SIGMA_M: f64 = 0.25;
+/// How fast the barometer's offset from GNSS height may wander, m per √s (1 sigma): the
+/// bias estimator's process noise (PX4's `EKF2_BARO_BIAS` bias estimator). Weather and
+/// sensor heating move a real baro by centimetres per minute.
+const BARO_BIAS_WALK_M_PER_SQRT_S: f64 = 0.01;
 /// Without a GNSS fix for this long, the horizontal estimate is no longer trusted (PX4's
 /// EKF2 position timeout is similar).
 pub const GNSS_TIMEOUT_S: f64 = 1.0;
@@ -155,9 +163,43 @@ pub struct Estimator {
     rate_body_rps: Vector3<f64>,
     /// Sim time of the last GNSS fix, s.
     last_gnss_s: Option<f64>,
-    /// Baro height minus GNSS height at initialisation, m (the baro's offset and drift are
-    /// unknown to the vehicle; PX4 aligns them the same way).
-    baro_offset_m: Option<f64>,
+    /// The barometer's offset from GNSS height, estimated (PX4's baro bias estimator).
+    baro_bias: Option<BaroBias>,
+    /// The last barometric height, m up from the origin's altitude (before the bias).
+    last_baro_up_m: Option<f64>,
+}
+
+/// The barometer's offset from the GNSS height frame, m: a scalar Kalman filter beside the
+/// position filter, as PX4's EKF2 keeps one for each height source that is not the
+/// reference.
+///
+/// Why: the offset is unknown to the vehicle (pressure altitude is not height above the
+/// origin, and it drifts with weather). Fixing it once, from the estimate at the first baro
+/// sample, froze that one GNSS fix's vertical error (σ 0.8 m) into the height for the whole
+/// flight: the barometer, fused at 50 Hz, then held the estimate there, and takeoffs
+/// settled 0.5-1.2 m off their target depending on the seed. Each fused GNSS fix now
+/// measures the offset (`baro − gnss height`, noise `epv² + σ_baro²`), so it averages over
+/// fixes to centimetres within seconds and follows the baro's slow drift.
+#[derive(Clone, Copy, Debug)]
+struct BaroBias {
+    /// Baro height minus GNSS height, m.
+    offset_m: f64,
+    /// Its variance, m².
+    variance_m2: f64,
+    /// Sim time of the last update, s.
+    time_s: f64,
+}
+
+impl BaroBias {
+    /// One measurement `baro − gnss height` (m) of variance `r` (m²) at `time_s`.
+    fn update(&mut self, time_s: f64, measured_m: f64, r: f64) {
+        let dt = (time_s - self.time_s).max(0.0);
+        self.time_s = time_s;
+        self.variance_m2 += BARO_BIAS_WALK_M_PER_SQRT_S * BARO_BIAS_WALK_M_PER_SQRT_S * dt;
+        let k = self.variance_m2 / (self.variance_m2 + r);
+        self.offset_m += k * (measured_m - self.offset_m);
+        self.variance_m2 *= 1.0 - k;
+    }
 }
 
 impl Default for Estimator {
@@ -167,7 +209,8 @@ impl Default for Estimator {
             attitude: UnitQuaternion::identity(),
             rate_body_rps: Vector3::zeros(),
             last_gnss_s: None,
-            baro_offset_m: None,
+            baro_bias: None,
+            last_baro_up_m: None,
         }
     }
 }
@@ -239,14 +282,30 @@ impl Estimator {
                 }
             }
         }
+        if let (Some(bias), Some(baro)) = (&mut self.baro_bias, self.last_baro_up_m) {
+            bias.update(time_s, baro - fix.position_enu_m.z, epv * epv + BARO_SIGMA_M * BARO_SIGMA_M);
+        }
         GnssFusion::Fused
     }
 
-    /// Correction with a barometric height (metres up from the origin's altitude).
-    pub fn fuse_baro(&mut self, baro_up_m: f64) {
+    /// Correction with a barometric height (metres up from the origin's altitude) at sim
+    /// time `time_s`, less the estimated baro offset ([`BaroBias`]; the first reading after
+    /// the first fix starts it from the estimate).
+    pub fn fuse_baro(&mut self, time_s: f64, baro_up_m: f64) {
         let Some(axes) = &mut self.axes else { return };
-        let offset = *self.baro_offset_m.get_or_insert(baro_up_m - axes[2].x[0]);
-        axes[2].update(0, baro_up_m - offset, BARO_SIGMA_M * BARO_SIGMA_M);
+        self.last_baro_up_m = Some(baro_up_m);
+        let z = axes[2];
+        let bias = self.baro_bias.get_or_insert(BaroBias {
+            offset_m: baro_up_m - z.x[0],
+            variance_m2: z.p[0][0] + BARO_SIGMA_M * BARO_SIGMA_M,
+            time_s,
+        });
+        axes[2].update(0, baro_up_m - bias.offset_m, BARO_SIGMA_M * BARO_SIGMA_M);
+    }
+
+    /// The barometer's offset from GNSS height is known to [`HEIGHT_SETTLED_SIGMA_M`].
+    pub fn height_settled(&self) -> bool {
+        self.baro_bias.is_some_and(|b| b.variance_m2 <= HEIGHT_SETTLED_SIGMA_M * HEIGHT_SETTLED_SIGMA_M)
     }
 
     /// A position estimate exists (at least one fix so far).
@@ -378,12 +437,47 @@ mod tests {
     fn baro_holds_height_and_nothing_before_first_fix() {
         let mut est = Estimator::default();
         assert!(est.estimate().is_none() && !est.is_initialized());
-        est.fuse_baro(5.0); // ignored before initialisation
+        est.fuse_baro(0.0, 5.0); // ignored before initialisation
         est.fuse_gnss(0.0, &fix(Vector3::new(0.0, 0.0, 1.0), Vector3::zeros()));
-        est.fuse_baro(11.0); // sets the offset: baro reads 10 m high
+        est.fuse_baro(0.0, 11.0); // starts the offset: baro reads 10 m high
         for _ in 0..100 {
-            est.fuse_baro(13.0); // climbed 2 m
+            est.fuse_baro(0.0, 13.0); // climbed 2 m
         }
         assert!((est.estimate().unwrap().position_enu_m.z - 3.0).abs() < 0.1);
+    }
+
+    #[test]
+    fn the_baro_offset_is_learnt_from_gnss_not_frozen_at_the_first_fix() {
+        // Resting at z = 0 with the baro reading 10 m high. The first fix is 1 m high (the
+        // receiver's vertical noise is 0.8 m); the later ones scatter around the truth. A
+        // baro offset taken once from the first estimate would hold the height 1 m high for
+        // ever; the bias estimator averages it out over the fixes.
+        let mut est = Estimator::default();
+        let mut rng = Rng::stream(3, 0, Purpose::Gnss);
+        let dt = 0.001;
+        est.fuse_gnss(0.0, &fix(Vector3::new(0.0, 0.0, 1.0), Vector3::zeros()));
+        est.fuse_baro(0.0, 10.0);
+        assert!(!est.height_settled(), "one fix cannot settle the baro offset");
+        let mut settled_at = None;
+        for step in 1..=20_000u32 {
+            let t = f64::from(step) * dt;
+            est.predict(LEVEL_AT_REST, Vector3::zeros(), UnitQuaternion::identity(), dt);
+            if step % 200 == 0 {
+                let z = 0.8 * rng.normal();
+                est.fuse_gnss(t, &fix(Vector3::new(0.0, 0.0, z), Vector3::zeros()));
+            }
+            if step % 20 == 0 {
+                est.fuse_baro(t, 10.0 + 0.2 * rng.normal());
+            }
+            if settled_at.is_none() && est.height_settled() {
+                settled_at = Some(t);
+            }
+        }
+        // 0.25 m from fixes of 0.8 m and a baro of 0.5 m (as the filter models it): about
+        // 14 fixes, 3 s at 5 Hz.
+        let settled_at = settled_at.expect("the height settles");
+        assert!((2.0..4.0).contains(&settled_at), "settled after {settled_at} s");
+        let z = est.estimate().unwrap().position_enu_m.z;
+        assert!(z.abs() < 0.25, "height estimate {z:.2} m after 20 s at rest (truth 0)");
     }
 }

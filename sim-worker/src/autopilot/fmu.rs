@@ -1,9 +1,23 @@
 //! The flight management unit of one drone (PX4's FMU): estimator, navigator and
 //! controller wired together, fed by the sensors each physics step.
+//!
+//! # Loop rates
+//! The loops run at PX4's default rates, not all at the physics rate:
+//! - the rate loop and the mixer every physics step (PX4 runs them on every gyro sample,
+//!   400-800 Hz; our gyro is sampled at the physics rate, 1 kHz by default);
+//! - the attitude loop at [`ATTITUDE_LOOP_HZ`] (PX4 runs `mc_att_control` on each
+//!   `vehicle_attitude`, published at `IMU_INTEG_RATE`, default 200 Hz);
+//! - the navigator and the position and velocity loops at [`POSITION_LOOP_HZ`] (PX4's
+//!   `mc_pos_control` takes every other `vehicle_local_position`: 50 Hz);
+//! - the estimator every physics step.
+//!
+//! Each rate becomes the nearest whole number of physics steps (at least one); the setpoint
+//! a slower loop computed is held until its next run. Every drone runs its slower loops on
+//! the same step indices, so a run stays deterministic and independent of sharding.
 
 use nalgebra::{UnitQuaternion, Vector3};
 
-use crate::autopilot::control::{ControlError, ControlOutput, Controller, EstimatedState, Gains};
+use crate::autopilot::control::{AttitudeTarget, ControlError, Controller, EstimatedState, Gains};
 use crate::autopilot::estimator::{Estimate, Estimator, GnssFusion, GnssMeasurement};
 use crate::autopilot::navigator::{Command, Navigator, NavigatorConfig, Rejection, VehicleStatus};
 use crate::events::{EventKind, FlightMode};
@@ -20,6 +34,16 @@ pub struct SensorFrame<'a> {
     pub baro: Option<&'a BaroSample>,
 }
 
+/// The attitude loop's rate, Hz (PX4's `IMU_INTEG_RATE` default).
+pub const ATTITUDE_LOOP_HZ: f64 = 200.0;
+/// The navigator's and the position/velocity loops' rate, Hz (PX4's `mc_pos_control`).
+pub const POSITION_LOOP_HZ: f64 = 50.0;
+
+/// A loop's period in physics steps of `dt_s` seconds: the nearest whole number, at least 1.
+fn steps_per_run(dt_s: f64, loop_hz: f64) -> u64 {
+    ((1.0 / (dt_s * loop_hz)).round() as u64).max(1)
+}
+
 /// Estimator + navigator + controller.
 #[derive(Debug)]
 pub struct Fmu {
@@ -29,6 +53,15 @@ pub struct Fmu {
     /// Ground altitude MSL at the run origin, to turn baro MSL altitude into ENU up.
     origin_alt_msl_m: f64,
     time_s: f64,
+    /// What the outer loops last asked of the attitude loop; `None` while idle (motors
+    /// stopped) and before their first run.
+    target: Option<AttitudeTarget>,
+    /// The attitude loop's last body rate setpoint, rad/s.
+    rate_sp_body_rps: Vector3<f64>,
+    /// The outer loops have not run yet (they run on the first step, whatever its index).
+    first_step: bool,
+    /// The last motor commands, in [0, 1], rotor order.
+    motor_commands: Vec<f64>,
 }
 
 impl Fmu {
@@ -50,6 +83,10 @@ impl Fmu {
             controller: Controller::new(airframe, gains)?,
             origin_alt_msl_m,
             time_s: 0.0,
+            target: None,
+            rate_sp_body_rps: Vector3::zeros(),
+            first_step: true,
+            motor_commands: vec![0.0; airframe.rotors.len()],
         })
     }
 
@@ -61,6 +98,11 @@ impl Fmu {
     }
     pub fn estimate(&self) -> Option<Estimate> {
         self.estimator.estimate()
+    }
+    /// Ready for a pilot: a position estimate whose height reference has settled (what
+    /// the arming check asks, short of the battery and being on the ground).
+    pub fn is_ready(&self) -> bool {
+        self.estimator.estimate().is_some() && self.estimator.height_settled()
     }
     /// The flight controller (its stages' gains and limits, for inspection).
     pub fn controller(&self) -> &Controller {
@@ -74,7 +116,12 @@ impl Fmu {
     }
 
     fn status(&self, on_ground: bool, battery_remaining: f64) -> VehicleStatus {
-        VehicleStatus { on_ground, battery_remaining, gnss_healthy: self.estimator.gnss_healthy(self.time_s) }
+        VehicleStatus {
+            on_ground,
+            battery_remaining,
+            gnss_healthy: self.estimator.gnss_healthy(self.time_s),
+            height_settled: self.estimator.height_settled(),
+        }
     }
 
     /// Arming checks pass (what SYS_STATUS reports as the pre-arm check).
@@ -99,17 +146,21 @@ impl Fmu {
         self.navigator.command(cmd, self.time_s, est.as_ref(), &status)
     }
 
-    /// One control step at sim time `time_s`: fuse the sensors, advance the modes, run the
-    /// control cascade. `attitude` is the AHRS attitude (see the estimator's notes).
+    /// One physics step, the `step`-th, ending at sim time `time_s`: fuse the sensors, and
+    /// run each loop whose turn it is (see the module's notes on loop rates). Returns the
+    /// motor commands in [0, 1], rotor order. `attitude` is the AHRS attitude (see the
+    /// estimator's notes).
+    #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
+        step: u64,
         time_s: f64,
         dt_s: f64,
         sensors: SensorFrame<'_>,
         attitude: UnitQuaternion<f64>,
         on_ground: bool,
         battery_remaining: f64,
-    ) -> ControlOutput {
+    ) -> &[f64] {
         self.time_s = time_s;
         self.estimator.predict(sensors.imu.accel_body_mps2, sensors.imu.gyro_body_rps, attitude, dt_s);
         if let Some(fix) = sensors.gnss.filter(|f| f.has_3d_fix()) {
@@ -128,11 +179,9 @@ impl Fmu {
             }
         }
         if let Some(baro) = sensors.baro {
-            self.estimator.fuse_baro(baro.alt_msl_m - self.origin_alt_msl_m);
+            self.estimator.fuse_baro(time_s, baro.alt_msl_m - self.origin_alt_msl_m);
         }
         let est = self.estimator.estimate();
-        let status = self.status(on_ground, battery_remaining);
-        let setpoint = self.navigator.update(time_s, est.as_ref(), &status);
         let state = match est {
             Some(e) => EstimatedState::from(&e),
             None => EstimatedState {
@@ -142,6 +191,43 @@ impl Fmu {
                 rate_body_rps: sensors.imu.gyro_body_rps,
             },
         };
-        self.controller.update(setpoint, &state, dt_s)
+        let position_every = steps_per_run(dt_s, POSITION_LOOP_HZ);
+        let outer_turn = self.first_step || step.is_multiple_of(position_every);
+        if outer_turn {
+            self.first_step = false;
+            let status = self.status(on_ground, battery_remaining);
+            let setpoint = self.navigator.update(time_s, est.as_ref(), &status);
+            self.target = self.controller.outer_loops(setpoint, &state, dt_s * position_every as f64);
+        }
+        let Some(target) = self.target else {
+            self.motor_commands.iter_mut().for_each(|u| *u = 0.0);
+            return &self.motor_commands;
+        };
+        // A new attitude setpoint is acted on at once (PX4's attitude loop runs on the next
+        // attitude sample, at most one physics step later).
+        if outer_turn || step.is_multiple_of(steps_per_run(dt_s, ATTITUDE_LOOP_HZ)) {
+            self.rate_sp_body_rps = self.controller.attitude_loop(&target, &state);
+        }
+        let (_, commands) =
+            self.controller.rate_loop(&self.rate_sp_body_rps, target.thrust_n, &state.rate_body_rps, dt_s);
+        self.motor_commands = commands;
+        &self.motor_commands
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{ATTITUDE_LOOP_HZ, POSITION_LOOP_HZ, steps_per_run};
+
+    #[test]
+    fn loop_periods_are_whole_physics_steps() {
+        // 1 kHz physics: attitude every 5 steps (200 Hz), position every 20 (50 Hz).
+        assert_eq!(steps_per_run(0.001, ATTITUDE_LOOP_HZ), 5);
+        assert_eq!(steps_per_run(0.001, POSITION_LOOP_HZ), 20);
+        // 250 Hz physics: the attitude loop at the physics rate, position every 5 steps.
+        assert_eq!(steps_per_run(0.004, ATTITUDE_LOOP_HZ), 1);
+        assert_eq!(steps_per_run(0.004, POSITION_LOOP_HZ), 5);
+        // Slower physics than a loop: the loop runs every step, never less.
+        assert_eq!(steps_per_run(0.05, POSITION_LOOP_HZ), 1);
     }
 }

@@ -66,6 +66,10 @@ pub struct VehicleStatus {
     pub battery_remaining: f64,
     /// GNSS fixes are arriving.
     pub gnss_healthy: bool,
+    /// The height reference has settled: the estimator knows the barometer's offset from
+    /// GNSS height to [`crate::autopilot::estimator::HEIGHT_SETTLED_SIGMA_M`] (PX4 refuses
+    /// to arm until its GNSS checks have passed for a while, `EKF2_REQ_GPS_H`).
+    pub height_settled: bool,
 }
 
 /// A request from a pilot (scripted or, later, over MAVLink).
@@ -366,6 +370,11 @@ impl Navigator {
         if est.eph_m > 5.0 {
             return Err(Rejection::ArmingCheck(format!("horizontal position accuracy {:.1} m > 5 m", est.eph_m)));
         }
+        if !status.height_settled {
+            return Err(Rejection::ArmingCheck(
+                "height estimate not settled (calibrating the barometer on GNSS)".into(),
+            ));
+        }
         if status.battery_remaining <= self.config.battery_low {
             return Err(Rejection::ArmingCheck(format!(
                 "battery {:.0}% at or below the low threshold",
@@ -432,7 +441,18 @@ impl Navigator {
                 let to = Vector3::new(target_en_m.x, target_en_m.y, home_z + alt_rel_home_m);
                 self.phase = self.leg(t_s, p, to, mission.speed_mps, hold_s);
             }
-            MissionItem::Loiter { hold_s } => self.phase = Phase::Hold { at: p, until_s: Some(t_s + hold_s) },
+            MissionItem::Loiter { hold_s } => {
+                // At the current position setpoint, as PX4 does
+                // (`setLoiterItemFromCurrentPositionSetpoint`): after a takeoff or a
+                // waypoint, the target just reached, not wherever the acceptance radius
+                // (0.8 m vertically) let the leg end.
+                let at = match &self.phase {
+                    Phase::Leg { to, .. } => *to,
+                    Phase::Hold { at, .. } => *at,
+                    _ => p,
+                };
+                self.phase = Phase::Hold { at, until_s: Some(t_s + hold_s) };
+            }
             MissionItem::ReturnToLaunch => self.start_rtl(t_s, est),
             MissionItem::Land => self.start_land(t_s, est),
             MissionItem::ChangeSpeed { speed_mps } => {

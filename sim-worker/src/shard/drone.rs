@@ -247,9 +247,10 @@ impl DroneSim {
     pub fn is_crashed(&self) -> bool {
         self.crashed
     }
-    /// The FMU has a position estimate.
+    /// The FMU has a position estimate with a settled height reference
+    /// ([`Fmu::is_ready`]): pilots are released when every drone is.
     pub fn is_ready(&self) -> bool {
-        self.fmu.estimate().is_some()
+        self.fmu.is_ready()
     }
 
     /// The environment query for this step.
@@ -304,10 +305,17 @@ impl DroneSim {
 
         // Flight controller and actuators.
         let frame = SensorFrame { imu: &imu, gnss: gnss.as_ref(), baro: baro.as_ref() };
-        let out =
-            self.fmu.step(t_end, dt_s, frame, self.state.attitude, self.on_ground, self.battery.remaining_fraction());
+        let commands = self.fmu.step(
+            step,
+            t_end,
+            dt_s,
+            frame,
+            self.state.attitude,
+            self.on_ground,
+            self.battery.remaining_fraction(),
+        );
         let mut power_w = 0.0;
-        for (motor, u) in self.motors.iter_mut().zip(&out.motor_commands) {
+        for (motor, u) in self.motors.iter_mut().zip(commands) {
             motor.step(*u, dt_s);
             power_w += motor.mechanical_power_w();
         }

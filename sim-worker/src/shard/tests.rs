@@ -110,15 +110,15 @@ fn a_param_request_in_the_inbound_queue_is_answered_in_the_outbound_queue() {
 fn arm_and_takeoff_commands_from_the_queue_are_acked_and_the_drone_climbs() {
     let plan = plan();
     let mut shard = shard(&plan);
-    // Warm-up: a GNSS fix and a position estimate before arming.
-    shard.advance(500);
+    // Warm-up: a GNSS fix, a position estimate and a settled height before arming.
+    shard.advance(5_000);
     assert!(shard.drones()[0].is_ready());
     take_outbound(&mut shard);
     let inbound = &mut shard.mavlink_queues()[0].inbound;
     inbound.push(from_gcs(&command_long(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0, 0.0)));
     inbound.push(from_gcs(&command_long(MavCmd::MAV_CMD_NAV_TAKEOFF, 0.0, f32::NAN)));
-    // The warm-up ended with an exchange at 0.50 s; the next is due at 0.52 s.
-    shard.advance(530);
+    // The warm-up ended with an exchange at 5.00 s; the next is due at 5.02 s.
+    shard.advance(5_030);
     let answered = acks(&take_outbound(&mut shard));
     let results: Vec<_> = answered.iter().map(|a| (a.command, a.result)).collect();
     assert_eq!(
@@ -128,7 +128,7 @@ fn arm_and_takeoff_commands_from_the_queue_are_acked_and_the_drone_climbs() {
             (MavCmd::MAV_CMD_NAV_TAKEOFF, MavResult::MAV_RESULT_ACCEPTED)
         ]
     );
-    shard.advance(5_530);
+    shard.advance(10_030);
     let snapshot = shard.drones()[0].snapshot();
     assert!(snapshot.armed && !snapshot.on_ground, "{snapshot:?}");
     assert!(snapshot.height_agl_m > 1.0, "climbed to {} m", snapshot.height_agl_m);

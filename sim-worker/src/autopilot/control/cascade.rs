@@ -129,24 +129,52 @@ impl Controller {
         self.rate.reset();
     }
 
-    /// One control step of `dt_s` seconds.
+    /// One control step of `dt_s` seconds: every loop of the cascade at one rate (the
+    /// controller's own tests fly it this way; the FMU runs the loops at PX4's rates with
+    /// [`Controller::outer_loops`], [`Controller::attitude_loop`] and
+    /// [`Controller::rate_loop`]).
     pub fn update(&mut self, setpoint: Setpoint, state: &EstimatedState, dt_s: f64) -> ControlOutput {
+        let Some(target) = self.outer_loops(setpoint, state, dt_s) else {
+            return ControlOutput {
+                motor_commands: vec![0.0; self.mixer.pinv.len()],
+                thrust_n: 0.0,
+                torque_body_nm: Vector3::zeros(),
+                attitude_sp: state.attitude,
+                rate_sp_body_rps: Vector3::zeros(),
+                velocity_sp_enu_mps: None,
+                accel_sp_enu_mps2: None,
+            };
+        };
+        let rate_sp = self.attitude_loop(&target, state);
+        let (torque, motor_commands) = self.rate_loop(&rate_sp, target.thrust_n, &state.rate_body_rps, dt_s);
+        ControlOutput {
+            motor_commands,
+            thrust_n: target.thrust_n,
+            torque_body_nm: torque,
+            attitude_sp: target.attitude_sp,
+            rate_sp_body_rps: rate_sp,
+            velocity_sp_enu_mps: target.velocity_sp_enu_mps,
+            accel_sp_enu_mps2: target.accel_sp_enu_mps2,
+        }
+    }
+
+    /// The outer loops (PX4's `mc_pos_control`): position → velocity → thrust vector →
+    /// attitude setpoint, `dt_s` seconds after their previous run. `None` for
+    /// [`Setpoint::Idle`]: motors stopped, every integrator reset.
+    pub fn outer_loops(&mut self, setpoint: Setpoint, state: &EstimatedState, dt_s: f64) -> Option<AttitudeTarget> {
         let (velocity_sp, thrust_sp, yaw_rad) = match setpoint {
             Setpoint::Idle => {
                 self.reset();
-                return ControlOutput {
-                    motor_commands: vec![0.0; self.mixer.pinv.len()],
-                    thrust_n: 0.0,
-                    torque_body_nm: Vector3::zeros(),
-                    attitude_sp: state.attitude,
-                    rate_sp_body_rps: Vector3::zeros(),
-                    velocity_sp_enu_mps: None,
-                    accel_sp_enu_mps2: None,
-                };
+                return None;
             }
             Setpoint::Attitude { attitude, thrust_n } => {
                 self.velocity.reset();
-                return self.inner_loops(attitude, thrust_n.max(0.0), state, dt_s);
+                return Some(AttitudeTarget {
+                    attitude_sp: attitude,
+                    thrust_n: thrust_n.max(0.0),
+                    velocity_sp_enu_mps: None,
+                    accel_sp_enu_mps2: None,
+                });
             }
             Setpoint::Position { position_enu_m, yaw_rad, velocity_ff } => {
                 let v = self.position.update(&position_enu_m, &state.position_enu_m, &velocity_ff);
@@ -157,33 +185,45 @@ impl Controller {
                 (v, self.velocity.update(&v, &state.velocity_enu_mps, dt_s), yaw_rad)
             }
         };
-        let attitude_sp = attitude_from_thrust_axis(&thrust_sp.thrust_axis_enu, yaw_rad);
-        let mut out = self.inner_loops(attitude_sp, thrust_sp.thrust_n, state, dt_s);
-        out.velocity_sp_enu_mps = Some(velocity_sp);
-        out.accel_sp_enu_mps2 = Some(thrust_sp.accel_sp_enu_mps2);
-        out
+        Some(AttitudeTarget {
+            attitude_sp: attitude_from_thrust_axis(&thrust_sp.thrust_axis_enu, yaw_rad),
+            thrust_n: thrust_sp.thrust_n,
+            velocity_sp_enu_mps: Some(velocity_sp),
+            accel_sp_enu_mps2: Some(thrust_sp.accel_sp_enu_mps2),
+        })
     }
 
-    /// Attitude → rate → mixer.
-    fn inner_loops(
+    /// The attitude loop (PX4's `mc_att_control`): body rate setpoint, rad/s.
+    pub fn attitude_loop(&self, target: &AttitudeTarget, state: &EstimatedState) -> Vector3<f64> {
+        self.attitude.update(&target.attitude_sp, &state.attitude)
+    }
+
+    /// The rate loop and the mixer (PX4's `mc_rate_control` and `control_allocator`):
+    /// the torque setpoint (body N m) and each rotor's command in [0, 1].
+    pub fn rate_loop(
         &mut self,
-        attitude_sp: UnitQuaternion<f64>,
+        rate_sp_body_rps: &Vector3<f64>,
         thrust_n: f64,
-        state: &EstimatedState,
+        rate_body_rps: &Vector3<f64>,
         dt_s: f64,
-    ) -> ControlOutput {
-        let rate_sp = self.attitude.update(&attitude_sp, &state.attitude);
-        let torque = self.rate.update(&rate_sp, &state.rate_body_rps, dt_s);
+    ) -> (Vector3<f64>, Vec<f64>) {
+        let torque = self.rate.update(rate_sp_body_rps, rate_body_rps, dt_s);
         let allocation = self.mixer.allocate(thrust_n, &torque);
         self.rate.set_mixer_saturation(&torque, &allocation);
-        ControlOutput {
-            motor_commands: self.mixer.commands(allocation),
-            thrust_n,
-            torque_body_nm: torque,
-            attitude_sp,
-            rate_sp_body_rps: rate_sp,
-            velocity_sp_enu_mps: None,
-            accel_sp_enu_mps2: None,
-        }
+        (torque, self.mixer.commands(allocation))
     }
+}
+
+/// What the outer loops hand to the attitude loop (PX4's `vehicle_attitude_setpoint`),
+/// held between their runs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AttitudeTarget {
+    /// Body → world.
+    pub attitude_sp: UnitQuaternion<f64>,
+    /// Collective thrust, N.
+    pub thrust_n: f64,
+    /// `None` when the setpoint bypasses the velocity loop (attitude).
+    pub velocity_sp_enu_mps: Option<Vector3<f64>>,
+    /// `None` when the setpoint bypasses the velocity loop (attitude).
+    pub accel_sp_enu_mps2: Option<Vector3<f64>>,
 }

@@ -22,7 +22,12 @@ impl Follower {
         }
     }
     fn status(&self) -> VehicleStatus {
-        VehicleStatus { on_ground: self.p.z <= 0.01, battery_remaining: self.battery, gnss_healthy: self.gnss }
+        VehicleStatus {
+            on_ground: self.p.z <= 0.01,
+            battery_remaining: self.battery,
+            gnss_healthy: self.gnss,
+            height_settled: true,
+        }
     }
     fn track(&mut self, sp: &Setpoint, dt: f64) {
         if let Setpoint::Position { position_enu_m, .. } = sp {
@@ -64,6 +69,9 @@ fn arming_checks_refuse_with_a_reason() {
     assert!(err.to_string().contains("GNSS fix"), "{err}");
     let no_fix = VehicleStatus { gnss_healthy: false, ..v.status() };
     assert!(nav.command(Command::Arm, 0.0, Some(&v.estimate()), &no_fix).is_err());
+    let unsettled = VehicleStatus { height_settled: false, ..v.status() };
+    let err = nav.command(Command::Arm, 0.0, Some(&v.estimate()), &unsettled).unwrap_err();
+    assert!(err.to_string().contains("height estimate not settled"), "{err}");
     let low = VehicleStatus { battery_remaining: 0.1, ..v.status() };
     assert!(nav.command(Command::Arm, 0.0, Some(&v.estimate()), &low).unwrap_err().to_string().contains("battery"));
     assert_eq!(
