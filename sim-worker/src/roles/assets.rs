@@ -23,7 +23,11 @@ use super::RoleError;
 /// The cache cannot be opened or written, the world's files cannot be read, or the report
 /// file cannot be written.
 pub fn run(plan: &RunPlan, archive_url: &str, report_file: Option<&Path>) -> Result<AssetsOutcome, RoleError> {
-    let scratch = std::env::temp_dir().join(format!("sadesim-assets-{}", std::process::id()));
+    // One scratch folder per call, not per process: two runs built at once in one process
+    // (the tests do) must not remove each other's files.
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let scratch = std::env::temp_dir().join(format!("sadesim-assets-{}-{call}", std::process::id()));
     let started = std::time::Instant::now();
     let progress = |done: u32, total: u32| {
         eprintln!("urban wind: sector {done} of {total} computed ({:.1} s)", started.elapsed().as_secs_f64());
