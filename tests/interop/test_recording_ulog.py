@@ -268,12 +268,14 @@ def test_battery_drains_and_modes_follow_the_mission(logs, trajectory):
 
         status = data(ulog, "vehicle_status")
         modes = [int(m) for m in status["nav_state"]]
-        # Takeoff is the mission's first item (AUTO_MISSION in PX4 too), then AUTO_LAND,
-        # then loiter (idle) on the ground.
+        # Disarmed in loiter until the height estimate has settled (a few seconds), then
+        # takeoff as the mission's first item (AUTO_MISSION in PX4 too), AUTO_LAND, and
+        # loiter (idle) on the ground.
         transitions = [m for i, m in enumerate(modes) if i == 0 or m != modes[i - 1]]
-        assert transitions == [NAV_MISSION, NAV_LAND, NAV_LOITER], transitions
+        assert transitions == [NAV_LOITER, NAV_MISSION, NAV_LAND, NAV_LOITER], transitions
         arming = [int(a) for a in status["arming_state"]]
-        assert arming[0] == ARMED and arming[-1] == DISARMED
+        arming_changes = [a for i, a in enumerate(arming) if i == 0 or a != arming[i - 1]]
+        assert arming_changes == [DISARMED, ARMED, DISARMED], arming_changes
 
         out = data(ulog, "actuator_outputs")
         assert set(out["noutputs"]) == {4}

@@ -31,6 +31,10 @@ const BARO_SIGMA_M: f64 = 0.5;
 /// vehicle arms ([`Estimator::height_settled`]): home altitude is the estimate at arming, so
 /// its error becomes every altitude target's. About 3 s of fixes at 5 Hz in open sky.
 pub const HEIGHT_SETTLED_SIGMA_M: f64 = 0.25;
+/// ... or the offset has been learnt from fixes for this long, s, whatever their quality
+/// (PX4 asks its GNSS checks to pass for `EKF2_REQ_GPS_H`, 10 s): in a street canyon,
+/// where a fix's vertical error is metres, 0.25 m would take minutes.
+pub const HEIGHT_SETTLED_AFTER_S: f64 = 10.0;
 /// How fast the barometer's offset from GNSS height may wander, m per √s (1 sigma): the
 /// bias estimator's process noise (PX4's `EKF2_BARO_BIAS` bias estimator). Weather and
 /// sensor heating move a real baro by centimetres per minute.
@@ -188,6 +192,8 @@ struct BaroBias {
     variance_m2: f64,
     /// Sim time of the last update, s.
     time_s: f64,
+    /// Sim time of the first estimate, s.
+    started_s: f64,
 }
 
 impl BaroBias {
@@ -299,13 +305,18 @@ impl Estimator {
             offset_m: baro_up_m - z.x[0],
             variance_m2: z.p[0][0] + BARO_SIGMA_M * BARO_SIGMA_M,
             time_s,
+            started_s: time_s,
         });
         axes[2].update(0, baro_up_m - bias.offset_m, BARO_SIGMA_M * BARO_SIGMA_M);
     }
 
-    /// The barometer's offset from GNSS height is known to [`HEIGHT_SETTLED_SIGMA_M`].
+    /// The barometer's offset from GNSS height is known to [`HEIGHT_SETTLED_SIGMA_M`], or
+    /// has been learnt for [`HEIGHT_SETTLED_AFTER_S`].
     pub fn height_settled(&self) -> bool {
-        self.baro_bias.is_some_and(|b| b.variance_m2 <= HEIGHT_SETTLED_SIGMA_M * HEIGHT_SETTLED_SIGMA_M)
+        self.baro_bias.is_some_and(|b| {
+            b.variance_m2 <= HEIGHT_SETTLED_SIGMA_M * HEIGHT_SETTLED_SIGMA_M
+                || b.time_s - b.started_s >= HEIGHT_SETTLED_AFTER_S
+        })
     }
 
     /// A position estimate exists (at least one fix so far).
@@ -477,6 +488,28 @@ mod tests {
         // 14 fixes, 3 s at 5 Hz.
         let settled_at = settled_at.expect("the height settles");
         assert!((2.0..4.0).contains(&settled_at), "settled after {settled_at} s");
+    }
+
+    #[test]
+    fn with_poor_fixes_the_height_settles_after_ten_seconds_of_them() {
+        // A street canyon: 4 m of vertical error per fix would need minutes to reach 0.25 m.
+        let mut est = Estimator::default();
+        let poor = |z: f64| GnssMeasurement { epv_m: 4.0, ..fix(Vector3::new(0.0, 0.0, z), Vector3::zeros()) };
+        est.fuse_gnss(0.0, &poor(0.0));
+        let mut settled_at = None;
+        for k in 1..=100u32 {
+            let t = f64::from(k) * 0.2;
+            est.fuse_baro(t, 10.0);
+            est.fuse_gnss(t, &poor(0.0));
+            if settled_at.is_none() && est.height_settled() {
+                settled_at = Some(t);
+            }
+        }
+        let settled_at = settled_at.expect("the height settles");
+        assert!(
+            (HEIGHT_SETTLED_AFTER_S..HEIGHT_SETTLED_AFTER_S + 0.5).contains(&settled_at),
+            "settled at {settled_at} s"
+        );
         let z = est.estimate().unwrap().position_enu_m.z;
         assert!(z.abs() < 0.25, "height estimate {z:.2} m after 20 s at rest (truth 0)");
     }

@@ -290,39 +290,43 @@ impl Shard {
     /// [`MavlinkIo`] for when).
     pub fn advance_with(&mut self, until_step: u64, io: &mut impl MavlinkIo) -> Vec<Event> {
         let mut events = Vec::new();
-        while self.step < until_step {
-            let t = self.step as f64 * self.dt_s;
-            for (i, drone) in self.drones.iter_mut().enumerate() {
-                if drone.is_crashed() {
-                    continue;
+        let (first, dt_s, released) = (self.step, self.dt_s, self.released);
+        // Drone by drone through the whole window, not step by step through every drone:
+        // within a window the drones do not interact (each has its own environment
+        // filters; the world is read-only; drone-drone contact and the geofence are judged
+        // at the window's end), so the result is the same, and one drone's state stays in
+        // the core's caches for the window's steps instead of the whole shard's state
+        // (kilobytes per drone) streaming through them at every step.
+        for (i, drone) in self.drones.iter_mut().enumerate() {
+            let index = drone.plan.index;
+            for step in first..until_step {
+                if !drone.is_crashed() {
+                    if step.is_multiple_of(ENV_SAMPLE_DIVIDER) {
+                        let env_dt_s = dt_s * ENV_SAMPLE_DIVIDER as f64;
+                        let t = step as f64 * dt_s;
+                        self.env_samples[i] = self.env.sample(&drone.sample_context(i, t, env_dt_s));
+                    }
+                    drone.step(step + 1, step as f64 * dt_s, dt_s, &self.env_samples[i], &self.world, released);
+                    // Building contact: the rotor disc's ball against the prisms (an exact
+                    // query of the world; drones of other shards are not here, and
+                    // drone-drone contact is judged on the merged snapshot, DESIGN §5).
+                    if !drone.is_crashed()
+                        && self.world.ball_touches_building(drone.position_enu_m(), drone.radius_m).is_some()
+                    {
+                        let speed = drone.speed_mps();
+                        drone.crash("building", speed);
+                    }
                 }
-                if self.step.is_multiple_of(ENV_SAMPLE_DIVIDER) {
-                    let env_dt_s = self.dt_s * ENV_SAMPLE_DIVIDER as f64;
-                    self.env_samples[i] = self.env.sample(&drone.sample_context(i, t, env_dt_s));
-                }
-                drone.step(self.step + 1, t, self.dt_s, &self.env_samples[i], &self.world, self.released);
+                // Times are step counts times dt, never sums, so they print the same
+                // everywhere.
+                let time_s = (step + 1) as f64 * dt_s;
+                events.extend(drone.take_events().into_iter().map(|kind| Event { time_s, drone: Some(index), kind }));
             }
-            // Times are step counts times dt, never sums, so they print the same everywhere.
-            let t_end = (self.step + 1) as f64 * self.dt_s;
-            for drone in &mut self.drones {
-                // Building contact: the rotor disc's ball against the prisms (an exact query
-                // of the world; drones of other shards are not here, and drone-drone contact
-                // is judged on the merged snapshot, DESIGN §5).
-                if !drone.is_crashed()
-                    && self.world.ball_touches_building(drone.position_enu_m(), drone.radius_m).is_some()
-                {
-                    let speed = drone.speed_mps();
-                    drone.crash("building", speed);
-                }
-                let index = drone.plan.index;
-                events.extend(drone.take_events().into_iter().map(|kind| Event {
-                    time_s: t_end,
-                    drone: Some(index),
-                    kind,
-                }));
-            }
-            self.step += 1;
         }
+        // Step by step, in drone order within a step, as they happened: a stable sort by
+        // time keeps each drone's own order and the shard's drone order.
+        events.sort_by(|a, b| a.time_s.total_cmp(&b.time_s));
+        self.step = self.step.max(until_step);
         // The geofence acts on the window's final state, before the pilot's next commands.
         if !self.zones.is_empty() {
             for drone in &mut self.drones {
