@@ -139,37 +139,64 @@ fn takeoff_to_30_m_settles_within_half_a_metre() {
 
 #[test]
 fn a_four_waypoint_mission_visits_each_waypoint_within_one_and_a_half_metres_and_rtl_lands_home() {
-    let run0 = RunBuilder::test().build();
-    let p0 = plan(&run0);
-    let home = p0.drones[0].home.local;
-    let frame = LocalFrame::new(run0.spec.origin.geo());
-    // A 60 m square around home (the home area is kept free of buildings).
-    let corners = [(40.0, 0.0), (40.0, 60.0), (-20.0, 60.0), (-20.0, 0.0)];
-    let targets: Vec<(f64, f64)> = corners.iter().map(|(de, dn)| (home.east_m + de, home.north_m + dn)).collect();
-    let mut items = vec![MissionItem::Takeoff { altitude_agl_m: 25.0 }];
-    for (e, n) in &targets {
-        let g = frame.to_geodetic(Enu::new(*e, *n, 0.0));
-        items.push(MissionItem::Waypoint {
-            latitude_deg: g.latitude_deg,
-            longitude_deg: g.longitude_deg,
-            altitude_agl_m: 25.0,
-            hold_s: None,
-        });
+    // Judged over ten noise realizations (`SEEDS`, each with its own home): every flight
+    // visits every waypoint and lands; the median closest approach to each waypoint is
+    // within 1.5 m and the median landing within 2 m of home (GNSS noise 0.5 m and a
+    // wandering bias move each single flight by about as much).
+    // The fixture's park reaches 500 m from its centre, as far as homes go: 100 m more
+    // keeps every home's square clear of buildings.
+    let wider_park = |r: &mut sadesim_crds::SimulationRun| {
+        if let Some(world) = &mut r.spec.world {
+            world.open_areas[0].radius_m = 600.0;
+        }
+    };
+    let flights = over_seeds(|seed| {
+        let run0 = RunBuilder::test().with_seed(seed).with(wider_park).build();
+        let p0 = plan(&run0);
+        let home = p0.drones[0].home.local;
+        let frame = LocalFrame::new(run0.spec.origin.geo());
+        // A 60 m square around home (the home area is kept free of buildings).
+        let corners = [(40.0, 0.0), (40.0, 60.0), (-20.0, 60.0), (-20.0, 0.0)];
+        let targets: Vec<(f64, f64)> = corners.iter().map(|(de, dn)| (home.east_m + de, home.north_m + dn)).collect();
+        let mut items = vec![MissionItem::Takeoff { altitude_agl_m: 25.0 }];
+        for (e, n) in &targets {
+            let g = frame.to_geodetic(Enu::new(*e, *n, 0.0));
+            items.push(MissionItem::Waypoint {
+                latitude_deg: g.latitude_deg,
+                longitude_deg: g.longitude_deg,
+                altitude_agl_m: 25.0,
+                hold_s: None,
+            });
+        }
+        items.push(MissionItem::ReturnToLaunch {});
+        let run = RunBuilder::test()
+            .with_seed(seed)
+            .with(wider_park)
+            .with(|r| r.spec.fleet[0].mission = Some(Mission { items, speed_mps: Some(6.0) }))
+            .build();
+        let (events, track) = fly(&run, 150);
+        assert!(!events.iter().any(|e| matches!(e.kind, EventKind::Crashed { .. })), "seed {seed}: {events:?}");
+        let closest: Vec<f64> = targets
+            .iter()
+            .enumerate()
+            .map(|(i, (e, n))| {
+                assert!(
+                    events.iter().any(|ev| ev.kind == EventKind::WaypointReached { seq: i as u32 + 1 }),
+                    "seed {seed}: waypoint {i} reached"
+                );
+                track.iter().map(|s| horizontal(s.position_enu_m, *e, *n)).fold(f64::INFINITY, f64::min)
+            })
+            .collect();
+        let last = track.last().unwrap();
+        assert!(last.on_ground && !last.armed, "seed {seed}: landed and disarmed: {last:?}");
+        (closest, horizontal(last.position_enu_m, home.east_m, home.north_m))
+    });
+    for i in 0..4 {
+        let closest = median(&flights.iter().map(|f| f.0[i]).collect::<Vec<_>>());
+        assert!(closest < 1.5, "waypoint {i}: median closest approach {closest:.2} m ({flights:.2?})");
     }
-    items.push(MissionItem::ReturnToLaunch {});
-    let run =
-        RunBuilder::test().with(|r| r.spec.fleet[0].mission = Some(Mission { items, speed_mps: Some(6.0) })).build();
-    let (events, track) = fly(&run, 150);
-    assert!(!events.iter().any(|e| matches!(e.kind, EventKind::Crashed { .. })), "{events:?}");
-    for (i, (e, n)) in targets.iter().enumerate() {
-        let closest = track.iter().map(|s| horizontal(s.position_enu_m, *e, *n)).fold(f64::INFINITY, f64::min);
-        assert!(closest < 1.5, "waypoint {i}: closest approach {closest:.2} m");
-        assert!(events.iter().any(|ev| ev.kind == EventKind::WaypointReached { seq: i as u32 + 1 }));
-    }
-    let last = track.last().unwrap();
-    assert!(last.on_ground && !last.armed, "landed and disarmed: {last:?}");
-    let from_home = horizontal(last.position_enu_m, home.east_m, home.north_m);
-    assert!(from_home < 2.0, "RTL landed {from_home:.2} m from home");
+    let from_home = median(&flights.iter().map(|f| f.1).collect::<Vec<_>>());
+    assert!(from_home < 2.0, "RTL landed a median {from_home:.2} m from home ({flights:.2?})");
 }
 
 #[test]

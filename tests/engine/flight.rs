@@ -202,11 +202,7 @@ fn a_shard_gives_the_same_flights_whatever_its_window() {
             let release_pilots = step >= 5_000;
             step += window;
             let Some(sim_worker::protocol::FromShard::Advanced { events: e, .. }) =
-                shard.handle(sim_worker::protocol::ToShard::Advance {
-                    until_step: step,
-                    release_pilots,
-                    leases: None,
-                })
+                shard.handle(sim_worker::protocol::ToShard::Advance { until_step: step, release_pilots, leases: None })
             else {
                 panic!("the shard stopped")
             };

@@ -62,6 +62,9 @@ pub struct Fmu {
     first_step: bool,
     /// The last motor commands, in [0, 1], rotor order.
     motor_commands: Vec<f64>,
+    /// The step size (bits) the loop periods were computed for, and the periods in steps
+    /// of the position and attitude loops.
+    periods: (u64, u64, u64),
 }
 
 impl Fmu {
@@ -87,6 +90,7 @@ impl Fmu {
             rate_sp_body_rps: Vector3::zeros(),
             first_step: true,
             motor_commands: vec![0.0; airframe.rotors.len()],
+            periods: (0, 1, 1),
         })
     }
 
@@ -191,7 +195,11 @@ impl Fmu {
                 rate_body_rps: sensors.imu.gyro_body_rps,
             },
         };
-        let position_every = steps_per_run(dt_s, POSITION_LOOP_HZ);
+        if self.periods.0 != dt_s.to_bits() {
+            self.periods =
+                (dt_s.to_bits(), steps_per_run(dt_s, POSITION_LOOP_HZ), steps_per_run(dt_s, ATTITUDE_LOOP_HZ));
+        }
+        let (_, position_every, attitude_every) = self.periods;
         let outer_turn = self.first_step || step.is_multiple_of(position_every);
         if outer_turn {
             self.first_step = false;
@@ -205,7 +213,7 @@ impl Fmu {
         };
         // A new attitude setpoint is acted on at once (PX4's attitude loop runs on the next
         // attitude sample, at most one physics step later).
-        if outer_turn || step.is_multiple_of(steps_per_run(dt_s, ATTITUDE_LOOP_HZ)) {
+        if outer_turn || step.is_multiple_of(attitude_every) {
             self.rate_sp_body_rps = self.controller.attitude_loop(&target, &state);
         }
         let (_, commands) =

@@ -58,7 +58,16 @@ pub struct Imu {
     gyro_bias_body_rps: Vector3<f64>,
     accel_bias: GaussMarkov,
     gyro_bias: GaussMarkov,
+    /// Samples, and their seconds, since the biases last stepped.
+    bias_pending: (u32, f64),
 }
+
+/// The biases step once every this many samples (10 ms at 1 kHz), over the time since
+/// their last step. Why: the Gauss-Markov step is exact for any interval, and a bias that
+/// wanders over seconds to hours gains nothing from being redrawn every millisecond, while
+/// its six normal draws per sample were a tenth of a drone-step's instructions (issue 20).
+/// What changes is only that each bias is held for 10 ms between steps.
+pub const BIAS_STEP_SAMPLES: u32 = 10;
 
 impl Imu {
     /// Noise from the drone's `(seed, global index, Purpose::Sensors)` stream.
@@ -71,6 +80,7 @@ impl Imu {
             gyro_bias_body_rps: Vector3::zeros(),
             accel_bias: GaussMarkov::default(),
             gyro_bias: GaussMarkov::default(),
+            bias_pending: (0, 0.0),
         }
     }
 
@@ -88,16 +98,27 @@ impl Imu {
         dt_s: f64,
     ) -> ImuSample {
         let c = self.config;
-        // Fixed draw order (12 normals): accel bias, gyro bias, accel noise, gyro noise.
-        self.accel_bias_body_mps2 = self.accel_bias.step3(
-            self.accel_bias_body_mps2,
-            c.accel_bias_walk,
-            c.accel_bias_tau_s,
-            dt_s,
-            &mut self.rng,
-        );
-        self.gyro_bias_body_rps =
-            self.gyro_bias.step3(self.gyro_bias_body_rps, c.gyro_bias_walk, c.gyro_bias_tau_s, dt_s, &mut self.rng);
+        // Fixed draw order: accel bias, gyro bias (6 normals, every BIAS_STEP_SAMPLES-th
+        // sample), accel noise, gyro noise (6 normals every sample).
+        let (samples, pending_s) = (self.bias_pending.0 + 1, self.bias_pending.1 + dt_s);
+        self.bias_pending = (samples, pending_s);
+        if samples >= BIAS_STEP_SAMPLES {
+            self.bias_pending = (0, 0.0);
+            self.accel_bias_body_mps2 = self.accel_bias.step3(
+                self.accel_bias_body_mps2,
+                c.accel_bias_walk,
+                c.accel_bias_tau_s,
+                pending_s,
+                &mut self.rng,
+            );
+            self.gyro_bias_body_rps = self.gyro_bias.step3(
+                self.gyro_bias_body_rps,
+                c.gyro_bias_walk,
+                c.gyro_bias_tau_s,
+                pending_s,
+                &mut self.rng,
+            );
+        }
         let accel_noise = normal3(&mut self.rng, white_sigma(c.accel_noise_density, dt_s));
         let gyro_noise = normal3(&mut self.rng, white_sigma(c.gyro_noise_density, dt_s));
 

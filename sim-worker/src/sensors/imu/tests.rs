@@ -103,3 +103,35 @@ fn same_seed_same_readings_other_drone_other_readings() {
     assert_ne!(run(7, 1), run(7, 2));
     assert_ne!(run(7, 1), run(8, 1));
 }
+
+#[test]
+fn biases_step_every_tenth_sample_with_the_random_walk_of_the_whole_interval() {
+    // Held between steps, redrawn every BIAS_STEP_SAMPLES samples.
+    let config = ImuConfig { gyro_bias_walk: 1e-3, gyro_bias_tau_s: f64::INFINITY, ..ImuConfig::default() };
+    let mut imu = Imu::new(config, 5, 0);
+    let level = UnitQuaternion::identity();
+    let mut changes = Vec::new();
+    let mut last = imu.biases().1;
+    for k in 1..=100u32 {
+        imu.measure(Vector3::zeros(), Vector3::zeros(), &level, 0.001);
+        let now = imu.biases().1;
+        if now != last {
+            changes.push(k);
+        }
+        last = now;
+    }
+    assert_eq!(changes, (1..=10).map(|i| i * BIAS_STEP_SAMPLES).collect::<Vec<_>>());
+    // The walk over many drones' 10 s: std q·√t per axis, as if stepped every sample.
+    let ends: Vec<f64> = (0..400)
+        .map(|drone| {
+            let mut imu = Imu::new(config, 9, drone);
+            for _ in 0..10_000 {
+                imu.measure(Vector3::zeros(), Vector3::zeros(), &level, 0.001);
+            }
+            imu.biases().1.x
+        })
+        .collect();
+    let (_, std) = mean_and_std(&ends);
+    let expected = 1e-3 * 10f64.sqrt();
+    assert!((std / expected - 1.0).abs() < 0.15, "std {std:e} vs {expected:e}");
+}
