@@ -310,9 +310,7 @@ impl Shard {
                     // Building contact: the rotor disc's ball against the prisms (an exact
                     // query of the world; drones of other shards are not here, and
                     // drone-drone contact is judged on the merged snapshot, DESIGN §5).
-                    if !drone.is_crashed()
-                        && self.world.ball_touches_building(drone.position_enu_m(), drone.radius_m).is_some()
-                    {
+                    if !drone.is_crashed() && drone.touches_building(&self.world) {
                         let speed = drone.speed_mps();
                         drone.crash("building", speed);
                     }
