@@ -216,9 +216,13 @@ impl Fmu {
         if outer_turn || step.is_multiple_of(attitude_every) {
             self.rate_sp_body_rps = self.controller.attitude_loop(&target, &state);
         }
-        let (_, commands) =
-            self.controller.rate_loop(&self.rate_sp_body_rps, target.thrust_n, &state.rate_body_rps, dt_s);
-        self.motor_commands = commands;
+        self.controller.rate_loop(
+            &self.rate_sp_body_rps,
+            target.thrust_n,
+            &state.rate_body_rps,
+            dt_s,
+            &mut self.motor_commands,
+        );
         &self.motor_commands
     }
 }

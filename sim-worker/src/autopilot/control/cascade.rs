@@ -146,7 +146,8 @@ impl Controller {
             };
         };
         let rate_sp = self.attitude_loop(&target, state);
-        let (torque, motor_commands) = self.rate_loop(&rate_sp, target.thrust_n, &state.rate_body_rps, dt_s);
+        let mut motor_commands = vec![0.0; self.mixer.pinv.len()];
+        let torque = self.rate_loop(&rate_sp, target.thrust_n, &state.rate_body_rps, dt_s, &mut motor_commands);
         ControlOutput {
             motor_commands,
             thrust_n: target.thrust_n,
@@ -199,18 +200,21 @@ impl Controller {
     }
 
     /// The rate loop and the mixer (PX4's `mc_rate_control` and `control_allocator`):
-    /// the torque setpoint (body N m) and each rotor's command in [0, 1].
+    /// each rotor's command in [0, 1] into `motor_commands` (rotor order); returns the
+    /// torque setpoint, body N m.
     pub fn rate_loop(
         &mut self,
         rate_sp_body_rps: &Vector3<f64>,
         thrust_n: f64,
         rate_body_rps: &Vector3<f64>,
         dt_s: f64,
-    ) -> (Vector3<f64>, Vec<f64>) {
+        motor_commands: &mut [f64],
+    ) -> Vector3<f64> {
         let torque = self.rate.update(rate_sp_body_rps, rate_body_rps, dt_s);
         let allocation = self.mixer.allocate(thrust_n, &torque);
         self.rate.set_mixer_saturation(&torque, &allocation);
-        (torque, self.mixer.commands(allocation))
+        self.mixer.commands_into(&allocation, motor_commands);
+        torque
     }
 }
 

@@ -21,13 +21,23 @@ pub enum ControlError {
 pub const MAX_ROTORS: usize = 8;
 
 /// Per-rotor thrusts of one allocation and how much of the request survived saturation.
+///
+/// On the stack (no allocation per control step): the thrusts of up to [`MAX_ROTORS`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Allocation {
-    pub rotor_thrust_n: Vec<f64>,
+    rotor_thrust_n: [f64; MAX_ROTORS],
+    rotors: usize,
     /// Factor applied to the roll/pitch torque (1 = as requested).
     pub roll_pitch_scale: f64,
     /// Factor applied to the yaw torque (1 = as requested).
     pub yaw_scale: f64,
+}
+
+impl Allocation {
+    /// Each rotor's thrust, N, rotor order.
+    pub fn rotor_thrust_n(&self) -> &[f64] {
+        &self.rotor_thrust_n[..self.rotors]
+    }
 }
 
 /// Collective thrust + body torques → per-rotor commands, for any rotor layout.
@@ -117,7 +127,11 @@ impl Mixer {
         let lo = ratio.iter().map(|r| -s * r).fold(f64::NEG_INFINITY, f64::max);
         let hi = self.pinv.iter().zip(ratio).map(|(row, r)| t_max / row[0] - s * r).fold(f64::INFINITY, f64::min);
         let f = if lo <= hi { thrust_n.clamp(lo, hi) } else { 0.5 * (lo + hi) };
-        let mut t: Vec<f64> = self.pinv.iter().zip(rp).map(|(row, rp)| f * row[0] + s * rp).collect();
+        let mut thrusts = [0.0; MAX_ROTORS];
+        for ((ti, row), rp) in thrusts.iter_mut().zip(&self.pinv).zip(rp) {
+            *ti = f * row[0] + s * rp;
+        }
+        let t = &mut thrusts[..n];
         // Yaw gets what headroom is left.
         let mut k: f64 = 1.0;
         for (ti, row) in t.iter().zip(&self.pinv) {
@@ -132,7 +146,7 @@ impl Mixer {
         for (ti, row) in t.iter_mut().zip(&self.pinv) {
             *ti = (*ti + k * row[3] * tau.z).clamp(0.0, t_max);
         }
-        Allocation { rotor_thrust_n: t, roll_pitch_scale: s, yaw_scale: k }
+        Allocation { rotor_thrust_n: thrusts, rotors: n, roll_pitch_scale: s, yaw_scale: k }
     }
 
     /// Normalised command in [0, 1] for one rotor's thrust: `sqrt(T / k_f) / ω_max`.
@@ -142,13 +156,17 @@ impl Mixer {
 
     /// Per-rotor normalised commands for a collective thrust (N) and body torque (N m).
     pub fn mix(&self, thrust_n: f64, torque_body_nm: &Vector3<f64>) -> Vec<f64> {
-        self.commands(self.allocate(thrust_n, torque_body_nm))
+        let allocation = self.allocate(thrust_n, torque_body_nm);
+        let mut u = vec![0.0; allocation.rotors];
+        self.commands_into(&allocation, &mut u);
+        u
     }
 
-    /// Normalised commands for an allocation's rotor thrusts (reuses its buffer).
-    pub fn commands(&self, allocation: Allocation) -> Vec<f64> {
-        let mut u = allocation.rotor_thrust_n;
-        u.iter_mut().for_each(|t| *t = self.command_for_thrust(*t));
-        u
+    /// Normalised commands for an allocation's rotor thrusts, into `out` (rotor order; as
+    /// many as both have).
+    pub fn commands_into(&self, allocation: &Allocation, out: &mut [f64]) {
+        for (u, t) in out.iter_mut().zip(allocation.rotor_thrust_n()) {
+            *u = self.command_for_thrust(*t);
+        }
     }
 }

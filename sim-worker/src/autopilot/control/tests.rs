@@ -345,14 +345,14 @@ fn control_mixer_gives_up_yaw_before_roll_and_pitch() {
     let alloc = m.allocate(a.weight_n(), &tau);
     assert_eq!(alloc.roll_pitch_scale, 1.0);
     assert!(alloc.yaw_scale < 0.1);
-    let t = &alloc.rotor_thrust_n;
+    let t = &alloc.rotor_thrust_n();
     let roll: f64 = t.iter().zip(&a.rotors).map(|(t, r)| t * r.position_body_m.y).sum();
     assert!((roll - 1.0).abs() < 1e-9, "roll torque kept: {roll}");
     // Too much roll even for the full range: scaled, sign kept, thrust shifted to fit.
     let alloc = m.allocate(a.weight_n(), &Vector3::new(10.0, 0.0, 0.0));
     assert!(alloc.roll_pitch_scale < 1.0);
-    assert!(alloc.rotor_thrust_n.iter().all(|t| (0.0..=m.max_rotor_thrust_n + 1e-12).contains(t)));
-    let roll: f64 = alloc.rotor_thrust_n.iter().zip(&a.rotors).map(|(t, r)| t * r.position_body_m.y).sum();
+    assert!(alloc.rotor_thrust_n().iter().all(|t| (0.0..=m.max_rotor_thrust_n + 1e-12).contains(t)));
+    let roll: f64 = alloc.rotor_thrust_n().iter().zip(&a.rotors).map(|(t, r)| t * r.position_body_m.y).sum();
     assert!(roll > 0.9 * 2.0 * 0.174 * m.max_rotor_thrust_n, "full authority used: {roll}");
 }
 
@@ -370,7 +370,7 @@ proptest::proptest! {
         let scale = a.mass_kg / 2.0; // x500-sized torques for the x500, smaller for the mini
         let tau = Vector3::new(tx, ty, tz) * scale;
         let alloc = m.allocate(thrust_fraction * a.max_thrust_n(), &tau);
-        let t = &alloc.rotor_thrust_n;
+        let t = &alloc.rotor_thrust_n();
         proptest::prop_assert!(t.iter().all(|t| (0.0..=m.max_rotor_thrust_n).contains(t)));
         let mut delivered = Vector3::zeros();
         for (t, r) in t.iter().zip(&a.rotors) {
