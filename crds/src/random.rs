@@ -137,9 +137,24 @@ impl Rng {
     /// independent bits of xoshiro256**.
     #[inline]
     pub fn normal(&mut self) -> f64 {
+        // The common case inline (the caller's loop keeps the tables in registers); the
+        // rest, about one draw in a hundred, out of line.
+        let bits = self.next_u64();
+        let i = (bits & 0xff) as usize;
+        let x = (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64) * self.zig.x[i];
+        if x < self.zig.x[i + 1] {
+            return if bits & 0x100 == 0 { x } else { -x };
+        }
+        self.normal_beyond_rectangle(bits)
+    }
+
+    /// [`Rng::normal`] from a first output `bits` whose point fell outside its layer's
+    /// rectangle: the tail, the wedge, or new outputs.
+    #[cold]
+    #[inline(never)]
+    fn normal_beyond_rectangle(&mut self, mut bits: u64) -> f64 {
         let z = self.zig;
         loop {
-            let bits = self.next_u64();
             let i = (bits & 0xff) as usize;
             let sign = if bits & 0x100 == 0 { 1.0 } else { -1.0 };
             let u = (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
@@ -156,6 +171,7 @@ impl Rng {
             if z.f[i + 1] + (z.f[i] - z.f[i + 1]) * self.next_f64() < (-0.5 * x * x).exp() {
                 return sign * x;
             }
+            bits = self.next_u64();
         }
     }
 
