@@ -157,8 +157,9 @@ def test_the_live_view_shows_the_zone_and_moving_drones(live, tmp_path):
     inside_zone, beside_zone = zone_points(scene)
     results = drive(tmp_path, live["url"], [
         {"waitFor": "window.sadesimView && window.sadesimView.ready && window.sadesimView.frames > 0", "timeoutMs": 90000},
-        # Airborne and cruising.
-        {"waitFor": "window.sadesimView.time > 14", "timeoutMs": 90000},
+        # Airborne and cruising: released at 2.8 s (once the heights have settled), the
+        # drones end their climb at about 22 s and fly to their first waypoint.
+        {"waitFor": "window.sadesimView.time > 24", "timeoutMs": 90000},
         {"eval": f"window.sadesimView.lookAt({EYE}, {TARGET})"},
         {"eval": "[...document.querySelectorAll('.label')].filter(l => l.style.display !== 'none').map(l => l.textContent)"},
         # Name labels are HTML over the canvas: one drone's name can cover another's marker.
