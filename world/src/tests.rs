@@ -224,8 +224,16 @@ fn segments_hit_a_box_from_outside_and_nothing_along_a_street() {
         .iter()
         .enumerate()
         .filter_map(|(k, bl)| Some((k, bl, bl.footprint().axis_rect()?)))
-        .find(|(_, _, b)| b.center_east_m > 200.0 && b.center_north_m > 200.0)
-        .expect("a building north-east of the origin");
+        .find(|(k, _, b)| {
+            // Nothing else (a neighbour, a stacked part) within the 5 m west of its west face.
+            let (w, n) = (b.center_east_m - b.half_east_m, b.center_north_m);
+            let clear_west = world.buildings().iter().enumerate().all(|(j, other)| {
+                let [e0, n0, e1, n1] = other.footprint().bounds();
+                j == *k || e1 < w - 5.5 || e0 > w - 0.01 || n1 < n - 0.5 || n0 > n + 0.5
+            });
+            b.center_east_m > 200.0 && b.center_north_m > 200.0 && clear_west
+        })
+        .expect("a building north-east of the origin with its west side clear");
     let mid_z = bl.base_up_m() + 0.5 * bl.height_m();
     let target = Vector3::new(b.center_east_m, b.center_north_m, mid_z);
     // From 5 m west of the west face, level: the hit is on that face.
