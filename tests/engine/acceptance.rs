@@ -5,7 +5,7 @@ use nalgebra::{UnitQuaternion, Vector3};
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::{Mission, MissionItem};
 use sadesim_crds::geo::{Enu, LocalFrame};
-use sadesim_integration_tests::{median, over_seeds, plan};
+use sadesim_integration_tests::{environment, median, over_seeds, plan};
 use sim_worker::autopilot::control::{Controller, EstimatedState, Setpoint};
 use sim_worker::events::{Event, EventKind};
 use sim_worker::protocol::DroneSnapshot;
@@ -207,9 +207,8 @@ fn hold_in_a_steady_ten_metre_per_second_wind_stays_within_two_metres() {
                 items: vec![MissionItem::Takeoff { altitude_agl_m: 30.0 }, MissionItem::Loiter { hold_s: 120.0 }],
                 speed_mps: None,
             });
-            r.spec.environment = Some(
-                serde_json::from_value(serde_json::json!({"wind": {"speedMps": 10, "directionFromDeg": 270}})).unwrap(),
-            );
+            r.spec.environment =
+                Some(environment(serde_json::json!({"wind": {"speedMps": 10, "directionFromDeg": 270}})));
         })
         .build();
     let home = plan(&run).drones[0].home.local;

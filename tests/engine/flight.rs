@@ -7,7 +7,9 @@ use sadesim_crds::geo::{Enu, LocalFrame};
 use sim_worker::events::{EventKind, FlightMode};
 use sim_worker::shard::Shard;
 
-use sadesim_integration_tests::{fly_to_and_land, median, over_seeds, plan as plan_for, world as world_for};
+use sadesim_integration_tests::{
+    environment, fly_to_and_land, median, over_seeds, plan as plan_for, world as world_for,
+};
 
 #[test]
 fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
@@ -79,12 +81,9 @@ fn gnss_loss_in_flight_triggers_the_land_failsafe_and_a_safe_landing() {
     let run = RunBuilder::test()
         .with(|r| {
             r.spec.fleet[0].mission = Some(hover_mission(300.0));
-            r.spec.environment = Some(
-                serde_json::from_value(serde_json::json!({
-                    "gnss": {"dropouts": [{"start": "40s", "duration": "5m", "groups": ["alpha"]}]}
-                }))
-                .unwrap(),
-            );
+            r.spec.environment = Some(environment(serde_json::json!({
+                "gnss": {"dropouts": [{"start": "40s", "duration": "5m", "groups": ["alpha"]}]}
+            })));
         })
         .build();
     let (events, track) = fly(&run, 120);
@@ -105,12 +104,9 @@ fn hover_holds_position_in_gusty_wind() {
     let run = RunBuilder::test()
         .with(|r| {
             r.spec.fleet[0].mission = Some(hover_mission(120.0));
-            r.spec.environment = Some(
-                serde_json::from_value(serde_json::json!({
-                    "wind": {"speedMps": 8, "directionFromDeg": 270, "turbulence": "moderate"}
-                }))
-                .unwrap(),
-            );
+            r.spec.environment = Some(environment(serde_json::json!({
+                "wind": {"speedMps": 8, "directionFromDeg": 270, "turbulence": "moderate"}
+            })));
         })
         .build();
     let (events, track) = fly(&run, 90);
@@ -148,12 +144,9 @@ fn a_drifting_gnss_bias_really_moves_the_vehicle() {
             .with_seed(seed)
             .with(|r| {
                 r.spec.fleet[0].mission = Some(hover_mission(200.0));
-                r.spec.environment = Some(
-                    serde_json::from_value(serde_json::json!({
-                        "gnss": {"biasWalkMPerSqrtS": bias_walk, "horizontalSigmaM": 0.3}
-                    }))
-                    .unwrap(),
-                );
+                r.spec.environment = Some(environment(serde_json::json!({
+                    "gnss": {"biasWalkMPerSqrtS": bias_walk, "horizontalSigmaM": 0.3}
+                })));
             })
             .build();
         let (_, track) = fly(&run, 150);
@@ -182,12 +175,9 @@ fn a_shard_gives_the_same_flights_whatever_its_window() {
         .with_drones(4)
         .with(|r| {
             r.spec.fleet[0].mission = Some(hover_mission(20.0));
-            r.spec.environment = Some(
-                serde_json::from_value(serde_json::json!({
-                    "wind": {"speedMps": 6, "directionFromDeg": 250, "turbulence": "moderate"}
-                }))
-                .unwrap(),
-            );
+            r.spec.environment = Some(environment(serde_json::json!({
+                "wind": {"speedMps": 6, "directionFromDeg": 250, "turbulence": "moderate"}
+            })));
         })
         .build();
     let plan = plan_for(&run);

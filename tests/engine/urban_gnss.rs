@@ -13,16 +13,13 @@ use sadesim_gnss::{Constellation, RunSky};
 use sadesim_world::{Building, Footprint, World};
 use sim_worker::events::{EventKind, FlightMode};
 
-use sadesim_integration_tests::{fly_in, fly_to_and_land, plan as plan_for};
+use sadesim_integration_tests::{environment, fly_in, fly_to_and_land, plan as plan_for};
 
 fn urban_gnss(run: &mut SimulationRun) {
-    run.spec.environment = Some(
-        serde_json::from_value(serde_json::json!({
-            // Not read here: the test hands the shard its sky.
-            "gnss": {"constellation": {"file": "walker.tle", "elevationMaskDeg": 10}}
-        }))
-        .unwrap(),
-    );
+    run.spec.environment = Some(environment(serde_json::json!({
+        // Not read here: the test hands the shard its sky.
+        "gnss": {"constellation": {"file": "walker.tle", "elevationMaskDeg": 10}}
+    })));
 }
 
 fn sky(plan: &RunPlan) -> Arc<RunSky> {

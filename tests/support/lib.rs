@@ -77,6 +77,15 @@ pub fn fly_to_and_land(to: GeoPoint, takeoff_agl_m: f64, agl_m: f64, hold_s: Opt
     }
 }
 
+/// A `spec.environment` written as its YAML/JSON document (`{"wind": {...}}`), as a user
+/// writes it.
+///
+/// # Panics
+/// When the document is not a valid environment.
+pub fn environment(document: serde_json::Value) -> sadesim_crds::environment::Environment {
+    serde_json::from_value(document).expect("a valid spec.environment")
+}
+
 /// The world a plan's shards share.
 pub fn world(plan: &RunPlan) -> Arc<World> {
     Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])))

@@ -3,8 +3,8 @@
 //! A per-axis linear Kalman filter with state `[position, velocity]` (ENU, m and m/s),
 //! predicted with the IMU's specific force rotated into ENU (plus gravity) and corrected by
 //! GNSS position/velocity fixes and barometric height, less the barometer's offset from
-//! GNSS height, which a bias estimator beside the filter learns from every fix. This is the part of PX4's EKF2 that
-//! matters to a mission: GNSS noise and bias flow into the position estimate, so a biased
+//! GNSS height, which a bias estimator beside the filter learns from every fix. This is
+//! the part of PX4's EKF2 that matters to a mission: GNSS noise and bias flow into the position estimate, so a biased
 //! or degraded receiver really moves the vehicle, and without GNSS the estimate drifts on
 //! integrated accelerometer noise.
 //!

@@ -58,13 +58,12 @@ pub struct Fmu {
     target: Option<AttitudeTarget>,
     /// The attitude loop's last body rate setpoint, rad/s.
     rate_sp_body_rps: Vector3<f64>,
-    /// The outer loops have not run yet (they run on the first step, whatever its index).
-    first_step: bool,
     /// The last motor commands, in [0, 1], rotor order.
     motor_commands: Vec<f64>,
     /// The step size (bits) the loop periods were computed for, and the periods in steps
-    /// of the position and attitude loops.
-    periods: (u64, u64, u64),
+    /// of the position and attitude loops; `None` before the first step (when the outer
+    /// loops run, whatever the step's index).
+    periods: Option<(u64, u64, u64)>,
 }
 
 impl Fmu {
@@ -88,9 +87,8 @@ impl Fmu {
             time_s: 0.0,
             target: None,
             rate_sp_body_rps: Vector3::zeros(),
-            first_step: true,
             motor_commands: vec![0.0; airframe.rotors.len()],
-            periods: (0, 1, 1),
+            periods: None,
         })
     }
 
@@ -195,14 +193,17 @@ impl Fmu {
                 rate_body_rps: sensors.imu.gyro_body_rps,
             },
         };
-        if self.periods.0 != dt_s.to_bits() {
-            self.periods =
-                (dt_s.to_bits(), steps_per_run(dt_s, POSITION_LOOP_HZ), steps_per_run(dt_s, ATTITUDE_LOOP_HZ));
-        }
-        let (_, position_every, attitude_every) = self.periods;
-        let outer_turn = self.first_step || step.is_multiple_of(position_every);
+        let first_step = self.periods.is_none();
+        let (position_every, attitude_every) = match self.periods {
+            Some((bits, position_every, attitude_every)) if bits == dt_s.to_bits() => (position_every, attitude_every),
+            _ => {
+                let periods = (steps_per_run(dt_s, POSITION_LOOP_HZ), steps_per_run(dt_s, ATTITUDE_LOOP_HZ));
+                self.periods = Some((dt_s.to_bits(), periods.0, periods.1));
+                periods
+            }
+        };
+        let outer_turn = first_step || step.is_multiple_of(position_every);
         if outer_turn {
-            self.first_step = false;
             let status = self.status(on_ground, battery_remaining);
             let setpoint = self.navigator.update(time_s, est.as_ref(), &status);
             self.target = self.controller.outer_loops(setpoint, &state, dt_s * position_every as f64);

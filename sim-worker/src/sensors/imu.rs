@@ -100,10 +100,10 @@ impl Imu {
         let c = self.config;
         // Fixed draw order: accel bias, gyro bias (6 normals, every BIAS_STEP_SAMPLES-th
         // sample), accel noise, gyro noise (6 normals every sample).
-        let (samples, pending_s) = (self.bias_pending.0 + 1, self.bias_pending.1 + dt_s);
-        self.bias_pending = (samples, pending_s);
-        if samples >= BIAS_STEP_SAMPLES {
-            self.bias_pending = (0, 0.0);
+        self.bias_pending.0 += 1;
+        self.bias_pending.1 += dt_s;
+        if self.bias_pending.0 >= BIAS_STEP_SAMPLES {
+            let (_, pending_s) = std::mem::take(&mut self.bias_pending);
             self.accel_bias_body_mps2 = self.accel_bias.step3(
                 self.accel_bias_body_mps2,
                 c.accel_bias_walk,
