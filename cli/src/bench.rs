@@ -6,6 +6,10 @@
 //! `sadesim bench --recording` alternates runs with `spec.recording` off (no
 //! `recording.mcap`, no ULogs) and on, and reports what the recordings cost.
 //!
+//! `sadesim bench --whole-stack` alternates the bare simulation (no MAVLink, no
+//! recordings) with the whole stack (MAVLink endpoints and routers at PX4's default rates,
+//! `recording.mcap` and the ULogs); `--bare` runs the bare simulation alone.
+//!
 //! `sadesim bench --urban-wind` alternates runs with the urban wind field off
 //! (`environment.wind.urban.model: none`, the plain log profile) and on (the default).
 //!

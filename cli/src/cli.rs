@@ -87,11 +87,15 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             urban_gnss,
             urban_wind,
             cameras,
+            bare,
+            whole_stack,
             repeat,
             ..
         } => {
             use crate::bench::pairs::Comparison;
             let comparison = match (mavlink, recording, urban_gnss, urban_wind, cameras) {
+                _ if bare => Comparison::BareOnly,
+                _ if whole_stack => Comparison::WholeStack,
                 (true, ..) => Comparison::Mavlink,
                 (_, Some(set), ..) => Comparison::Recording(set),
                 (_, _, true, ..) => Comparison::UrbanGnss,

@@ -21,6 +21,11 @@ pub enum Comparison {
     UrbanWind,
     /// No cameras / one downward camera of this size per drone at 10 Hz.
     Cameras(super::CameraSize),
+    /// The bare simulation (no MAVLink, no recordings) / the whole stack with its I/O
+    /// (MAVLink endpoints and routers, `recording.mcap` and the ULogs).
+    WholeStack,
+    /// One run of the bare simulation, no comparison.
+    BareOnly,
 }
 use crate::cli::{CliError, Outcome, count};
 
@@ -40,6 +45,7 @@ pub fn run_pairs(
 ) -> Result<Outcome, CliError> {
     let recording = match comparison {
         Comparison::Recording(set) => Some(set),
+        Comparison::WholeStack => Some(super::RecordingSet::All),
         _ => None,
     };
     use crate::bench::BenchResult;
@@ -62,6 +68,7 @@ pub fn run_pairs(
                 (Comparison::UrbanWind, false, _) => " (urban wind off)".to_string(),
                 (Comparison::Cameras(_), _, Some(c)) => format!(" (a {c} camera per drone at 10 Hz)"),
                 (Comparison::Cameras(_), _, None) => " (no cameras)".to_string(),
+                (Comparison::BareOnly, ..) => " (bare: no MAVLink, no recordings)".to_string(),
                 _ => String::new(),
             },
             count(result.drones as usize, "drone"),
@@ -102,13 +109,15 @@ pub fn run_pairs(
         Comparison::UrbanGnss => Some("Urban GNSS cost".to_string()),
         Comparison::UrbanWind => Some("Urban wind cost".to_string()),
         Comparison::Cameras(c) => Some(format!("Camera cost ({c} at 10 Hz per drone)")),
-        Comparison::None => None,
+        Comparison::WholeStack => Some("MAVLink + recording cost".to_string()),
+        Comparison::None | Comparison::BareOnly => None,
     };
     let is_on = |r: &BenchResult| match comparison {
         Comparison::Mavlink => r.mavlink,
         Comparison::UrbanGnss => r.urban_gnss,
         Comparison::UrbanWind => r.urban_wind,
         Comparison::Cameras(_) => r.cameras.is_some(),
+        Comparison::WholeStack => r.mavlink && r.recordings != Recordings::NONE,
         _ => r.recordings != Recordings::NONE,
     };
     if let Some(label) = label {
@@ -152,7 +161,7 @@ pub fn run_pairs(
         {
             writeln!(
                 out,
-                "{label} measured on the recorder's thread (median of {repeat}): {c:.1} % of the simulation's CPU time"
+                "Recordings measured on the recorder's thread (median of {repeat}): {c:.1} % of the simulation's CPU time"
             )?;
         }
     }
@@ -165,21 +174,23 @@ pub fn run_pairs(
 fn schedule(comparison: Comparison, repeat: u32) -> Vec<Variant> {
     let base =
         Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true, cameras: None };
+    // No MAVLink (already off in `base`), no recordings.
+    let bare = Variant { recordings: Recordings::NONE, ..base };
     // The (off, on) variants a comparison alternates; `None` for a single run.
     let compared: Option<[Variant; 2]> = match comparison {
         Comparison::Mavlink => Some([base, Variant { mavlink: true, ..base }]),
-        Comparison::Recording(set) => {
-            Some([Variant { recordings: Recordings::NONE, ..base }, Variant { recordings: set.recordings(), ..base }])
-        }
+        Comparison::Recording(set) => Some([bare, Variant { recordings: set.recordings(), ..base }]),
         Comparison::UrbanGnss => Some([base, Variant { urban_gnss: true, ..base }]),
         Comparison::UrbanWind => Some([Variant { urban_wind: false, ..base }, base]),
         Comparison::Cameras(size) => Some([base, Variant { cameras: Some(size), ..base }]),
-        Comparison::None => None,
+        Comparison::WholeStack => Some([bare, Variant { mavlink: true, ..base }]),
+        Comparison::None | Comparison::BareOnly => None,
     };
     match compared {
         // Every other pair runs "on" first, so what one position in a pair gains
         // (caches warmed, the previous run's files being written back) cancels out.
         Some([off, on]) => (0..repeat.max(1)).flat_map(|i| if i % 2 == 0 { [off, on] } else { [on, off] }).collect(),
+        None if comparison == Comparison::BareOnly => vec![bare],
         None => vec![base],
     }
 }
@@ -231,6 +242,15 @@ mod tests {
         assert_eq!(schedule(Comparison::Cameras(size), 2), vec![BASE, on, on, BASE]);
         let bad = "160".parse::<crate::bench::CameraSize>().unwrap_err();
         assert!(bad.contains("expected WIDTHxHEIGHT"), "{bad}");
+    }
+
+    #[test]
+    fn whole_stack_pairs_turn_mavlink_and_every_recording_on_together() {
+        let bare = Variant { recordings: Recordings::NONE, ..BASE };
+        let whole = Variant { mavlink: true, ..BASE };
+        assert_eq!(whole.recordings, Recordings::ALL);
+        assert_eq!(schedule(Comparison::WholeStack, 2), vec![bare, whole, whole, bare]);
+        assert_eq!(schedule(Comparison::BareOnly, 3), vec![bare], "one run, nothing compared");
     }
 
     #[test]

@@ -81,7 +81,16 @@ pub enum Command {
         /// in the other runs, `mcap` or `ulog` one of them.
         #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "all", conflicts_with_all = ["mavlink", "airspace"])]
         recording: Option<crate::bench::RecordingSet>,
-        /// With a comparison (--mavlink, --recording, --urban-gnss, --urban-wind): run this many back-to-back pairs of the two
+        /// Run the bare simulation only: no MAVLink and no recordings (recording.mcap holds at
+        /// most 6 553 drones, so larger fleets are measured this way).
+        #[arg(long, conflicts_with_all = ["mavlink", "recording", "urban_gnss", "urban_wind", "cameras", "airspace", "whole_stack"])]
+        bare: bool,
+        /// Also run the whole stack, with MAVLink endpoints and routers at PX4's default rates
+        /// and recording.mcap with the ULogs, against the bare simulation (neither), and
+        /// report what that I/O costs: each variant's drone-steps/s and their ratio.
+        #[arg(long, conflicts_with_all = ["mavlink", "recording", "urban_gnss", "urban_wind", "cameras", "airspace"])]
+        whole_stack: bool,
+        /// With a comparison (--mavlink, --recording, --urban-gnss, --urban-wind, --cameras, --whole-stack): run this many back-to-back pairs of the two
         /// variants (every other pair "on" first) and report the median ratio of the pairs
         /// (this machine's speed drifts by tens of percent between minutes).
         #[arg(long, default_value_t = 3)]

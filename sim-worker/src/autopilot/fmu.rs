@@ -117,6 +117,11 @@ impl Fmu {
         self.navigator.take_events()
     }
 
+    /// Whether [`Fmu::take_events`] has anything.
+    pub fn has_events(&self) -> bool {
+        self.navigator.has_events()
+    }
+
     fn status(&self, on_ground: bool, battery_remaining: f64) -> VehicleStatus {
         VehicleStatus {
             on_ground,

@@ -233,6 +233,12 @@ impl Navigator {
         std::mem::take(&mut self.events)
     }
 
+    /// Whether [`Navigator::take_events`] has anything (asked every physics step; taking
+    /// an empty list costs more than asking).
+    pub fn has_events(&self) -> bool {
+        !self.events.is_empty()
+    }
+
     fn set_mode(&mut self, to: FlightMode) {
         if self.mode != to {
             self.events.push(EventKind::ModeChanged { from: self.mode, to });

@@ -6,6 +6,7 @@
 mod camera_images;
 mod cost;
 mod events;
+mod fixed;
 mod gnss_tally;
 pub mod mcap_file;
 mod recorder;

@@ -55,7 +55,6 @@ pub struct Recorder {
     /// timeline; written for runs with the ranging receiver (a constellation) only.
     gnss_csv: Option<std::io::BufWriter<std::fs::File>>,
     last_positions: Vec<Option<[f64; 2]>>,
-    last: Vec<DroneSnapshot>,
     /// `recording.mcap` (unless `spec.recording.mcap` is false) and `ulog/*.ulg` (unless
     /// `spec.recording.ulog` is false); `None` when both are off.
     streams: Option<StreamWriter>,
@@ -115,15 +114,9 @@ impl Recorder {
                 false => None,
             },
             last_positions: vec![None; plan.drones.len()],
-            last: Vec::new(),
             images: Vec::new(),
             plan: plan.clone(),
         })
-    }
-
-    /// The latest drone states.
-    pub fn latest(&self) -> &[DroneSnapshot] {
-        &self.last
     }
 
     pub fn summary(&self) -> &RunSummary {
@@ -222,8 +215,6 @@ impl RunObserver for Recorder {
         } else {
             self.summary.events += events.len() as u64;
         }
-        self.last.clear();
-        self.last.extend_from_slice(drones);
         lap.add_to(&mut cost.other);
         self.summary.recording_cpu_s = cost;
         Ok(())

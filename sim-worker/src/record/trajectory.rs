@@ -10,6 +10,7 @@ use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::RunPlan;
 use serde_json::json;
 
+use super::fixed;
 use crate::protocol::DroneSnapshot;
 
 /// Column names of `trajectory.csv`. Angles are Euler angles of the body (FLU) relative to
@@ -20,6 +21,8 @@ pub const TRAJECTORY_CSV_HEADER: &str = "time_s,drone,name,group,latitude_deg,lo
 #[derive(Debug)]
 pub struct TrajectoryCsv {
     out: BufWriter<File>,
+    /// The rows of one sample, built here and written at once (reused).
+    rows: Vec<u8>,
 }
 
 impl TrajectoryCsv {
@@ -28,10 +31,11 @@ impl TrajectoryCsv {
     pub fn create(path: &Path) -> std::io::Result<Self> {
         let mut out = BufWriter::new(File::create(path)?);
         writeln!(out, "{TRAJECTORY_CSV_HEADER}")?;
-        Ok(Self { out })
+        Ok(Self { out, rows: Vec::new() })
     }
 
-    /// One row per drone at `time_s`.
+    /// One row per drone at `time_s`. Numbers are written with [`fixed::push`], the same
+    /// text as `format!("{:.N}")`.
     ///
     /// # Errors
     /// I/O errors.
@@ -42,6 +46,8 @@ impl TrajectoryCsv {
         plan: &RunPlan,
         frame: &LocalFrame,
     ) -> std::io::Result<()> {
+        let b = &mut self.rows;
+        b.clear();
         for s in drones {
             let d = &plan.drones[s.index as usize];
             let [e, n, u] = s.position_enu_m;
@@ -49,26 +55,34 @@ impl TrajectoryCsv {
             let [w, x, y, z] = s.attitude_wxyz;
             let (roll, pitch, yaw) = UnitQuaternion::from_quaternion(Quaternion::new(w, x, y, z)).euler_angles();
             let [ve, vn, vu] = s.velocity_enu_mps;
-            writeln!(
-                self.out,
-                "{time_s:.3},{},{},{},{:.7},{:.7},{:.2},{e:.3},{n:.3},{u:.3},{:.3},{ve:.3},{vn:.3},{vu:.3},{:.2},{:.2},{:.2},{},{},{},{},{:.4}",
-                s.index,
-                d.name,
-                d.group,
-                g.latitude_deg,
-                g.longitude_deg,
-                g.altitude_msl_m,
-                s.height_agl_m,
-                roll.to_degrees(),
-                pitch.to_degrees(),
-                yaw.to_degrees(),
-                s.mode.as_str(),
-                s.armed,
-                s.on_ground,
-                s.crashed,
-                s.battery_remaining,
-            )?;
+            // time_s,drone,name,group,
+            fixed::push(b, time_s, 3);
+            write!(b, ",{},{},{},", s.index, d.name, d.group)?;
+            // latitude_deg,...,battery_remaining: the header's order.
+            let numbers = [
+                (g.latitude_deg, 7),
+                (g.longitude_deg, 7),
+                (g.altitude_msl_m, 2),
+                (e, 3),
+                (n, 3),
+                (u, 3),
+                (s.height_agl_m, 3),
+                (ve, 3),
+                (vn, 3),
+                (vu, 3),
+                (roll.to_degrees(), 2),
+                (pitch.to_degrees(), 2),
+                (yaw.to_degrees(), 2),
+            ];
+            for (v, decimals) in numbers {
+                fixed::push(b, v, decimals);
+                b.push(b',');
+            }
+            write!(b, "{},{},{},{},", s.mode.as_str(), s.armed, s.on_ground, s.crashed)?;
+            fixed::push(b, s.battery_remaining, 4);
+            b.push(b'\n');
         }
+        self.out.write_all(b)?;
         self.out.flush()
     }
 }

@@ -360,7 +360,9 @@ impl DroneSim {
             power_w += motor.mechanical_power_w();
         }
         self.battery.update(power_w, dt_s);
-        self.events.extend(self.fmu.take_events());
+        if self.fmu.has_events() {
+            self.events.extend(self.fmu.take_events());
+        }
     }
 
     /// The scripted pilot's turn (if the drone has one) at `t_s`.
@@ -411,6 +413,11 @@ impl DroneSim {
 
     pub fn speed_mps(&self) -> f64 {
         self.state.velocity_enu_mps.norm()
+    }
+
+    /// Whether [`DroneSim::take_events`] has anything (asked every physics step).
+    pub fn has_events(&self) -> bool {
+        !self.events.is_empty()
     }
 
     pub fn take_events(&mut self) -> Vec<EventKind> {

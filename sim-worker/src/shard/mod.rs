@@ -317,8 +317,14 @@ impl Shard {
                 }
                 // Times are step counts times dt, never sums, so they print the same
                 // everywhere.
-                let time_s = (step + 1) as f64 * dt_s;
-                events.extend(drone.take_events().into_iter().map(|kind| Event { time_s, drone: Some(index), kind }));
+                if drone.has_events() {
+                    let time_s = (step + 1) as f64 * dt_s;
+                    events.extend(drone.take_events().into_iter().map(|kind| Event {
+                        time_s,
+                        drone: Some(index),
+                        kind,
+                    }));
+                }
             }
         }
         // Step by step, in drone order within a step, as they happened: a stable sort by

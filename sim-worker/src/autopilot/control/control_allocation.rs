@@ -54,6 +54,11 @@ impl Allocation {
 pub struct Mixer {
     /// Row `i` of `B⁺`: rotor `i`'s thrust per unit of (thrust, τx, τy, τz).
     pub(super) pinv: Vec<[f64; 4]>,
+    /// Per rotor, `T_max / c0_i`: the collective thrust that alone saturates rotor `i`
+    /// (N of collective). Fixed by the airframe, so divided once here instead of twice per
+    /// rotor in every [`Mixer::allocate`]; the same division of the same numbers, so the
+    /// same bits.
+    collective_cap_n: [f64; MAX_ROTORS],
     pub thrust_coeff_n_per_rad_s2: f64,
     pub max_omega_rad_s: f64,
     pub max_rotor_thrust_n: f64,
@@ -89,26 +94,42 @@ impl Mixer {
         if pinv.iter().any(|row| row[0] <= 1e-9) || !pinv.iter().flatten().all(|x| x.is_finite()) {
             return Err(err());
         }
+        let max_rotor_thrust_n = airframe.max_rotor_thrust_n();
+        let mut collective_cap_n = [0.0; MAX_ROTORS];
+        for (cap, row) in collective_cap_n.iter_mut().zip(&pinv) {
+            *cap = max_rotor_thrust_n / row[0];
+        }
         Ok(Self {
             pinv,
+            collective_cap_n,
             thrust_coeff_n_per_rad_s2: airframe.thrust_coeff_n_per_rad_s2,
             max_omega_rad_s: airframe.max_omega_rad_s,
-            max_rotor_thrust_n: airframe.max_rotor_thrust_n(),
+            max_rotor_thrust_n,
         })
     }
 
     /// Rotor thrusts for a collective thrust (N) and body torque (N m), saturation handled.
+    ///
+    /// Runs at every physics step (PX4's allocator follows its rate loop), so it is written
+    /// for that: one pass per quantity over stack arrays, no allocation, and minima and
+    /// maxima as plain comparisons (a NaN never replaces the running value, exactly as
+    /// `f64::min`/`f64::max` keep the other operand).
     pub fn allocate(&self, thrust_n: f64, torque_body_nm: &Vector3<f64>) -> Allocation {
         let t_max = self.max_rotor_thrust_n;
         let tau = torque_body_nm;
-        // Rotor i's roll/pitch thrust rp_i, and ratio_i = rp_i / c0_i (c0 = collective column),
-        // computed once per rotor into stack arrays (no allocation until the result).
         let n = self.pinv.len();
+        let rows = &self.pinv[..];
+        let caps = &self.collective_cap_n[..n];
+        // Rotor i's roll/pitch thrust rp_i, and ratio_i = rp_i / c0_i (c0 = collective column).
         let mut rp = [0.0; MAX_ROTORS];
         let mut ratio = [0.0; MAX_ROTORS];
-        for ((rp, ratio), row) in rp.iter_mut().zip(ratio.iter_mut()).zip(&self.pinv) {
+        let mut min_ratio = f64::INFINITY;
+        for ((rp, ratio), row) in rp.iter_mut().zip(ratio.iter_mut()).zip(rows) {
             *rp = row[1] * tau.x + row[2] * tau.y;
             *ratio = *rp / row[0];
+            if *ratio < min_ratio {
+                min_ratio = *ratio;
+            }
         }
         let (rp, ratio) = (&rp[..n], &ratio[..n]);
         // Some collective F keeps F c0_i + s rp_i in [0, T_max] for all i iff, for all i, j,
@@ -116,34 +137,47 @@ impl Mixer {
         // binding i is the one with the smallest ratio (the largest spread; division by a
         // larger positive number never rounds to a larger quotient), so one pass over the
         // rotors gives the same s as every pair: n divisions instead of n².
-        let min_ratio = ratio.iter().copied().fold(f64::INFINITY, f64::min);
         let mut s: f64 = 1.0;
-        for (row_j, ratio_j) in self.pinv.iter().zip(ratio) {
+        for (cap_j, ratio_j) in caps.iter().zip(ratio) {
             let spread = ratio_j - min_ratio;
             if spread > 0.0 {
-                s = s.min(t_max / row_j[0] / spread);
+                let fits = cap_j / spread;
+                if fits < s {
+                    s = fits;
+                }
             }
         }
-        let lo = ratio.iter().map(|r| -s * r).fold(f64::NEG_INFINITY, f64::max);
-        let hi = self.pinv.iter().zip(ratio).map(|(row, r)| t_max / row[0] - s * r).fold(f64::INFINITY, f64::min);
+        // The collective thrusts that keep every rotor in [0, T_max] at that scale.
+        let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+        for (cap, r) in caps.iter().zip(ratio) {
+            let (low, high) = (-s * r, cap - s * r);
+            if low > lo {
+                lo = low;
+            }
+            if high < hi {
+                hi = high;
+            }
+        }
         let f = if lo <= hi { thrust_n.clamp(lo, hi) } else { 0.5 * (lo + hi) };
         let mut thrusts = [0.0; MAX_ROTORS];
-        for ((ti, row), rp) in thrusts.iter_mut().zip(&self.pinv).zip(rp) {
-            *ti = f * row[0] + s * rp;
-        }
-        let t = &mut thrusts[..n];
         // Yaw gets what headroom is left.
         let mut k: f64 = 1.0;
-        for (ti, row) in t.iter().zip(&self.pinv) {
+        for ((ti, row), rp) in thrusts.iter_mut().zip(rows).zip(rp) {
+            *ti = f * row[0] + s * rp;
             let y = row[3] * tau.z;
-            if y > 0.0 {
-                k = k.min((t_max - ti) / y);
+            let fits = if y > 0.0 {
+                (t_max - *ti) / y
             } else if y < 0.0 {
-                k = k.min(-ti / y);
+                -*ti / y
+            } else {
+                f64::INFINITY
+            };
+            if fits < k {
+                k = fits;
             }
         }
         let k = k.max(0.0);
-        for (ti, row) in t.iter_mut().zip(&self.pinv) {
+        for (ti, row) in thrusts[..n].iter_mut().zip(rows) {
             *ti = (*ti + k * row[3] * tau.z).clamp(0.0, t_max);
         }
         Allocation { rotor_thrust_n: thrusts, rotors: n, roll_pitch_scale: s, yaw_scale: k }
