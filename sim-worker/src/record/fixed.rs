@@ -1,18 +1,67 @@
-//! Fixed-point decimals for the text files written every window (`trajectory.csv`):
-//! exactly what `format!("{v:.N}")` writes, without going through `core::fmt`'s exact
-//! float formatting (Grisu with a Dragon fallback, about 1 500 instructions a number),
-//! which was most of the coordinator thread's work at 1 000 drones.
+//! Fixed-point decimals for the text written every window: the digit writer shared with
+//! `recording.mcap`'s JSON messages ([`digits`], [`decimal`]), and [`push`] for
+//! `trajectory.csv`, exactly what `format!("{v:.N}")` writes without going through
+//! `core::fmt`'s exact float formatting (Grisu with a Dragon fallback, about 1 500
+//! instructions a number), which was most of the coordinator thread's work at 1 000 drones.
 //!
-//! The fast path scales `|v|` by `10^N` (one rounding, relative error ≤ 2⁻⁵³) and rounds
-//! to the nearest integer. That integer is the correctly rounded one whenever the scaled
-//! value is farther from a half than the scaling's error can reach; values close to a half
-//! (one in about a thousand), too large, or not finite go through `format!` itself, so the
-//! text is the same in every case (tested against `format!` on millions of values).
+//! [`push`]'s fast path scales `|v|` by `10^N` (one rounding, relative error ≤ 2⁻⁵³) and
+//! rounds to the nearest integer. That integer is the correctly rounded one whenever the
+//! scaled value is farther from a half than the scaling's error can reach; values close to a
+//! half (one in about a thousand), too large, or not finite go through `format!` itself, so
+//! the text is the same in every case (tested against `format!` on millions of values).
 
 use std::io::Write as _;
 
-/// Powers of ten for the supported precisions (0..=9 decimals).
-const POW10: [u64; 10] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000, 1_000_000_000];
+/// Powers of ten for the supported precisions (0..=10 decimals).
+pub(crate) const POW10: [u64; 11] =
+    [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000, 1_000_000_000, 10_000_000_000];
+
+/// "00" to "99": two digits per division.
+const PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
+2021222324252627282930313233343536373839\
+4041424344454647484950515253545556575859\
+6061626364656667686970717273747576777879\
+8081828384858687888990919293949596979899";
+
+/// Writes the decimal digits of `n` so that they end at `buf[end]` (exclusive); returns
+/// where they start. `buf` must have room for 20 digits before `end`.
+pub(crate) fn digits(buf: &mut [u8], mut end: usize, mut n: u64) -> usize {
+    while n >= 100 {
+        let pair = (n % 100) as usize * 2;
+        n /= 100;
+        end -= 2;
+        buf[end..end + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
+    }
+    if n >= 10 {
+        let pair = n as usize * 2;
+        end -= 2;
+        buf[end..end + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
+    } else {
+        end -= 1;
+        buf[end] = b'0' + n as u8;
+    }
+    end
+}
+
+/// Writes `n / 10^decimals` with exactly `decimals` decimals (`1234, 3` -> `1.234`,
+/// `5, 2` -> `0.05`, no point for 0 decimals) at the end of `buf`; returns where it starts.
+/// `buf` must hold 32 bytes; `decimals` is at most 10.
+pub(crate) fn decimal(buf: &mut [u8; 32], n: u64, decimals: usize) -> usize {
+    let end = buf.len();
+    if decimals == 0 {
+        return digits(buf, end, n);
+    }
+    let scale = POW10[decimals];
+    let mut start = digits(buf, end, n % scale);
+    // Leading zeros of the fraction (0.05 -> "05").
+    while end - start < decimals {
+        start -= 1;
+        buf[start] = b'0';
+    }
+    start -= 1;
+    buf[start] = b'.';
+    digits(buf, start, n / scale)
+}
 
 /// Scaled values below this take the fast path: their scaling error is at most
 /// 2⁴⁰ × 2⁻⁵³ = 2⁻¹³, far inside [`TIE_MARGIN`].
@@ -21,7 +70,7 @@ const FAST_LIMIT: f64 = (1u64 << 40) as f64;
 /// How far from a half (in units of the last decimal) the fast path's rounding must be.
 const TIE_MARGIN: f64 = 1.0 / 1024.0;
 
-/// Appends `v` with exactly `decimals` decimals (at most 9), as `write!(out, "{v:.decimals$}")`
+/// Appends `v` with exactly `decimals` decimals (at most 10), as `write!(out, "{v:.decimals$}")`
 /// does.
 pub fn push(out: &mut Vec<u8>, v: f64, decimals: usize) {
     let scale = POW10[decimals];
@@ -42,26 +91,8 @@ pub fn push(out: &mut Vec<u8>, v: f64, decimals: usize) {
     if v.is_sign_negative() {
         out.push(b'-');
     }
-    let mut buf = [0u8; 24];
-    let mut start = buf.len();
-    let (mut int, mut frac) = (n / scale, n % scale);
-    for _ in 0..decimals {
-        start -= 1;
-        buf[start] = b'0' + (frac % 10) as u8;
-        frac /= 10;
-    }
-    if decimals > 0 {
-        start -= 1;
-        buf[start] = b'.';
-    }
-    loop {
-        start -= 1;
-        buf[start] = b'0' + (int % 10) as u8;
-        int /= 10;
-        if int == 0 {
-            break;
-        }
-    }
+    let mut buf = [0u8; 32];
+    let start = decimal(&mut buf, n, decimals);
     out.extend_from_slice(&buf[start..]);
 }
 

@@ -225,8 +225,14 @@ mod tests {
         files
     }
 
-    /// Nice values of this process's threads named `name` (Linux `/proc/self/task/*/stat`,
-    /// field 19).
+    /// The nice value in a Linux `/proc/.../stat` line (field 19; the fields after the
+    /// command name, which ends at the last ')', start at field 3).
+    fn nice_in_stat(stat: &str) -> i32 {
+        let fields: Vec<&str> = stat.rsplit_once(')').unwrap().1.split_whitespace().collect();
+        fields[19 - 3].parse().unwrap()
+    }
+
+    /// Nice values of this process's threads named `name` (`/proc/self/task/*`).
     fn nice_of_threads(name: &str) -> Vec<i32> {
         let mut nice = Vec::new();
         for task in std::fs::read_dir("/proc/self/task").unwrap().flatten() {
@@ -234,10 +240,7 @@ mod tests {
             if comm.trim_end() != name {
                 continue;
             }
-            let stat = std::fs::read_to_string(task.path().join("stat")).unwrap_or_default();
-            // Fields after the command name, which ends at the last ')': state is field 3.
-            let fields: Vec<&str> = stat.rsplit_once(')').map(|(_, rest)| rest.split_whitespace().collect()).unwrap();
-            nice.push(fields[19 - 3].parse().unwrap());
+            nice.push(nice_in_stat(&std::fs::read_to_string(task.path().join("stat")).unwrap()));
         }
         nice
     }
@@ -253,9 +256,7 @@ mod tests {
         }
         assert!(!nice_of_threads("recorder").is_empty());
         // The caller's thread (a coordinator's) keeps its priority.
-        let own = std::fs::read_to_string("/proc/thread-self/stat").unwrap();
-        let fields: Vec<&str> = own.rsplit_once(')').unwrap().1.split_whitespace().collect();
-        assert_ne!(fields[19 - 3].parse::<i32>().unwrap(), RECORDER_NICE);
+        assert_ne!(nice_in_stat(&std::fs::read_to_string("/proc/thread-self/stat").unwrap()), RECORDER_NICE);
         writer.finish().unwrap();
     }
 

@@ -5,16 +5,7 @@
 
 use std::io::Write as _;
 
-/// Powers of ten for the supported resolutions (0..=10 decimals).
-const POW10: [u64; 11] =
-    [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000, 1_000_000_000, 10_000_000_000];
-
-/// "00" to "99": two digits per division.
-const PAIRS: &[u8; 200] = b"0001020304050607080910111213141516171819\
-2021222324252627282930313233343536373839\
-4041424344454647484950515253545556575859\
-6061626364656667686970717273747576777879\
-8081828384858687888990919293949596979899";
+use crate::record::fixed::{POW10, decimal, digits};
 
 /// Decimals of metres and metres per second: 1 mm (well below any sensor's noise; each
 /// further digit is noise that zstd cannot compress and costs about 10 % more CPU).
@@ -25,26 +16,6 @@ pub const UNIT: usize = 5;
 pub const DEGREES: usize = 8;
 /// Decimals of battery and motor values (volts, amperes, mAh, fractions).
 pub const COARSE: usize = 4;
-
-/// Writes the decimal digits of `n` so that they end at `buf[end]` (exclusive); returns
-/// where they start. `buf` must have room for 20 digits before `end`.
-fn digits(buf: &mut [u8], mut end: usize, mut n: u64) -> usize {
-    while n >= 100 {
-        let pair = (n % 100) as usize * 2;
-        n /= 100;
-        end -= 2;
-        buf[end..end + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
-    }
-    if n >= 10 {
-        let pair = n as usize * 2;
-        end -= 2;
-        buf[end..end + 2].copy_from_slice(&PAIRS[pair..pair + 2]);
-    } else {
-        end -= 1;
-        buf[end] = b'0' + n as u8;
-    }
-    end
-}
 
 /// Appends `v` with at most `decimals` decimals (trailing zeros dropped), `null` when it is
 /// not finite (JSON has no NaN). Values too large for fixed point use Rust's shortest form.
@@ -66,21 +37,7 @@ pub fn num(out: &mut Vec<u8>, v: f64, decimals: usize) {
         decimals -= 1;
     }
     let mut buf = [0u8; 32];
-    let end = buf.len();
-    let mut start = if decimals == 0 {
-        digits(&mut buf, end, n)
-    } else {
-        let scale = POW10[decimals];
-        let mut start = digits(&mut buf, end, n % scale);
-        // Leading zeros of the fraction (0.05 -> "05").
-        while end - start < decimals {
-            start -= 1;
-            buf[start] = b'0';
-        }
-        start -= 1;
-        buf[start] = b'.';
-        digits(&mut buf, start, n / scale)
-    };
+    let mut start = decimal(&mut buf, n, decimals);
     // `-0.00001` rounds to 0: written without a sign.
     if v < 0.0 && n != 0 {
         start -= 1;
