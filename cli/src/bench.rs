@@ -45,7 +45,7 @@ spec:
     wind: {speedMps: 5, directionFromDeg: 270, turbulence: light{urban}}
     gnss: {gnss}
   sharding: {dronesPerShard: {per_shard}}
-  recording: {mcap: {mcap}, ulog: {ulog}}
+  recording: {mcap: {mcap}, ulog: {ulog}{rates}}
   rendering: {enabled: {rendering}}
   world:
     openAreas:
@@ -139,10 +139,6 @@ pub struct BenchResult {
     pub report: RunReport,
 }
 
-/// Runs the benchmark scenario.
-///
-/// # Errors
-/// As [`run_local`].
 /// What one benchmark run turns on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Variant {
@@ -157,6 +153,17 @@ pub struct Variant {
     pub urban_wind: bool,
     /// One downward camera per drone of this size (width, height), 10 Hz, recorded at 1 Hz.
     pub cameras: Option<CameraSize>,
+}
+
+/// What every run of one `sadesim bench` invocation shares.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Setup {
+    pub drones: u32,
+    /// Simulated seconds (default 60).
+    pub seconds: Option<u32>,
+    pub drones_per_shard: u32,
+    /// `spec.recording.rates.groundTruthHz`, Hz; `None`: the field's default.
+    pub ground_truth_hz: Option<u32>,
 }
 
 /// The image size of `bench --cameras`, `WIDTHxHEIGHT` on the command line.
@@ -183,33 +190,20 @@ impl std::fmt::Display for CameraSize {
     }
 }
 
+/// Runs the benchmark scenario.
+///
+/// # Errors
+/// As [`run_local`].
 pub fn run(
     drones: u32,
     seconds: u32,
     drones_per_shard: u32,
+    ground_truth_hz: Option<u32>,
     out_root: std::path::PathBuf,
     variant: Variant,
 ) -> Result<BenchResult, RunError> {
     let Variant { mavlink, recordings, urban_gnss, urban_wind, cameras } = variant;
-    let camera = cameras.map_or(String::new(), |c| {
-        format!(
-            "\n      cameras: [{{name: down, widthPx: {}, heightPx: {}, horizontalFovDeg: 90, rateHz: 10, mount: {{pitchDeg: 90}}}}]",
-            c.width_px, c.height_px
-        )
-    });
-    // Urban GNSS under the built-in nominal GPS + Galileo constellation (no file).
-    let gnss = if urban_gnss { "{rateHz: 5, constellation: {}}" } else { "{rateHz: 5}" };
-    let text = SCENARIO
-        .replace("{gnss}", gnss)
-        .replace("{urban}", if urban_wind { "" } else { ", urban: {model: none}" })
-        .replace("{rendering}", &cameras.is_some().to_string())
-        .replace("{cameras}", &camera)
-        .replace("{mcap}", &recordings.mcap.to_string())
-        .replace("{ulog}", &recordings.ulog.to_string())
-        .replace("{drones}", &drones.to_string())
-        .replace("{seconds}", &seconds.to_string())
-        .replace("{per_shard}", &drones_per_shard.to_string());
-    let run = parse_run(&text).expect("the benchmark scenario is valid");
+    let run = scenario(drones, seconds, drones_per_shard, ground_truth_hz, variant);
     // No pilot: with MAVLink on, every drone streams PX4's default telemetry to its API
     // port and to the router, which is the cost `--mavlink` measures.
     let options = RunOptions { out_root: Some(out_root), mavlink, start_pilot: false, ..RunOptions::default() };
@@ -232,6 +226,38 @@ pub fn run(
         cameras,
         report,
     })
+}
+
+/// The benchmark scenario for one run.
+fn scenario(
+    drones: u32,
+    seconds: u32,
+    drones_per_shard: u32,
+    ground_truth_hz: Option<u32>,
+    variant: Variant,
+) -> sadesim_crds::run::SimulationRun {
+    let Variant { mavlink: _, recordings, urban_gnss, urban_wind, cameras } = variant;
+    let camera = cameras.map_or(String::new(), |c| {
+        format!(
+            "\n      cameras: [{{name: down, widthPx: {}, heightPx: {}, horizontalFovDeg: 90, rateHz: 10, mount: {{pitchDeg: 90}}}}]",
+            c.width_px, c.height_px
+        )
+    });
+    // Urban GNSS under the built-in nominal GPS + Galileo constellation (no file).
+    let gnss = if urban_gnss { "{rateHz: 5, constellation: {}}" } else { "{rateHz: 5}" };
+    let rates = ground_truth_hz.map_or(String::new(), |hz| format!(", rates: {{groundTruthHz: {hz}}}"));
+    let text = SCENARIO
+        .replace("{gnss}", gnss)
+        .replace("{urban}", if urban_wind { "" } else { ", urban: {model: none}" })
+        .replace("{rendering}", &cameras.is_some().to_string())
+        .replace("{cameras}", &camera)
+        .replace("{rates}", &rates)
+        .replace("{mcap}", &recordings.mcap.to_string())
+        .replace("{ulog}", &recordings.ulog.to_string())
+        .replace("{drones}", &drones.to_string())
+        .replace("{seconds}", &seconds.to_string())
+        .replace("{per_shard}", &drones_per_shard.to_string());
+    parse_run(&text).expect("the benchmark scenario is valid")
 }
 
 /// The middle value (the upper one of the two middle values for an even count); `None`
@@ -330,6 +356,15 @@ mod tests {
         assert_eq!((report.granted, report.denied), (60, 100), "{report}");
         assert_eq!(state.lock().unwrap().authority.requests.len(), 160);
         assert!(report.p50_ms <= report.p99_ms && report.p99_ms <= report.max_ms, "{report}");
+    }
+
+    #[test]
+    fn the_ground_truth_rate_goes_into_the_scenario_and_its_default_stays_otherwise() {
+        let v =
+            Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true, cameras: None };
+        let rates = |hz| scenario(4, 5, 2, hz, v).spec.recording.expect("recorded").rates;
+        assert_eq!(rates(Some(25)).ground_truth_hz, 25.0);
+        assert_eq!(rates(None), sadesim_crds::run::RecordingRates::default());
     }
 
     #[test]

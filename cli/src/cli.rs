@@ -89,6 +89,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             cameras,
             bare,
             whole_stack,
+            ground_truth_hz,
             repeat,
             ..
         } => {
@@ -103,7 +104,8 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 (.., Some(size)) => Comparison::Cameras(size),
                 _ => Comparison::None,
             };
-            crate::bench::pairs::run_pairs(drones, seconds, drones_per_shard, comparison, repeat, out)
+            let setup = crate::bench::Setup { drones, seconds, drones_per_shard, ground_truth_hz };
+            crate::bench::pairs::run_pairs(setup, comparison, repeat, out)
         }
         Command::Crd => {
             out.write_all(sadesim_crds::crd::crd_yaml().as_bytes())?;

@@ -126,6 +126,9 @@ fn the_runner_writes_a_self_contained_report_with_every_drone_zone_and_verdict()
     let c = summary.recording_cpu_s;
     assert!(c.mcap > 0.0, "{c:?}");
     assert!(html.contains(&format!("{:.2} s recording.mcap, {:.2} s ULogs", c.mcap, c.ulog)), "recording CPU row");
+    // What each shard's thread spent stepping its drones, by shard.
+    assert_eq!(summary.shard_cpu_s.len(), summary.shards as usize, "{:?}", summary.shard_cpu_s);
+    assert!(summary.shard_cpu_s.iter().all(|&s| s > 0.0), "{:?}", summary.shard_cpu_s);
     // The zone polygon on both panels, named.
     assert_eq!(html.matches(r#"class="zone" data-zone="wall""#).count(), 2);
     assert!(html.contains("wall (0-328 ft AGL)"), "zone label");

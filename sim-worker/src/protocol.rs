@@ -1,13 +1,14 @@
 //! The shard <-> coordinator message set (DESIGN §5): the same types travel over in-process
-//! channels and, as JSON lines, over TCP between `sim-worker shard` and `sim-worker
-//! coordinator` processes.
+//! channels and, as binary frames (`transport::wire`), over TCP between `sim-worker shard`
+//! and `sim-worker coordinator` processes.
 
 use serde::{Deserialize, Serialize};
 
 use crate::events::{Event, FlightMode};
 
-/// Bumped on any incompatible change; peers refuse other versions.
-pub const PROTOCOL_VERSION: u32 = 3;
+/// Bumped on any incompatible change; peers refuse other versions. 4: binary frames on
+/// TCP instead of JSON lines (a peer of version 3 or older is refused at its first line).
+pub const PROTOCOL_VERSION: u32 = 4;
 
 /// A drone's state at a window boundary (ground truth), for the merged snapshot, the
 /// recorder and everything that couples drones.

@@ -1,7 +1,10 @@
-//! Carriers of the shard protocol: in-process channels (one thread per shard) and JSON
-//! lines over TCP (one process per shard). Both carry exactly `protocol`'s messages.
+//! Carriers of the shard protocol: in-process channels (one thread per shard) and
+//! length-prefixed binary frames over TCP (one process per shard, see [`wire`]). Both carry
+//! exactly `protocol`'s messages.
 
-use std::io::{BufRead, BufReader, BufWriter, Read, Write};
+pub mod wire;
+
+use std::io::{BufReader, BufWriter, Read, Write};
 use std::net::TcpStream;
 use std::sync::mpsc::{Receiver, Sender, channel};
 use std::thread::JoinHandle;
@@ -10,8 +13,10 @@ use sadesim_crds::plan::RunPlan;
 
 use crate::coordinator::{LinkError, ShardLink};
 use crate::protocol::{FromShard, ToShard};
+use crate::record::Lap;
 use crate::roles::shard::ShardSockets;
 use crate::shard::{MavlinkIo, Shard};
+use wire::{MAX_FRAME_BYTES, Wire};
 
 /// The coordinator's end of an in-process shard thread.
 #[derive(Debug)]
@@ -31,25 +36,37 @@ impl ShardLink for ThreadLink {
 
 /// Serves one shard over any message source and sink until `Stop` or disconnection, `io`
 /// carrying its MAVLink queues.
+///
+/// Returns the CPU time, s, this thread spent handling the coordinator's messages: stepping
+/// the shard's drones and moving their MAVLink queues, the waits for the next message
+/// excluded (`CLOCK_THREAD_CPUTIME_ID`, two readings per window). It is the shard's own
+/// per-drone cost, apart from the coordinator's and the recorder's (`summary.json`
+/// `shardCpuS`, `sadesim bench`).
 pub fn serve(
     mut shard: Shard,
     mut io: impl MavlinkIo,
     mut recv: impl FnMut() -> Option<ToShard>,
     mut send: impl FnMut(FromShard) -> bool,
-) {
+) -> f64 {
+    let mut busy_s = 0.0;
     if !send(shard.hello()) {
-        return;
+        return busy_s;
     }
     while let Some(msg) = recv() {
+        let mut lap = Lap::start();
+        let reply = shard.handle_with(msg, &mut io);
+        lap.add_to(&mut busy_s);
         // `None` is the answer to Stop: the shard is done.
-        let Some(reply) = shard.handle_with(msg, &mut io) else { return };
+        let Some(reply) = reply else { return busy_s };
         if !send(reply) {
-            return;
+            return busy_s;
         }
     }
+    busy_s
 }
 
 /// Starts shard `index` of `plan` on its own thread, in `surroundings` (see [`Shard::new`]).
+/// The thread returns the CPU seconds it spent stepping the shard (see [`serve`]).
 ///
 /// # Errors
 /// When the shard cannot be built (reported before any thread starts).
@@ -58,7 +75,7 @@ pub fn spawn_thread(
     index: u32,
     surroundings: &crate::shard::Surroundings,
     mavlink: Option<&crate::shard::MavlinkOptions>,
-) -> Result<(ThreadLink, JoinHandle<()>), crate::shard::ShardError> {
+) -> Result<(ThreadLink, JoinHandle<f64>), crate::shard::ShardError> {
     let mut shard = Shard::new(plan, index, surroundings)?;
     let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
     let (to_shard, shard_rx) = channel::<ToShard>();
@@ -70,79 +87,91 @@ pub fn spawn_thread(
     Ok((ThreadLink { to_shard, from_shard }, handle))
 }
 
-/// The coordinator's end of a TCP connection to a `sim-worker shard` process. One JSON
-/// message per line; a line longer than [`MAX_LINE_BYTES`] is refused.
+/// The coordinator's end of a TCP connection to a `sim-worker shard` process: one
+/// [`wire`] frame per message.
 #[derive(Debug)]
 pub struct TcpLink {
     reader: BufReader<TcpStream>,
     writer: BufWriter<TcpStream>,
-    line: String,
+    /// The last frame read, and the next one written (kept to reuse their allocations).
+    incoming: Vec<u8>,
+    outgoing: Vec<u8>,
 }
-
-/// Longest accepted protocol line (a 2000-drone shard's window is ~600 kB).
-pub const MAX_LINE_BYTES: usize = 64 * 1024 * 1024;
 
 impl TcpLink {
     /// # Errors
     /// When the stream cannot be cloned.
     pub fn new(stream: TcpStream) -> std::io::Result<Self> {
         stream.set_nodelay(true)?;
-        Ok(Self { reader: BufReader::new(stream.try_clone()?), writer: BufWriter::new(stream), line: String::new() })
+        Ok(Self {
+            reader: BufReader::new(stream.try_clone()?),
+            writer: BufWriter::new(stream),
+            incoming: Vec::new(),
+            outgoing: Vec::new(),
+        })
     }
 }
 
-/// Writes one message as a JSON line and flushes.
+/// Writes one message as a frame (its payload encoded into `buf`) and flushes.
 ///
 /// # Errors
 /// I/O errors of the stream.
-pub fn write_line<T: serde::Serialize>(w: &mut impl Write, msg: &T) -> std::io::Result<()> {
-    serde_json::to_writer(&mut *w, msg).map_err(std::io::Error::other)?;
-    w.write_all(b"\n")?;
+pub fn write_message(w: &mut impl Write, msg: &impl Wire, buf: &mut Vec<u8>) -> std::io::Result<()> {
+    buf.clear();
+    msg.encode(buf);
+    let len = u32::try_from(buf.len()).ok().filter(|&n| n as usize <= MAX_FRAME_BYTES).ok_or_else(|| {
+        std::io::Error::other(format!("a message of {} bytes is over the {MAX_FRAME_BYTES}-byte limit", buf.len()))
+    })?;
+    w.write_all(&len.to_le_bytes())?;
+    w.write_all(buf)?;
     w.flush()
 }
 
-/// Reads one JSON line; `Ok(None)` at end of stream.
+/// Reads one frame into `buf` and decodes it; `Ok(None)` at the end of the stream before a
+/// frame starts.
 ///
 /// # Errors
-/// I/O errors, over-long lines and undecodable JSON.
-pub fn read_line<T: serde::de::DeserializeOwned>(
-    r: &mut impl BufRead,
-    buf: &mut String,
-) -> Result<Option<T>, LinkError> {
+/// I/O errors, an end of stream inside a frame, over-long frames and undecodable payloads.
+pub fn read_message<T: Wire>(r: &mut impl Read, buf: &mut Vec<u8>) -> Result<Option<T>, LinkError> {
+    let mut len = [0u8; 4];
+    let mut got = 0;
+    while got < len.len() {
+        match r.read(&mut len[got..]) {
+            Ok(0) if got == 0 => return Ok(None),
+            Ok(0) => {
+                return Err(LinkError::Decode(format!("the stream ended inside a frame's length ({got} of 4 bytes)")));
+            }
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(LinkError::Io(e)),
+        }
+    }
+    if len[0] == b'{' {
+        return Err(LinkError::Decode(
+            "a JSON line: the peer speaks the shard protocol of sadesim before version 4; run the same sadesim version in every role".into(),
+        ));
+    }
+    let n = u32::from_le_bytes(len) as usize;
+    if n > MAX_FRAME_BYTES {
+        return Err(LinkError::Decode(format!("a frame of {n} bytes is over the {MAX_FRAME_BYTES}-byte limit")));
+    }
     buf.clear();
-    let n = r.by_ref().take(MAX_LINE_BYTES as u64 + 1).read_line(buf)?;
-    if n == 0 {
-        return Ok(None);
-    }
-    if n > MAX_LINE_BYTES {
-        return Err(LinkError::Decode(format!("message longer than {MAX_LINE_BYTES} bytes")));
-    }
-    serde_json::from_str(buf.trim_end()).map(Some).map_err(|e| LinkError::Decode(e.to_string()))
+    buf.resize(n, 0);
+    r.read_exact(buf).map_err(|e| match e.kind() {
+        std::io::ErrorKind::UnexpectedEof => LinkError::Decode(format!("the stream ended inside a frame of {n} bytes")),
+        _ => LinkError::Io(e),
+    })?;
+    T::decode(buf).map(Some).map_err(LinkError::Decode)
 }
 
 impl ShardLink for TcpLink {
     fn send(&mut self, msg: &ToShard) -> Result<(), LinkError> {
-        write_line(&mut self.writer, msg).map_err(LinkError::Io)
+        write_message(&mut self.writer, msg, &mut self.outgoing).map_err(LinkError::Io)
     }
     fn recv(&mut self) -> Result<FromShard, LinkError> {
-        read_line(&mut self.reader, &mut self.line)?.ok_or(LinkError::Closed)
+        read_message(&mut self.reader, &mut self.incoming)?.ok_or(LinkError::Closed)
     }
 }
 
-/// Serves a shard over a TCP stream (the `sim-worker shard` process side).
-///
-/// # Errors
-/// When the stream cannot be cloned.
-pub fn serve_tcp(shard: Shard, stream: TcpStream) -> std::io::Result<()> {
-    stream.set_nodelay(true)?;
-    let mut reader = BufReader::new(stream.try_clone()?);
-    let mut writer = BufWriter::new(stream);
-    let mut buf = String::new();
-    serve(
-        shard,
-        crate::shard::NoMavlinkIo,
-        || read_line::<ToShard>(&mut reader, &mut buf).ok().flatten(),
-        |m| write_line(&mut writer, &m).is_ok(),
-    );
-    Ok(())
-}
+#[cfg(test)]
+mod tests;

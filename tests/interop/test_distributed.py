@@ -397,7 +397,13 @@ def test_a_run_across_namespaces_matches_the_in_process_run(sadesim, cluster, tm
     # Wall-clock and CPU-time fields differ legitimately; everything simulated is the same.
     for measured in ("wallTimeS", "realTimeFactor", "recordingCpuS"):
         local_summary.pop(measured), summary.pop(measured)
+    # What each shard spent stepping its drones: in summary.json for in-process shards,
+    # in each shard process's own log for remote ones.
+    assert len(local_summary.pop("shardCpuS")) == SHARDS and "shardCpuS" not in summary, summary
     assert summary == local_summary
+    for i in range(SHARDS):
+        shard_log = (out / "logs" / f"shard-{i}.log").read_text()
+        assert f"shard {i}: stepped {DRONES_PER_SHARD} drones in " in shard_log, shard_log
     # The shards really were remote: each connected from its own namespace's address.
     log = (out / "logs" / "coordinator.log").read_text()
     for i in range(SHARDS):

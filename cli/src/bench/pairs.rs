@@ -36,9 +36,7 @@ use crate::cli::{CliError, Outcome, count};
 /// # Errors
 /// A run that could not start or finish ([`CliError::Run`]), or a failed write.
 pub fn run_pairs(
-    drones: u32,
-    seconds: Option<u32>,
-    drones_per_shard: u32,
+    setup: crate::bench::Setup,
     comparison: Comparison,
     repeat: u32,
     out: &mut dyn Write,
@@ -49,12 +47,13 @@ pub fn run_pairs(
         _ => None,
     };
     use crate::bench::BenchResult;
+    let crate::bench::Setup { drones, seconds, drones_per_shard, ground_truth_hz } = setup;
     let seconds = seconds.unwrap_or(60);
     let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
     let variants = schedule(comparison, repeat);
     let mut results = Vec::new();
     for &variant in &variants {
-        let result = crate::bench::run(drones, seconds, drones_per_shard, root.clone(), variant)
+        let result = crate::bench::run(drones, seconds, drones_per_shard, ground_truth_hz, root.clone(), variant)
             .map_err(|source| CliError::Run { path: "bench".into(), source })?;
         let (with_mavlink, recordings) = (variant.mavlink, variant.recordings);
         writeln!(
@@ -89,6 +88,16 @@ pub fn run_pairs(
                 cost.ulog,
                 cost.mcap / drone_seconds(&result) * 1e6,
                 cost.ulog / drone_seconds(&result) * 1e6,
+            )?;
+        }
+        if let Some(us) = shard_cpu_per_drone_step_us(&result) {
+            let shards = &result.report.summary.shard_cpu_s;
+            writeln!(
+                out,
+                "  shards' threads: {:.3} s CPU stepping the drones = {us:.3} µs per drone-step (shards {:.3}-{:.3} s)",
+                shards.iter().sum::<f64>(),
+                shards.iter().copied().fold(f64::INFINITY, f64::min),
+                shards.iter().copied().fold(0.0, f64::max),
             )?;
         }
         if let Some(tallies) = Some(&result.report.summary.cameras).filter(|t| !t.is_empty()) {
@@ -196,6 +205,14 @@ fn schedule(comparison: Comparison, repeat: u32) -> Vec<Variant> {
 }
 
 /// Drones x simulated seconds of a benchmark run.
+/// The shards' own cost: the CPU their threads spent stepping the drones (waits for the
+/// coordinator excluded, `summary.json` `shardCpuS`) per drone-step, µs; `None` when the
+/// run has no such figure.
+pub fn shard_cpu_per_drone_step_us(result: &crate::bench::BenchResult) -> Option<f64> {
+    let shards = &result.report.summary.shard_cpu_s;
+    (!shards.is_empty()).then(|| shards.iter().sum::<f64>() / (drone_seconds(result) * 1000.0) * 1e6)
+}
+
 fn drone_seconds(result: &crate::bench::BenchResult) -> f64 {
     (f64::from(result.drones) * result.sim_time_s).max(1e-9)
 }

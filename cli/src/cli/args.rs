@@ -90,6 +90,11 @@ pub enum Command {
         /// report what that I/O costs: each variant's drone-steps/s and their ratio.
         #[arg(long, conflicts_with_all = ["mavlink", "recording", "urban_gnss", "urban_wind", "cameras", "airspace"])]
         whole_stack: bool,
+        /// Record the ground truth (pose, velocity, /tf in recording.mcap) at this rate in
+        /// every run, Hz (`spec.recording.rates.groundTruthHz`; default that field's default,
+        /// 100), to see what a lower rate saves.
+        #[arg(long, value_name = "HZ", value_parser = clap::value_parser!(u32).range(1..=1000), conflicts_with_all = ["bare", "airspace"])]
+        ground_truth_hz: Option<u32>,
         /// With a comparison (--mavlink, --recording, --urban-gnss, --urban-wind, --cameras, --whole-stack): run this many back-to-back pairs of the two
         /// variants (every other pair "on" first) and report the median ratio of the pairs
         /// (this machine's speed drifts by tens of percent between minutes).

@@ -637,9 +637,9 @@ fn run_threads(
         cameras.finish(&mut recorder);
     }
     drop(links);
-    for t in threads {
-        let _ = t.join();
-    }
+    // Each shard thread's CPU time stepping its drones; a thread that panicked has none
+    // (the run then failed, below).
+    let shard_cpu_s: Option<Vec<f64>> = threads.into_iter().map(|t| t.join().ok()).collect();
     let outcome = match outcome {
         Ok(outcome) => outcome,
         // A shard thread died: close the files up to the last complete window, as the
@@ -654,6 +654,7 @@ fn run_threads(
     };
     write_json(out_dir, AIRSPACE_FILE, &airspace.record())?;
     recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
+    recorder.set_shard_cpu(shard_cpu_s.unwrap_or_default());
     let summary = recorder.finish(&outcome).map_err(output_err)?;
     // The run ended cleanly (`pilotFailed`) and its files are complete; it still failed.
     match pilot_error {

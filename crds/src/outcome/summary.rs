@@ -113,6 +113,13 @@ pub struct RunSummary {
     /// CPU seconds the recorder spent writing each kind of file (measured on its thread).
     #[serde(default)]
     pub recording_cpu_s: RecordingCost,
+    /// CPU seconds each shard's thread spent stepping its drones (and moving their MAVLink
+    /// traffic), by shard index, its waits for the coordinator excluded: the simulation's
+    /// own cost, apart from the coordinator's and the recorder's. Runs whose shards are
+    /// threads of this process (`sadesim run`); empty when they are processes of their own
+    /// (`sim-worker shard`, each of which prints its figure in its log).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub shard_cpu_s: Vec<f64>,
     /// Each onboard camera's frames, and how many were late (runs with cameras).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub cameras: Vec<CameraTally>,

@@ -19,7 +19,7 @@ mod trajectory;
 pub mod ulog_file;
 
 pub use camera_images::{CameraImage, CameraStream, optical_frame};
-pub use cost::RecordingCost;
+pub use cost::{Lap, RecordingCost};
 pub use events::EventLog;
 pub use mcap_file::{MCAP_FILE, McapRecorder};
 pub use recorder::{Recorder, RecorderOptions};

@@ -139,6 +139,12 @@ impl Recorder {
         self.summary.verdict = Some(verdict);
     }
 
+    /// The CPU seconds each shard's thread spent stepping its drones, by shard index, written
+    /// into `summary.json` (`shardCpuS`) by [`Recorder::finish`].
+    pub fn set_shard_cpu(&mut self, shard_cpu_s: Vec<f64>) {
+        self.summary.shard_cpu_s = shard_cpu_s;
+    }
+
     /// Writes the end-of-run files and returns the summary.
     ///
     /// # Errors

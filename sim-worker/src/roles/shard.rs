@@ -22,6 +22,7 @@ use sadesim_crds::plan::RunPlan;
 use super::RoleError;
 use crate::coordinator::LinkError;
 use crate::protocol::ToShard;
+use crate::record::Lap;
 use crate::shard::Shard;
 use crate::transport;
 
@@ -60,7 +61,11 @@ pub fn run(
         "shard {index}: {} drones; connected to the coordinator at {coordinator} from {local}",
         shard.drones().len()
     );
-    serve(shard, sockets, stream, coordinator)
+    let drones = shard.drones().len();
+    let busy_s = serve(shard, sockets, stream, coordinator)?;
+    // The shard's own cost (what `summary.json` `shardCpuS` holds for in-process shards).
+    eprintln!("shard {index}: stepped {drones} drones in {busy_s:.3} s of CPU (waits for the coordinator excluded)");
+    Ok(())
 }
 
 /// Connects to `coordinator`, resolving and retrying until `timeout` has passed.
@@ -99,33 +104,38 @@ pub fn connect(coordinator: &str, timeout: Duration) -> Result<TcpStream, RoleEr
     }
 }
 
-/// Serves the shard protocol over `stream` until the coordinator says `Stop`.
+/// Serves the shard protocol over `stream` until the coordinator says `Stop`; returns the
+/// CPU seconds spent handling its messages (as [`transport::serve`]).
 fn serve(
     mut shard: Shard,
     mut sockets: Option<ShardSockets>,
     stream: TcpStream,
     coordinator: &str,
-) -> Result<(), RoleError> {
+) -> Result<f64, RoleError> {
     stream.set_nodelay(true)?;
     let mut reader = BufReader::new(stream.try_clone()?);
     let mut writer = BufWriter::new(stream);
-    let mut line = String::new();
+    let (mut incoming, mut outgoing) = (Vec::new(), Vec::new());
+    let mut busy_s = 0.0;
     let lost = |what: String| {
         RoleError::Protocol(format!(
             "lost the coordinator at {coordinator}: {what} before it ended the run (it exited or failed; see its output)"
         ))
     };
-    transport::write_line(&mut writer, &shard.hello()).map_err(|e| lost(e.to_string()))?;
+    transport::write_message(&mut writer, &shard.hello(), &mut outgoing).map_err(|e| lost(e.to_string()))?;
     loop {
-        let msg = match transport::read_line::<ToShard>(&mut reader, &mut line) {
+        let msg = match transport::read_message::<ToShard>(&mut reader, &mut incoming) {
             Ok(Some(msg)) => msg,
             Ok(None) | Err(LinkError::Closed) => return Err(lost("the connection closed".into())),
             Err(LinkError::Io(e)) => return Err(lost(e.to_string())),
             Err(LinkError::Decode(e)) => return Err(lost(format!("unreadable message: {e}"))),
         };
+        let mut lap = Lap::start();
+        let reply = shard.handle_with(msg, &mut sockets);
+        lap.add_to(&mut busy_s);
         // `None` is the answer to Stop: the run is over.
-        let Some(reply) = shard.handle_with(msg, &mut sockets) else { return Ok(()) };
-        transport::write_line(&mut writer, &reply).map_err(|e| lost(e.to_string()))?;
+        let Some(reply) = reply else { return Ok(busy_s) };
+        transport::write_message(&mut writer, &reply, &mut outgoing).map_err(|e| lost(e.to_string()))?;
     }
 }
 
