@@ -217,30 +217,33 @@ impl Session {
 
     /// Messages due now: replies first, then telemetry streams at their rates.
     pub fn poll(&mut self, view: &VehicleView) -> Vec<Outgoing> {
-        let mut out = std::mem::take(&mut self.raw);
-        out.extend(self.poll_messages(view).into_iter().map(Outgoing::Message));
+        let mut out = Vec::new();
+        self.poll_into(view, &mut out);
         out
     }
 
-    fn poll_messages(&mut self, view: &VehicleView) -> Vec<MavMessage> {
-        let mut out = std::mem::take(&mut self.outbox);
-        out.extend(self.missions.poll(view.time_s));
+    /// [`Session::poll`] appending to `out`: the shard's per-drone queue, which keeps its
+    /// allocation from window to window (this runs for every drone at every window end, so
+    /// building a list per call and moving each message into the queue showed in profiles).
+    pub fn poll_into(&mut self, view: &VehicleView, out: &mut Vec<Outgoing>) {
+        out.append(&mut self.raw);
+        out.extend(self.outbox.drain(..).map(Outgoing::Message));
+        out.extend(self.missions.poll(view.time_s).into_iter().map(Outgoing::Message));
         let current = (view.mission.current, view.mission.count);
         let mut mission_sent = false;
         for id in self.streams.due(view.time_s) {
             if let Some(m) = telemetry::build(id, view, &self.id) {
                 mission_sent |= id == 42;
-                out.push(m);
+                out.push(Outgoing::Message(m));
             }
         }
         if !mission_sent && self.reported_mission != Some(current) && view.mission.count > 0 {
-            out.push(telemetry::mission_current(view));
+            out.push(Outgoing::Message(telemetry::mission_current(view)));
             mission_sent = true;
         }
         if mission_sent {
             self.reported_mission = Some(current);
         }
-        out
     }
 
     fn addressed_to_us(&self, system: Option<u8>, component: Option<u8>) -> bool {

@@ -212,7 +212,7 @@ impl DroneSim {
         }
         let view = self.view(time_s);
         if let Some(session) = &mut self.session {
-            outbound.extend(session.poll(&view));
+            session.poll_into(&view, outbound);
         }
     }
 
