@@ -146,14 +146,16 @@ pub fn read_message<T: Wire>(r: &mut impl Read, buf: &mut Vec<u8>) -> Result<Opt
             Err(e) => return Err(LinkError::Io(e)),
         }
     }
-    if len[0] == b'{' {
-        return Err(LinkError::Decode(
-            "a JSON line: the peer speaks the shard protocol of sadesim before version 4; run the same sadesim version in every role".into(),
-        ));
-    }
     let n = u32::from_le_bytes(len) as usize;
     if n > MAX_FRAME_BYTES {
-        return Err(LinkError::Decode(format!("a frame of {n} bytes is over the {MAX_FRAME_BYTES}-byte limit")));
+        // `{"ty` read as a length is about 2 GB: the JSON line of a peer before version 4
+        // (serde writes the `type` tag first). A real frame may well start with 0x7b.
+        let reason = if len[0] == b'{' {
+            "a JSON line: the peer speaks the shard protocol of sadesim before version 4; run the same sadesim version in every role".into()
+        } else {
+            format!("a frame of {n} bytes is over the {MAX_FRAME_BYTES}-byte limit")
+        };
+        return Err(LinkError::Decode(reason));
     }
     buf.clear();
     buf.resize(n, 0);

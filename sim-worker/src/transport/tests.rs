@@ -33,6 +33,17 @@ fn frames_follow_each_other_and_the_stream_ends_between_them() {
 }
 
 #[test]
+fn a_frame_whose_length_starts_with_the_byte_of_a_brace_is_a_frame() {
+    // A payload of 123 bytes: its length's first byte is 0x7b, `{`, as a JSON line's.
+    let reason = |n: usize| FromShard::Failed { shard: 0, reason: "x".repeat(n) };
+    let base = frames(&[reason(0)]).len() - 4;
+    let msg = reason(123 - base);
+    let bytes = frames(std::slice::from_ref(&msg));
+    assert_eq!(bytes[..4], [b'{', 0, 0, 0]);
+    assert_eq!(read_message::<FromShard>(&mut Cursor::new(bytes), &mut Vec::new()).unwrap(), Some(msg));
+}
+
+#[test]
 fn a_stream_cut_inside_a_frame_or_a_frame_too_long_is_an_error_naming_it() {
     let bytes = frames(&[FromShard::Stopped { shard: 0 }]);
     let mut buf = Vec::new();
