@@ -159,8 +159,8 @@ pub struct Variant {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Setup {
     pub drones: u32,
-    /// Simulated seconds (default 60).
-    pub seconds: Option<u32>,
+    /// Simulated seconds of each run.
+    pub seconds: u32,
     pub drones_per_shard: u32,
     /// `spec.recording.rates.groundTruthHz`, Hz; `None`: the field's default.
     pub ground_truth_hz: Option<u32>,
@@ -194,16 +194,9 @@ impl std::fmt::Display for CameraSize {
 ///
 /// # Errors
 /// As [`run_local`].
-pub fn run(
-    drones: u32,
-    seconds: u32,
-    drones_per_shard: u32,
-    ground_truth_hz: Option<u32>,
-    out_root: std::path::PathBuf,
-    variant: Variant,
-) -> Result<BenchResult, RunError> {
+pub fn run(setup: &Setup, out_root: std::path::PathBuf, variant: Variant) -> Result<BenchResult, RunError> {
     let Variant { mavlink, recordings, urban_gnss, urban_wind, cameras } = variant;
-    let run = scenario(drones, seconds, drones_per_shard, ground_truth_hz, variant);
+    let run = scenario(setup, variant);
     // No pilot: with MAVLink on, every drone streams PX4's default telemetry to its API
     // port and to the router, which is the cost `--mavlink` measures.
     let options = RunOptions { out_root: Some(out_root), mavlink, start_pilot: false, ..RunOptions::default() };
@@ -229,13 +222,8 @@ pub fn run(
 }
 
 /// The benchmark scenario for one run.
-fn scenario(
-    drones: u32,
-    seconds: u32,
-    drones_per_shard: u32,
-    ground_truth_hz: Option<u32>,
-    variant: Variant,
-) -> sadesim_crds::run::SimulationRun {
+fn scenario(setup: &Setup, variant: Variant) -> sadesim_crds::run::SimulationRun {
+    let Setup { drones, seconds, drones_per_shard, ground_truth_hz } = *setup;
     let Variant { mavlink: _, recordings, urban_gnss, urban_wind, cameras } = variant;
     let camera = cameras.map_or(String::new(), |c| {
         format!(
@@ -362,7 +350,10 @@ mod tests {
     fn the_ground_truth_rate_goes_into_the_scenario_and_its_default_stays_otherwise() {
         let v =
             Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true, cameras: None };
-        let rates = |hz| scenario(4, 5, 2, hz, v).spec.recording.expect("recorded").rates;
+        let rates = |ground_truth_hz| {
+            let setup = Setup { drones: 4, seconds: 5, drones_per_shard: 2, ground_truth_hz };
+            scenario(&setup, v).spec.recording.expect("recorded").rates
+        };
         assert_eq!(rates(Some(25)).ground_truth_hz, 25.0);
         assert_eq!(rates(None), sadesim_crds::run::RecordingRates::default());
     }

@@ -104,7 +104,8 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 (.., Some(size)) => Comparison::Cameras(size),
                 _ => Comparison::None,
             };
-            let setup = crate::bench::Setup { drones, seconds, drones_per_shard, ground_truth_hz };
+            let setup =
+                crate::bench::Setup { drones, seconds: seconds.unwrap_or(60), drones_per_shard, ground_truth_hz };
             crate::bench::pairs::run_pairs(setup, comparison, repeat, out)
         }
         Command::Crd => {

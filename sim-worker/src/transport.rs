@@ -34,39 +34,40 @@ impl ShardLink for ThreadLink {
     }
 }
 
-/// Serves one shard over any message source and sink until `Stop` or disconnection, `io`
-/// carrying its MAVLink queues.
+/// Serves one shard over any message source and sink until `Stop`, `io` carrying its
+/// MAVLink queues. The first error of `recv` or `send` (the coordinator gone, a broken
+/// connection) ends it and is returned.
 ///
 /// Returns the CPU time, s, this thread spent handling the coordinator's messages: stepping
 /// the shard's drones and moving their MAVLink queues, the waits for the next message
 /// excluded (`CLOCK_THREAD_CPUTIME_ID`, two readings per window). It is the shard's own
 /// per-drone cost, apart from the coordinator's and the recorder's (`summary.json`
 /// `shardCpuS`, `sadesim bench`).
-pub fn serve(
+///
+/// # Errors
+/// The first error of `recv` or `send`.
+pub fn serve<E>(
     mut shard: Shard,
     mut io: impl MavlinkIo,
-    mut recv: impl FnMut() -> Option<ToShard>,
-    mut send: impl FnMut(FromShard) -> bool,
-) -> f64 {
+    mut recv: impl FnMut() -> Result<ToShard, E>,
+    mut send: impl FnMut(FromShard) -> Result<(), E>,
+) -> Result<f64, E> {
     let mut busy_s = 0.0;
-    if !send(shard.hello()) {
-        return busy_s;
-    }
-    while let Some(msg) = recv() {
+    send(shard.hello())?;
+    loop {
+        let msg = recv()?;
         let mut lap = Lap::start();
         let reply = shard.handle_with(msg, &mut io);
         lap.add_to(&mut busy_s);
         // `None` is the answer to Stop: the shard is done.
-        let Some(reply) = reply else { return busy_s };
-        if !send(reply) {
-            return busy_s;
-        }
+        let Some(reply) = reply else { return Ok(busy_s) };
+        send(reply)?;
     }
-    busy_s
 }
 
 /// Starts shard `index` of `plan` on its own thread, in `surroundings` (see [`Shard::new`]).
-/// The thread returns the CPU seconds it spent stepping the shard (see [`serve`]).
+/// The thread returns the CPU seconds it spent stepping the shard (see [`serve`]), `None`
+/// when the coordinator's end went away before `Stop`.
 ///
 /// # Errors
 /// When the shard cannot be built (reported before any thread starts).
@@ -75,14 +76,14 @@ pub fn spawn_thread(
     index: u32,
     surroundings: &crate::shard::Surroundings,
     mavlink: Option<&crate::shard::MavlinkOptions>,
-) -> Result<(ThreadLink, JoinHandle<f64>), crate::shard::ShardError> {
+) -> Result<(ThreadLink, JoinHandle<Option<f64>>), crate::shard::ShardError> {
     let mut shard = Shard::new(plan, index, surroundings)?;
     let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
     let (to_shard, shard_rx) = channel::<ToShard>();
     let (shard_tx, from_shard) = channel::<FromShard>();
     let handle = std::thread::Builder::new()
         .name(format!("shard-{index}"))
-        .spawn(move || serve(shard, sockets, || shard_rx.recv().ok(), |m| shard_tx.send(m).is_ok()))
+        .spawn(move || serve(shard, sockets, || shard_rx.recv().map_err(drop), |m| shard_tx.send(m).map_err(drop)).ok())
         .expect("the OS can start a thread");
     Ok((ThreadLink { to_shard, from_shard }, handle))
 }

@@ -47,13 +47,11 @@ pub fn run_pairs(
         _ => None,
     };
     use crate::bench::BenchResult;
-    let crate::bench::Setup { drones, seconds, drones_per_shard, ground_truth_hz } = setup;
-    let seconds = seconds.unwrap_or(60);
     let root = std::env::temp_dir().join(format!("sadesim-bench-{}", std::process::id()));
     let variants = schedule(comparison, repeat);
     let mut results = Vec::new();
     for &variant in &variants {
-        let result = crate::bench::run(drones, seconds, drones_per_shard, ground_truth_hz, root.clone(), variant)
+        let result = crate::bench::run(&setup, root.clone(), variant)
             .map_err(|source| CliError::Run { path: "bench".into(), source })?;
         let (with_mavlink, recordings) = (variant.mavlink, variant.recordings);
         writeln!(
@@ -204,7 +202,6 @@ fn schedule(comparison: Comparison, repeat: u32) -> Vec<Variant> {
     }
 }
 
-/// Drones x simulated seconds of a benchmark run.
 /// The shards' own cost: the CPU their threads spent stepping the drones (waits for the
 /// coordinator excluded, `summary.json` `shardCpuS`) per drone-step, µs; `None` when the
 /// run has no such figure.
@@ -213,6 +210,7 @@ pub fn shard_cpu_per_drone_step_us(result: &crate::bench::BenchResult) -> Option
     (!shards.is_empty()).then(|| shards.iter().sum::<f64>() / (drone_seconds(result) * 1000.0) * 1e6)
 }
 
+/// Drones x simulated seconds of a benchmark run.
 fn drone_seconds(result: &crate::bench::BenchResult) -> f64 {
     (f64::from(result.drones) * result.sim_time_s).max(1e-9)
 }

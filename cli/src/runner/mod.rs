@@ -637,9 +637,9 @@ fn run_threads(
         cameras.finish(&mut recorder);
     }
     drop(links);
-    // Each shard thread's CPU time stepping its drones; a thread that panicked has none
-    // (the run then failed, below).
-    let shard_cpu_s: Option<Vec<f64>> = threads.into_iter().map(|t| t.join().ok()).collect();
+    // Each shard thread's CPU time stepping its drones; a thread that panicked or lost the
+    // coordinator before `Stop` has none (the run then failed, below).
+    let shard_cpu_s: Option<Vec<f64>> = threads.into_iter().map(|t| t.join().ok().flatten()).collect();
     let outcome = match outcome {
         Ok(outcome) => outcome,
         // A shard thread died: close the files up to the last complete window, as the

@@ -22,7 +22,6 @@ use sadesim_crds::plan::RunPlan;
 use super::RoleError;
 use crate::coordinator::LinkError;
 use crate::protocol::ToShard;
-use crate::record::Lap;
 use crate::shard::Shard;
 use crate::transport;
 
@@ -105,38 +104,28 @@ pub fn connect(coordinator: &str, timeout: Duration) -> Result<TcpStream, RoleEr
 }
 
 /// Serves the shard protocol over `stream` until the coordinator says `Stop`; returns the
-/// CPU seconds spent handling its messages (as [`transport::serve`]).
-fn serve(
-    mut shard: Shard,
-    mut sockets: Option<ShardSockets>,
-    stream: TcpStream,
-    coordinator: &str,
-) -> Result<f64, RoleError> {
+/// CPU seconds spent handling its messages (see [`transport::serve`]).
+fn serve(shard: Shard, sockets: Option<ShardSockets>, stream: TcpStream, coordinator: &str) -> Result<f64, RoleError> {
     stream.set_nodelay(true)?;
     let mut reader = BufReader::new(stream.try_clone()?);
     let mut writer = BufWriter::new(stream);
     let (mut incoming, mut outgoing) = (Vec::new(), Vec::new());
-    let mut busy_s = 0.0;
     let lost = |what: String| {
         RoleError::Protocol(format!(
             "lost the coordinator at {coordinator}: {what} before it ended the run (it exited or failed; see its output)"
         ))
     };
-    transport::write_message(&mut writer, &shard.hello(), &mut outgoing).map_err(|e| lost(e.to_string()))?;
-    loop {
-        let msg = match transport::read_message::<ToShard>(&mut reader, &mut incoming) {
-            Ok(Some(msg)) => msg,
-            Ok(None) | Err(LinkError::Closed) => return Err(lost("the connection closed".into())),
-            Err(LinkError::Io(e)) => return Err(lost(e.to_string())),
-            Err(LinkError::Decode(e)) => return Err(lost(format!("unreadable message: {e}"))),
-        };
-        let mut lap = Lap::start();
-        let reply = shard.handle_with(msg, &mut sockets);
-        lap.add_to(&mut busy_s);
-        // `None` is the answer to Stop: the run is over.
-        let Some(reply) = reply else { return Ok(busy_s) };
-        transport::write_message(&mut writer, &reply, &mut outgoing).map_err(|e| lost(e.to_string()))?;
-    }
+    transport::serve(
+        shard,
+        sockets,
+        || match transport::read_message::<ToShard>(&mut reader, &mut incoming) {
+            Ok(Some(msg)) => Ok(msg),
+            Ok(None) | Err(LinkError::Closed) => Err(lost("the connection closed".into())),
+            Err(LinkError::Io(e)) => Err(lost(e.to_string())),
+            Err(LinkError::Decode(e)) => Err(lost(format!("unreadable message: {e}"))),
+        },
+        |reply| transport::write_message(&mut writer, &reply, &mut outgoing).map_err(|e| lost(e.to_string())),
+    )
 }
 
 #[cfg(test)]

@@ -48,17 +48,13 @@ impl Wire for ToShard {
                 out.push(ADVANCE);
                 out.extend_from_slice(&until_step.to_le_bytes());
                 out.push(u8::from(*release_pilots));
-                match leases {
-                    None => out.push(0),
-                    Some(pairs) => {
-                        out.push(1);
-                        put_u32(out, len_u32(pairs.len()));
-                        for [drone, zone] in pairs {
-                            put_u32(out, *drone);
-                            put_u32(out, *zone);
-                        }
+                put_optional(out, leases.as_ref(), |out, pairs| {
+                    put_u32(out, len_u32(pairs.len()));
+                    for [drone, zone] in pairs {
+                        put_u32(out, *drone);
+                        put_u32(out, *zone);
                     }
-                }
+                });
             }
             ToShard::Stop => put_json(out, self),
         }
@@ -70,16 +66,10 @@ impl Wire for ToShard {
             ADVANCE => {
                 let until_step = r.u64("untilStep")?;
                 let release_pilots = r.flag("releasePilots")?;
-                let leases = if r.flag("leases")? {
+                let leases = r.optional("leases", |r| {
                     let n = r.count("leases", 8)?;
-                    let mut pairs = Vec::with_capacity(n);
-                    for _ in 0..n {
-                        pairs.push([r.u32("leases[].drone")?, r.u32("leases[].zone")?]);
-                    }
-                    Some(pairs)
-                } else {
-                    None
-                };
+                    (0..n).map(|_| Ok([r.u32("leases[].drone")?, r.u32("leases[].zone")?])).collect()
+                })?;
                 r.end()?;
                 Ok(ToShard::Advance { until_step, release_pilots, leases })
             }
@@ -168,12 +158,13 @@ fn put_f64s(out: &mut Vec<u8>, values: &[f64]) {
     }
 }
 
-fn put_opt_f64(out: &mut Vec<u8>, v: Option<f64>) {
+/// A flag byte (0: `None`), then `put` of the value when there is one.
+fn put_optional<T>(out: &mut Vec<u8>, v: Option<T>, put: impl FnOnce(&mut Vec<u8>, T)) {
     match v {
         None => out.push(0),
         Some(v) => {
             out.push(1);
-            out.extend_from_slice(&v.to_le_bytes());
+            put(out, v);
         }
     }
 }
@@ -245,19 +236,15 @@ pub fn put_drone(out: &mut Vec<u8>, d: &DroneSnapshot) {
         local_origin_enu_m,
     } = detail;
     put_f64s(out, rate_body_rps);
-    match estimate {
-        None => out.push(0),
-        Some(EstimateDetail { position_enu_m, velocity_enu_mps, attitude_wxyz, eph_m, epv_m }) => {
-            out.push(1);
-            put_f64s(out, position_enu_m);
-            put_f64s(out, velocity_enu_mps);
-            put_f64s(out, attitude_wxyz);
-            put_f64s(out, &[*eph_m, *epv_m]);
-        }
-    }
-    match gnss {
-        None => out.push(0),
-        Some(GnssDetail {
+    put_optional(out, estimate.as_ref(), |out, e| {
+        let EstimateDetail { position_enu_m, velocity_enu_mps, attitude_wxyz, eph_m, epv_m } = e;
+        put_f64s(out, position_enu_m);
+        put_f64s(out, velocity_enu_mps);
+        put_f64s(out, attitude_wxyz);
+        put_f64s(out, &[*eph_m, *epv_m]);
+    });
+    put_optional(out, gnss.as_ref(), |out, g| {
+        let GnssDetail {
             time_s,
             position_enu_m,
             velocity_enu_mps,
@@ -268,23 +255,18 @@ pub fn put_drone(out: &mut Vec<u8>, d: &DroneSnapshot) {
             hdop,
             vdop,
             sky,
-        }) => {
-            out.push(1);
-            put_f64s(out, &[*time_s]);
-            put_f64s(out, position_enu_m);
-            put_f64s(out, velocity_enu_mps);
-            out.extend_from_slice(&[*fix_type, *satellites]);
-            for v in [eph_m, epv_m, hdop, vdop] {
-                put_opt_f64(out, *v);
-            }
-            match sky {
-                None => out.push(0),
-                Some(SkyDetail { above_mask, line_of_sight, reflected }) => {
-                    out.extend_from_slice(&[1, *above_mask, *line_of_sight, *reflected]);
-                }
-            }
+        } = g;
+        put_f64s(out, &[*time_s]);
+        put_f64s(out, position_enu_m);
+        put_f64s(out, velocity_enu_mps);
+        out.extend_from_slice(&[*fix_type, *satellites]);
+        for v in [eph_m, epv_m, hdop, vdop] {
+            put_optional(out, *v, |out, v| put_f64s(out, &[v]));
         }
-    }
+        put_optional(out, sky.as_ref(), |out, SkyDetail { above_mask, line_of_sight, reflected }| {
+            out.extend_from_slice(&[*above_mask, *line_of_sight, *reflected]);
+        });
+    });
     put_f64s(out, motor_commands);
     out.push(*motor_count);
     put_f64s(out, &[*battery_voltage_v, *battery_current_a, *battery_consumed_mah]);
@@ -309,19 +291,17 @@ fn take_drone(r: &mut Reader<'_>) -> Result<DroneSnapshot, String> {
     }
     let battery_remaining = r.f64("batteryRemaining")?;
     let rate_body_rps = r.f64s("detail.rateBodyRps")?;
-    let estimate = if r.flag("detail.estimate")? {
-        Some(EstimateDetail {
+    let estimate = r.optional("detail.estimate", |r| {
+        Ok(EstimateDetail {
             position_enu_m: r.f64s("detail.estimate.positionEnuM")?,
             velocity_enu_mps: r.f64s("detail.estimate.velocityEnuMps")?,
             attitude_wxyz: r.f64s("detail.estimate.attitudeWxyz")?,
             eph_m: r.f64("detail.estimate.ephM")?,
             epv_m: r.f64("detail.estimate.epvM")?,
         })
-    } else {
-        None
-    };
-    let gnss = if r.flag("detail.gnss")? {
-        Some(GnssDetail {
+    })?;
+    let gnss = r.optional("detail.gnss", |r| {
+        Ok(GnssDetail {
             time_s: r.f64("detail.gnss.timeS")?,
             position_enu_m: r.f64s("detail.gnss.positionEnuM")?,
             velocity_enu_mps: r.f64s("detail.gnss.velocityEnuMps")?,
@@ -331,19 +311,15 @@ fn take_drone(r: &mut Reader<'_>) -> Result<DroneSnapshot, String> {
             epv_m: r.opt_f64("detail.gnss.epvM")?,
             hdop: r.opt_f64("detail.gnss.hdop")?,
             vdop: r.opt_f64("detail.gnss.vdop")?,
-            sky: if r.flag("detail.gnss.sky")? {
-                Some(SkyDetail {
+            sky: r.optional("detail.gnss.sky", |r| {
+                Ok(SkyDetail {
                     above_mask: r.u8("detail.gnss.sky.aboveMask")?,
                     line_of_sight: r.u8("detail.gnss.sky.lineOfSight")?,
                     reflected: r.u8("detail.gnss.sky.reflected")?,
                 })
-            } else {
-                None
-            },
+            })?,
         })
-    } else {
-        None
-    };
+    })?;
     let detail = DroneDetail {
         rate_body_rps,
         estimate,
@@ -456,8 +432,17 @@ impl<'a> Reader<'a> {
         }
     }
 
+    /// A flag byte, then `read` of the value when it is 1.
+    fn optional<T>(
+        &mut self,
+        field: &str,
+        read: impl FnOnce(&mut Self) -> Result<T, String>,
+    ) -> Result<Option<T>, String> {
+        if self.flag(field)? { read(self).map(Some) } else { Ok(None) }
+    }
+
     fn opt_f64(&mut self, field: &str) -> Result<Option<f64>, String> {
-        Ok(if self.flag(field)? { Some(self.f64(field)?) } else { None })
+        self.optional(field, |r| r.f64(field))
     }
 
     /// A `u32` count of items of at least `min_item_bytes` each, refused when the rest of
