@@ -177,3 +177,44 @@ fn a_failed_upload_has_its_own_exit_status() {
     assert!(out.join(run_folder::REPORT).exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Local runs start the coordinator on the plan's airspace port, which another run on the
+/// machine may hold (`sadesim run --processes` beside others, as parallel tests are): the
+/// API moves to a free port, and the `listening` line says where it answers.
+#[test]
+fn a_taken_airspace_port_gives_way_to_a_free_one_that_is_reported() {
+    use std::io::{Read, Write};
+    let dir = temp("port-taken");
+    let (plan_file, _) = write_plan(&dir, ClockMode::AsFastAsPossible);
+    let held = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let taken = held.local_addr().unwrap();
+    let mut coordinator = Command::new(SIM_WORKER)
+        .args(["coordinator", "--plan"])
+        .arg(&plan_file)
+        .args(["--listen", "127.0.0.1:0", "--airspace-bind", &taken.to_string(), "--out"])
+        .arg(dir.join("out"))
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("sim-worker starts");
+    let mut stdout = BufReader::new(coordinator.stdout.take().unwrap());
+    let first = read_report(&mut stdout);
+    let Some(Report::Listening { airspace, .. }) = first else {
+        let _ = coordinator.kill();
+        panic!("expected listening first, got {first:?}");
+    };
+    let airspace: std::net::SocketAddr = airspace.parse().unwrap();
+    assert_eq!(airspace.ip(), taken.ip());
+    assert_ne!(airspace.port(), taken.port(), "reported the port another program holds");
+    // The reported address is the airspace API.
+    let mut http = std::net::TcpStream::connect(airspace).unwrap();
+    http.write_all(b"GET /healthz HTTP/1.0\r\nHost: localhost\r\n\r\n").unwrap();
+    let mut answer = String::new();
+    http.read_to_string(&mut answer).unwrap();
+    coordinator.kill().unwrap();
+    coordinator.wait().unwrap();
+    assert!(answer.starts_with("HTTP/1.0 200") || answer.starts_with("HTTP/1.1 200"), "{answer}");
+    drop(held);
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -146,6 +146,44 @@ fn pilot_exit_ends_the_run_with_processes_too() {
     pilot_exit_ends_the_run(true);
 }
 
+/// Asks the airspace API named in the fleet file for `/healthz` (bash's `/dev/tcp`, no
+/// HTTP client needed) and writes the status line and the URL into the output folder.
+const AIRSPACE_PILOT: &str = r#"
+url=$(grep -o '"airspaceUrl": *"[^"]*"' "$SADESIM_FLEET" | sed 's/.*"http:\/\/\([^"]*\)"/\1/')
+exec 3<>"/dev/tcp/${url%:*}/${url##*:}"
+printf 'GET /healthz HTTP/1.0\r\n\r\n' >&3
+head -n1 <&3 | tr -d '\r' > "$SADESIM_OUT/seen-airspace"
+echo "$url" >> "$SADESIM_OUT/seen-airspace"
+"#;
+
+/// Another program holds the plan's airspace port: the API answers on another one, and the
+/// fleet file tells the pilot where (with worker processes the coordinator process picks
+/// the port, and the runner learns it from the coordinator).
+fn fleet_file_names_the_airspace_api_where_it_answers(processes: bool) {
+    let root = root(if processes { "airspace-processes" } else { "airspace-threads" });
+    let r = scenario(&["bash", "-c", AIRSPACE_PILOT], "10m", afap());
+    let planned = plan(&r).services.airspace_http;
+    // Held by this test, or by another program already: taken either way.
+    let _held = std::net::TcpListener::bind(("127.0.0.1", planned));
+    let report = run(&r, &options(&root, processes)).unwrap();
+    assert_eq!(report.summary.end_reason, "pilotExited");
+    let seen = read(&report.out_dir.join("seen-airspace"));
+    let lines: Vec<&str> = seen.lines().collect();
+    assert!(lines[0].starts_with("HTTP/1.") && lines[0].ends_with(" 200 OK"), "{seen}");
+    assert!(lines[1].starts_with("127.0.0.1:") && lines[1] != format!("127.0.0.1:{planned}"), "{seen}");
+    std::fs::remove_dir_all(&root).unwrap();
+}
+
+#[test]
+fn the_fleet_file_names_the_airspace_api_where_it_answers() {
+    fleet_file_names_the_airspace_api_where_it_answers(false);
+}
+
+#[test]
+fn the_fleet_file_names_the_airspace_api_where_it_answers_with_processes_too() {
+    fleet_file_names_the_airspace_api_where_it_answers(true);
+}
+
 #[test]
 fn with_on_exit_continue_the_run_goes_on_to_its_duration() {
     let root = root("continue");

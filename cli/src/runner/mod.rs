@@ -410,7 +410,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         .find(|d| !d.exists())
         .expect("some suffix is free");
     // Everything about the pilot that can be wrong is found before the run starts.
-    let mut launch = match (&plan.spec.pilot, options.start_pilot) {
+    let launch = match (&plan.spec.pilot, options.start_pilot) {
         (Some(p), true) => Some(pilot::Launch::prepare(&plan, p, options.scenario.as_deref(), &out_dir)?),
         _ => None,
     };
@@ -418,12 +418,11 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         .map_err(|source| RunError::Output { path: out_dir.display().to_string(), source })?;
     write_json(&out_dir, sadesim_crds::outcome::run_folder::PLAN, &plan)?;
     // The airspace authority answers before the pilot starts. In `--processes` runs the
-    // coordinator process serves it on the planned port instead.
+    // coordinator process serves it instead, on the planned port or a free one.
     let mut airspace = Airspace::new(&plan, &|key| std::env::var(key).ok());
-    let airspace_addr = if options.processes {
-        free_local_address(plan.services.airspace_http)
-    } else {
-        serve_airspace(&mut airspace, &plan)?
+    let airspace_addr = match options.processes {
+        true => None,
+        false => Some(serve_airspace(&mut airspace, &plan)?),
     };
 
     // With a cache the field is stored there for the worker processes to load; without one
@@ -455,31 +454,18 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         }
         false => None,
     };
-    // Written for every run: pilots started by hand and ground stations use it too. It
-    // comes after the servers listen, as their addresses can differ from the plan's ports.
-    let mut fleet = planner::fleet_file(&plan, &Addressing::Local { host: "127.0.0.1".into() });
-    fleet.airspace_url = format!("http://{airspace_addr}");
-    // With --processes the coordinator process serves the view and the cameras' frames.
-    let processes_view =
-        (options.processes && plan.spec.rendering().enabled).then(|| free_local_address(plan.services.renderer_http));
-    let has_cameras = plan.spec.has_cameras();
-    let cameras_url = match (&live_view, &cameras, processes_view) {
-        (Some(view), Some(_), _) => Some(format!("{}cameras", view.server.url())),
-        (_, _, Some(addr)) if has_cameras => Some(format!("http://{addr}/cameras")),
-        _ => None,
-    };
-    if let Some(url) = &cameras_url {
-        planner::add_camera_urls(&mut fleet, &plan, url);
-        if let Some(l) = &mut launch {
-            l.set_cameras_url(url);
-        }
+    let mut supervisor = launch.map(Supervisor::new);
+    // In-process servers listen already; a coordinator process says where its own listen
+    // (`workers::run` writes the fleet file then).
+    if let Some(airspace_addr) = airspace_addr {
+        let frames = live_view.as_ref().filter(|_| cameras.is_some()).map(|v| v.server.addr);
+        write_fleet_file(&plan, &out_dir, airspace_addr, frames, supervisor.as_mut())?;
     }
-    write_json(&out_dir, pilot::FLEET_FILE, &fleet)?;
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));
     bar.enable_steady_tick(Duration::from_millis(200));
-    let mut supervisor = launch.map(Supervisor::new);
     let summary = if options.processes {
+        let local = |port| std::net::SocketAddr::from(([127, 0, 0, 1], port));
         workers::run(
             &plan,
             options.worker.as_deref(),
@@ -488,9 +474,9 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             &bar,
             &stop,
             supervisor.as_mut(),
-            airspace_addr,
+            local(plan.services.airspace_http),
             assets.as_ref().map(AssetsOutcome::url),
-            processes_view,
+            plan.spec.rendering().enabled.then(|| local(plan.services.renderer_http)),
         )
     } else {
         let surroundings = sim_worker::shard::Surroundings { world: world.clone(), sky, wind };
@@ -532,15 +518,27 @@ fn serve_airspace(airspace: &mut Airspace, plan: &RunPlan) -> Result<std::net::S
         .map_err(|e| RunError::Worker(format!("airspace API: cannot listen on 127.0.0.1: {e}")))
 }
 
-/// For `--processes`: `port` (a planned one) on 127.0.0.1 if it is free now, else a free
-/// port (the coordinator process binds it a moment later; another program taking it in
-/// between makes the coordinator fail with the address named, or the view move to another
-/// port).
-fn free_local_address(port: u16) -> std::net::SocketAddr {
-    let planned = std::net::SocketAddr::from(([127, 0, 0, 1], port));
-    let probe = std::net::TcpListener::bind(planned)
-        .or_else(|_| std::net::TcpListener::bind(std::net::SocketAddr::from(([127, 0, 0, 1], 0))));
-    probe.and_then(|l| l.local_addr()).unwrap_or(planned)
+/// Writes the fleet file for every run: pilots started by hand and ground stations use it
+/// too. It is written once the servers listen, as their addresses can differ from the
+/// plan's ports: `airspace` serves the airspace API, `frames` the onboard cameras' frames
+/// (the live view's server, in a run with cameras). The pilot, started later, gets the
+/// cameras' URL in its environment.
+fn write_fleet_file(
+    plan: &RunPlan,
+    out_dir: &Path,
+    airspace: std::net::SocketAddr,
+    frames: Option<std::net::SocketAddr>,
+    supervisor: Option<&mut Supervisor>,
+) -> Result<(), RunError> {
+    let mut fleet = planner::fleet_file(plan, &Addressing::Local { host: "127.0.0.1".into() });
+    fleet.airspace_url = format!("http://{airspace}");
+    if let Some(url) = frames.filter(|_| plan.spec.has_cameras()).map(|addr| format!("http://{addr}/cameras")) {
+        planner::add_camera_urls(&mut fleet, plan, &url);
+        if let Some(s) = supervisor {
+            s.set_cameras_url(&url);
+        }
+    }
+    write_json(out_dir, pilot::FLEET_FILE, &fleet)
 }
 
 /// The passphrase of `spec.groundStations.signing` for the routers of a local run (`None`:

@@ -228,6 +228,12 @@ impl Supervisor {
         Self { launch, state: State::Waiting, now_s: 0.0 }
     }
 
+    /// The onboard cameras' frames are served at `cameras_url` ([`Launch::set_cameras_url`]);
+    /// known once the server listens, before the pilot starts.
+    pub fn set_cameras_url(&mut self, cameras_url: &str) {
+        self.launch.set_cameras_url(cameras_url);
+    }
+
     /// Records that simulated time reached `sim_time_s` (it never goes back).
     pub fn advance(&mut self, sim_time_s: f64) {
         self.now_s = self.now_s.max(sim_time_s);

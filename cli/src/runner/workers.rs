@@ -65,7 +65,9 @@ fn interrupt(child: &Child) {
 
 /// Runs the plan written at `out_dir/plan.json` with worker processes. `routers`: `None`
 /// for a run without MAVLink, else the routers' signing passphrase (`None` inside: no
-/// signing), handed to them in `SADESIM_MAVLINK_SIGNING_KEY`.
+/// signing), handed to them in `SADESIM_MAVLINK_SIGNING_KEY`. `airspace` and `view` are
+/// where the coordinator should serve the airspace API and the live view; it reports where
+/// it does (another port when one is taken), and the fleet file is written then.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn run(
     plan: &RunPlan,
@@ -101,7 +103,22 @@ pub(super) fn run(
     let mut control = coordinator.stdin.take();
     let mut lines = BufReader::new(stdout).lines();
     let address = match lines.next().and_then(Result::ok).and_then(|l| serde_json::from_str::<Report>(&l).ok()) {
-        Some(Report::Listening { address, view: shown, .. }) => {
+        Some(Report::Listening { address, airspace, view: shown }) => {
+            // The ports the coordinator listens on: the planned ones unless other programs
+            // held them. The fleet file tells them to the pilot and the ground stations.
+            let served = |what: &str, addr: &str| {
+                addr.parse::<std::net::SocketAddr>().map_err(|e| {
+                    RunError::Worker(format!("the coordinator reported its {what} at {addr:?}, not host:port: {e}"))
+                })
+            };
+            let fleet_file = served("airspace API", &airspace).and_then(|airspace| {
+                let frames = shown.as_deref().map(|view| served("live view", view)).transpose()?;
+                super::write_fleet_file(plan, out_dir, airspace, frames, pilot.as_deref_mut())
+            });
+            if let Err(e) = fleet_file {
+                let _ = coordinator.kill();
+                return Err(e);
+            }
             if let Some(shown) = shown {
                 bar.suspend(|| eprintln!("live view: http://{shown}/"));
                 // The coordinator process renders the cameras and serves their frames.

@@ -142,6 +142,8 @@ pub fn finish(plan_file: &Path, plan: &RunPlan, world: &World, out_dir: &Path, u
 /// it. A request in `ends.requests` ends the run after the current window with its reason.
 /// With `spec.rendering.enabled` the live stream (`/live`, and the page itself) is served on
 /// `view_bind` (default 127.0.0.1 at the plan's renderer port) for the renderer to follow.
+/// The airspace API is served on `airspace_bind`. When either port is taken, a free port is
+/// used instead; the [`Report::Listening`] line says where each one answers.
 ///
 /// # Errors
 /// Network, protocol, shard and recording failures; each is also reported as a
@@ -176,9 +178,12 @@ pub fn run(
         };
         // The airspace API is up before any shard connects, so it answers as soon as pilots
         // are released. Credentials from Secrets arrive as SADESIM_CREDENTIAL_<GROUP>.
+        // A port another program holds (a local run beside other runs; never in a pod, which
+        // has its own network namespace) gives way to a free one, as the live view's does:
+        // the `listening` line reports where it answers, and `sadesim run --processes`
+        // writes that address into the fleet file.
         let mut airspace = Airspace::new(plan, &|key| std::env::var(key).ok());
-        let airspace_addr = airspace
-            .serve(airspace_bind)
+        let airspace_addr = crate::http_thread::or_free_port(airspace_bind, |addr| airspace.serve(addr))
             .map_err(|e| RoleError::Protocol(format!("airspace API: cannot listen on {airspace_bind}: {e}")))?;
         let listener = TcpListener::bind(listen)?;
         report(&Report::Listening {
