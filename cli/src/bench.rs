@@ -22,6 +22,7 @@
 //! load of entry requests, `GET /zones` and `GET /events` (see [`airspace_load`]).
 
 pub mod airspace_load;
+pub mod ground_station;
 pub mod pairs;
 
 use std::sync::Arc;
@@ -136,6 +137,8 @@ pub struct BenchResult {
     pub cameras: Option<CameraSize>,
     /// Drone-steps (drones x physics steps) per wall second.
     pub drone_steps_per_s: f64,
+    /// What the ground stations received (`Setup::ground_stations`, MAVLink runs).
+    pub delivered: Option<ground_station::Received>,
     pub report: RunReport,
 }
 
@@ -164,6 +167,9 @@ pub struct Setup {
     pub drones_per_shard: u32,
     /// `spec.recording.rates.groundTruthHz`, Hz; `None`: the field's default.
     pub ground_truth_hz: Option<u32>,
+    /// In the runs with MAVLink, a ground station on every router reads all the telemetry
+    /// ([`ground_station`]), so its delivery is paid for too.
+    pub ground_stations: bool,
 }
 
 /// The image size of `bench --cameras`, `WIDTHxHEIGHT` on the command line.
@@ -199,10 +205,26 @@ pub fn run(setup: &Setup, out_root: std::path::PathBuf, variant: Variant) -> Res
     let run = scenario(setup, variant);
     // No pilot: with MAVLink on, every drone streams PX4's default telemetry to its API
     // port and to the router, which is the cost `--mavlink` measures.
+    // Unless ground stations listen (`--ground-stations`), the routers do not register with
+    // the drones, so the telemetry is built and encoded but only heartbeats are sent.
     let options = RunOptions { out_root: Some(out_root), mavlink, start_pilot: false, ..RunOptions::default() };
+    let stations = match mavlink && setup.ground_stations {
+        true => {
+            let plan = sadesim_planner::plan(&run)?;
+            let stations = ground_station::GroundStations::start(&plan)
+                .map_err(|e| RunError::Worker(format!("bench: ground station: {e}")))?;
+            Some(stations)
+        }
+        false => None,
+    };
     let cpu_before = process_cpu_time_s();
-    let report = run_local(&run, &options, Arc::new(AtomicBool::new(false)))?;
+    let report = run_local(&run, &options, Arc::new(AtomicBool::new(false)));
     let cpu_time_s = cpu_before.zip(process_cpu_time_s()).map(|(a, b)| b - a);
+    let delivered = stations
+        .map(ground_station::GroundStations::stop)
+        .transpose()
+        .map_err(|e| RunError::Worker(format!("bench: ground station: {e}")))?;
+    let report = report?;
     let s = &report.summary;
     let steps = f64::from(s.drones) * s.sim_time_s * 1000.0;
     Ok(BenchResult {
@@ -212,6 +234,7 @@ pub fn run(setup: &Setup, out_root: std::path::PathBuf, variant: Variant) -> Res
         wall_time_s: s.wall_time_s,
         drone_steps_per_s: steps / s.wall_time_s.max(1e-9),
         cpu_time_s,
+        delivered,
         mavlink,
         recordings,
         urban_gnss,
@@ -223,7 +246,7 @@ pub fn run(setup: &Setup, out_root: std::path::PathBuf, variant: Variant) -> Res
 
 /// The benchmark scenario for one run.
 fn scenario(setup: &Setup, variant: Variant) -> sadesim_crds::run::SimulationRun {
-    let Setup { drones, seconds, drones_per_shard, ground_truth_hz } = *setup;
+    let Setup { drones, seconds, drones_per_shard, ground_truth_hz, ground_stations: _ } = *setup;
     let Variant { mavlink: _, recordings, urban_gnss, urban_wind, cameras } = variant;
     let camera = cameras.map_or(String::new(), |c| {
         format!(
@@ -351,7 +374,7 @@ mod tests {
         let v =
             Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true, cameras: None };
         let rates = |ground_truth_hz| {
-            let setup = Setup { drones: 4, seconds: 5, drones_per_shard: 2, ground_truth_hz };
+            let setup = Setup { drones: 4, seconds: 5, drones_per_shard: 2, ground_truth_hz, ground_stations: false };
             scenario(&setup, v).spec.recording.expect("recorded").rates
         };
         assert_eq!(rates(Some(25)).ground_truth_hz, 25.0);

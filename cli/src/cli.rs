@@ -90,10 +90,16 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             bare,
             whole_stack,
             ground_truth_hz,
+            ground_stations,
             repeat,
             ..
         } => {
             use crate::bench::pairs::Comparison;
+            if ground_stations && !(mavlink || whole_stack) {
+                return Err(CliError::Failed(
+                    "bench: --ground-stations listens to MAVLink telemetry: it needs --mavlink or --whole-stack".into(),
+                ));
+            }
             let comparison = match (mavlink, recording, urban_gnss, urban_wind, cameras) {
                 _ if bare => Comparison::BareOnly,
                 _ if whole_stack => Comparison::WholeStack,
@@ -104,8 +110,13 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 (.., Some(size)) => Comparison::Cameras(size),
                 _ => Comparison::None,
             };
-            let setup =
-                crate::bench::Setup { drones, seconds: seconds.unwrap_or(60), drones_per_shard, ground_truth_hz };
+            let setup = crate::bench::Setup {
+                drones,
+                seconds: seconds.unwrap_or(60),
+                drones_per_shard,
+                ground_truth_hz,
+                ground_stations,
+            };
             crate::bench::pairs::run_pairs(setup, comparison, repeat, out)
         }
         Command::Crd => {

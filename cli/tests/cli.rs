@@ -325,3 +325,14 @@ fn run_exits_1_when_a_criterion_fails_and_lists_the_failures() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn bench_ground_stations_need_a_run_with_mavlink() {
+    let o = sadesim(&["bench", "--drones", "2", "--seconds", "1", "--ground-stations"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("--ground-stations listens to MAVLink telemetry: it needs --mavlink or --whole-stack"),
+        "{}",
+        text(&o)
+    );
+}

@@ -98,6 +98,19 @@ pub fn run_pairs(
                 shards.iter().copied().fold(0.0, f64::max),
             )?;
         }
+        if let Some(got) = result.delivered {
+            let per = |n: u64| n as f64 / drone_seconds(&result);
+            writeln!(
+                out,
+                "  ground stations: {} frames in {} datagrams ({:.1} MB) = {:.0} frames, {:.1} datagrams, {:.0} bytes per drone-second",
+                got.frames,
+                got.datagrams,
+                got.bytes as f64 / 1e6,
+                per(got.frames),
+                per(got.datagrams),
+                per(got.bytes),
+            )?;
+        }
         if let Some(tallies) = Some(&result.report.summary.cameras).filter(|t| !t.is_empty()) {
             let frames: u64 = tallies.iter().map(|t| t.frames).sum();
             writeln!(

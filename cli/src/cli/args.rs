@@ -95,6 +95,13 @@ pub enum Command {
         /// 100), to see what a lower rate saves.
         #[arg(long, value_name = "HZ", value_parser = clap::value_parser!(u32).range(1..=1000), conflicts_with_all = ["bare", "airspace"])]
         ground_truth_hz: Option<u32>,
+        /// With --mavlink or --whole-stack: in the runs with MAVLink, a ground station on
+        /// every router (UDP, as QGroundControl connects) reads all the telemetry, so the
+        /// runs pay for its delivery (drones to routers to ground stations), not only for
+        /// building and encoding it. Without one, routers do not register with the drones
+        /// and only heartbeats leave them.
+        #[arg(long)]
+        ground_stations: bool,
         /// With a comparison (--mavlink, --recording, --urban-gnss, --urban-wind, --cameras, --whole-stack): run this many back-to-back pairs of the two
         /// variants (every other pair "on" first) and report the median ratio of the pairs
         /// (this machine's speed drifts by tens of percent between minutes).
