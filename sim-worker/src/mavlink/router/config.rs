@@ -33,6 +33,19 @@ pub(super) const TCP_WRITE_TIMEOUT: Duration = Duration::from_secs(2);
 pub(super) const TCP_QUEUE: usize = 1024;
 /// Largest UDP payload.
 pub(super) const MAX_DATAGRAM: usize = 65_536;
+/// The drone side gathers the frames of datagrams that arrive together (a shard sends all
+/// its drones' telemetry at once, every 20 ms of simulated time) and sends them to the
+/// ground stations in shared datagrams: a send for the router and a receive for each ground
+/// station per gathered datagram instead of one per drone. It sends what it gathered when
+/// no datagram came for this long...
+pub(super) const GATHER_GAP: Duration = Duration::from_millis(1);
+/// ...or when the first gathered frame has waited this long (a steady trickle of datagrams
+/// could otherwise hold frames back)...
+pub(super) const GATHER_MAX_WAIT: Duration = Duration::from_millis(5);
+/// ...or when the next frames would not fit in this many bytes: below a 1 500-byte
+/// Ethernet MTU's UDP payload and within MAVSDK's 2 kB receive buffer. A drone's own
+/// datagram that is larger still goes as it came.
+pub(super) const GCS_DATAGRAM: usize = 1400;
 
 /// One drone of the segment.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

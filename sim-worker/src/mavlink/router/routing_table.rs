@@ -197,15 +197,21 @@ impl Shared {
         }
     }
 
-    /// A datagram on the drone socket: to every ground station, unchanged when it is clean
-    /// (without signing), each frame signed (with signing).
-    pub(super) fn forward_drone_datagram(&self, datagram: &[u8], from: SocketAddr, parser: &mut FrameParser) {
+    /// A datagram on the drone socket: what goes to every ground station, the datagram
+    /// unchanged when it is clean (without signing), each frame signed (with signing);
+    /// `None` for a datagram from a stranger or when no ground station listens.
+    pub(super) fn drone_frames<'a>(
+        &self,
+        datagram: &'a [u8],
+        from: SocketAddr,
+        parser: &mut FrameParser,
+    ) -> Option<Cow<'a, [u8]>> {
         if !self.endpoints.contains(&from) {
             add(&self.counters.dropped_unknown_source, 1);
-            return;
+            return None;
         }
         if !self.has_ground_stations() {
-            return; // nobody to forward to: not worth checking
+            return None; // nobody to forward to: not worth checking
         }
         parser.reset();
         let frames = self.parse(parser, datagram);
@@ -225,9 +231,7 @@ impl Shared {
         } else {
             Cow::Owned(frames.iter().filter(|f| !own(f)).flat_map(|f| f.bytes.iter().copied()).collect())
         };
-        if !out.is_empty() {
-            self.to_gcs(&out, None);
-        }
+        (!out.is_empty()).then_some(out)
     }
 
     /// Sends `bytes` (whole frames) to every ground station except `origin`.

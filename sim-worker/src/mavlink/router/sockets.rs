@@ -8,7 +8,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError};
 use std::time::Instant;
 
-use super::config::{HEARTBEAT_PERIOD, MAX_DATAGRAM, MAX_TCP_GCS, POLL, TCP_QUEUE, TCP_WRITE_TIMEOUT};
+use super::config::{
+    GATHER_GAP, GATHER_MAX_WAIT, GCS_DATAGRAM, HEARTBEAT_PERIOD, MAX_DATAGRAM, MAX_TCP_GCS, POLL, TCP_QUEUE,
+    TCP_WRITE_TIMEOUT,
+};
 use super::handle::spawn;
 use super::routing_table::{GcsOrigin, Shared, TcpClient, add, lock};
 use crate::mavlink::frame::FrameParser;
@@ -17,12 +20,14 @@ pub(super) fn is_timeout(e: &io::Error) -> bool {
     matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut | io::ErrorKind::Interrupted)
 }
 
-/// The drone-side thread: registration heartbeats and telemetry to the ground stations.
+/// The drone-side thread: registration heartbeats and telemetry to the ground stations,
+/// gathered into shared datagrams ([`Gathered`]).
 pub(super) fn drone_side(shared: &Shared) {
     let mut buf = vec![0u8; MAX_DATAGRAM];
     let mut parser = FrameParser::checksum_only();
     let mut sequence: u8 = 0;
     let mut next_heartbeat = Instant::now();
+    let mut gathered = Gathered::default();
     while !shared.stopping() {
         let now = Instant::now();
         if now >= next_heartbeat {
@@ -35,12 +40,77 @@ pub(super) fn drone_side(shared: &Shared) {
             next_heartbeat = now + HEARTBEAT_PERIOD;
         }
         match shared.drone_socket.recv_from(&mut buf) {
-            Ok((n, from)) => shared.forward_drone_datagram(&buf[..n], from, &mut parser),
-            Err(e) if is_timeout(&e) => {}
+            Ok((n, from)) => {
+                if let Some(frames) = shared.drone_frames(&buf[..n], from, &mut parser) {
+                    gathered.add(shared, &frames);
+                }
+                if gathered.is_due() {
+                    gathered.send(shared);
+                }
+            }
+            Err(e) if is_timeout(&e) => gathered.send(shared),
             // E.g. an ICMP port-unreachable reported on a later call (Windows): keep
             // serving, without spinning should the error persist.
-            Err(_) => std::thread::sleep(POLL),
+            Err(_) => {
+                gathered.send(shared);
+                std::thread::sleep(POLL);
+            }
         }
+        // While frames wait, the next read waits only GATHER_GAP for more.
+        let timeout = if gathered.is_empty() { POLL } else { GATHER_GAP };
+        if gathered.timeout != timeout && shared.drone_socket.set_read_timeout(Some(timeout)).is_ok() {
+            gathered.timeout = timeout;
+        }
+        // A socket whose timeout cannot be shortened would hold frames for POLL: send now.
+        if gathered.timeout != GATHER_GAP {
+            gathered.send(shared);
+        }
+    }
+    gathered.send(shared);
+}
+
+/// Frames for the ground stations from datagrams that arrived together (see
+/// [`GATHER_GAP`]), in arrival order; whole frames only, so a ground station's parser sees
+/// the same frames as if each datagram had come on its own.
+struct Gathered {
+    bytes: Vec<u8>,
+    /// When the oldest frame waiting arrived.
+    since: Option<Instant>,
+    /// The drone socket's read timeout as last set.
+    timeout: std::time::Duration,
+}
+
+impl Default for Gathered {
+    fn default() -> Self {
+        Self { bytes: Vec::with_capacity(GCS_DATAGRAM), since: None, timeout: POLL }
+    }
+}
+
+impl Gathered {
+    fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+
+    /// Adds one datagram's frames, sending what waits first when they would not fit.
+    fn add(&mut self, shared: &Shared, frames: &[u8]) {
+        if !self.bytes.is_empty() && self.bytes.len() + frames.len() > GCS_DATAGRAM {
+            self.send(shared);
+        }
+        self.bytes.extend_from_slice(frames);
+        self.since.get_or_insert_with(Instant::now);
+    }
+
+    /// Full, or the oldest frame has waited GATHER_MAX_WAIT.
+    fn is_due(&self) -> bool {
+        self.bytes.len() >= GCS_DATAGRAM || self.since.is_some_and(|t| t.elapsed() >= GATHER_MAX_WAIT)
+    }
+
+    fn send(&mut self, shared: &Shared) {
+        if !self.bytes.is_empty() {
+            shared.to_gcs(&self.bytes, None);
+            self.bytes.clear();
+        }
+        self.since = None;
     }
 }
 

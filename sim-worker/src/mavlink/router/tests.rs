@@ -483,3 +483,63 @@ fn with_signing_only_signed_gcs_frames_pass_and_the_gcs_gets_signed_frames() {
     let stats = router.stats();
     assert_eq!((stats.refused_unsigned, stats.refused_bad_signature, stats.refused_old_timestamp), (4, 1, 1));
 }
+
+/// Datagrams from many drones at once (a shard's flush) reach a ground station in fewer,
+/// fuller datagrams: every frame intact, each drone's in its order, none over 1 400 bytes.
+#[test]
+fn a_burst_of_drone_datagrams_reaches_a_gcs_in_shared_datagrams() {
+    const DRONES: u8 = 16;
+    let sockets: Vec<UdpSocket> = (0..DRONES).map(|_| UdpSocket::bind("127.0.0.1:0").unwrap()).collect();
+    let config = RouterConfig {
+        segment: 0,
+        gcs_udp: "127.0.0.1:0".parse().unwrap(),
+        gcs_tcp: "127.0.0.1:0".parse().unwrap(),
+        drones: sockets
+            .iter()
+            .enumerate()
+            .map(|(i, s)| RoutedDrone { system_id: i as u8 + 1, endpoint: s.local_addr().unwrap() })
+            .collect(),
+        signing: None,
+    };
+    let router = start(config).unwrap();
+    let gcs = udp_gcs(&router);
+    // The router registers with the drones once it has a ground station.
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    sockets[0].set_read_timeout(Some(DEADLINE)).unwrap();
+    let (_, router_addr) = sockets[0].recv_from(&mut buf).expect("the router registers with the drones");
+    // One datagram per drone, back to back: a heartbeat, then an ATTITUDE whose
+    // time_boot_ms is the drone's number, so order and integrity can be checked.
+    for (i, socket) in sockets.iter().enumerate() {
+        let sysid = i as u32 + 1;
+        let mut datagram = frame(sysid, &heartbeat(MavType::MAV_TYPE_QUADROTOR));
+        datagram
+            .extend(frame(sysid, &MavMessage::ATTITUDE(ATTITUDE_DATA { time_boot_ms: sysid, ..Default::default() })));
+        socket.send_to(&datagram, router_addr).unwrap();
+    }
+    let mut frames = Vec::new();
+    let mut datagrams = 0;
+    let mut parser = FrameParser::new();
+    wait_for("every drone's ATTITUDE at the ground station", || {
+        while let Ok(n) = gcs.recv(&mut buf) {
+            assert!(n <= 1400, "a {n}-byte datagram to the ground station");
+            parser.reset();
+            let got = parser.push(&buf[..n]);
+            assert_eq!(got.iter().map(|f| f.bytes.len()).sum::<usize>(), n, "whole frames only");
+            datagrams += 1;
+            frames.extend(got);
+        }
+        (sysids(&frames).len() == usize::from(DRONES)).then_some(())
+    });
+    assert_eq!(frames.len(), 2 * usize::from(DRONES), "{frames:?}");
+    for sysid in 1..=u32::from(DRONES) {
+        let mine: Vec<&Frame> = frames.iter().filter(|f| f.header.system_id == sysid).collect();
+        assert!(matches!(mine[0].message, Decoded::Message(MavMessage::HEARTBEAT(_))), "{sysid}: {mine:?}");
+        assert!(
+            matches!(&mine[1].message, Decoded::Message(MavMessage::ATTITUDE(a)) if a.time_boot_ms == sysid),
+            "{sysid}: {mine:?}"
+        );
+    }
+    // 16 datagrams of 57 bytes fit in one; allow for the sender being preempted between sends.
+    assert!(datagrams < usize::from(DRONES) / 2, "{datagrams} datagrams for {DRONES} drones");
+    assert_eq!(router.stats().datagrams_to_gcs, datagrams as u64);
+}
