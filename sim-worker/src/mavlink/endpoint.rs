@@ -10,7 +10,9 @@
 //! - *TCP*: clients connecting to the same port number over TCP (`tcpout://host:port`).
 //!
 //! Several frames are packed into one datagram, as PX4 does, which keeps the syscall count
-//! per drone at one per peer and exchange. Telemetry is lossy by nature: a TCP peer that
+//! per drone at one per peer and exchange. A shard's drones share their datagrams to a
+//! MAVLink router of the run ([`Endpoint::flush_gathering`], `mavlink::uplink`), which
+//! brings the router's share to one per shared datagram. Telemetry is lossy by nature: a TCP peer that
 //! cannot keep up loses frames rather than stalling the simulation.
 //!
 //! # What it costs, and how that is kept small (docs/performance.md, MAVLink)
@@ -37,7 +39,9 @@ use mio::net::{TcpListener, TcpStream, UdpSocket};
 use mio::{Events, Interest, Poll, Token};
 
 use crate::mavlink::frame::{Frame, FrameParser, MAX_FRAME_LEN};
+use crate::mavlink::router::{ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID};
 use crate::mavlink::session::{COMPONENT_ID, Outgoing};
+use crate::mavlink::uplink::Uplink;
 
 /// Datagrams are filled up to this many bytes (below the 1500-byte Ethernet MTU with IP
 /// and UDP headers, so nothing fragments on a real network).
@@ -94,6 +98,9 @@ struct UdpPeer {
     heard: u64,
     /// Wall time of the last HEARTBEAT from this peer (liveness is a wall-clock matter).
     heartbeat_at: Option<std::time::Instant>,
+    /// A MAVLink router of the run (its HEARTBEAT came from the routers' system and
+    /// component ids): the shard may gather its telemetry with other drones' ([`Uplink`]).
+    router: bool,
 }
 
 #[derive(Debug)]
@@ -419,7 +426,12 @@ impl Endpoint {
                     self.parser.reset();
                     let got = self.parser.push(&buf[..n]);
                     let heartbeat = got.iter().any(|f| f.message_id == HEARTBEAT_ID);
-                    self.remember(from, heartbeat);
+                    let router = got.iter().any(|f| {
+                        f.message_id == HEARTBEAT_ID
+                            && f.header.system_id == u32::from(ROUTER_SYSTEM_ID)
+                            && f.header.component_id == ROUTER_COMPONENT_ID
+                    });
+                    self.remember(from, heartbeat, router);
                     frames.extend(got);
                 }
                 Err(e) if e.kind() == ErrorKind::WouldBlock => {
@@ -462,7 +474,7 @@ impl Endpoint {
         }
     }
 
-    fn remember(&mut self, from: SocketAddr, heartbeat: bool) {
+    fn remember(&mut self, from: SocketAddr, heartbeat: bool, router: bool) {
         if Some(from) == self.config.api_target {
             return; // the API link already receives everything
         }
@@ -470,6 +482,7 @@ impl Endpoint {
         if let Some(p) = self.udp_peers.iter_mut().find(|p| p.address == from) {
             p.heard = self.polls;
             p.heartbeat_at = heartbeat_at.or(p.heartbeat_at);
+            p.router |= router;
             return;
         }
         if self.udp_peers.len() >= MAX_UDP_PEERS
@@ -477,7 +490,7 @@ impl Endpoint {
         {
             self.udp_peers.swap_remove(oldest);
         }
-        self.udp_peers.push(UdpPeer { address: from, heard: self.polls, heartbeat_at });
+        self.udp_peers.push(UdpPeer { address: from, heard: self.polls, heartbeat_at, router });
     }
 
     fn accept_tcp(&mut self) {
@@ -549,12 +562,27 @@ impl Endpoint {
 
     /// Sends the queued datagrams to every peer (the API link: see the module docs).
     pub fn flush(&mut self) {
+        self.flush_to(None);
+    }
+
+    /// [`Endpoint::flush`], except that what goes to a router peer is added to `uplink`
+    /// (this endpoint is the shard's `index`-th), which the shard sends after every
+    /// endpoint has flushed.
+    pub fn flush_gathering(&mut self, index: usize, uplink: &mut Uplink) {
+        self.flush_to(Some((index, uplink)));
+    }
+
+    fn flush_to(&mut self, mut uplink: Option<(usize, &mut Uplink)>) {
         let datagrams = &self.datagrams[..self.filled];
         if let Some(api) = &mut self.api {
             send_api(api, datagrams, &mut self.stats);
         }
         for peer in &self.udp_peers {
             for d in datagrams {
+                if let (true, Some((index, uplink))) = (peer.router, uplink.as_mut()) {
+                    uplink.add(peer.address, *index, d);
+                    continue;
+                }
                 match self.udp.send_to(d, peer.address) {
                     Ok(_) => self.stats.datagrams_out += 1,
                     Err(_) => self.stats.send_errors += 1,
@@ -578,6 +606,15 @@ impl Endpoint {
             d.clear();
         }
         self.filled = 0;
+    }
+
+    /// Sends `datagram` (whole frames) to `to` from this endpoint's UDP port: an
+    /// [`Uplink`]'s shared datagram for a router.
+    pub fn send_datagram(&mut self, datagram: &[u8], to: SocketAddr) {
+        match self.udp.send_to(datagram, to) {
+            Ok(_) => self.stats.datagrams_out += 1,
+            Err(_) => self.stats.send_errors += 1,
+        }
     }
 
     /// [`Endpoint::queue`] then [`Endpoint::flush`].

@@ -16,3 +16,4 @@ pub mod session;
 pub mod signing;
 pub mod streams;
 pub mod telemetry;
+pub mod uplink;

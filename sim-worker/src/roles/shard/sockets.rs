@@ -6,12 +6,15 @@
 use sadesim_crds::plan::RunPlan;
 
 use crate::mavlink::endpoint::{Endpoint, EndpointConfig, EndpointPoll, PEER_HEARTBEAT_TIMEOUT};
+use crate::mavlink::uplink::Uplink;
 use crate::shard::{MavlinkIo, MavlinkOptions, MavlinkQueues, Shard, ShardError};
 
 /// A shard's MAVLink endpoints (index = the drone's position in the shard).
 #[derive(Debug)]
 pub struct ShardSockets {
     endpoints: Vec<Endpoint>,
+    /// What goes to the routers at a flush, gathered across the shard's drones.
+    uplink: Uplink,
     /// `None` when the OS refused a readiness queue: every socket is read at every
     /// exchange then, slower but not wrong.
     poll: Option<EndpointPoll>,
@@ -42,7 +45,7 @@ impl ShardSockets {
             endpoints.push(endpoint);
         }
         shard.enable_mavlink(plan, options.unix_epoch_at_start_us)?;
-        Ok(Self { endpoints, poll })
+        Ok(Self { endpoints, uplink: Uplink::default(), poll })
     }
 
     /// The endpoints, in the shard's drone order.
@@ -69,14 +72,18 @@ impl MavlinkIo for ShardSockets {
     }
 
     /// Encodes every drone's outbound messages into its datagrams (with the endpoint's
-    /// sequence numbers); on `flush` sends them to every peer.
+    /// sequence numbers); on `flush` sends them to every peer, what goes to the routers
+    /// gathered across drones ([`Uplink`]).
     fn send(&mut self, queues: &mut [MavlinkQueues], flush: bool) {
-        for (endpoint, queue) in self.endpoints.iter_mut().zip(queues) {
+        for (index, (endpoint, queue)) in self.endpoints.iter_mut().zip(queues).enumerate() {
             endpoint.queue(&queue.outbound);
             queue.outbound.clear();
             if flush {
-                endpoint.flush();
+                endpoint.flush_gathering(index, &mut self.uplink);
             }
+        }
+        if flush {
+            self.uplink.send(&mut self.endpoints);
         }
     }
 }
@@ -135,5 +142,82 @@ mod tests {
             }
         }
         panic!("no PARAM_VALUE within 5 s");
+    }
+
+    /// A router's telemetry is gathered across the shard's drones and sent from one
+    /// endpoint; a client talking to drones directly still gets each drone's frames from
+    /// that drone's own address.
+    #[test]
+    fn a_router_gets_the_shards_telemetry_gathered_and_a_direct_client_per_drone() {
+        use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavType};
+
+        use crate::mavlink::router::{ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID};
+
+        let mut plan = plan_of(run_with_groups(&[("a", 3)]).build());
+        for d in &mut plan.drones {
+            d.ports.endpoint = 0; // any free port
+        }
+        let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
+        let mut shard = Shard::new(&plan, 0, &crate::shard::Surroundings::new(&plan, world, None)).unwrap();
+        let localhost = std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
+        let options = MavlinkOptions { bind_ip: localhost, api_host: None, unix_epoch_at_start_us: 0 };
+        let mut sockets = ShardSockets::open(&mut shard, &plan, &options).unwrap();
+        let endpoints: Vec<std::net::SocketAddr> =
+            sockets.endpoints().iter().map(|e| e.local_addr().unwrap()).collect();
+        let sysids: Vec<u32> = plan.drones.iter().map(|d| u32::from(d.system_id)).collect();
+
+        let heartbeat = |system_id, component_id, mavtype| {
+            let message = MavMessage::HEARTBEAT(HEARTBEAT_DATA { mavtype, ..Default::default() });
+            encode(MavHeader { system_id, component_id, sequence: 0 }, &message)
+        };
+        let peer = || {
+            let socket = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+            socket.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+            socket
+        };
+        // The router registers with every drone; the client talks to drones 0 and 1 itself.
+        let router = peer();
+        let client = peer();
+        let router_hb =
+            heartbeat(u32::from(ROUTER_SYSTEM_ID), ROUTER_COMPONENT_ID, MavType::MAV_TYPE_ONBOARD_CONTROLLER);
+        for e in &endpoints {
+            router.send_to(&router_hb, e).unwrap();
+        }
+        let client_hb = heartbeat(255, 190, MavType::MAV_TYPE_GCS);
+        for e in &endpoints[..2] {
+            client.send_to(&client_hb, e).unwrap();
+        }
+
+        // About a second of simulated time: 50 exchanges.
+        for step in (10..=1000).step_by(10) {
+            shard.advance_with(step, &mut sockets);
+        }
+        let read = |socket: &std::net::UdpSocket| {
+            let mut got = Vec::new();
+            let mut buf = [0u8; 2048];
+            while let Ok((n, from)) = socket.recv_from(&mut buf) {
+                let frames = FrameParser::new().push(&buf[..n]);
+                assert_eq!(frames.iter().map(|f| f.bytes.len()).sum::<usize>(), n, "whole frames");
+                got.push((from, frames.iter().map(|f| f.header.system_id).collect::<Vec<_>>()));
+            }
+            got
+        };
+        let to_router = read(&router);
+        let to_client = read(&client);
+
+        let ids = |got: &[(std::net::SocketAddr, Vec<u32>)]| {
+            got.iter().flat_map(|(_, s)| s.iter().copied()).collect::<std::collections::BTreeSet<u32>>()
+        };
+        assert_eq!(ids(&to_router), sysids.iter().copied().collect(), "every drone's telemetry reaches the router");
+        assert!(to_router.iter().all(|(from, _)| *from == endpoints[0]), "sent from the first drone's endpoint");
+        // A 20 ms exchange of 3 drones' telemetry fits one datagram: about one per exchange
+        // (50), not one per drone and exchange (150).
+        assert!(to_router.len() <= 55, "{} datagrams to the router: not gathered", to_router.len());
+        // The direct client: drones 0 and 1 only, each from its own address.
+        assert_eq!(ids(&to_client), sysids[..2].iter().copied().collect());
+        for (from, ids) in &to_client {
+            let drone = endpoints.iter().position(|e| e == from).expect("from a drone's endpoint");
+            assert!(ids.iter().all(|&id| id == sysids[drone]), "{from}: frames of {ids:?}");
+        }
     }
 }
