@@ -238,19 +238,19 @@ pub fn encode(header: MavHeader, message: &MavMessage) -> Vec<u8> {
 }
 
 /// Appends the frame of `message` to `out` (no allocation when `out` has room for the
-/// largest frame). The payload is serialised straight into `out` and truncated as MAVLink 2
-/// requires (trailing zero bytes dropped); the bytes are those of the `mavlink` crate's
+/// largest frame). The payload is truncated as MAVLink 2 requires (trailing zero bytes
+/// dropped); the bytes are those of the `mavlink` crate's
 /// `MAVLinkV2MessageRaw` for system ids up to 255, which is all MAVLink has.
 pub fn encode_into(out: &mut Vec<u8>, header: MavHeader, message: &MavMessage) {
     const MAX_PAYLOAD_LEN: usize = 255;
     debug_assert!(header.system_id <= u32::from(u8::MAX), "system id {} is not MAVLink", header.system_id);
-    let start = out.len();
-    let payload_at = start + 1 + HEADER_LEN;
-    out.resize(payload_at + MAX_PAYLOAD_LEN, 0);
-    let payload_len = message.ser(MavlinkVersion::V2, &mut out[payload_at..]);
-    out.truncate(payload_at + payload_len);
+    // Serialised on the stack, then only the truncated payload is copied: growing `out` by
+    // 255 zero bytes per frame was a `memset` call for every message a fleet sends.
+    let mut payload = [0u8; MAX_PAYLOAD_LEN];
+    let payload_len = message.ser(MavlinkVersion::V2, &mut payload);
     let id = message.message_id().to_le_bytes();
-    out[start..payload_at].copy_from_slice(&[
+    let start = out.len();
+    out.extend_from_slice(&[
         STX_V2,
         payload_len as u8,
         0, // incompatibility flags: unsigned
@@ -262,6 +262,7 @@ pub fn encode_into(out: &mut Vec<u8>, header: MavHeader, message: &MavMessage) {
         id[1],
         id[2],
     ]);
+    out.extend_from_slice(&payload[..payload_len]);
     let crc = checksum(&out[start + 1..], MavMessage::extra_crc(message.message_id()));
     out.extend_from_slice(&crc.to_le_bytes());
 }

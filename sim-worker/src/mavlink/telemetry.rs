@@ -95,12 +95,41 @@ pub struct VehicleIdentity {
     pub uid: u64,
 }
 
+/// Rounding half away from zero, as `f64::round`, for values that are then cast to
+/// integers. On baseline x86-64 (no SSE4.1) `f64::round` is a libm call, and telemetry
+/// rounds several numbers per message; this is a truncation and two compares.
+trait Rounded {
+    fn rounded(self) -> f64;
+}
+
+impl Rounded for f64 {
+    #[inline]
+    fn rounded(self) -> f64 {
+        // 2^52: from there on every double is whole (NaN and infinities pass too, and the
+        // casts after it saturate them as before).
+        const WHOLE: f64 = 4_503_599_627_370_496.0;
+        if self.is_nan() || self.abs() >= WHOLE {
+            return self;
+        }
+        // Below 2^52 the truncation fits an i64 and the fraction `self - t` is exact.
+        let t = self as i64 as f64;
+        let fraction = self - t;
+        if fraction >= 0.5 {
+            t + 1.0
+        } else if fraction <= -0.5 {
+            t - 1.0
+        } else {
+            t
+        }
+    }
+}
+
 fn time_boot_ms(v: &VehicleView) -> u32 {
-    (v.time_s * 1000.0).round() as u32
+    (v.time_s * 1000.0).rounded() as u32
 }
 
 fn time_usec(v: &VehicleView) -> u64 {
-    (v.time_s * 1e6).round() as u64
+    (v.time_s * 1e6).rounded() as u64
 }
 
 /// ENU vector -> NED components.
@@ -128,20 +157,20 @@ pub fn enu_yaw_to_heading(yaw_enu_rad: f64) -> f64 {
 
 /// Heading in centidegrees 0..35999 for a NED velocity or yaw.
 fn centidegrees(heading_rad: f64) -> u16 {
-    (heading_rad.to_degrees().rem_euclid(360.0) * 100.0).round() as u16 % 36_000
+    (heading_rad.to_degrees().rem_euclid(360.0) * 100.0).rounded() as u16 % 36_000
 }
 
 fn deg_e7(deg: f64) -> i32 {
-    (deg * 1e7).round() as i32
+    (deg * 1e7).rounded() as i32
 }
 
 /// Metres to millimetres, saturating.
 fn mm(m: f64) -> i32 {
-    (m * 1000.0).round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    (m * 1000.0).rounded().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
 }
 
 fn cm_s(v: f64) -> i16 {
-    (v * 100.0).round().clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16
+    (v * 100.0).rounded().clamp(f64::from(i16::MIN), f64::from(i16::MAX)) as i16
 }
 
 fn alt_msl(id: &VehicleIdentity, up_m: f64) -> f64 {
@@ -206,9 +235,9 @@ pub fn sys_status(v: &VehicleView) -> MavMessage {
         onboard_control_sensors_enabled: present,
         onboard_control_sensors_health: health,
         load: 250, // 25 %, a plausible flight-controller load
-        voltage_battery: (v.battery.voltage_v * 1000.0).round().clamp(0.0, 65_534.0) as u16,
-        current_battery: (v.battery.current_a * 100.0).round().clamp(-1.0, 32_767.0) as i16,
-        battery_remaining: (v.battery.remaining * 100.0).round().clamp(0.0, 100.0) as i8,
+        voltage_battery: (v.battery.voltage_v * 1000.0).rounded().clamp(0.0, 65_534.0) as u16,
+        current_battery: (v.battery.current_a * 100.0).rounded().clamp(-1.0, 32_767.0) as i16,
+        battery_remaining: (v.battery.remaining * 100.0).rounded().clamp(0.0, 100.0) as i8,
         ..Default::default()
     })
 }
@@ -239,8 +268,8 @@ pub fn gps_raw_int(v: &VehicleView, id: &VehicleIdentity) -> MavMessage {
         crate::sensors::GPS_FIX_TYPE_2D_FIX => GpsFixType::GPS_FIX_TYPE_2D_FIX,
         _ => GpsFixType::GPS_FIX_TYPE_NO_FIX,
     };
-    let dop = |d: f64| if d.is_finite() { (d * 100.0).round().min(65_534.0) as u16 } else { u16::MAX };
-    let acc = |m: f64| if m.is_finite() { (m * 1000.0).round().min(f64::from(u32::MAX - 1)) as u32 } else { 0 };
+    let dop = |d: f64| if d.is_finite() { (d * 100.0).rounded().min(65_534.0) as u16 } else { u16::MAX };
+    let acc = |m: f64| if m.is_finite() { (m * 1000.0).rounded().min(f64::from(u32::MAX - 1)) as u32 } else { 0 };
     // A 2D fix has a position too (its height held at the last 3D fix's).
     let (lat, lon, alt, vel, cog) = if fix.fix_type >= crate::sensors::GPS_FIX_TYPE_2D_FIX {
         let (lat, lon) = geodetic(id, &fix.position_enu_m);
@@ -250,14 +279,14 @@ pub fn gps_raw_int(v: &VehicleView, id: &VehicleIdentity) -> MavMessage {
             lat,
             lon,
             mm(alt_msl(id, fix.position_enu_m.z)),
-            (ground * 100.0).round() as u16,
+            (ground * 100.0).rounded() as u16,
             centidegrees(ned.y.atan2(ned.x)),
         )
     } else {
         (0, 0, 0, u16::MAX, u16::MAX)
     };
     MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
-        time_usec: (fix.time_s * 1e6).round() as u64,
+        time_usec: (fix.time_s * 1e6).rounded() as u64,
         lat,
         lon,
         alt,
@@ -375,8 +404,8 @@ pub fn vfr_hud(v: &VehicleView, id: &VehicleIdentity) -> MavMessage {
         groundspeed: ground as f32,
         alt: alt_msl(id, up) as f32,
         climb: climb as f32,
-        heading: (f64::from(yaw).to_degrees().rem_euclid(360.0).round() as i16) % 360,
-        throttle: (v.throttle * 100.0).round().clamp(0.0, 100.0) as u16,
+        heading: (f64::from(yaw).to_degrees().rem_euclid(360.0).rounded() as i16) % 360,
+        throttle: (v.throttle * 100.0).rounded().clamp(0.0, 100.0) as u16,
     })
 }
 
@@ -404,17 +433,17 @@ pub fn extended_sys_state(v: &VehicleView) -> MavMessage {
 /// (UINT16_MAX), which is how MAVSDK sums them back.
 pub fn battery_status(v: &VehicleView) -> MavMessage {
     let mut voltages = [u16::MAX; 10];
-    voltages[0] = (v.battery.voltage_v * 1000.0).round().clamp(0.0, 65_534.0) as u16;
+    voltages[0] = (v.battery.voltage_v * 1000.0).rounded().clamp(0.0, 65_534.0) as u16;
     MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
-        current_consumed: v.battery.consumed_mah.round() as i32,
+        current_consumed: v.battery.consumed_mah.rounded() as i32,
         energy_consumed: -1,
         temperature: i16::MAX,
         voltages,
-        current_battery: (v.battery.current_a * 100.0).round().clamp(-1.0, 32_767.0) as i16,
+        current_battery: (v.battery.current_a * 100.0).rounded().clamp(-1.0, 32_767.0) as i16,
         id: 0,
         battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
         mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
-        battery_remaining: (v.battery.remaining * 100.0).round().clamp(0.0, 100.0) as i8,
+        battery_remaining: (v.battery.remaining * 100.0).rounded().clamp(0.0, 100.0) as i8,
         time_remaining: 0,
         charge_state: MavBatteryChargeState::MAV_BATTERY_CHARGE_STATE_OK,
         voltages_ext: [0; 4],
@@ -566,6 +595,27 @@ pub(crate) mod tests {
             airspeed_mps: 5.0,
             ground_up_m: 1.0,
         }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn rounded_is_round_for_every_double(bits: u64) {
+            let x = f64::from_bits(bits);
+            let (ours, std) = (x.rounded(), x.round());
+            // Equal values (a zero's sign aside: every use casts to an integer), or both NaN.
+            proptest::prop_assert!(ours == std || (ours.is_nan() && std.is_nan()), "{x:e}: {ours:e} vs {std:e}");
+        }
+    }
+
+    #[test]
+    fn rounded_takes_halves_away_from_zero() {
+        for (x, want) in
+            [(0.5, 1.0), (-0.5, -1.0), (2.5, 3.0), (-2.5, -3.0), (0.49999999999999994, 0.0), (1e300, 1e300)]
+        {
+            assert_eq!(x.rounded(), want, "{x}");
+        }
+        let big = 4_503_599_627_370_495.5_f64; // 2^52 - 0.5
+        assert_eq!(big.rounded(), big.round());
     }
 
     #[test]
