@@ -203,10 +203,9 @@ impl std::fmt::Display for CameraSize {
 pub fn run(setup: &Setup, out_root: std::path::PathBuf, variant: Variant) -> Result<BenchResult, RunError> {
     let Variant { mavlink, recordings, urban_gnss, urban_wind, cameras } = variant;
     let run = scenario(setup, variant);
-    // No pilot: with MAVLink on, every drone streams PX4's default telemetry to its API
-    // port and to the router, which is the cost `--mavlink` measures.
+    // No pilot: with MAVLink on, every drone builds and encodes PX4's default telemetry.
     // Unless ground stations listen (`--ground-stations`), the routers do not register with
-    // the drones, so the telemetry is built and encoded but only heartbeats are sent.
+    // the drones and the API links back off, so only heartbeats are sent.
     let options = RunOptions { out_root: Some(out_root), mavlink, start_pilot: false, ..RunOptions::default() };
     let stations = match mavlink && setup.ground_stations {
         true => {

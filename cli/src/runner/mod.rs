@@ -458,8 +458,8 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     // In-process servers listen already; a coordinator process says where its own listen
     // (`workers::run` writes the fleet file then).
     if let Some(airspace_addr) = airspace_addr {
-        let frames = live_view.as_ref().filter(|_| cameras.is_some()).map(|v| v.server.addr);
-        write_fleet_file(&plan, &out_dir, airspace_addr, frames, supervisor.as_mut())?;
+        let view = live_view.as_ref().map(|v| v.server.addr);
+        write_fleet_file(&plan, &out_dir, airspace_addr, view, supervisor.as_mut())?;
     }
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));
@@ -520,19 +520,19 @@ fn serve_airspace(airspace: &mut Airspace, plan: &RunPlan) -> Result<std::net::S
 
 /// Writes the fleet file for every run: pilots started by hand and ground stations use it
 /// too. It is written once the servers listen, as their addresses can differ from the
-/// plan's ports: `airspace` serves the airspace API, `frames` the onboard cameras' frames
-/// (the live view's server, in a run with cameras). The pilot, started later, gets the
+/// plan's ports: `airspace` serves the airspace API, `view` the live view, which serves the
+/// onboard cameras' frames in a run with cameras. The pilot, started later, gets the
 /// cameras' URL in its environment.
 fn write_fleet_file(
     plan: &RunPlan,
     out_dir: &Path,
     airspace: std::net::SocketAddr,
-    frames: Option<std::net::SocketAddr>,
+    view: Option<std::net::SocketAddr>,
     supervisor: Option<&mut Supervisor>,
 ) -> Result<(), RunError> {
     let mut fleet = planner::fleet_file(plan, &Addressing::Local { host: "127.0.0.1".into() });
     fleet.airspace_url = format!("http://{airspace}");
-    if let Some(url) = frames.filter(|_| plan.spec.has_cameras()).map(|addr| format!("http://{addr}/cameras")) {
+    if let Some(url) = view.filter(|_| plan.spec.has_cameras()).map(|addr| format!("http://{addr}/cameras")) {
         planner::add_camera_urls(&mut fleet, plan, &url);
         if let Some(s) = supervisor {
             s.set_cameras_url(&url);

@@ -112,8 +112,8 @@ pub(super) fn run(
                 })
             };
             let fleet_file = served("airspace API", &airspace).and_then(|airspace| {
-                let frames = shown.as_deref().map(|view| served("live view", view)).transpose()?;
-                super::write_fleet_file(plan, out_dir, airspace, frames, pilot.as_deref_mut())
+                let view = shown.as_deref().map(|view| served("live view", view)).transpose()?;
+                super::write_fleet_file(plan, out_dir, airspace, view, pilot.as_deref_mut())
             });
             if let Err(e) = fleet_file {
                 let _ = coordinator.kill();

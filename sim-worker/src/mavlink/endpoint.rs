@@ -583,10 +583,7 @@ impl Endpoint {
                     uplink.add(peer.address, *index, d);
                     continue;
                 }
-                match self.udp.send_to(d, peer.address) {
-                    Ok(_) => self.stats.datagrams_out += 1,
-                    Err(_) => self.stats.send_errors += 1,
-                }
+                send_udp(&self.udp, &mut self.stats, d, peer.address);
             }
         }
         self.tcp_peers.retain_mut(|peer| {
@@ -611,16 +608,21 @@ impl Endpoint {
     /// Sends `datagram` (whole frames) to `to` from this endpoint's UDP port: an
     /// [`Uplink`]'s shared datagram for a router.
     pub fn send_datagram(&mut self, datagram: &[u8], to: SocketAddr) {
-        match self.udp.send_to(datagram, to) {
-            Ok(_) => self.stats.datagrams_out += 1,
-            Err(_) => self.stats.send_errors += 1,
-        }
+        send_udp(&self.udp, &mut self.stats, datagram, to);
     }
 
     /// [`Endpoint::queue`] then [`Endpoint::flush`].
     pub fn send(&mut self, messages: &[Outgoing]) {
         self.queue(messages);
         self.flush();
+    }
+}
+
+/// One datagram from the endpoint's UDP port to `to`, counted in `stats`.
+fn send_udp(udp: &UdpSocket, stats: &mut EndpointStats, datagram: &[u8], to: SocketAddr) {
+    match udp.send_to(datagram, to) {
+        Ok(_) => stats.datagrams_out += 1,
+        Err(_) => stats.send_errors += 1,
     }
 }
 

@@ -62,11 +62,6 @@ impl Uplink {
             }
         }
     }
-
-    /// Datagrams waiting, for all routers.
-    pub fn datagrams(&self) -> usize {
-        self.routers.iter().map(|b| b.datagrams.len()).sum()
-    }
 }
 
 #[cfg(test)]
@@ -85,7 +80,6 @@ mod tests {
         assert_eq!(uplink.routers[0].datagrams.iter().map(Vec::len).collect::<Vec<_>>(), [1200, 1200, 600]);
         assert_eq!((uplink.routers[0].sender, uplink.routers[1].sender), (0, 7));
         assert_eq!(uplink.routers[1].datagrams, [vec![70; 100]]);
-        assert_eq!(uplink.datagrams(), 4);
         // In arrival order, never split.
         let bytes: Vec<u8> = uplink.routers[0].datagrams.concat();
         assert_eq!(bytes, (0..10u8).flat_map(|d| [d; 300]).collect::<Vec<_>>());

@@ -28,6 +28,8 @@ pub(super) fn drone_side(shared: &Shared) {
     let mut sequence: u8 = 0;
     let mut next_heartbeat = Instant::now();
     let mut gathered = Gathered::default();
+    // The drone socket's read timeout as last set.
+    let mut read_timeout = POLL;
     while !shared.stopping() {
         let now = Instant::now();
         if now >= next_heartbeat {
@@ -58,11 +60,11 @@ pub(super) fn drone_side(shared: &Shared) {
         }
         // While frames wait, the next read waits only GATHER_GAP for more.
         let timeout = if gathered.is_empty() { POLL } else { GATHER_GAP };
-        if gathered.timeout != timeout && shared.drone_socket.set_read_timeout(Some(timeout)).is_ok() {
-            gathered.timeout = timeout;
+        if read_timeout != timeout && shared.drone_socket.set_read_timeout(Some(timeout)).is_ok() {
+            read_timeout = timeout;
         }
         // A socket whose timeout cannot be shortened would hold frames for POLL: send now.
-        if gathered.timeout != GATHER_GAP {
+        if read_timeout != GATHER_GAP {
             gathered.send(shared);
         }
     }
@@ -72,18 +74,11 @@ pub(super) fn drone_side(shared: &Shared) {
 /// Frames for the ground stations from datagrams that arrived together (see
 /// [`GATHER_GAP`]), in arrival order; whole frames only, so a ground station's parser sees
 /// the same frames as if each datagram had come on its own.
+#[derive(Default)]
 struct Gathered {
     bytes: Vec<u8>,
     /// When the oldest frame waiting arrived.
     since: Option<Instant>,
-    /// The drone socket's read timeout as last set.
-    timeout: std::time::Duration,
-}
-
-impl Default for Gathered {
-    fn default() -> Self {
-        Self { bytes: Vec::with_capacity(GCS_DATAGRAM), since: None, timeout: POLL }
-    }
 }
 
 impl Gathered {

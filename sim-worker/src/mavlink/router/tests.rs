@@ -142,19 +142,20 @@ fn fleet(n: u8) -> (Vec<FakeDrone>, RouterHandle) {
 /// `n` fake drones behind a router that signs on the GCS side when given a key.
 fn fleet_signing(n: u8, signing: Option<SecretKey>) -> (Vec<FakeDrone>, RouterHandle) {
     let drones: Vec<FakeDrone> = (1..=n).map(FakeDrone::start).collect();
+    let router = router_for(drones.iter().map(|d| d.addr), signing);
+    (drones, router)
+}
+
+/// A router on free ports for drones at `endpoints`, system ids 1, 2, ... in that order.
+fn router_for(endpoints: impl Iterator<Item = SocketAddr>, signing: Option<SecretKey>) -> RouterHandle {
     let config = RouterConfig {
         segment: 0,
         gcs_udp: "127.0.0.1:0".parse().unwrap(),
         gcs_tcp: "127.0.0.1:0".parse().unwrap(),
-        drones: drones
-            .iter()
-            .enumerate()
-            .map(|(i, d)| RoutedDrone { system_id: i as u8 + 1, endpoint: d.addr })
-            .collect(),
+        drones: endpoints.enumerate().map(|(i, endpoint)| RoutedDrone { system_id: i as u8 + 1, endpoint }).collect(),
         signing,
     };
-    let router = start(config).unwrap();
-    (drones, router)
+    start(config).unwrap()
 }
 
 /// A UDP ground station that announced itself with a GCS heartbeat.
@@ -490,18 +491,7 @@ fn with_signing_only_signed_gcs_frames_pass_and_the_gcs_gets_signed_frames() {
 fn a_burst_of_drone_datagrams_reaches_a_gcs_in_shared_datagrams() {
     const DRONES: u8 = 16;
     let sockets: Vec<UdpSocket> = (0..DRONES).map(|_| UdpSocket::bind("127.0.0.1:0").unwrap()).collect();
-    let config = RouterConfig {
-        segment: 0,
-        gcs_udp: "127.0.0.1:0".parse().unwrap(),
-        gcs_tcp: "127.0.0.1:0".parse().unwrap(),
-        drones: sockets
-            .iter()
-            .enumerate()
-            .map(|(i, s)| RoutedDrone { system_id: i as u8 + 1, endpoint: s.local_addr().unwrap() })
-            .collect(),
-        signing: None,
-    };
-    let router = start(config).unwrap();
+    let router = router_for(sockets.iter().map(|s| s.local_addr().unwrap()), None);
     let gcs = udp_gcs(&router);
     // The router registers with the drones once it has a ground station.
     let mut buf = vec![0u8; MAX_DATAGRAM];

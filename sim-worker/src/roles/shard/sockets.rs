@@ -102,15 +102,23 @@ mod tests {
     use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
     use crate::mavlink::frame::{Decoded, FrameParser, encode};
 
-    #[test]
-    fn a_udp_client_gets_its_parameter_through_the_shards_sockets() {
-        let mut plan = plan_of(run_with_groups(&[("a", 1)]).build());
-        plan.drones[0].ports.endpoint = 0; // any free port
+    /// One shard of `drones` drones with their sockets on 127.0.0.1, each on a free port.
+    fn shard_with_sockets(drones: u32) -> (RunPlan, Shard, ShardSockets) {
+        let mut plan = plan_of(run_with_groups(&[("a", drones)]).build());
+        for d in &mut plan.drones {
+            d.ports.endpoint = 0; // any free port
+        }
         let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
         let mut shard = Shard::new(&plan, 0, &crate::shard::Surroundings::new(&plan, world, None)).unwrap();
         let localhost = std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
         let options = MavlinkOptions { bind_ip: localhost, api_host: None, unix_epoch_at_start_us: 0 };
-        let mut sockets = ShardSockets::open(&mut shard, &plan, &options).unwrap();
+        let sockets = ShardSockets::open(&mut shard, &plan, &options).unwrap();
+        (plan, shard, sockets)
+    }
+
+    #[test]
+    fn a_udp_client_gets_its_parameter_through_the_shards_sockets() {
+        let (_, mut shard, mut sockets) = shard_with_sockets(1);
         let endpoint = sockets.endpoints()[0].local_addr().unwrap();
 
         let client = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
@@ -153,15 +161,7 @@ mod tests {
 
         use crate::mavlink::router::{ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID};
 
-        let mut plan = plan_of(run_with_groups(&[("a", 3)]).build());
-        for d in &mut plan.drones {
-            d.ports.endpoint = 0; // any free port
-        }
-        let world = Arc::new(World::generate(&WorldInputs::from_spec(&plan.spec, &[])));
-        let mut shard = Shard::new(&plan, 0, &crate::shard::Surroundings::new(&plan, world, None)).unwrap();
-        let localhost = std::net::IpAddr::V4(std::net::Ipv4Addr::LOCALHOST);
-        let options = MavlinkOptions { bind_ip: localhost, api_host: None, unix_epoch_at_start_us: 0 };
-        let mut sockets = ShardSockets::open(&mut shard, &plan, &options).unwrap();
+        let (plan, mut shard, mut sockets) = shard_with_sockets(3);
         let endpoints: Vec<std::net::SocketAddr> =
             sockets.endpoints().iter().map(|e| e.local_addr().unwrap()).collect();
         let sysids: Vec<u32> = plan.drones.iter().map(|d| u32::from(d.system_id)).collect();
