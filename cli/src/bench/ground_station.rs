@@ -3,9 +3,9 @@
 //!
 //! Without a ground station a router does not register with the drones (a router nobody
 //! listens to costs them nothing), so each drone's telemetry is built and encoded but only
-//! its 1 Hz heartbeat leaves the shard. With one, every drone's datagrams go to its router
-//! (one send per drone every 20 ms) and on to the ground station (one send each), as in a
-//! run a ground station or a pilot watches.
+//! its 1 Hz heartbeat leaves the shard. With one, every drone's telemetry goes to its router
+//! and on to the ground station (in shared datagrams, docs/architecture.md), as in a run a
+//! ground station or a pilot watches.
 //!
 //! Each station sends a GCS HEARTBEAT to its router's GCS UDP port once a second (which makes
 //! it a client, and the router register with the drones) and reads everything that arrives,

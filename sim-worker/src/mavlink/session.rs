@@ -95,7 +95,7 @@ impl Session {
                 }
                 return;
             }
-            Decoded::Undecodable(_) | Decoded::NotDecoded => {
+            Decoded::Undecodable(_) => {
                 self.stats.ignored += 1;
                 return;
             }

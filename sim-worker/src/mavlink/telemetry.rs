@@ -10,7 +10,7 @@
 //! GNSS errors included), attitude is the AHRS output (ideal here, see the estimator).
 
 use ::mavlink::dialects::common::*;
-use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{UnitQuaternion, Vector3};
 use sadesim_crds::geo::{Enu, LocalFrame};
 
 use crate::events::FlightMode;
@@ -143,11 +143,68 @@ pub fn ned_to_enu(v: &Vector3<f64>) -> Vector3<f64> {
 }
 
 /// Body FLU -> ENU attitude as body FRD -> NED (what MAVLink calls the attitude).
+///
+/// `q_ned_frd = q_ned_enu * q_enu_flu * q_flu_frd`, with the two fixed rotations written
+/// out: ENU -> NED is half a turn about (1, 1, 0)/sqrt(2), i.e. `(0, s, s, 0)` with
+/// s = 1/sqrt(2); FRD -> FLU is half a turn about x, `(0, 1, 0, 0)`. The product of
+/// `(w, x, y, z)` with them is `s * (-(w + z), -(x + y), y - x, z - w)`: a handful of
+/// operations where the rotation-matrix route cost three matrix products and a matrix
+/// square root, for every drone at every window.
+///
+/// Of the two quaternions of the rotation, the one returned is the one nalgebra's
+/// `from_rotation_matrix` picks (the scalar part positive when the rotation is under half a
+/// turn, otherwise the largest vector component positive), as this function returned
+/// before, so ATTITUDE_QUATERNION and the ULogs keep their signs.
 pub fn attitude_ned_frd(q_enu_flu: &UnitQuaternion<f64>) -> UnitQuaternion<f64> {
-    let ned_from_enu = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
-    let flu_from_frd = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
-    let m = ned_from_enu * q_enu_flu.to_rotation_matrix().matrix() * flu_from_frd;
-    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m))
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let (w, x, y, z) = (q_enu_flu.w, q_enu_flu.i, q_enu_flu.j, q_enu_flu.k);
+    let q = [-s * (w + z), -s * (x + y), s * (y - x), s * (z - w)];
+    // nalgebra's choice, from the matrix's diagonal: trace > 0 iff w^2 > 1/4; then m00, m11,
+    // m22 ordered as x^2, y^2, z^2.
+    let [w2, x2, y2, z2] = q.map(|c| c * c);
+    let positive = if w2 > 0.25 {
+        0
+    } else if x2 > y2 && x2 > z2 {
+        1
+    } else if y2 > z2 {
+        2
+    } else {
+        3
+    };
+    let sign = if q[positive] < 0.0 { -1.0 } else { 1.0 };
+    UnitQuaternion::new_unchecked(nalgebra::Quaternion::new(sign * q[0], sign * q[1], sign * q[2], sign * q[3]))
+}
+
+/// Roll, pitch and yaw (rad) of a body FRD -> NED attitude, the ZYX Euler angles MAVLink's
+/// ATTITUDE carries. The same angles as nalgebra's `euler_angles` (and the same choice at
+/// +-90 degrees of pitch) from the quaternion's rotation-matrix entries, without its
+/// division of two entries by cos(pitch) (which cancels inside `atan2`).
+pub fn euler_angles_ned(q: &UnitQuaternion<f64>) -> (f64, f64, f64) {
+    let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+    let m20 = 2.0 * (x * z - w * y);
+    if m20.abs() < 1.0 {
+        let roll = (2.0 * (y * z + w * x)).atan2(1.0 - 2.0 * (x * x + y * y));
+        let pitch = -m20.asin();
+        (roll, pitch, yaw_of(q))
+    } else {
+        // Gimbal lock: yaw folded into roll, as nalgebra does.
+        let (m01, m02) = (2.0 * (x * y - w * z), 2.0 * (x * z + w * y));
+        if m20 <= -1.0 {
+            (m01.atan2(m02), std::f64::consts::FRAC_PI_2, 0.0)
+        } else {
+            ((-m01).atan2(-m02), -std::f64::consts::FRAC_PI_2, 0.0)
+        }
+    }
+}
+
+/// The yaw of [`euler_angles_ned`] alone (rad), for the messages that carry a heading
+/// only: one `atan2` instead of three transcendental calls.
+fn yaw_of(q: &UnitQuaternion<f64>) -> f64 {
+    let (w, x, y, z) = (q.w, q.i, q.j, q.k);
+    if (2.0 * (x * z - w * y)).abs() >= 1.0 {
+        return 0.0; // gimbal lock: see euler_angles_ned
+    }
+    (2.0 * (x * y + w * z)).atan2(1.0 - 2.0 * (y * y + z * z))
 }
 
 /// ENU yaw (rad from east, counter-clockwise) <-> NED heading (rad from north, clockwise).
@@ -306,8 +363,13 @@ pub fn gps_raw_int(v: &VehicleView, id: &VehicleIdentity) -> MavMessage {
 }
 
 fn euler_ned(v: &VehicleView) -> (f32, f32, f32) {
-    let (roll, pitch, yaw) = v.attitude_ned.euler_angles();
+    let (roll, pitch, yaw) = euler_angles_ned(&v.attitude_ned);
     (roll as f32, pitch as f32, yaw as f32)
+}
+
+/// The heading of GLOBAL_POSITION_INT and VFR_HUD: ATTITUDE's yaw, rounded to f32 as there.
+fn yaw_ned(v: &VehicleView) -> f32 {
+    yaw_of(&v.attitude_ned) as f32
 }
 
 fn rates_frd(v: &VehicleView) -> (f32, f32, f32) {
@@ -365,7 +427,7 @@ pub fn global_position_int(v: &VehicleView, id: &VehicleIdentity) -> Option<MavM
     let e = v.estimate?;
     let (lat, lon) = geodetic(id, &e.position_enu_m);
     let vel = enu_to_ned(&e.velocity_enu_mps);
-    let (_, _, yaw) = euler_ned(v);
+    let yaw = yaw_ned(v);
     Some(MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
         time_boot_ms: time_boot_ms(v),
         lat,
@@ -398,7 +460,7 @@ pub fn vfr_hud(v: &VehicleView, id: &VehicleIdentity) -> MavMessage {
     let (ground, climb, up) = v
         .estimate
         .map_or((0.0, 0.0, 0.0), |e| (e.velocity_enu_mps.xy().norm(), e.velocity_enu_mps.z, e.position_enu_m.z));
-    let (_, _, yaw) = euler_ned(v);
+    let yaw = yaw_ned(v);
     MavMessage::VFR_HUD(VFR_HUD_DATA {
         airspeed: v.airspeed_mps as f32,
         groundspeed: ground as f32,
@@ -604,6 +666,58 @@ pub(crate) mod tests {
             let (ours, std) = (x.rounded(), x.round());
             // Equal values (a zero's sign aside: every use casts to an integer), or both NaN.
             proptest::prop_assert!(ours == std || (ours.is_nan() && std.is_nan()), "{x:e}: {ours:e} vs {std:e}");
+        }
+    }
+
+    /// The rotation-matrix route attitude_ned_frd took before: its reference.
+    fn attitude_ned_frd_by_matrices(q_enu_flu: &UnitQuaternion<f64>) -> UnitQuaternion<f64> {
+        use nalgebra::{Matrix3, Rotation3};
+        let ned_from_enu = Matrix3::new(0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, -1.0);
+        let flu_from_frd = Matrix3::new(1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, -1.0);
+        let m = ned_from_enu * q_enu_flu.to_rotation_matrix().matrix() * flu_from_frd;
+        UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m))
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn the_ned_attitude_and_its_angles_are_the_matrix_routes(
+            roll in -3.2f64..3.2, pitch in -1.6f64..1.6, yaw in -3.2f64..3.2, flip: bool,
+        ) {
+            let q = UnitQuaternion::from_euler_angles(roll, pitch, yaw);
+            // Either sign of the input quaternion: the output's sign is chosen, not inherited.
+            let q = if flip { UnitQuaternion::new_unchecked(-q.into_inner()) } else { q };
+            let (ours, reference) = (attitude_ned_frd(&q), attitude_ned_frd_by_matrices(&q));
+            let (a, b) = (ours.coords, reference.coords);
+            proptest::prop_assert!((a - b).amax() < 1e-12, "{a:?} vs {b:?}");
+            let (r, p, y) = euler_angles_ned(&ours);
+            let (r0, p0, y0) = reference.euler_angles();
+            // Away from +-90 degrees of pitch, where roll and yaw are ill-conditioned.
+            if p0.abs() < 1.5 {
+                for (x, x0) in [(r, r0), (p, p0), (y, y0)] {
+                    proptest::prop_assert!((x - x0).abs() < 1e-9, "{:?} vs {:?}", (r, p, y), (r0, p0, y0));
+                }
+                proptest::prop_assert!((yaw_of(&ours) - y0).abs() < 1e-9);
+            }
+        }
+    }
+
+    /// At +-90 degrees of pitch only roll minus yaw is defined, and the float rounding of
+    /// the matrix entries decides both (as in nalgebra, whose choice of branch this keeps):
+    /// the pitch must still be right and nothing may be NaN, including for the entries that
+    /// round past +-1.
+    #[test]
+    fn at_ninety_degrees_of_pitch_the_pitch_is_right_and_nothing_is_nan() {
+        let half = std::f64::consts::FRAC_1_SQRT_2;
+        let exact = [(half, 0.0, -half, 0.0), (half, 0.0, half, 0.0), (half, half * 1e-3, half, 0.0)];
+        let quaternions = exact
+            .map(|(w, x, y, z)| UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z)))
+            .into_iter()
+            .chain([0.3, -1.0].map(|roll| UnitQuaternion::from_euler_angles(roll, std::f64::consts::FRAC_PI_2, 0.2)));
+        for q in quaternions {
+            let (r, p, y) = euler_angles_ned(&q);
+            let (_, p0, _) = q.euler_angles();
+            assert!(!(r.is_nan() || p.is_nan() || y.is_nan()), "{q:?}: {:?}", (r, p, y));
+            assert!((p.abs() - std::f64::consts::FRAC_PI_2).abs() < 1e-3 && p.signum() == p0.signum(), "{q:?}: {p}");
         }
     }
 

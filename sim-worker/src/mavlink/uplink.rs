@@ -5,10 +5,16 @@
 //! a datagram of its own at every exchange: one `sendto` per drone every 20 ms, which at a
 //! thousand drones cost the shard more than building and encoding the telemetry
 //! (docs/performance.md, issue 20, fifth round). Instead the shard gathers, per router,
-//! the datagrams of all its drones into shared datagrams of up to
-//! [`MAX_DATAGRAM`](super::endpoint::MAX_DATAGRAM) bytes, and sends each from the endpoint
+//! the datagrams of all its drones into shared datagrams, and sends each from the endpoint
 //! of the first of those drones (the router takes frames only from its segment's
 //! endpoints, and routes by the frames' system ids, not by the sender's address).
+//!
+//! How big a shared datagram may be depends on the path ([`datagram_limit`]): a router on
+//! another host (a cluster's router pod) gets datagrams of at most
+//! [`MAX_DATAGRAM`](super::endpoint::MAX_DATAGRAM) bytes, which no Ethernet MTU fragments;
+//! a router on this host (loopback, whose MTU is 64 KiB: every local run) gets up to
+//! [`LOOPBACK_DATAGRAM`], a tenth of the sends for the same frames. The router splits them
+//! again, at frame boundaries, into datagrams a ground station can read.
 //!
 //! Only router peers are gathered. Any other client (a ground station or SDK talking to a
 //! drone's port directly) keeps getting each drone's datagrams from that drone's own
@@ -18,6 +24,17 @@
 use std::net::SocketAddr;
 
 use super::endpoint::{Endpoint, MAX_DATAGRAM};
+
+/// Largest shared datagram to a router on this host, bytes. Loopback carries up to 64 KiB
+/// unfragmented; 16 KiB holds a 250-drone segment's exchange (about 50 kB, every 20 ms of
+/// simulated time) in four sends, where a bigger limit would save little more and would
+/// fill the router's receive buffer (212 992 bytes by default) in fewer datagrams.
+pub const LOOPBACK_DATAGRAM: usize = 16 * 1024;
+
+/// The largest shared datagram for `router` (see the module docs).
+pub fn datagram_limit(router: SocketAddr) -> usize {
+    if router.ip().is_loopback() { LOOPBACK_DATAGRAM } else { MAX_DATAGRAM }
+}
 
 /// Frames for the routers, gathered over one exchange (see the module docs).
 #[derive(Debug, Default)]
@@ -30,8 +47,10 @@ struct RouterBatch {
     router: SocketAddr,
     /// Index (in the shard's endpoints) of the endpoint the batch is sent from.
     sender: usize,
-    /// Whole frames, each datagram at most MAX_DATAGRAM bytes (or one drone's datagram as
-    /// it came).
+    /// [`datagram_limit`] of `router`.
+    limit: usize,
+    /// Whole frames, each datagram at most `limit` bytes (or one drone's datagram as it
+    /// came).
     datagrams: Vec<Vec<u8>>,
 }
 
@@ -42,12 +61,13 @@ impl Uplink {
         let batch = match self.routers.iter().position(|b| b.router == router) {
             Some(i) => &mut self.routers[i],
             None => {
-                self.routers.push(RouterBatch { router, sender: endpoint, datagrams: Vec::new() });
+                let limit = datagram_limit(router);
+                self.routers.push(RouterBatch { router, sender: endpoint, limit, datagrams: Vec::new() });
                 self.routers.last_mut().expect("just pushed")
             }
         };
         match batch.datagrams.last_mut() {
-            Some(last) if last.len() + datagram.len() <= MAX_DATAGRAM => last.extend_from_slice(datagram),
+            Some(last) if last.len() + datagram.len() <= batch.limit => last.extend_from_slice(datagram),
             _ => batch.datagrams.push(datagram.to_vec()),
         }
     }
@@ -70,7 +90,8 @@ mod tests {
 
     #[test]
     fn datagrams_for_one_router_share_datagrams_up_to_the_limit_and_routers_stay_apart() {
-        let (a, b): (SocketAddr, SocketAddr) = ("127.0.0.1:1".parse().unwrap(), "127.0.0.1:2".parse().unwrap());
+        // Routers on another host (a cluster's router pods).
+        let (a, b): (SocketAddr, SocketAddr) = ("10.0.0.5:1".parse().unwrap(), "10.0.0.6:2".parse().unwrap());
         let mut uplink = Uplink::default();
         for drone in 0..10 {
             uplink.add(a, drone, &[drone as u8; 300]);
@@ -85,5 +106,22 @@ mod tests {
         assert_eq!(bytes, (0..10u8).flat_map(|d| [d; 300]).collect::<Vec<_>>());
         uplink.add(a, 3, &[9; MAX_DATAGRAM + 10]);
         assert_eq!(uplink.routers[0].datagrams.last().unwrap().len(), MAX_DATAGRAM + 10, "a big one goes as it came");
+    }
+
+    #[test]
+    fn a_router_on_this_host_gets_loopback_sized_datagrams() {
+        for local in ["127.0.0.1:14600", "[::1]:14600"] {
+            let router: SocketAddr = local.parse().unwrap();
+            assert_eq!(datagram_limit(router), LOOPBACK_DATAGRAM);
+            let mut uplink = Uplink::default();
+            // 250 drones' exchange of 200 bytes each: 50 000 bytes in 4 datagrams, not 36.
+            for drone in 0..250 {
+                uplink.add(router, drone, &[drone as u8; 200]);
+            }
+            let sizes: Vec<usize> = uplink.routers[0].datagrams.iter().map(Vec::len).collect();
+            assert_eq!(sizes.len(), 4, "{sizes:?}");
+            assert!(sizes.iter().all(|&n| n <= LOOPBACK_DATAGRAM && n % 200 == 0), "{sizes:?}");
+        }
+        assert_eq!(datagram_limit("10.42.0.7:14600".parse().unwrap()), MAX_DATAGRAM);
     }
 }

@@ -43,8 +43,8 @@ pub(super) const GATHER_GAP: Duration = Duration::from_millis(1);
 /// could otherwise hold frames back)...
 pub(super) const GATHER_MAX_WAIT: Duration = Duration::from_millis(5);
 /// ...or when the next frames would not fit in this many bytes: below a 1 500-byte
-/// Ethernet MTU's UDP payload and within MAVSDK's 2 kB receive buffer. A drone's own
-/// datagram that is larger still goes as it came.
+/// Ethernet MTU's UDP payload and within MAVSDK's 2 kB receive buffer. A larger datagram
+/// from a shard (up to 16 KiB from one on this host) is split at frame boundaries.
 pub(super) const GCS_DATAGRAM: usize = 1400;
 
 /// One drone of the segment.

@@ -15,8 +15,8 @@ use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavM
 
 use super::config::{MAX_UDP_GCS, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone};
 use super::gcs_signing::{GcsSigning, SETUP_SIGNING_ID};
-use crate::mavlink::frame::{Decoded, Frame, FrameParser, encode, target_system};
-use crate::mavlink::signing::{Refusal, SIGNATURE_BLOCK_LEN, timestamp_at};
+use crate::mavlink::frame::{DatagramFrames, Decoded, Frame, FrameParser, FrameRef, ParseStats, encode, target_system};
+use crate::mavlink::signing::{Refusal, timestamp_at};
 
 /// A poisoned lock only means another router thread panicked; the tables stay usable.
 pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -119,9 +119,18 @@ impl Shared {
     pub(super) fn parse(&self, parser: &mut FrameParser, bytes: &[u8]) -> Vec<Frame> {
         let before = parser.stats;
         let frames = parser.push(bytes);
-        add(&self.counters.bad_checksum, parser.stats.bad_checksum - before.bad_checksum);
-        add(&self.counters.garbage_bytes, parser.stats.skipped_bytes - before.skipped_bytes);
+        self.count_skipped(&ParseStats {
+            bad_checksum: parser.stats.bad_checksum - before.bad_checksum,
+            skipped_bytes: parser.stats.skipped_bytes - before.skipped_bytes,
+            ..ParseStats::default()
+        });
         frames
+    }
+
+    /// Counts what a parse threw away: frames with a bad checksum, bytes of garbage.
+    fn count_skipped(&self, stats: &ParseStats) {
+        add(&self.counters.bad_checksum, stats.bad_checksum);
+        add(&self.counters.garbage_bytes, stats.skipped_bytes);
     }
 
     /// Parses bytes from the ground station at `source`. With signing, only the frames that
@@ -200,12 +209,11 @@ impl Shared {
     /// A datagram on the drone socket: what goes to every ground station, the datagram
     /// unchanged when it is clean (without signing), each frame signed (with signing);
     /// `None` for a datagram from a stranger or when no ground station listens.
-    pub(super) fn drone_frames<'a>(
-        &self,
-        datagram: &'a [u8],
-        from: SocketAddr,
-        parser: &mut FrameParser,
-    ) -> Option<Cow<'a, [u8]>> {
+    ///
+    /// The frames are checked where they lie ([`DatagramFrames`]): a shard's datagram holds
+    /// the frames of hundreds of drones, and copying each into a buffer of its own cost the
+    /// router an allocation per frame.
+    pub(super) fn drone_frames<'a>(&self, datagram: &'a [u8], from: SocketAddr) -> Option<Cow<'a, [u8]>> {
         if !self.endpoints.contains(&from) {
             add(&self.counters.dropped_unknown_source, 1);
             return None;
@@ -213,24 +221,35 @@ impl Shared {
         if !self.has_ground_stations() {
             return None; // nobody to forward to: not worth checking
         }
-        parser.reset();
-        let frames = self.parse(parser, datagram);
-        let own = |f: &Frame| {
+        let own = |f: &FrameRef<'_>| {
             f.header.system_id == u32::from(ROUTER_SYSTEM_ID) && f.header.component_id == ROUTER_COMPONENT_ID
         };
-        let clean = frames.iter().map(|f| f.bytes.len()).sum::<usize>() == datagram.len() && !frames.iter().any(own);
+        let mut frames = DatagramFrames::new(datagram);
         let out: Cow<'_, [u8]> = if let Some(signing) = &self.signing {
             let now = timestamp_at(SystemTime::now());
-            let mut signed = Vec::with_capacity(datagram.len() + frames.len() * SIGNATURE_BLOCK_LEN);
-            for f in frames.iter().filter(|f| !own(f)) {
-                signing.signer.sign_into(&mut signed, &f.bytes, now);
+            let mut signed = Vec::with_capacity(datagram.len() * 2);
+            for f in frames.by_ref().filter(|f| !own(f)) {
+                signing.signer.sign_into(&mut signed, f.bytes, now);
             }
             Cow::Owned(signed)
-        } else if clean {
-            Cow::Borrowed(datagram)
         } else {
-            Cow::Owned(frames.iter().filter(|f| !own(f)).flat_map(|f| f.bytes.iter().copied()).collect())
+            // Clean: nothing but good frames, none of them the router's own.
+            let (mut covered, mut any_own) = (0, false);
+            for f in frames.by_ref() {
+                covered += f.bytes.len();
+                any_own |= own(&f);
+            }
+            if covered == datagram.len() && !any_own {
+                Cow::Borrowed(datagram)
+            } else {
+                let mut kept = Vec::with_capacity(covered);
+                for f in DatagramFrames::new(datagram).filter(|f| !own(f)) {
+                    kept.extend_from_slice(f.bytes);
+                }
+                Cow::Owned(kept)
+            }
         };
+        self.count_skipped(&frames.stats);
         (!out.is_empty()).then_some(out)
     }
 
@@ -320,6 +339,6 @@ pub(super) fn destination(frame: &Frame) -> Option<u8> {
     match &frame.message {
         Decoded::Message(m) => target_system(m),
         Decoded::UnknownCommand { target_system, .. } => Some(*target_system),
-        Decoded::Undecodable(_) | Decoded::NotDecoded => None,
+        Decoded::Undecodable(_) => None,
     }
 }

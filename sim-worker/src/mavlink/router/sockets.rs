@@ -14,7 +14,7 @@ use super::config::{
 };
 use super::handle::spawn;
 use super::routing_table::{GcsOrigin, Shared, TcpClient, add, lock};
-use crate::mavlink::frame::FrameParser;
+use crate::mavlink::frame::{FrameParser, whole_frame_len};
 
 pub(super) fn is_timeout(e: &io::Error) -> bool {
     matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut | io::ErrorKind::Interrupted)
@@ -24,7 +24,6 @@ pub(super) fn is_timeout(e: &io::Error) -> bool {
 /// gathered into shared datagrams ([`Gathered`]).
 pub(super) fn drone_side(shared: &Shared) {
     let mut buf = vec![0u8; MAX_DATAGRAM];
-    let mut parser = FrameParser::checksum_only();
     let mut sequence: u8 = 0;
     let mut next_heartbeat = Instant::now();
     let mut gathered = Gathered::default();
@@ -43,7 +42,7 @@ pub(super) fn drone_side(shared: &Shared) {
         }
         match shared.drone_socket.recv_from(&mut buf) {
             Ok((n, from)) => {
-                if let Some(frames) = shared.drone_frames(&buf[..n], from, &mut parser) {
+                if let Some(frames) = shared.drone_frames(&buf[..n], from) {
                     gathered.add(shared, &frames);
                 }
                 if gathered.is_due() {
@@ -86,13 +85,37 @@ impl Gathered {
         self.bytes.is_empty()
     }
 
-    /// Adds one datagram's frames, sending what waits first when they would not fit.
+    /// Adds one datagram's frames (whole frames), sending what waits whenever the next
+    /// frame would not fit in GCS_DATAGRAM bytes. A shard on this host sends datagrams of
+    /// up to 16 KiB (`mavlink::uplink`); they are split here, at frame boundaries.
     fn add(&mut self, shared: &Shared, frames: &[u8]) {
-        if !self.bytes.is_empty() && self.bytes.len() + frames.len() > GCS_DATAGRAM {
-            self.send(shared);
+        let mut rest = frames;
+        while !rest.is_empty() {
+            // The frames that fit what is left of the datagram, at least one.
+            let room = GCS_DATAGRAM.saturating_sub(self.bytes.len());
+            let mut take = 0;
+            while let Some(len) = whole_frame_len(&rest[take..]) {
+                if take + len > room && !(take == 0 && self.bytes.is_empty()) {
+                    break;
+                }
+                take += len;
+            }
+            if take == 0 {
+                if self.bytes.is_empty() {
+                    // Not a frame (cannot happen for checked frames): passed on as it came.
+                    take = rest.len();
+                } else {
+                    self.send(shared);
+                    continue;
+                }
+            }
+            self.bytes.extend_from_slice(&rest[..take]);
+            self.since.get_or_insert_with(Instant::now);
+            rest = &rest[take..];
+            if self.bytes.len() >= GCS_DATAGRAM || !rest.is_empty() {
+                self.send(shared);
+            }
         }
-        self.bytes.extend_from_slice(frames);
-        self.since.get_or_insert_with(Instant::now);
     }
 
     /// Full, or the oldest frame has waited GATHER_MAX_WAIT.

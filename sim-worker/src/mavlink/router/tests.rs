@@ -533,3 +533,52 @@ fn a_burst_of_drone_datagrams_reaches_a_gcs_in_shared_datagrams() {
     assert!(datagrams < usize::from(DRONES) / 2, "{datagrams} datagrams for {DRONES} drones");
     assert_eq!(router.stats().datagrams_to_gcs, datagrams as u64);
 }
+
+/// A shard on this host gathers its drones' frames into datagrams of up to 16 KiB
+/// (`mavlink::uplink`), sent from one endpoint of the segment; the router splits them at
+/// frame boundaries into datagrams a ground station reads (at most 1 400 bytes), every frame
+/// whole and in order.
+#[test]
+fn a_shards_large_datagram_reaches_a_gcs_split_at_frame_boundaries() {
+    const DRONES: u8 = 240;
+    let sockets: Vec<UdpSocket> = (0..DRONES).map(|_| UdpSocket::bind("127.0.0.1:0").unwrap()).collect();
+    let router = router_for(sockets.iter().map(|s| s.local_addr().unwrap()), None);
+    let gcs = udp_gcs(&router);
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    sockets[0].set_read_timeout(Some(DEADLINE)).unwrap();
+    let (_, router_addr) = sockets[0].recv_from(&mut buf).expect("the router registers with the drones");
+    // Every drone's heartbeat and ATTITUDE in one datagram from the first drone's endpoint.
+    let mut datagram = Vec::new();
+    for sysid in 1..=u32::from(DRONES) {
+        datagram.extend(frame(sysid, &heartbeat(MavType::MAV_TYPE_QUADROTOR)));
+        let attitude = ATTITUDE_DATA {
+            time_boot_ms: sysid,
+            roll: 0.1,
+            pitch: -0.2,
+            yaw: 1.5,
+            rollspeed: 0.01,
+            pitchspeed: 0.02,
+            yawspeed: -0.03,
+        };
+        datagram.extend(frame(sysid, &MavMessage::ATTITUDE(attitude)));
+    }
+    assert!(datagram.len() > 8 * 1400 && datagram.len() <= 16 * 1024, "{} bytes", datagram.len());
+    sockets[0].send_to(&datagram, router_addr).unwrap();
+    let mut received = Vec::new();
+    let mut datagrams = 0;
+    let mut parser = FrameParser::new();
+    wait_for("the whole datagram at the ground station", || {
+        while let Ok(n) = gcs.recv(&mut buf) {
+            assert!(n <= 1400, "a {n}-byte datagram to the ground station");
+            parser.reset();
+            let got = parser.push(&buf[..n]);
+            assert_eq!(got.iter().map(|f| f.bytes.len()).sum::<usize>(), n, "whole frames only");
+            datagrams += 1;
+            received.extend_from_slice(&buf[..n]);
+        }
+        (received.len() >= datagram.len()).then_some(())
+    });
+    assert_eq!(received, datagram, "every frame, byte for byte and in order");
+    // Full datagrams: about as few as 1 400-byte ones can carry.
+    assert!(datagrams <= datagram.len() / 1400 + 2, "{datagrams} datagrams for {} bytes", datagram.len());
+}
