@@ -243,10 +243,15 @@ impl<'a> Iterator for DatagramFrames<'a> {
 /// The length of the whole frame at the start of `frames`, which holds whole frames (as a
 /// [`DatagramFrames`] item or a router's gathered bytes): from the header alone, unchecked.
 pub fn whole_frame_len(frames: &[u8]) -> Option<usize> {
-    let header = frames.get(..1 + HEADER_LEN)?;
-    let signature = if header[2] & IFLAG_SIGNED != 0 { SIGNATURE_BLOCK_LEN } else { 0 };
-    let len = 1 + HEADER_LEN + usize::from(header[1]) + CHECKSUM_LEN + signature;
-    (header[0] == STX_V2 && len <= frames.len()).then_some(len)
+    let len = declared_len(frames.get(..1 + HEADER_LEN)?);
+    (frames[0] == STX_V2 && len <= frames.len()).then_some(len)
+}
+
+/// The length of a MAVLink 2 frame as its STX and header declare it: payload length,
+/// checksum, and the signature block when the signed flag is set.
+fn declared_len(stx_and_header: &[u8]) -> usize {
+    let signature = if stx_and_header[2] & IFLAG_SIGNED != 0 { SIGNATURE_BLOCK_LEN } else { 0 };
+    1 + HEADER_LEN + usize::from(stx_and_header[1]) + CHECKSUM_LEN + signature
 }
 
 /// What the start of a buffer holds.
@@ -273,14 +278,12 @@ fn find<'a>(rest: &'a [u8], stats: &mut ParseStats) -> Found<'a> {
     if rest.len() < 1 + HEADER_LEN {
         return Found::Incomplete; // header incomplete
     }
-    let payload_len = rest[1] as usize;
-    let signed = rest[2] & IFLAG_SIGNED != 0;
-    let total = 1 + HEADER_LEN + payload_len + CHECKSUM_LEN + if signed { SIGNATURE_BLOCK_LEN } else { 0 };
+    let total = declared_len(rest);
     if rest.len() < total {
         return Found::Incomplete;
     }
     let message_id = u32::from(rest[7]) | u32::from(rest[8]) << 8 | u32::from(rest[9]) << 16;
-    let crc_end = 1 + HEADER_LEN + payload_len;
+    let crc_end = 1 + HEADER_LEN + usize::from(rest[1]);
     let received = u16::from_le_bytes([rest[crc_end], rest[crc_end + 1]]);
     if checksum(&rest[1..crc_end], MavMessage::extra_crc(message_id)) != received {
         // Not a frame (or a corrupted one): resynchronise one byte later, since a real

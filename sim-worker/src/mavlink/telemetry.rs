@@ -185,7 +185,7 @@ pub fn euler_angles_ned(q: &UnitQuaternion<f64>) -> (f64, f64, f64) {
     if m20.abs() < 1.0 {
         let roll = (2.0 * (y * z + w * x)).atan2(1.0 - 2.0 * (x * x + y * y));
         let pitch = -m20.asin();
-        (roll, pitch, yaw_of(q))
+        (roll, pitch, unlocked_yaw(q))
     } else {
         // Gimbal lock: yaw folded into roll, as nalgebra does.
         let (m01, m02) = (2.0 * (x * y - w * z), 2.0 * (x * z + w * y));
@@ -200,10 +200,15 @@ pub fn euler_angles_ned(q: &UnitQuaternion<f64>) -> (f64, f64, f64) {
 /// The yaw of [`euler_angles_ned`] alone (rad), for the messages that carry a heading
 /// only: one `atan2` instead of three transcendental calls.
 fn yaw_of(q: &UnitQuaternion<f64>) -> f64 {
-    let (w, x, y, z) = (q.w, q.i, q.j, q.k);
-    if (2.0 * (x * z - w * y)).abs() >= 1.0 {
+    if (2.0 * (q.i * q.k - q.w * q.j)).abs() >= 1.0 {
         return 0.0; // gimbal lock: see euler_angles_ned
     }
+    unlocked_yaw(q)
+}
+
+/// The ZYX yaw away from gimbal lock: `atan2(m10, m00)` of the rotation matrix.
+fn unlocked_yaw(q: &UnitQuaternion<f64>) -> f64 {
+    let (w, x, y, z) = (q.w, q.i, q.j, q.k);
     (2.0 * (x * y + w * z)).atan2(1.0 - 2.0 * (y * y + z * z))
 }
 

@@ -91,30 +91,14 @@ impl Gathered {
     fn add(&mut self, shared: &Shared, frames: &[u8]) {
         let mut rest = frames;
         while !rest.is_empty() {
-            // The frames that fit what is left of the datagram, at least one.
-            let room = GCS_DATAGRAM.saturating_sub(self.bytes.len());
-            let mut take = 0;
-            while let Some(len) = whole_frame_len(&rest[take..]) {
-                if take + len > room && !(take == 0 && self.bytes.is_empty()) {
-                    break;
-                }
-                take += len;
-            }
-            if take == 0 {
-                if self.bytes.is_empty() {
-                    // Not a frame (cannot happen for checked frames): passed on as it came.
-                    take = rest.len();
-                } else {
-                    self.send(shared);
-                    continue;
-                }
-            }
-            self.bytes.extend_from_slice(&rest[..take]);
-            self.since.get_or_insert_with(Instant::now);
-            rest = &rest[take..];
-            if self.bytes.len() >= GCS_DATAGRAM || !rest.is_empty() {
+            // Not a frame (cannot happen for checked frames): the rest goes as it came.
+            let len = whole_frame_len(rest).unwrap_or(rest.len());
+            if !self.bytes.is_empty() && self.bytes.len() + len > GCS_DATAGRAM {
                 self.send(shared);
             }
+            self.bytes.extend_from_slice(&rest[..len]);
+            self.since.get_or_insert_with(Instant::now);
+            rest = &rest[len..];
         }
     }
 

@@ -485,18 +485,40 @@ fn with_signing_only_signed_gcs_frames_pass_and_the_gcs_gets_signed_frames() {
     assert_eq!((stats.refused_unsigned, stats.refused_bad_signature, stats.refused_old_timestamp), (4, 1, 1));
 }
 
-/// Datagrams from many drones at once (a shard's flush) reach a ground station in fewer,
-/// fuller datagrams: every frame intact, each drone's in its order, none over 1 400 bytes.
-#[test]
-fn a_burst_of_drone_datagrams_reaches_a_gcs_in_shared_datagrams() {
-    const DRONES: u8 = 16;
-    let sockets: Vec<UdpSocket> = (0..DRONES).map(|_| UdpSocket::bind("127.0.0.1:0").unwrap()).collect();
+/// `n` drone sockets, a router for them with a UDP ground station, and the address the
+/// router registered with the drones from (where drone datagrams go).
+fn segment_with_gcs(n: u8) -> (Vec<UdpSocket>, RouterHandle, UdpSocket, SocketAddr) {
+    let sockets: Vec<UdpSocket> = (0..n).map(|_| UdpSocket::bind("127.0.0.1:0").unwrap()).collect();
     let router = router_for(sockets.iter().map(|s| s.local_addr().unwrap()), None);
     let gcs = udp_gcs(&router);
     // The router registers with the drones once it has a ground station.
     let mut buf = vec![0u8; MAX_DATAGRAM];
     sockets[0].set_read_timeout(Some(DEADLINE)).unwrap();
     let (_, router_addr) = sockets[0].recv_from(&mut buf).expect("the router registers with the drones");
+    (sockets, router, gcs, router_addr)
+}
+
+/// Reads what has arrived at `gcs` into `frames`, checking that each datagram is at most
+/// 1 400 bytes of whole frames; returns how many datagrams it read.
+fn read_gcs_datagrams(gcs: &UdpSocket, frames: &mut Vec<Frame>) -> usize {
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    let mut datagrams = 0;
+    while let Ok(n) = gcs.recv(&mut buf) {
+        assert!(n <= 1400, "a {n}-byte datagram to the ground station");
+        let got = FrameParser::new().push(&buf[..n]);
+        assert_eq!(got.iter().map(|f| f.bytes.len()).sum::<usize>(), n, "whole frames only");
+        datagrams += 1;
+        frames.extend(got);
+    }
+    datagrams
+}
+
+/// Datagrams from many drones at once (a shard's flush) reach a ground station in fewer,
+/// fuller datagrams: every frame intact, each drone's in its order, none over 1 400 bytes.
+#[test]
+fn a_burst_of_drone_datagrams_reaches_a_gcs_in_shared_datagrams() {
+    const DRONES: u8 = 16;
+    let (sockets, router, gcs, router_addr) = segment_with_gcs(DRONES);
     // One datagram per drone, back to back: a heartbeat, then an ATTITUDE whose
     // time_boot_ms is the drone's number, so order and integrity can be checked.
     for (i, socket) in sockets.iter().enumerate() {
@@ -508,16 +530,8 @@ fn a_burst_of_drone_datagrams_reaches_a_gcs_in_shared_datagrams() {
     }
     let mut frames = Vec::new();
     let mut datagrams = 0;
-    let mut parser = FrameParser::new();
     wait_for("every drone's ATTITUDE at the ground station", || {
-        while let Ok(n) = gcs.recv(&mut buf) {
-            assert!(n <= 1400, "a {n}-byte datagram to the ground station");
-            parser.reset();
-            let got = parser.push(&buf[..n]);
-            assert_eq!(got.iter().map(|f| f.bytes.len()).sum::<usize>(), n, "whole frames only");
-            datagrams += 1;
-            frames.extend(got);
-        }
+        datagrams += read_gcs_datagrams(&gcs, &mut frames);
         (sysids(&frames).len() == usize::from(DRONES)).then_some(())
     });
     assert_eq!(frames.len(), 2 * usize::from(DRONES), "{frames:?}");
@@ -541,12 +555,7 @@ fn a_burst_of_drone_datagrams_reaches_a_gcs_in_shared_datagrams() {
 #[test]
 fn a_shards_large_datagram_reaches_a_gcs_split_at_frame_boundaries() {
     const DRONES: u8 = 240;
-    let sockets: Vec<UdpSocket> = (0..DRONES).map(|_| UdpSocket::bind("127.0.0.1:0").unwrap()).collect();
-    let router = router_for(sockets.iter().map(|s| s.local_addr().unwrap()), None);
-    let gcs = udp_gcs(&router);
-    let mut buf = vec![0u8; MAX_DATAGRAM];
-    sockets[0].set_read_timeout(Some(DEADLINE)).unwrap();
-    let (_, router_addr) = sockets[0].recv_from(&mut buf).expect("the router registers with the drones");
+    let (sockets, _router, gcs, router_addr) = segment_with_gcs(DRONES);
     // Every drone's heartbeat and ATTITUDE in one datagram from the first drone's endpoint.
     let mut datagram = Vec::new();
     for sysid in 1..=u32::from(DRONES) {
@@ -564,20 +573,13 @@ fn a_shards_large_datagram_reaches_a_gcs_split_at_frame_boundaries() {
     }
     assert!(datagram.len() > 8 * 1400 && datagram.len() <= 16 * 1024, "{} bytes", datagram.len());
     sockets[0].send_to(&datagram, router_addr).unwrap();
-    let mut received = Vec::new();
+    let mut frames = Vec::new();
     let mut datagrams = 0;
-    let mut parser = FrameParser::new();
     wait_for("the whole datagram at the ground station", || {
-        while let Ok(n) = gcs.recv(&mut buf) {
-            assert!(n <= 1400, "a {n}-byte datagram to the ground station");
-            parser.reset();
-            let got = parser.push(&buf[..n]);
-            assert_eq!(got.iter().map(|f| f.bytes.len()).sum::<usize>(), n, "whole frames only");
-            datagrams += 1;
-            received.extend_from_slice(&buf[..n]);
-        }
-        (received.len() >= datagram.len()).then_some(())
+        datagrams += read_gcs_datagrams(&gcs, &mut frames);
+        (frames.iter().map(|f| f.bytes.len()).sum::<usize>() >= datagram.len()).then_some(())
     });
+    let received: Vec<u8> = frames.iter().flat_map(|f| f.bytes.iter().copied()).collect();
     assert_eq!(received, datagram, "every frame, byte for byte and in order");
     // Full datagrams: about as few as 1 400-byte ones can carry.
     assert!(datagrams <= datagram.len() / 1400 + 2, "{datagrams} datagrams for {} bytes", datagram.len());
