@@ -131,7 +131,7 @@ impl Ecef {
 }
 
 /// The run's local tangent frame at `origin`: converts geodetic positions to ENU and back.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LocalFrame {
     origin: GeoPoint,
     origin_ecef: Ecef,

@@ -14,7 +14,7 @@ use sadesim_crds::plan::RunPlan;
 use crate::coordinator::{LinkError, ShardLink};
 use crate::protocol::{FromShard, ToShard};
 use crate::record::Lap;
-use crate::roles::shard::ShardSockets;
+use crate::roles::shard::{MavlinkThread, ShardSockets};
 use crate::shard::{MavlinkIo, Shard};
 use wire::{MAX_FRAME_BYTES, Wire};
 
@@ -38,11 +38,12 @@ impl ShardLink for ThreadLink {
 /// MAVLink queues. The first error of `recv` or `send` (the coordinator gone, a broken
 /// connection) ends it and is returned.
 ///
-/// Returns the CPU time, s, this thread spent handling the coordinator's messages: stepping
-/// the shard's drones and moving their MAVLink queues, the waits for the next message
-/// excluded (`CLOCK_THREAD_CPUTIME_ID`, two readings per window). It is the shard's own
-/// per-drone cost, apart from the coordinator's and the recorder's (`summary.json`
-/// `shardCpuS`, `sadesim bench`).
+/// Returns the CPU time, s, the shard spent: this thread handling the coordinator's
+/// messages (stepping the drones and moving their MAVLink queues, the waits for the next
+/// message excluded: `CLOCK_THREAD_CPUTIME_ID`, two readings per window), plus what `io`
+/// spent on a thread of its own (building, encoding and sending the telemetry,
+/// [`MavlinkIo::finish`]). It is the shard's own per-drone cost, apart from the
+/// coordinator's and the recorder's (`summary.json` `shardCpuS`, `sadesim bench`).
 ///
 /// # Errors
 /// The first error of `recv` or `send`.
@@ -59,8 +60,8 @@ pub fn serve<E>(
         let mut lap = Lap::start();
         let reply = shard.handle_with(msg, &mut io);
         lap.add_to(&mut busy_s);
-        // `None` is the answer to Stop: the shard is done.
-        let Some(reply) = reply else { return Ok(busy_s) };
+        // `None` is the answer to Stop: the shard is done (its last frames leave first).
+        let Some(reply) = reply else { return Ok(busy_s + io.finish()) };
         send(reply)?;
     }
 }
@@ -78,7 +79,10 @@ pub fn spawn_thread(
     mavlink: Option<&crate::shard::MavlinkOptions>,
 ) -> Result<(ThreadLink, JoinHandle<Option<f64>>), crate::shard::ShardError> {
     let mut shard = Shard::new(plan, index, surroundings)?;
-    let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
+    let sockets = mavlink
+        .map(|options| ShardSockets::open(&mut shard, plan, options))
+        .transpose()?
+        .map(|sockets| MavlinkThread::spawn(sockets, format!("shard-{index}-mavlink")));
     let (to_shard, shard_rx) = channel::<ToShard>();
     let (shard_tx, from_shard) = channel::<FromShard>();
     let handle = std::thread::Builder::new()

@@ -92,7 +92,7 @@ pub fn run_pairs(
             let shards = &result.report.summary.shard_cpu_s;
             writeln!(
                 out,
-                "  shards' threads: {:.3} s CPU stepping the drones = {us:.3} µs per drone-step (shards {:.3}-{:.3} s)",
+                "  shards' threads: {:.3} s CPU stepping the drones (MAVLink I/O included) = {us:.3} µs per drone-step (shards {:.3}-{:.3} s)",
                 shards.iter().sum::<f64>(),
                 shards.iter().copied().fold(f64::INFINITY, f64::min),
                 shards.iter().copied().fold(0.0, f64::max),

@@ -113,9 +113,10 @@ pub struct RunSummary {
     /// CPU seconds the recorder spent writing each kind of file (measured on its thread).
     #[serde(default)]
     pub recording_cpu_s: RecordingCost,
-    /// CPU seconds each shard's thread spent stepping its drones (and moving their MAVLink
-    /// traffic), by shard index, its waits for the coordinator excluded: the simulation's
-    /// own cost, apart from the coordinator's and the recorder's. Runs whose shards are
+    /// CPU seconds each shard spent stepping its drones, its waits for the coordinator
+    /// excluded, plus its MAVLink I/O thread (building, encoding and sending the
+    /// telemetry), by shard index: the simulation's own cost, apart from the coordinator's
+    /// and the recorder's. Runs whose shards are
     /// threads of this process (`sadesim run`); empty when they are processes of their own
     /// (`sim-worker shard`, each of which prints its figure in its log).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

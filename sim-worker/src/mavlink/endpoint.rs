@@ -35,10 +35,11 @@ use std::net::{IpAddr, SocketAddr};
 
 use ::mavlink::MavHeader;
 use ::mavlink::Message;
+use ::mavlink::dialects::common::MavMessage;
 use mio::net::{TcpListener, TcpStream, UdpSocket};
 use mio::{Events, Interest, Poll, Token};
 
-use crate::mavlink::frame::{Frame, FrameParser, MAX_FRAME_LEN};
+use crate::mavlink::frame::{Frame, FrameParser, MAX_FRAME_LEN, encode_command_ack, encode_into};
 use crate::mavlink::router::{ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID};
 use crate::mavlink::session::{COMPONENT_ID, Outgoing};
 use crate::mavlink::uplink::Uplink;
@@ -520,29 +521,48 @@ impl Endpoint {
     /// Encodes `messages` with this link's sequence numbers into the outgoing datagrams,
     /// sent at the next [`Endpoint::flush`]. Messages are built when due (their rates and
     /// timestamps stay right); only the sending is batched.
+    ///
+    /// Deferred telemetry ([`Outgoing::Telemetry`]) is built here, one message at a time.
     pub fn queue(&mut self, messages: &[Outgoing]) {
         for m in messages {
-            let header = MavHeader {
-                system_id: u32::from(self.config.system_id),
-                component_id: COMPONENT_ID,
-                sequence: self.sequence,
-            };
-            self.sequence = self.sequence.wrapping_add(1);
-            // A frame is at most MAX_FRAME_LEN bytes: start a new datagram when it may not fit.
-            let fits = self.filled > 0 && self.datagrams[self.filled - 1].len() + MAX_FRAME_LEN <= MAX_DATAGRAM;
-            if !fits {
-                self.start_datagram();
-            }
-            let datagram = &mut self.datagrams[self.filled - 1];
-            let at = datagram.len();
-            m.encode_into(datagram, header);
-            if let (Some(api), Outgoing::Message(message)) = (&mut self.api, m)
-                && message.message_id() == HEARTBEAT_ID
-            {
-                api.heartbeat.clear();
-                api.heartbeat.extend_from_slice(&datagram[at..]);
+            match m {
+                Outgoing::Message(message) => self.queue_message(message),
+                Outgoing::Telemetry(due) => due.messages().for_each(|message| self.queue_message(&message)),
+                Outgoing::UnknownCommandAck { command, result, target } => {
+                    let (header, datagram) = self.next_frame();
+                    datagram.extend(encode_command_ack(header, *command, *result, *target));
+                }
             }
         }
+    }
+
+    /// Encodes one message; a HEARTBEAT is also kept for the API link (module docs).
+    fn queue_message(&mut self, message: &MavMessage) {
+        let (header, datagram) = self.next_frame();
+        let at = datagram.len();
+        encode_into(datagram, header, message);
+        if message.message_id() == HEARTBEAT_ID
+            && let Some(api) = &mut self.api
+        {
+            api.heartbeat.clear();
+            api.heartbeat.extend_from_slice(&self.datagrams[self.filled - 1][at..]);
+        }
+    }
+
+    /// The next frame's header (taking this link's next sequence number) and the datagram
+    /// it goes in: a new one when a frame of the largest size might not fit the last.
+    fn next_frame(&mut self) -> (MavHeader, &mut Vec<u8>) {
+        let header = MavHeader {
+            system_id: u32::from(self.config.system_id),
+            component_id: COMPONENT_ID,
+            sequence: self.sequence,
+        };
+        self.sequence = self.sequence.wrapping_add(1);
+        let fits = self.filled > 0 && self.datagrams[self.filled - 1].len() + MAX_FRAME_LEN <= MAX_DATAGRAM;
+        if !fits {
+            self.start_datagram();
+        }
+        (header, &mut self.datagrams[self.filled - 1])
     }
 
     /// Makes an empty datagram the last filled one, reusing a buffer when there is one.

@@ -24,7 +24,7 @@ use crate::mavlink::frame::{Decoded, Frame};
 use crate::mavlink::mission_protocol::{MissionContext, MissionProtocol};
 use crate::mavlink::params::ParamTable;
 use crate::mavlink::px4_mode;
-use crate::mavlink::streams::StreamScheduler;
+use crate::mavlink::streams::{Due, StreamScheduler};
 use crate::mavlink::telemetry::{self, VehicleIdentity, VehicleView, ned_to_enu};
 
 /// Our component: the autopilot (MAV_COMP_ID_AUTOPILOT1).
@@ -215,7 +215,8 @@ impl Session {
         }
     }
 
-    /// Messages due now: replies first, then telemetry streams at their rates.
+    /// Messages due now: replies first, then telemetry streams at their rates (the due
+    /// streams as one [`Outgoing::Telemetry`], built when encoded).
     pub fn poll(&mut self, view: &VehicleView) -> Vec<Outgoing> {
         let mut out = Vec::new();
         self.poll_into(view, &mut out);
@@ -230,12 +231,11 @@ impl Session {
         out.extend(self.outbox.drain(..).map(Outgoing::Message));
         out.extend(self.missions.poll(view.time_s).into_iter().map(Outgoing::Message));
         let current = (view.mission.current, view.mission.count);
-        let mut mission_sent = false;
-        for id in self.streams.due(view.time_s) {
-            if let Some(m) = telemetry::build(id, view, &self.id) {
-                mission_sent |= id == 42;
-                out.push(Outgoing::Message(m));
-            }
+        let due = self.streams.due(view.time_s);
+        // MISSION_CURRENT (42) is always built (`telemetry::build`), so due is sent.
+        let mut mission_sent = due.contains(&42);
+        if !due.is_empty() {
+            out.push(Outgoing::Telemetry(Box::new(DueTelemetry { view: view.clone(), due, identity: self.id })));
         }
         if !mission_sent && self.reported_mission != Some(current) && view.mission.count > 0 {
             out.push(Outgoing::Message(telemetry::mission_current(view)));
@@ -271,7 +271,7 @@ impl Session {
     }
 
     /// An ack for a command number the dialect does not define (the typed message cannot
-    /// hold it, so it is encoded by [`Outgoing::encode`]).
+    /// hold it, so the link encodes it from its fields).
     fn ack_raw(&mut self, command: u16, result: MavResult, to: (u8, u8)) {
         self.raw.push(Outgoing::UnknownCommandAck { command, result, target: to });
     }
@@ -474,7 +474,7 @@ fn mission_context<'a>(id: &'a VehicleIdentity, params: &ParamTable, view: &Vehi
     }
 }
 
-/// A message to send. (Encoded within the same window; not worth a box per message.)
+/// What a session sends. (Encoded within the same window; a reply is not worth a box.)
 #[allow(clippy::large_enum_variant)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Outgoing {
@@ -485,23 +485,66 @@ pub enum Outgoing {
         result: MavResult,
         target: (u8, u8),
     },
+    /// The telemetry streams due at one window end, built where they are encoded (one
+    /// frame per message, in [`DueTelemetry::messages`]' order).
+    Telemetry(Box<DueTelemetry>),
+}
+
+/// The telemetry streams found due at `view.time_s`, not built yet.
+///
+/// Why deferred: building the messages (Euler angles, the geodetic conversion) and
+/// encoding them are most of MAVLink's cost in a shard, and both depend on this snapshot
+/// alone. So the shard keeps only the snapshot, and whoever encodes the queue (the shard's
+/// MAVLink I/O thread, `roles::shard::MavlinkThread`) builds the messages while the shard
+/// steps its next window. PX4 does the same: its streams run in the mavlink module's own
+/// task and read the uORB topics the controllers published. The frames are the ones an
+/// immediate build gives: same messages, same order, same sequence numbers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DueTelemetry {
+    pub view: VehicleView,
+    /// Message ids, ascending.
+    pub due: Due,
+    pub identity: VehicleIdentity,
+}
+
+impl DueTelemetry {
+    /// The messages, in `due`'s order; ids [`telemetry::build`] does not produce yet (a
+    /// position before the first fix) are skipped.
+    pub fn messages(&self) -> impl Iterator<Item = MavMessage> + '_ {
+        self.due.iter().filter_map(|&id| telemetry::build(id, &self.view, &self.identity))
+    }
 }
 
 impl Outgoing {
-    /// One MAVLink 2 frame from `header`.
-    pub fn encode(&self, header: ::mavlink::MavHeader) -> Vec<u8> {
+    /// The MAVLink 2 frames, the first with `header`'s sequence number and the next ones
+    /// (telemetry) counting up from it, as a client receives them. (Links encode with
+    /// their own sequence numbers, in `Endpoint::queue`.)
+    #[cfg(test)]
+    pub(crate) fn encode(&self, header: ::mavlink::MavHeader) -> Vec<u8> {
         let mut out = Vec::new();
-        self.encode_into(&mut out, header);
-        out
-    }
-
-    /// Appends the frame to `out`.
-    pub fn encode_into(&self, out: &mut Vec<u8>, header: ::mavlink::MavHeader) {
         match self {
-            Outgoing::Message(m) => crate::mavlink::frame::encode_into(out, header, m),
+            Outgoing::Message(m) => crate::mavlink::frame::encode_into(&mut out, header, m),
             Outgoing::UnknownCommandAck { command, result, target } => {
                 out.extend(crate::mavlink::frame::encode_command_ack(header, *command, *result, *target));
             }
+            Outgoing::Telemetry(t) => {
+                let mut header = header;
+                for m in t.messages() {
+                    crate::mavlink::frame::encode_into(&mut out, header, &m);
+                    header.sequence = header.sequence.wrapping_add(1);
+                }
+            }
+        }
+        out
+    }
+
+    /// The typed messages (an unknown command's ack has none): what peers decode.
+    #[cfg(test)]
+    pub(crate) fn into_messages(self) -> Vec<MavMessage> {
+        match self {
+            Outgoing::Message(m) => vec![m],
+            Outgoing::UnknownCommandAck { .. } => Vec::new(),
+            Outgoing::Telemetry(t) => t.messages().collect(),
         }
     }
 }

@@ -85,7 +85,7 @@ pub struct VehicleView {
 }
 
 /// Fixed facts about the drone and its frame, for conversions.
-#[derive(Clone, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct VehicleIdentity {
     pub system_id: u8,
     pub frame: LocalFrame,

@@ -6,11 +6,13 @@
 //! Losing the coordinator before it said `Stop` is an error (exit 2 with the address):
 //! the run is over and this shard's part of it was not recorded to the end.
 //!
-//! The role owns the drones' MAVLink sockets ([`ShardSockets`]); the shard core only sees
-//! their queues.
+//! The role owns the drones' MAVLink sockets ([`ShardSockets`]), on a thread of their own
+//! ([`MavlinkThread`]); the shard core only sees their queues.
 
+mod io_thread;
 mod sockets;
 
+pub use io_thread::MavlinkThread;
 pub use sockets::ShardSockets;
 
 use std::io::{BufReader, BufWriter};
@@ -52,7 +54,10 @@ pub fn run(
     connect_timeout: Duration,
 ) -> Result<(), RoleError> {
     let mut shard = Shard::new(plan, index, surroundings)?;
-    let sockets = mavlink.map(|options| ShardSockets::open(&mut shard, plan, options)).transpose()?;
+    let sockets = mavlink
+        .map(|options| ShardSockets::open(&mut shard, plan, options))
+        .transpose()?
+        .map(|sockets| MavlinkThread::spawn(sockets, format!("shard-{index}-mavlink")));
     let stream = connect(coordinator, connect_timeout)?;
     // On stderr (the role's log), so a run across hosts says who was where.
     let local = stream.local_addr().map_or_else(|_| "?".into(), |a| a.to_string());
@@ -105,7 +110,7 @@ pub fn connect(coordinator: &str, timeout: Duration) -> Result<TcpStream, RoleEr
 
 /// Serves the shard protocol over `stream` until the coordinator says `Stop`; returns the
 /// CPU seconds spent handling its messages (see [`transport::serve`]).
-fn serve(shard: Shard, sockets: Option<ShardSockets>, stream: TcpStream, coordinator: &str) -> Result<f64, RoleError> {
+fn serve(shard: Shard, sockets: Option<MavlinkThread>, stream: TcpStream, coordinator: &str) -> Result<f64, RoleError> {
     stream.set_nodelay(true)?;
     let mut reader = BufReader::new(stream.try_clone()?);
     let mut writer = BufWriter::new(stream);

@@ -46,6 +46,11 @@ pub trait MavlinkIo {
     /// After every window: takes each drone's `outbound` queue (leaving it empty); when
     /// `flush` (an exchange), sends everything taken so far.
     fn send(&mut self, queues: &mut [MavlinkQueues], flush: bool);
+    /// At the end of the run: everything taken so far leaves. Returns the CPU seconds the
+    /// I/O spent on threads of its own (none by default), so the shard's cost counts it.
+    fn finish(&mut self) -> f64 {
+        0.0
+    }
 }
 
 /// No network: the queues are left as they are (a test, or a shard without MAVLink). The
@@ -69,5 +74,8 @@ impl<T: MavlinkIo> MavlinkIo for Option<T> {
         if let Some(io) = self {
             io.send(queues, flush);
         }
+    }
+    fn finish(&mut self) -> f64 {
+        self.as_mut().map_or(0.0, MavlinkIo::finish)
     }
 }

@@ -60,13 +60,7 @@ fn command_long(command: MavCmd, param1: f32, param7: f32) -> MavMessage {
 
 /// Takes drone 0's outbound queue, as the I/O side would.
 fn take_outbound(shard: &mut Shard) -> Vec<MavMessage> {
-    std::mem::take(&mut shard.mavlink_queues()[0].outbound)
-        .into_iter()
-        .filter_map(|o| match o {
-            Outgoing::Message(m) => Some(m),
-            Outgoing::UnknownCommandAck { .. } => None,
-        })
-        .collect()
+    std::mem::take(&mut shard.mavlink_queues()[0].outbound).into_iter().flat_map(Outgoing::into_messages).collect()
 }
 
 /// (name, raw bits of the value: an INT32 parameter travels as its bytes in the float).

@@ -89,13 +89,7 @@ fn command_long(command: MavCmd, params: [f32; 7]) -> MavMessage {
 }
 
 fn replies(s: &mut Session, t: f64) -> Vec<MavMessage> {
-    s.poll(&view(t))
-        .into_iter()
-        .filter_map(|o| match o {
-            Outgoing::Message(m) => Some(m),
-            Outgoing::UnknownCommandAck { .. } => None,
-        })
-        .collect()
+    s.poll(&view(t)).into_iter().flat_map(Outgoing::into_messages).collect()
 }
 
 fn acks(s: &mut Session) -> Vec<COMMAND_ACK_DATA> {

@@ -220,4 +220,78 @@ mod tests {
             assert!(ids.iter().all(|&id| id == sysids[drone]), "{from}: frames of {ids:?}");
         }
     }
+
+    /// What one client of drone 0 receives in a simulated second: it registers with a
+    /// HEARTBEAT and asks for a parameter, then reads everything (after `finish`).
+    fn client_session<Io: MavlinkIo>(
+        shard: &mut Shard,
+        mut io: Io,
+        endpoint: std::net::SocketAddr,
+        finish: impl FnOnce(Io),
+    ) -> Vec<u8> {
+        use ::mavlink::dialects::common::HEARTBEAT_DATA;
+        let client = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+        client.set_read_timeout(Some(Duration::from_millis(50))).unwrap();
+        let header = MavHeader { system_id: 255, component_id: 190, sequence: 0 };
+        client.send_to(&encode(header, &MavMessage::HEARTBEAT(HEARTBEAT_DATA::default())), endpoint).unwrap();
+        let request = MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+            param_index: -1,
+            target_system: 1,
+            target_component: 1,
+            param_id: CharArray::from("MPC_XY_CRUISE"),
+        });
+        client.send_to(&encode(header, &request), endpoint).unwrap();
+        // Both datagrams are in the socket's buffer before the first exchange reads it.
+        std::thread::sleep(Duration::from_millis(20));
+        for step in (10..=1000).step_by(10) {
+            shard.advance_with(step, &mut io);
+        }
+        finish(io);
+        let mut got = Vec::new();
+        let mut buf = [0u8; 65536];
+        while let Ok(n) = client.recv(&mut buf) {
+            got.extend_from_slice(&buf[..n]);
+        }
+        got
+    }
+
+    /// The I/O thread changes when frames leave, not what leaves: the same shard run twice,
+    /// once with its sockets on its own thread and once behind a [`MavlinkThread`], sends
+    /// a client byte for byte the same frames (telemetry built on the I/O thread, and the
+    /// reply to a request that went in through it).
+    #[test]
+    fn the_io_thread_sends_the_same_frames_as_the_shards_own_thread() {
+        use crate::roles::shard::MavlinkThread;
+
+        let (_, mut shard, sockets) = shard_with_sockets(2);
+        let endpoint = sockets.endpoints()[0].local_addr().unwrap();
+        let direct = client_session(&mut shard, sockets, endpoint, drop);
+
+        let (_, mut shard, sockets) = shard_with_sockets(2);
+        let endpoint = sockets.endpoints()[0].local_addr().unwrap();
+        let thread = MavlinkThread::spawn(sockets, "test-mavlink".into());
+        // Finishing waits until the last window's frames are sent; the thread's CPU time
+        // is the shard's to count.
+        let threaded = client_session(&mut shard, thread, endpoint, |mut io| {
+            let cpu_s = io.finish();
+            assert!(cpu_s > 0.0 && cpu_s < 10.0, "the I/O thread's CPU: {cpu_s} s");
+            assert_eq!(io.finish(), 0.0, "finished once");
+        });
+
+        let messages: Vec<u32> = FrameParser::new()
+            .push(&threaded)
+            .iter()
+            .filter_map(|f| match &f.message {
+                Decoded::Message(m) => Some(::mavlink::Message::message_id(m)),
+                _ => None,
+            })
+            .collect();
+        for (id, name) in [(22, "PARAM_VALUE"), (30, "ATTITUDE"), (33, "GLOBAL_POSITION_INT"), (0, "HEARTBEAT")] {
+            assert!(messages.contains(&id), "no {name} among {} messages", messages.len());
+        }
+        // About 265 messages a second at PX4's onboard rates.
+        assert!(messages.len() > 200, "{} messages", messages.len());
+        assert_eq!(threaded.len(), direct.len(), "bytes received, threaded vs direct");
+        assert!(threaded == direct, "the same bytes in the same order");
+    }
 }
