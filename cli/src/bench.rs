@@ -167,6 +167,8 @@ pub struct Setup {
     pub drones_per_shard: u32,
     /// `spec.recording.rates.groundTruthHz`, Hz; `None`: the field's default.
     pub ground_truth_hz: Option<u32>,
+    /// `spec.recording.compression`; `None`: the field's default.
+    pub compression: Option<sadesim_crds::run::Compression>,
     /// In the runs with MAVLink, a ground station on every router reads all the telemetry
     /// ([`ground_station`]), so its delivery is paid for too.
     pub ground_stations: bool,
@@ -245,7 +247,7 @@ pub fn run(setup: &Setup, out_root: std::path::PathBuf, variant: Variant) -> Res
 
 /// The benchmark scenario for one run.
 fn scenario(setup: &Setup, variant: Variant) -> sadesim_crds::run::SimulationRun {
-    let Setup { drones, seconds, drones_per_shard, ground_truth_hz, ground_stations: _ } = *setup;
+    let Setup { drones, seconds, drones_per_shard, ground_truth_hz, compression, ground_stations: _ } = *setup;
     let Variant { mavlink: _, recordings, urban_gnss, urban_wind, cameras } = variant;
     let camera = cameras.map_or(String::new(), |c| {
         format!(
@@ -256,6 +258,12 @@ fn scenario(setup: &Setup, variant: Variant) -> sadesim_crds::run::SimulationRun
     // Urban GNSS under the built-in nominal GPS + Galileo constellation (no file).
     let gnss = if urban_gnss { "{rateHz: 5, constellation: {}}" } else { "{rateHz: 5}" };
     let rates = ground_truth_hz.map_or(String::new(), |hz| format!(", rates: {{groundTruthHz: {hz}}}"));
+    let rates = match compression {
+        Some(c) => {
+            format!("{rates}, compression: {}", serde_json::to_value(c).expect("a plain enum").as_str().unwrap_or(""))
+        }
+        None => rates,
+    };
     let text = SCENARIO
         .replace("{gnss}", gnss)
         .replace("{urban}", if urban_wind { "" } else { ", urban: {model: none}" })
@@ -268,6 +276,16 @@ fn scenario(setup: &Setup, variant: Variant) -> sadesim_crds::run::SimulationRun
         .replace("{seconds}", &seconds.to_string())
         .replace("{per_shard}", &drones_per_shard.to_string());
     parse_run(&text).expect("the benchmark scenario is valid")
+}
+
+/// `--compression`'s codec by its name in the scenario (`zstd`, `lz4`, `none`).
+///
+/// # Errors
+/// Any other name, quoted.
+pub fn compression_named(name: &str) -> Result<sadesim_crds::run::Compression, crate::cli::CliError> {
+    serde_json::from_value(serde_json::Value::String(name.into())).map_err(|_| {
+        crate::cli::CliError::Failed(format!("bench: --compression \"{name}\": expected zstd, lz4 or none"))
+    })
 }
 
 /// The middle value (the upper one of the two middle values for an even count); `None`
@@ -373,11 +391,45 @@ mod tests {
         let v =
             Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true, cameras: None };
         let rates = |ground_truth_hz| {
-            let setup = Setup { drones: 4, seconds: 5, drones_per_shard: 2, ground_truth_hz, ground_stations: false };
+            let setup = Setup {
+                drones: 4,
+                seconds: 5,
+                drones_per_shard: 2,
+                ground_truth_hz,
+                compression: None,
+                ground_stations: false,
+            };
             scenario(&setup, v).spec.recording.expect("recorded").rates
         };
         assert_eq!(rates(Some(25)).ground_truth_hz, 25.0);
         assert_eq!(rates(None), sadesim_crds::run::RecordingRates::default());
+    }
+
+    #[test]
+    fn the_compression_goes_into_the_scenario_and_its_default_stays_otherwise() {
+        use sadesim_crds::run::Compression;
+        let v =
+            Variant { mavlink: false, recordings: Recordings::ALL, urban_gnss: false, urban_wind: true, cameras: None };
+        let compression = |compression, ground_truth_hz| {
+            let setup = Setup {
+                drones: 4,
+                seconds: 5,
+                drones_per_shard: 2,
+                ground_truth_hz,
+                compression,
+                ground_stations: false,
+            };
+            let recording = scenario(&setup, v).spec.recording.expect("recorded");
+            (recording.compression, recording.rates.ground_truth_hz)
+        };
+        assert_eq!(compression(Some(Compression::Lz4), None), (Compression::Lz4, 100.0));
+        assert_eq!(compression(Some(Compression::None), Some(50)), (Compression::None, 50.0));
+        assert_eq!(compression(None, None).0, Compression::default());
+        for name in ["zstd", "lz4", "none"] {
+            let c = compression_named(name).unwrap();
+            assert_eq!(compression(Some(c), None).0, c, "{name}");
+        }
+        assert!(compression_named("gzip").unwrap_err().to_string().contains("gzip"));
     }
 
     #[test]

@@ -90,6 +90,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             bare,
             whole_stack,
             ground_truth_hz,
+            compression,
             ground_stations,
             repeat,
             ..
@@ -115,6 +116,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 seconds: seconds.unwrap_or(60),
                 drones_per_shard,
                 ground_truth_hz,
+                compression: compression.as_deref().map(crate::bench::compression_named).transpose()?,
                 ground_stations,
             };
             crate::bench::pairs::run_pairs(setup, comparison, repeat, out)

@@ -95,6 +95,11 @@ pub enum Command {
         /// 100), to see what a lower rate saves.
         #[arg(long, value_name = "HZ", value_parser = clap::value_parser!(u32).range(1..=1000), conflicts_with_all = ["bare", "airspace"])]
         ground_truth_hz: Option<u32>,
+        /// Compress recording.mcap's chunks with this codec in every run
+        /// (`spec.recording.compression`: zstd, lz4 or none; default that field's default,
+        /// zstd), to see what a lighter recording saves.
+        #[arg(long, value_name = "CODEC", value_parser = ["zstd", "lz4", "none"], conflicts_with_all = ["bare", "airspace"])]
+        compression: Option<String>,
         /// With --mavlink or --whole-stack: in the runs with MAVLink, a ground station on
         /// every router (UDP, as QGroundControl connects) reads all the telemetry, so the
         /// runs pay for its delivery (drones to routers to ground stations), not only for
