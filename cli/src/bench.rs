@@ -46,7 +46,7 @@ spec:
     wind: {speedMps: 5, directionFromDeg: 270, turbulence: light{urban}}
     gnss: {gnss}
   sharding: {dronesPerShard: {per_shard}}
-  recording: {mcap: {mcap}, ulog: {ulog}{rates}}
+  recording: {mcap: {mcap}, ulog: {ulog}{recording}}
   rendering: {enabled: {rendering}}
   world:
     openAreas:
@@ -257,19 +257,18 @@ fn scenario(setup: &Setup, variant: Variant) -> sadesim_crds::run::SimulationRun
     });
     // Urban GNSS under the built-in nominal GPS + Galileo constellation (no file).
     let gnss = if urban_gnss { "{rateHz: 5, constellation: {}}" } else { "{rateHz: 5}" };
-    let rates = ground_truth_hz.map_or(String::new(), |hz| format!(", rates: {{groundTruthHz: {hz}}}"));
-    let rates = match compression {
-        Some(c) => {
-            format!("{rates}, compression: {}", serde_json::to_value(c).expect("a plain enum").as_str().unwrap_or(""))
-        }
-        None => rates,
-    };
+    // More fields of `spec.recording`, after `mcap` and `ulog`.
+    let mut recording = ground_truth_hz.map_or(String::new(), |hz| format!(", rates: {{groundTruthHz: {hz}}}"));
+    if let Some(c) = compression {
+        let name = serde_json::to_value(c).expect("a plain enum");
+        recording += &format!(", compression: {}", name.as_str().expect("named by a string"));
+    }
     let text = SCENARIO
         .replace("{gnss}", gnss)
         .replace("{urban}", if urban_wind { "" } else { ", urban: {model: none}" })
         .replace("{rendering}", &cameras.is_some().to_string())
         .replace("{cameras}", &camera)
-        .replace("{rates}", &rates)
+        .replace("{recording}", &recording)
         .replace("{mcap}", &recordings.mcap.to_string())
         .replace("{ulog}", &recordings.ulog.to_string())
         .replace("{drones}", &drones.to_string())

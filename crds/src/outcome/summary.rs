@@ -116,9 +116,9 @@ pub struct RunSummary {
     /// CPU seconds each shard spent stepping its drones, its waits for the coordinator
     /// excluded, plus its MAVLink I/O thread (building, encoding and sending the
     /// telemetry), by shard index: the simulation's own cost, apart from the coordinator's
-    /// and the recorder's. Runs whose shards are
-    /// threads of this process (`sadesim run`); empty when they are processes of their own
-    /// (`sim-worker shard`, each of which prints its figure in its log).
+    /// and the recorder's. Runs whose shards are threads of this process (`sadesim run`);
+    /// empty when they are processes of their own (`sim-worker shard`, each of which prints
+    /// its figure in its log).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub shard_cpu_s: Vec<f64>,
     /// Each onboard camera's frames, and how many were late (runs with cameras).

@@ -49,13 +49,11 @@ pub struct MavlinkThread {
     spare: Receiver<Vec<Vec<Outgoing>>>,
     /// Returns the CPU seconds the thread used.
     handle: Option<JoinHandle<f64>>,
-    drones: usize,
 }
 
 impl MavlinkThread {
     /// Moves `sockets` to a new thread named `name`.
     pub fn spawn(sockets: ShardSockets, name: String) -> Self {
-        let drones = sockets.endpoints().len();
         let (jobs, job_rx) = channel::<Job>();
         let (inbound_tx, inbound) = channel();
         let (spare_tx, spare) = channel();
@@ -63,7 +61,7 @@ impl MavlinkThread {
             .name(name)
             .spawn(move || serve(sockets, &job_rx, &inbound_tx, &spare_tx))
             .expect("the OS can start a thread");
-        Self { jobs: Some(jobs), inbound, spare, handle: Some(handle), drones }
+        Self { jobs: Some(jobs), inbound, spare, handle: Some(handle) }
     }
 
     fn submit(&self, job: Job) {
@@ -138,7 +136,7 @@ impl MavlinkIo for MavlinkThread {
     /// allocation of a list the thread has finished with) and goes on at once.
     fn send(&mut self, queues: &mut [MavlinkQueues], flush: bool) {
         let mut outbound = self.spare.try_recv().unwrap_or_default();
-        outbound.resize_with(self.drones.max(queues.len()), Vec::new);
+        outbound.resize_with(queues.len(), Vec::new);
         for (queue, list) in queues.iter_mut().zip(&mut outbound) {
             list.clear();
             std::mem::swap(&mut queue.outbound, list);
