@@ -2,7 +2,8 @@
 # The whole test suite: the README's test command, and what CI runs (.ci/run).
 # Installs missing tools first (tests/install-tools.sh), then: formatting, lints, Rust
 # tests (cargo nextest), Python interop tests (pytest), bounded fuzzing of the file readers
-# (tests/fuzz.sh), Helm chart lint and template.
+# (tests/fuzz.sh), Helm chart lint and template, and the real-cluster lane (tests/cluster/lane.sh:
+# Kubernetes built from upstream source, brought up on this machine, tested, torn down).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,6 +29,9 @@ echo "==> helm lint / template"
 
 echo "==> Python interop tests"
 .venv/bin/python -m pytest -q tests/interop
+
+echo "==> the real-cluster lane (tests/cluster/lane.sh)"
+bash tests/cluster/lane.sh
 
 echo "==> fuzzing the file readers (cargo-fuzz, ${SADESIM_FUZZ_SECONDS:-60} s per target)"
 bash tests/fuzz.sh

@@ -26,7 +26,7 @@ pub enum Role {
 /// A group of identical drones.
 #[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
-#[x_kube(validation = Rule::new("!has(self.homes.explicit) || size(self.homes.explicit) == self.count").message("homes.explicit must list exactly `count` positions"))]
+#[x_kube(validation = Rule::new("!has(self.homes.explicit) || size(self.homes.explicit) == self.count").message("homes.explicit must list exactly `count` positions").field_path(".homes.explicit"))]
 pub struct FleetGroup {
     /// Unique group name (DNS label): drones are named `<group>-<k>`.
     #[schemars(length(min = 1, max = 40), pattern(r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"))]
@@ -129,7 +129,7 @@ pub enum HomePlacement {
 /// Altitude limits above ground level, metres. The paper's 400 ft = 121.92 m.
 #[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
-#[x_kube(validation = Rule::new("!has(self.minAglM) || self.minAglM < self.maxAglM").message("altitude.minAglM must be below altitude.maxAglM"))]
+#[x_kube(validation = Rule::new("!has(self.minAglM) || self.minAglM < self.maxAglM").message("altitude.minAglM must be below altitude.maxAglM").field_path(".minAglM"))]
 pub struct AltitudeLimits {
     /// Highest allowed altitude above ground, metres (1..1000).
     #[schemars(range(min = 1.0, max = 1000.0))]

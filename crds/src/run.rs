@@ -46,7 +46,7 @@ pub const DEFAULT_WORLD_EXTENT_M: f64 = 3000.0;
 )]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 #[x_kube(validation = Rule::new("has(self.clock) == has(oldSelf.clock) && has(self.physicsRateHz) == has(oldSelf.physicsRateHz) && has(self.seed) == has(oldSelf.seed) && has(self.world) == has(oldSelf.world) && has(self.environment) == has(oldSelf.environment) && has(self.zones) == has(oldSelf.zones) && has(self.pilot) == has(oldSelf.pilot) && has(self.rendering) == has(oldSelf.rendering) && has(self.sharding) == has(oldSelf.sharding) && has(self.recording) == has(oldSelf.recording) && has(self.archive) == has(oldSelf.archive) && has(self.criteria) == has(oldSelf.criteria) && has(self.queue) == has(oldSelf.queue) && has(self.groundStations) == has(oldSelf.groundStations)").message("spec fields cannot be added or removed once the run exists: only spec.abort may change (create a new run instead)"))]
-#[x_kube(validation = Rule::new("has(self.pilot) || self.fleet.all(g, has(g.mission))").message("spec.pilot is required: a fleet group without a mission is flown over MAVLink by the pilot"))]
+#[x_kube(validation = Rule::new("has(self.pilot) || self.fleet.all(g, has(g.mission))").message("spec.pilot is required: a fleet group without a mission is flown over MAVLink by the pilot").field_path(".pilot"))]
 pub struct SimulationRunSpec {
     /// Geodetic origin of the run's local ENU frame, on the ground at the centre of the world.
     #[x_kube(validation = Rule::new("self == oldSelf").message("is immutable once the run exists: only spec.abort may change (create a new run instead)"))]
@@ -206,7 +206,7 @@ pub enum ClockMode {
 /// Clock: `{mode: realtime}`, `{mode: scaled, factor: 4}` or `{mode: asFastAsPossible}`.
 #[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq, Default)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
-#[x_kube(validation = Rule::new("self.mode == 'scaled' ? has(self.factor) : !has(self.factor)").message("clock.factor is required with mode scaled and only allowed with it"))]
+#[x_kube(validation = Rule::new("self.mode == 'scaled' ? has(self.factor) : !has(self.factor)").message("clock.factor is required with mode scaled and only allowed with it").field_path(".factor"))]
 pub struct Clock {
     pub mode: ClockMode,
     /// Simulated seconds per wall-clock second with `mode: scaled`, 0.01..1000.
@@ -273,7 +273,7 @@ pub struct DemFile {
 /// The world around the origin.
 #[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
-#[x_kube(validation = Rule::new("(has(self.source) && self.source == 'osm') == has(self.osm)").message("world.osm is required with source osm and only allowed with it"))]
+#[x_kube(validation = Rule::new("(has(self.source) && self.source == 'osm') == has(self.osm)").message("world.osm is required with source osm and only allowed with it").field_path(".osm"))]
 #[x_kube(validation = Rule::new("!(has(self.source) && self.source == 'osm') || (!has(self.city) && !has(self.openAreas))").message("world.city and world.openAreas shape the procedural city: with source osm the map's buildings and parks are the world"))]
 pub struct World {
     #[serde(default)]

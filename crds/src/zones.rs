@@ -33,7 +33,7 @@ pub struct ZoneAltitude {
 /// A restricted volume of airspace.
 #[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
-#[x_kube(validation = Rule::new("!has(self.floor) || self.floor.reference != self.ceiling.reference || self.floor.heightM < self.ceiling.heightM").message("zone floor must be below its ceiling"))]
+#[x_kube(validation = Rule::new("!has(self.floor) || self.floor.reference != self.ceiling.reference || self.floor.heightM < self.ceiling.heightM").message("zone floor must be below its ceiling").field_path(".ceiling"))]
 pub struct Zone {
     /// Unique zone name (DNS label); the API and events refer to it.
     #[schemars(length(min = 1, max = 63), pattern(r"^[a-z0-9]([-a-z0-9]*[a-z0-9])?$"))]
@@ -66,7 +66,7 @@ impl Zone {
 /// `insufficient_credentials`.
 #[derive(KubeSchema, Serialize, Deserialize, Clone, Debug, PartialEq)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
-#[x_kube(validation = Rule::new("!has(self.minAltitudeAglM) || !has(self.maxAltitudeAglM) || self.minAltitudeAglM < self.maxAltitudeAglM").message("policy.minAltitudeAglM must be below policy.maxAltitudeAglM"))]
+#[x_kube(validation = Rule::new("!has(self.minAltitudeAglM) || !has(self.maxAltitudeAglM) || self.minAltitudeAglM < self.maxAltitudeAglM").message("policy.minAltitudeAglM must be below policy.maxAltitudeAglM").field_path(".minAltitudeAglM"))]
 pub struct ZonePolicy {
     /// Operators that may be granted entry.
     #[serde(default)]

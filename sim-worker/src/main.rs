@@ -197,8 +197,10 @@ fn main() -> ExitCode {
         } => {
             // Ctrl-C in a terminal reaches every process of the group. A shard stops when
             // the coordinator says so (or its connection closes), so the coordinator can
-            // finish the run and write its files first.
+            // finish the run and write its files first. SIGTERM (its Pod deleted) ends it at
+            // once: the coordinator then reports the shard's failure.
             let _ = ctrlc::set_handler(|| {});
+            exit_on_sigterm();
             let api_host = match mavlink_api_host.as_str() {
                 "none" => Ok(None),
                 host => host.parse().map(Some).map_err(|_| {
@@ -280,6 +282,7 @@ fn main() -> ExitCode {
             let flag = stop.clone();
             // SIGTERM ends the process at once: a renderer holds nothing to flush.
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+            exit_on_sigterm();
             roles::read_plan(&plan).and_then(|plan| {
                 let world = roles::world(&plan, assets.as_deref())?;
                 roles::renderer::run(&plan, &world, listen, &feed, &stop)
@@ -295,15 +298,16 @@ fn main() -> ExitCode {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+            exit_on_sigterm();
             roles::wait_release::run(&url, &stop)
         }
         Role::Router { plan, segment, bind, drone_host } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
-            // ctrlc's `termination` feature is off, so SIGTERM (a pod stopping) is not
-            // caught here and ends the process at once, which is fine for a router: it
-            // holds nothing that needs flushing.
+            // SIGTERM (a pod stopping) ends the process at once: a router holds nothing that
+            // needs flushing.
             let _ = ctrlc::set_handler(move || flag.store(true, Ordering::Relaxed));
+            exit_on_sigterm();
             // The signing passphrase is read from the environment only: a flag would show
             // it in `ps` to every user of the machine.
             let key = std::env::var_os(sadesim_crds::ground_stations::SIGNING_KEY_ENV);
@@ -316,6 +320,17 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => failure(&e),
+    }
+}
+
+/// Ends this process at SIGTERM with exit status 143, what the default action means. A
+/// pod's program is PID 1 of its container, and the kernel ignores SIGTERM for PID 1 unless
+/// it has a handler: without one a deleted pod waits out its grace period (30 s) and is
+/// killed, and the rest of the run (the coordinator, the operator) waits with it.
+fn exit_on_sigterm() {
+    let always = Arc::new(AtomicBool::new(true));
+    if let Err(e) = signal_hook::flag::register_conditional_shutdown(signal_hook::consts::SIGTERM, 143, always) {
+        eprintln!("warning: SIGTERM cannot be caught ({e}): a deleted Pod waits out its grace period");
     }
 }
 

@@ -161,6 +161,36 @@ fn sigterm_ends_the_run_and_the_folder_is_still_archived() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Deleting a shard's Pod sends SIGTERM to the shard (PID 1 of its container, where the
+/// kernel ignores a signal the program does not handle): the shard ends at once with status
+/// 143, the coordinator fails the run naming the shard, and still archives its folder.
+#[test]
+fn sigterm_ends_a_shard_at_once_and_the_coordinator_fails_the_run_naming_it() {
+    let dir = temp("shard-sigterm");
+    let (plan_file, plan) = write_plan(&dir, ClockMode::Realtime);
+    let (out, archive) = (dir.join("out"), dir.join("archive"));
+    let mut pod = Pod::start(&plan_file, &plan, &out, &format!("file://{}", archive.display()));
+    while !matches!(next_report(&mut pod.stdout), Report::Progress { sim_time_s, .. } if sim_time_s >= 1.0) {}
+    let mut shard = pod.shards.remove(0);
+    let killed = Command::new("kill").args(["-TERM", &shard.id().to_string()]).status().unwrap();
+    assert!(killed.success());
+    // Exit status 143 (our handler), not death by the signal's default action.
+    assert_eq!(shard.wait().unwrap().code(), Some(143));
+    let (failed_shard, reason) = loop {
+        match read_report(&mut pod.stdout) {
+            Some(Report::Failed { shard, reason, .. }) => break (shard, reason),
+            Some(_) => {}
+            None => panic!("the coordinator ended without reporting the shard's failure"),
+        }
+    };
+    assert_eq!(failed_shard, Some(0), "{reason}");
+    let status = pod.coordinator.wait().unwrap();
+    assert!(!status.success(), "{status}");
+    let summary = check_archived(&archive, &out);
+    assert!(summary.end_reason.starts_with("shardFailed"), "{}", summary.end_reason);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// An archive that cannot take the upload: the run itself succeeded, so the exit status
 /// is UPLOAD_FAILED_EXIT (not a failed run), and the Pod's folder keeps every file.
 #[test]

@@ -5,14 +5,21 @@
 # step MESSAGE: a heading in the script's output.
 step() { echo; echo "==> $*"; }
 
-# e2e_require_tools PREFIX k3d|kind: exits 2, naming what is missing, without docker,
-# kubectl, the cluster tool, helm, or a Docker engine that answers.
+# e2e_require_tools PREFIX k3d|kind|local: exits 2, naming what is missing, without docker,
+# kubectl, the cluster tool, helm, or a Docker engine that answers; for local (the cluster of
+# tests/cluster/, built here from upstream source), without go, buildah, containerd or helm.
 e2e_require_tools() {
   local prefix=$1 tool
+  [ -n "$(e2e_helm)" ] || { echo "$prefix: helm not found (run tests/install-tools.sh)" >&2; exit 2; }
+  if [ "$2" = local ]; then
+    for tool in go buildah containerd runc; do
+      command -v "$tool" >/dev/null || { echo "$prefix: $tool not found on PATH (run tests/install-tools.sh)" >&2; exit 2; }
+    done
+    return
+  fi
   for tool in docker kubectl "$2"; do
     command -v "$tool" >/dev/null || { echo "$prefix: $tool not found on PATH" >&2; exit 2; }
   done
-  [ -n "$(e2e_helm)" ] || { echo "$prefix: helm not found (run tests/install-tools.sh)" >&2; exit 2; }
   docker info >/dev/null 2>&1 || { echo "$prefix: no Docker engine answers (docker info failed)" >&2; exit 2; }
 }
 
@@ -21,31 +28,76 @@ e2e_helm() {
   if [ -x .tools/bin/helm ]; then echo .tools/bin/helm; else command -v helm || true; fi
 }
 
-# e2e_create_cluster k3d|kind NAME: a cluster with one agent (k3d) or one node (kind).
+# e2e_create_cluster k3d|kind|local NAME: a cluster with one agent (k3d) or one node (kind,
+# local). local exports KUBECONFIG and puts the cluster's kubectl first on PATH.
 e2e_create_cluster() {
   case "$1" in
     k3d) k3d cluster create "$2" --agents 1 --wait --timeout 180s ;;
     kind) kind create cluster --name "$2" --wait 180s ;;
+    local)
+      tests/cluster/down.sh
+      KUBECONFIG=$(tests/cluster/up.sh)
+      PATH="$(tests/cluster/build.sh):$PATH"
+      export KUBECONFIG PATH ;;
   esac
   kubectl cluster-info
 }
 
-# e2e_delete_cluster k3d|kind NAME
+# e2e_delete_cluster k3d|kind|local NAME
 e2e_delete_cluster() {
   case "$1" in
     k3d) k3d cluster delete "$2" || true ;;
     kind) kind delete cluster --name "$2" || true ;;
+    local) tests/cluster/down.sh ;;
   esac
 }
 
-# e2e_import_images k3d|kind CLUSTER IMAGE...: images built locally, into the cluster's
-# nodes (no registry).
+# e2e_build_images k3d|kind|local TAG: the operator, worker and camera images tagged TAG and
+# the example pilots' image, as the cluster tool takes them: docker build from images/, or for
+# local, tests/cluster/images.sh product (the same layout from this machine's build) into
+# $E2E_IMAGE_DIR (a new folder, or the one given, left as it is when it holds the images).
+e2e_build_images() {
+  local tool=$1 tag=$2
+  case "$tool" in
+    local)
+      if [ -z "${E2E_IMAGE_DIR:-}" ] || [ ! -f "$E2E_IMAGE_DIR/sim-worker.tar" ]; then
+        E2E_IMAGE_DIR=${E2E_IMAGE_DIR:-$(mktemp -d)}
+        tests/cluster/images.sh product "$tag" "$E2E_IMAGE_DIR"
+      fi ;;
+    *)
+      docker build -f images/operator.Dockerfile -t "ghcr.io/sadesim/sadesim:$tag" .
+      docker build -f images/sim-worker.Dockerfile -t "ghcr.io/sadesim/sim-worker:$tag" .
+      docker build -f images/sim-worker-camera.Dockerfile -t "ghcr.io/sadesim/sim-worker-camera:$tag" .
+      docker build -f images/pilot-python.Dockerfile -t ghcr.io/sadesim/pilot-python:0.1.0 .
+      docker build -f images/pilot-examples.Dockerfile --build-arg BASE=ghcr.io/sadesim/pilot-python:0.1.0 \
+        -t ghcr.io/sadesim/pilot-examples:0.1.0 . ;;
+  esac
+}
+
+# e2e_import_images k3d|kind|local CLUSTER IMAGE...: images built locally, into the cluster's
+# nodes (no registry); local imports every image e2e_build_images made.
 e2e_import_images() {
   local tool=$1 cluster=$2
   shift 2
   case "$tool" in
     k3d) k3d image import -c "$cluster" "$@" ;;
     kind) kind load docker-image --name "$cluster" "$@" ;;
+    local) tests/cluster/images.sh import "$E2E_IMAGE_DIR" ;;
+  esac
+}
+
+# e2e_start_object_store k3d|kind|local USER PASSWORD BUCKET: an S3 store with BUCKET made;
+# prints its URL inside the cluster. k3d and kind run MinIO in the cluster (namespace minio);
+# local runs Versity's S3 gateway on the node (tests/cluster/objectstore.sh), whose fixed
+# credentials are USER and PASSWORD.
+e2e_start_object_store() {
+  local tool=$1 user=$2 password=$3 bucket=$4
+  case "$tool" in
+    local) tests/cluster/objectstore.sh start "$bucket" ;;
+    *)
+      e2e_start_minio "${MINIO_IMAGE:-quay.io/minio/minio:latest}" "${MC_IMAGE:-quay.io/minio/mc:latest}" \
+        "$user" "$password" "$bucket" >&2
+      echo http://minio.minio.svc:9000 ;;
   esac
 }
 
@@ -101,12 +153,12 @@ YAML
   kubectl wait -n minio --for=condition=complete job/make-bucket --timeout=180s
 }
 
-# e2e_install_chart HELM SYSTEM_NS TAG BUCKET USER PASSWORD RUN_NAMESPACES [HELM ARGS...]:
-# the chart with the images of TAG, archiving to s3://BUCKET on the MinIO above, its
-# credentials copied into each of RUN_NAMESPACES (comma-separated).
+# e2e_install_chart HELM SYSTEM_NS TAG BUCKET USER PASSWORD RUN_NAMESPACES ENDPOINT [HELM ARGS...]:
+# the chart with the images of TAG, archiving to s3://BUCKET on the object store at ENDPOINT,
+# its credentials copied into each of RUN_NAMESPACES (comma-separated).
 e2e_install_chart() {
-  local helm=$1 system_ns=$2 tag=$3 bucket=$4 user=$5 password=$6 namespaces=$7
-  shift 7
+  local helm=$1 system_ns=$2 tag=$3 bucket=$4 user=$5 password=$6 namespaces=$7 endpoint=$8
+  shift 8
   "$helm" upgrade --install sadesim charts/sadesim -n "$system_ns" --create-namespace --wait --timeout 180s \
     --set image.tag="$tag" \
     --set workerImage.tag="$tag" \
@@ -118,7 +170,7 @@ e2e_install_chart() {
     --set objectStore.env.AWS_ACCESS_KEY_ID="$user" \
     --set objectStore.env.AWS_SECRET_ACCESS_KEY="$password" \
     --set objectStore.env.AWS_REGION=us-east-1 \
-    --set objectStore.env.AWS_ENDPOINT_URL=http://minio.minio.svc:9000 \
+    --set objectStore.env.AWS_ENDPOINT_URL="$endpoint" \
     --set-string objectStore.env.AWS_ALLOW_HTTP=true \
     "$@"
   kubectl get crd simulationruns.sadesim.io

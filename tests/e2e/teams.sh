@@ -29,8 +29,6 @@ TAG=${TAG:-e2e}
 KUEUE_VERSION=v0.19.4
 OPERATOR_IMAGE=ghcr.io/sadesim/sadesim:$TAG
 WORKER_IMAGE=ghcr.io/sadesim/sim-worker:$TAG
-MINIO_IMAGE=${MINIO_IMAGE:-quay.io/minio/minio:latest}
-MC_IMAGE=${MC_IMAGE:-quay.io/minio/mc:latest}
 SYSTEM_NS=sadesim-system
 BUCKET=sadesim-runs
 MINIO_USER=sadesim
@@ -89,8 +87,8 @@ kubectl wait -n kueue-system --for=condition=Available deployment/kueue-controll
 # The queue position comes from Kueue's visibility API (an aggregated API of Kueue's).
 kubectl wait --for=condition=Available apiservice/v1beta2.visibility.kueue.x-k8s.io --timeout=120s
 
-step "starting MinIO (the archive)"
-e2e_start_minio "$MINIO_IMAGE" "$MC_IMAGE" "$MINIO_USER" "$MINIO_PASSWORD" "$BUCKET"
+step "starting the object store (the archive)"
+ENDPOINT=$(e2e_start_object_store "$TOOL" "$MINIO_USER" "$MINIO_PASSWORD" "$BUCKET")
 
 step "the teams' namespaces, quotas and queues (tests/e2e/cluster/kueue-teams.yaml)"
 # Kueue's webhooks answer only once its controller is up: retry the first apply.
@@ -102,7 +100,7 @@ done
 kubectl wait --for=condition=Active clusterqueue/team-a clusterqueue/team-b --timeout=120s
 
 step "installing the chart with the Kueue integration"
-e2e_install_chart "$HELM" "$SYSTEM_NS" "$TAG" "$BUCKET" "$MINIO_USER" "$MINIO_PASSWORD" "team-a,team-b" \
+e2e_install_chart "$HELM" "$SYSTEM_NS" "$TAG" "$BUCKET" "$MINIO_USER" "$MINIO_PASSWORD" "team-a,team-b" "$ENDPOINT" \
   --set kueue.enabled=true
 
 step "team A applies its run"

@@ -125,6 +125,21 @@ def test_helm_template_passes_kubernetes_validate_strict(venv_bin, values):
     }
 
 
+def test_the_operator_gets_the_object_store_secret_in_its_own_namespace():
+    """The operator archives pod logs itself: the Secret is made in the release namespace
+    too, and the operator's container takes its keys as environment variables."""
+    docs = [d for d in yaml.safe_load_all(helm_template(
+        "--namespace", "sadesim-system", "--set", "objectStore.create=true",
+        "--set", "objectStore.secretName=store", "--set", "objectStore.namespaces={team-a}",
+        "--set", "objectStore.env.AWS_REGION=us-east-1")) if d]
+    secrets = sorted(d["metadata"]["namespace"] for d in docs if d["kind"] == "Secret")
+    assert secrets == ["sadesim-system", "team-a"]
+    deployment = next(d for d in docs if d["kind"] == "Deployment")
+    assert deployment["spec"]["template"]["spec"]["containers"][0]["envFrom"] == [{"secretRef": {"name": "store"}}]
+    plain = next(d for d in yaml.safe_load_all(helm_template()) if d and d["kind"] == "Deployment")
+    assert "envFrom" not in plain["spec"]["template"]["spec"]["containers"][0]
+
+
 def test_the_chart_configures_the_operator_with_the_contract_env_only():
     docs = [d for d in yaml.safe_load_all(helm_template("--set", "kueue.enabled=true")) if d]
     deployment = next(d for d in docs if d["kind"] == "Deployment")

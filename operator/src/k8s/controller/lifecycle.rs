@@ -672,6 +672,39 @@ fn endpoints(plan: &RunPlan) -> Endpoints {
     }
 }
 
+/// The status to write when the pod logs could not be written to the archive at `url`
+/// (`error`), instead of `decided`: the run stays in Archiving, whatever phase `decided`
+/// reached (never a terminal phase while evidence is missing), with its archive as
+/// `previous` had it and `Archived=False` (`ArchiveFailed`) naming the archive and the
+/// error. Also the wait before the next attempt: half the time since Archiving began,
+/// between 2 s and 60 s, so that attempts back off about exponentially.
+pub fn archive_failed(
+    previous: &SimulationRunStatus,
+    decided: &SimulationRunStatus,
+    url: &str,
+    error: &str,
+    now: Timestamp,
+    generation: Option<i64>,
+) -> (SimulationRunStatus, Duration) {
+    let since = condition(previous, ct::ARCHIVED).map_or(now, |c| c.last_transition_time.0);
+    let waited_s = u64::try_from((now.as_nanosecond() - since.as_nanosecond()) / 1_000_000_000).unwrap_or(0);
+    let wait = Duration::from_secs((waited_s / 2).clamp(ARCHIVE_RETRY_MIN_S, ARCHIVE_RETRY_MAX_S));
+    let mut status = decided.clone();
+    status.phase = Some(Phase::Archiving);
+    status.completion_time = previous.completion_time.clone();
+    status.archive = previous.archive.clone();
+    let message = format!("cannot write to the archive {url}; retrying in {} s: {error}", wait.as_secs());
+    status.message = Some(message.clone());
+    set_condition(&mut status.conditions, ct::ARCHIVED, false, ARCHIVE_FAILED, &message, now, generation);
+    (status, wait)
+}
+
+/// The reason of `Archived=False` while the archive cannot be written.
+pub const ARCHIVE_FAILED: &str = "ArchiveFailed";
+/// Bounds of the wait between two attempts to write to an archive that failed.
+const ARCHIVE_RETRY_MIN_S: u64 = 2;
+const ARCHIVE_RETRY_MAX_S: u64 = 60;
+
 /// Ends the run with `reason` (an [`outcome`]) and enters Archiving.
 fn end(d: &mut Decision, input: &Input, reason: &str, message: impl Into<String>) {
     let message = message.into();

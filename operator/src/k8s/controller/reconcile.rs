@@ -400,6 +400,25 @@ async fn archive_logs(client: &Client, ns: &str, pods: &[String], folder: &RunFo
     Ok((manifest.file_count as u32, manifest.total_bytes))
 }
 
+/// Writes `status` on the run's status subresource (server-side apply, the operator's field
+/// manager).
+async fn write_status(
+    runs: &Api<SimulationRun>,
+    ns: &str,
+    name: &str,
+    status: &sadesim_crds::status::SimulationRunStatus,
+) -> Result<(), Error> {
+    let patch = json!({
+        "apiVersion": "sadesim.io/v1alpha1",
+        "kind": "SimulationRun",
+        "status": status,
+    });
+    runs.patch_status(name, &PatchParams::apply(MANAGER).force(), &Patch::Apply(&patch))
+        .await
+        .map_err(kube_err(format!("write the status of {ns}/{name}")))?;
+    Ok(())
+}
+
 /// Carries out a decision, in the documented order.
 async fn execute(
     run: &SimulationRun,
@@ -429,10 +448,43 @@ async fn execute(
     if !d.archive_logs.is_empty()
         && let Some(archive) = &d.archive
     {
-        let (files, bytes) = archive_logs(client, ns, &d.archive_logs, archive).await?;
-        if let Some(a) = d.status.archive.as_mut() {
-            a.files = Some(files);
-            a.bytes = Some(bytes);
+        match archive_logs(client, ns, &d.archive_logs, archive).await {
+            Ok((files, bytes)) => {
+                if let Some(a) = d.status.archive.as_mut() {
+                    a.files = Some(files);
+                    a.bytes = Some(bytes);
+                }
+            }
+            // Nothing is deleted and no end is reported while the logs are not archived:
+            // the run stays in Archiving under a condition that says why, and tries again.
+            Err(e @ (Error::Archive { .. } | Error::ArchiveTask { .. })) => {
+                let previous = run.status.clone().unwrap_or_default();
+                let (status, wait) = lifecycle::archive_failed(
+                    &previous,
+                    &d.status,
+                    &archive.url(),
+                    &e.to_string(),
+                    now,
+                    run.metadata.generation,
+                );
+                ctx.metrics.failed(e.metric_label());
+                super::log::warn("archiving failed", &[("run", &format!("{ns}/{name}")), ("error", &e.to_string())]);
+                if status != previous {
+                    write_status(&runs, ns, &name, &status).await?;
+                }
+                let event = Event {
+                    type_: EventType::Warning,
+                    reason: lifecycle::ARCHIVE_FAILED.into(),
+                    note: status.message.as_ref().map(|m| m.chars().take(1000).collect()),
+                    action: "Archive".into(),
+                    secondary: None,
+                };
+                if let Err(e) = ctx.recorder.publish(&event, &run.object_ref(&())).await {
+                    super::log::warn("failed to record an event", &[("run", &name), ("error", &e.to_string())]);
+                }
+                return Ok(Action::requeue(wait));
+            }
+            Err(e) => return Err(e),
         }
     }
     // 4. Stop workloads: pilot, then shards, then the rest (by label selector).
@@ -451,14 +503,7 @@ async fn execute(
     // 5. Status, on the status subresource, only when it changed.
     let previous = run.status.clone().unwrap_or_default();
     if d.status != previous {
-        let patch = json!({
-            "apiVersion": "sadesim.io/v1alpha1",
-            "kind": "SimulationRun",
-            "status": d.status,
-        });
-        runs.patch_status(&name, &PatchParams::apply(MANAGER).force(), &Patch::Apply(&patch))
-            .await
-            .map_err(kube_err(format!("write the status of {ns}/{name}")))?;
+        write_status(&runs, ns, &name, &d.status).await?;
     }
     // 6. Events.
     let reference = run.object_ref(&());

@@ -798,3 +798,31 @@ fn set_condition_keeps_the_transition_time_while_the_status_holds() {
     set_condition(&mut conds, "Running", true, "PilotsReleased", "c", later(9), Some(1));
     assert_eq!(conds[0].last_transition_time, Time(later(9)));
 }
+
+#[test]
+fn an_archive_that_cannot_be_written_keeps_the_run_archiving_and_backs_off() {
+    // Archiving began at t0; the decision had reached Succeeded with the archive filled in.
+    let mut previous = SimulationRunStatus { phase: Some(Phase::Archiving), ..Default::default() };
+    set_condition(&mut previous.conditions, ct::ARCHIVED, false, "Archiving", "stopping the shards", t0(), Some(1));
+    let mut decided = previous.clone();
+    decided.phase = Some(Phase::Succeeded);
+    decided.completion_time = Some(Time(later(3)));
+    decided.archive = Some(ArchiveStatus { url: format!("{ARCHIVE}/x/"), files: Some(3), bytes: Some(9) });
+
+    let (status, wait) = archive_failed(&previous, &decided, ARCHIVE, "connection refused", later(3), Some(1));
+    assert_eq!(status.phase, Some(Phase::Archiving));
+    assert_eq!(status.completion_time, None);
+    assert_eq!(status.archive, None);
+    let archived = condition(&status, ct::ARCHIVED).unwrap();
+    assert_eq!((archived.status.as_str(), archived.reason.as_str()), ("False", ARCHIVE_FAILED));
+    assert!(
+        archived.message.contains(ARCHIVE) && archived.message.contains("connection refused"),
+        "{}",
+        archived.message
+    );
+    assert_eq!(wait, Duration::from_secs(2));
+
+    // The wait grows with the time since Archiving began, up to a minute.
+    assert_eq!(archive_failed(&previous, &decided, ARCHIVE, "e", later(40), Some(1)).1, Duration::from_secs(20));
+    assert_eq!(archive_failed(&previous, &decided, ARCHIVE, "e", later(600), Some(1)).1, Duration::from_secs(60));
+}
