@@ -19,6 +19,7 @@ bin=$(tests/cluster/build.sh)
 tests/cluster/down.sh
 E2E_IMAGE_DIR=$(mktemp -d)
 export E2E_IMAGE_DIR
+CLUSTER_MEASUREMENTS=$E2E_IMAGE_DIR/measurements.jsonl
 cleanup() {
   status=$?
   rm -rf "$E2E_IMAGE_DIR"
@@ -40,5 +41,8 @@ fi
 
 kubeconfig=$(tests/cluster/up.sh)
 tests/cluster/images.sh import "$E2E_IMAGE_DIR"
-SADESIM_CLUSTER_BIN=$bin SADESIM_CLUSTER_KUBECONFIG=$kubeconfig SADESIM_CLUSTER_IMAGE_TAG=e2e \
+SADESIM_CLUSTER_MEASUREMENTS=${SADESIM_CLUSTER_MEASUREMENTS:-$CLUSTER_MEASUREMENTS} \
+  SADESIM_CLUSTER_BIN=$bin SADESIM_CLUSTER_KUBECONFIG=$kubeconfig SADESIM_CLUSTER_IMAGE_TAG=e2e \
   .venv/bin/python -m pytest -q -p no:cacheprovider tests/cluster "$@"
+echo "cluster: bring-up $(cat "${SADESIM_CLUSTER_DIR:-/var/lib/sadesim-cluster}/up-seconds" 2>/dev/null || echo '?') s; measured (tests/cluster/test_cost.py):" >&2
+cat "${SADESIM_CLUSTER_MEASUREMENTS:-$CLUSTER_MEASUREMENTS}" >&2 2>/dev/null || true

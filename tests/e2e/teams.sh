@@ -12,7 +12,8 @@
 #
 # Needs: docker (a running engine), kubectl, k3d or kind, and helm (.tools/bin/helm from
 # tests/install-tools.sh, or on PATH); network access to Kueue's release. KEEP_CLUSTER=1
-# keeps the cluster afterwards. Not part of tests/run.sh: CI's test machine has no Docker.
+# keeps the cluster afterwards. Not part of tests/run.sh: it needs a Docker engine, and the
+# test cluster of tests/cluster/ has no Kueue yet.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 # shellcheck source=tests/e2e/lib.sh

@@ -225,8 +225,9 @@ def test_a_run_with_onboard_cameras_and_gpus_passes_kubernetes_validate_strict(s
 
 
 def test_every_dockerfile_passes_hadolint(venv_bin):
-    """The images (unbuilt on this machine, which has no container engine) against hadolint's
-    rules; an ignored rule is ignored in the Dockerfile itself, with its reason."""
+    """The Dockerfiles (not built on this machine, which has no Docker engine; the test
+    cluster packs the same layout from the host's build) against hadolint's rules; an
+    ignored rule is ignored in the Dockerfile itself, with its reason."""
     dockerfiles = sorted((REPO / "images").glob("*.Dockerfile"))
     assert len(dockerfiles) >= 4, dockerfiles
     result = subprocess.run([str(venv_bin / "hadolint"), *map(str, dockerfiles)], capture_output=True, text=True)
@@ -242,9 +243,9 @@ E2E_RUNS = sorted(
 
 @pytest.mark.parametrize("scenario", E2E_RUNS)
 def test_the_end_to_end_scenarios_make_valid_manifests(sadesim, venv_bin, scenario):
-    """tests/e2e/run.sh and teams.sh cannot run here (no container engine): what they apply
-    must at least make objects Kubernetes accepts (as an operator with Kueue on, which
-    teams.sh installs; the other runs name no queue)."""
+    """What tests/e2e/run.sh and teams.sh apply makes objects Kubernetes accepts, also as an
+    operator with Kueue on, which teams.sh installs (on k3d and kind only: the test cluster
+    of tests/cluster/ runs run.sh but has no Kueue yet)."""
     text = manifests(sadesim, "--kueue", f"tests/e2e/{scenario}")
     result = kubernetes_validate(venv_bin, text)
     assert result.returncode == 0, result.stdout + result.stderr
