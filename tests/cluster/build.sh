@@ -17,7 +17,7 @@ cache_root=${SADESIM_CLUSTER_CACHE:-/var/cache/sadesim-cluster}
 key=$(cat "$here/versions.sh" "$here/build.sh" "$here/build/go.mod" "$here/build/go.sum" "$here/build/cmd/etcd/main.go" \
   | sha256sum | cut -c1-12)
 dir="$cache_root/k8s-$KUBERNETES_VERSION-$key"
-bins=(etcd kube-apiserver kube-controller-manager kube-scheduler kubectl kubelet kube-proxy coredns versitygw)
+bins=(etcd kube-apiserver kube-controller-manager kube-scheduler kubectl kubelet kube-proxy coredns versitygw kueue)
 
 if [ -f "$dir/complete" ]; then
   echo "$dir/bin"
@@ -40,7 +40,7 @@ for pkg in k8s.io/component-base/version k8s.io/client-go/pkg/version; do
   ldflags+=" -X '$pkg.gitTreeState=clean' -X '$pkg.buildDate=1970-01-01T00:00:00Z'"
 done
 
-echo "build.sh: building Kubernetes $KUBERNETES_VERSION, etcd $ETCD_VERSION, CoreDNS $COREDNS_VERSION and versitygw $VERSITYGW_VERSION into $dir (cold: about 7 minutes on 2 cores)" >&2
+echo "build.sh: building Kubernetes $KUBERNETES_VERSION, etcd $ETCD_VERSION, CoreDNS $COREDNS_VERSION, versitygw $VERSITYGW_VERSION and Kueue $KUEUE_VERSION into $dir (cold: about 16 minutes on 2 cores)" >&2
 rm -rf "$dir.tmp"
 mkdir -p "$dir.tmp/bin"
 start=$SECONDS
@@ -60,6 +60,7 @@ start=$SECONDS
 CGO_ENABLED=0 GOBIN="$dir.tmp/bin" go install -trimpath -ldflags "-s -w" "github.com/coredns/coredns@$COREDNS_VERSION"
 CGO_ENABLED=0 GOBIN="$dir.tmp/bin" go install -trimpath -ldflags "-s -w" \
   "github.com/versity/versitygw/cmd/versitygw@$VERSITYGW_VERSION"
+CGO_ENABLED=0 GOBIN="$dir.tmp/bin" go install -trimpath -ldflags "-s -w" "sigs.k8s.io/kueue/cmd/kueue@$KUEUE_VERSION"
 for b in "${bins[@]}"; do
   [ -x "$dir.tmp/bin/$b" ] || { echo "build.sh: $b was not built" >&2; exit 1; }
 done

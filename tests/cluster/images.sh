@@ -7,7 +7,7 @@
 #   tests/cluster/images.sh import DIR    # every DIR/*.tar into the cluster's containerd (k8s.io namespace)
 #
 # The base images are scratch images holding one static binary: pause from Kubernetes'
-# build/pause/linux/pause.c (the k8s.io/kubernetes module), CoreDNS from build.sh.
+# build/pause/linux/pause.c (the k8s.io/kubernetes module), CoreDNS and Kueue from build.sh.
 #
 # The project's images are what images/*.Dockerfile make, packed from this machine's own
 # build instead of a builder stage and a registry's base image (neither can be had here):
@@ -48,7 +48,7 @@ base() {
   command -v buildah >/dev/null || { cluster_log "buildah not found (tests/install-tools.sh installs it)"; exit 2; }
   local bin key dir src
   bin=$("$here/build.sh")
-  key=$(cat "$here/versions.sh" "$here/images.sh" "$bin/coredns" | sha256sum | cut -c1-12)
+  key=$(cat "$here/versions.sh" "$here/images.sh" "$bin/coredns" "$bin/kueue" | sha256sum | cut -c1-12)
   dir=$cache_root/images-base-$key
   if [ -f "$dir/complete" ]; then
     echo "$dir"
@@ -60,6 +60,8 @@ base() {
   gcc -Os -Wall -Werror -static -DVERSION="${PAUSE_IMAGE##*:}-sadesim" -o "$dir.tmp/pause" "$src/build/pause/linux/pause.c"
   scratch_image "$PAUSE_IMAGE" "$dir.tmp/pause.tar" 65535:65535 '["/pause"]' "$dir.tmp/pause:/pause"
   scratch_image "$COREDNS_IMAGE" "$dir.tmp/coredns.tar" 65532:65532 '["/coredns"]' "$bin/coredns:/coredns"
+  # Kueue's manager, where its Deployment runs it (/manager).
+  scratch_image "$KUEUE_IMAGE" "$dir.tmp/kueue.tar" 65532:65532 '["/manager"]' "$bin/kueue:/manager"
   rm -f "$dir.tmp/pause"
   touch "$dir.tmp/complete"
   rm -rf "$dir"

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # The real-cluster lane of the test suite (tests/run.sh runs it): builds the cluster's
 # binaries (cached outside the clone) and the project's images (tests/cluster/images.sh);
-# runs the end-to-end script on a cluster of its own (tests/e2e/run.sh local: the chart, the
-# quickstart to Succeeded with its archive verified in the object store, the early pilot
-# exit, the live view); then brings a fresh cluster up, runs the tests of this folder against
+# runs the end-to-end scripts, each on a cluster of its own (tests/e2e/run.sh local: the
+# chart, the quickstart to Succeeded with its archive verified in the object store, the early
+# pilot exit, the live view; tests/e2e/teams.sh local: two teams sharing Kueue's quota); then
+# brings a fresh cluster up, runs the tests of this folder against
 # it (pytest), and tears everything down, also when a test fails.
 #
 #   bash tests/cluster/lane.sh            # KEEP_CLUSTER=1 keeps the second cluster up afterwards
@@ -37,6 +38,7 @@ tests/cluster/images.sh product e2e "$E2E_IMAGE_DIR"
 
 if [ "${SADESIM_CLUSTER_E2E:-1}" = 1 ]; then
   KEEP_CLUSTER=0 bash tests/e2e/run.sh local
+  KEEP_CLUSTER=0 bash tests/e2e/teams.sh local
 fi
 
 kubeconfig=$(tests/cluster/up.sh)

@@ -46,6 +46,10 @@ cluster_log "making bridge $POD_BRIDGE ($NODE_IP)"
 ip link add "$POD_BRIDGE" type bridge
 ip addr add "$NODE_IP/${POD_CIDR#*/}" dev "$POD_BRIDGE"
 ip link set "$POD_BRIDGE" up
+# Service addresses route to the bridge: this machine's own connections to a Service are
+# DNATed by kube-proxy to a pod there, and one made before kube-proxy has the Service's rules
+# goes nowhere instead of out of the machine's default route.
+ip route add "$SERVICE_CIDR" dev "$POD_BRIDGE"
 
 # --- certificates: one CA signs every serving and client certificate ----------------------
 pki=$CLUSTER_DIR/pki
@@ -132,7 +136,9 @@ rules:
 YAML
 cluster_log "starting kube-apiserver"
 # Listens on 127.0.0.1 (this machine's clients) and on the bridge's address (pods, through
-# the `kubernetes` Service).
+# the `kubernetes` Service). Aggregated APIs and webhooks are reached at their pods'
+# addresses (--enable-aggregator-routing), not through Service addresses, which only exist
+# once kube-proxy has written their rules.
 cluster_start kube-apiserver "$bin/kube-apiserver" \
   --etcd-servers="http://127.0.0.1:$ETCD_CLIENT_PORT" \
   --bind-address=0.0.0.0 --advertise-address="$NODE_IP" --secure-port="$APISERVER_PORT" \
@@ -149,6 +155,7 @@ cluster_start kube-apiserver "$bin/kube-apiserver" \
   --service-account-key-file="$pki/sa.pub" --service-account-signing-key-file="$pki/sa.key" \
   --service-cluster-ip-range="$SERVICE_CIDR" \
   --authorization-mode=Node,RBAC --allow-privileged=true --profiling=false \
+  --enable-aggregator-routing=true \
   --audit-policy-file="$CLUSTER_DIR/audit-policy.yaml" --audit-log-path="$CLUSTER_DIR/logs/audit.log" \
   --audit-log-maxbackup=1 --audit-log-maxsize=200
 cluster_wait kube-apiserver 120 kubectl get --raw /readyz

@@ -18,3 +18,7 @@ COREDNS_IMAGE=registry.k8s.io/coredns/coredns:$COREDNS_VERSION
 # The S3-compatible object store of the archive tests: Versity's S3 gateway over a folder
 # (github.com/versity/versitygw, Apache-2.0; MinIO's server is AGPL).
 VERSITYGW_VERSION=v1.8.0
+# Kueue, for the two-team walkthrough (tests/e2e/teams.sh local): the manager built from
+# sigs.k8s.io/kueue, its manifests from the module's config/default (kustomize).
+KUEUE_VERSION=v0.17.0
+KUEUE_IMAGE=registry.k8s.io/kueue/kueue:$KUEUE_VERSION

@@ -9,11 +9,13 @@
 # succeeds; both runs are archived.
 #
 #   tests/e2e/teams.sh k3d     # or: tests/e2e/teams.sh kind
+#   tests/e2e/teams.sh local   # the cluster of tests/cluster/, built here from upstream source
 #
 # Needs: docker (a running engine), kubectl, k3d or kind, and helm (.tools/bin/helm from
-# tests/install-tools.sh, or on PATH); network access to Kueue's release. KEEP_CLUSTER=1
-# keeps the cluster afterwards. Not part of tests/run.sh: it needs a Docker engine, and the
-# test cluster of tests/cluster/ has no Kueue yet.
+# tests/install-tools.sh, or on PATH); network access to Kueue's release; local needs root and
+# what tests/install-tools.sh installs instead, and takes Kueue from its Go module
+# (tests/cluster/kueue.sh). KEEP_CLUSTER=1 keeps the cluster afterwards. tests/cluster/lane.sh
+# (part of tests/run.sh) runs it with local.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 # shellcheck source=tests/e2e/lib.sh
@@ -21,8 +23,8 @@ cd "$(dirname "$0")/../.."
 
 TOOL=${1:-}
 case "$TOOL" in
-  k3d | kind) ;;
-  *) echo "usage: $0 k3d|kind" >&2; exit 2 ;;
+  k3d | kind | local) ;;
+  *) echo "usage: $0 k3d|kind|local" >&2; exit 2 ;;
 esac
 
 CLUSTER=${CLUSTER:-sadesim-teams}
@@ -78,15 +80,19 @@ step "creating $TOOL cluster $CLUSTER"
 e2e_create_cluster "$TOOL" "$CLUSTER"
 
 step "building and importing images"
-docker build -f images/operator.Dockerfile -t "$OPERATOR_IMAGE" .
-docker build -f images/sim-worker.Dockerfile -t "$WORKER_IMAGE" .
+e2e_build_images "$TOOL" "$TAG"
 e2e_import_images "$TOOL" "$CLUSTER" "$OPERATOR_IMAGE" "$WORKER_IMAGE"
 
-step "installing Kueue $KUEUE_VERSION"
-kubectl apply --server-side -f "https://github.com/kubernetes-sigs/kueue/releases/download/$KUEUE_VERSION/manifests.yaml"
-kubectl wait -n kueue-system --for=condition=Available deployment/kueue-controller-manager --timeout=300s
-# The queue position comes from Kueue's visibility API (an aggregated API of Kueue's).
-kubectl wait --for=condition=Available apiservice/v1beta2.visibility.kueue.x-k8s.io --timeout=120s
+if [ "$TOOL" = local ]; then
+  step "installing Kueue from its Go module (tests/cluster/kueue.sh)"
+  tests/cluster/kueue.sh install
+else
+  step "installing Kueue $KUEUE_VERSION"
+  kubectl apply --server-side -f "https://github.com/kubernetes-sigs/kueue/releases/download/$KUEUE_VERSION/manifests.yaml"
+  kubectl wait -n kueue-system --for=condition=Available deployment/kueue-controller-manager --timeout=300s
+  # The queue position comes from Kueue's visibility API (an aggregated API of Kueue's).
+  kubectl wait --for=condition=Available apiservice/v1beta2.visibility.kueue.x-k8s.io --timeout=120s
+fi
 
 step "starting the object store (the archive)"
 ENDPOINT=$(e2e_start_object_store "$TOOL" "$MINIO_USER" "$MINIO_PASSWORD" "$BUCKET")

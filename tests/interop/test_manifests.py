@@ -244,8 +244,8 @@ E2E_RUNS = sorted(
 @pytest.mark.parametrize("scenario", E2E_RUNS)
 def test_the_end_to_end_scenarios_make_valid_manifests(sadesim, venv_bin, scenario):
     """What tests/e2e/run.sh and teams.sh apply makes objects Kubernetes accepts, also as an
-    operator with Kueue on, which teams.sh installs (on k3d and kind only: the test cluster
-    of tests/cluster/ runs run.sh but has no Kueue yet)."""
+    operator with Kueue on, which teams.sh installs (the test cluster of tests/cluster/ runs
+    both for real; this checks them against the schemas without one)."""
     text = manifests(sadesim, "--kueue", f"tests/e2e/{scenario}")
     result = kubernetes_validate(venv_bin, text)
     assert result.returncode == 0, result.stdout + result.stderr
