@@ -141,18 +141,29 @@ fn the_coordinator_pod_reports_and_archives_its_run_folder() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A real-time run's Pod one simulated second in (the run under way), archiving to a
+/// `file://` folder: `(dir, out, archive, pod)`.
+fn one_second_into_a_realtime_run(name: &str) -> (PathBuf, PathBuf, PathBuf, Pod) {
+    let dir = temp(name);
+    let (plan_file, plan) = write_plan(&dir, ClockMode::Realtime);
+    let (out, archive) = (dir.join("out"), dir.join("archive"));
+    let mut pod = Pod::start(&plan_file, &plan, &out, &format!("file://{}", archive.display()));
+    while !matches!(next_report(&mut pod.stdout), Report::Progress { sim_time_s, .. } if sim_time_s >= 1.0) {}
+    (dir, out, archive, pod)
+}
+
+/// What deleting a Pod does to its process.
+fn sigterm(pid: u32) {
+    let killed = Command::new("kill").args(["-TERM", &pid.to_string()]).status().unwrap();
+    assert!(killed.success());
+}
+
 /// Deleting the Pod sends SIGTERM to the coordinator (PID 1, no shell to pass it on): the
 /// run ends there, and its files are still written, reported and archived.
 #[test]
 fn sigterm_ends_the_run_and_the_folder_is_still_archived() {
-    let dir = temp("sigterm");
-    let (plan_file, plan) = write_plan(&dir, ClockMode::Realtime);
-    let (out, archive) = (dir.join("out"), dir.join("archive"));
-    let mut pod = Pod::start(&plan_file, &plan, &out, &format!("file://{}", archive.display()));
-    // One simulated second in: the run is under way.
-    while !matches!(next_report(&mut pod.stdout), Report::Progress { sim_time_s, .. } if sim_time_s >= 1.0) {}
-    let killed = Command::new("kill").args(["-TERM", &pod.coordinator.id().to_string()]).status().unwrap();
-    assert!(killed.success());
+    let (dir, out, archive, pod) = one_second_into_a_realtime_run("sigterm");
+    sigterm(pod.coordinator.id());
     let status = pod.wait();
     assert!(status.success(), "{status}");
     let summary = check_archived(&archive, &out);
@@ -166,14 +177,9 @@ fn sigterm_ends_the_run_and_the_folder_is_still_archived() {
 /// 143, the coordinator fails the run naming the shard, and still archives its folder.
 #[test]
 fn sigterm_ends_a_shard_at_once_and_the_coordinator_fails_the_run_naming_it() {
-    let dir = temp("shard-sigterm");
-    let (plan_file, plan) = write_plan(&dir, ClockMode::Realtime);
-    let (out, archive) = (dir.join("out"), dir.join("archive"));
-    let mut pod = Pod::start(&plan_file, &plan, &out, &format!("file://{}", archive.display()));
-    while !matches!(next_report(&mut pod.stdout), Report::Progress { sim_time_s, .. } if sim_time_s >= 1.0) {}
+    let (dir, out, archive, mut pod) = one_second_into_a_realtime_run("shard-sigterm");
     let mut shard = pod.shards.remove(0);
-    let killed = Command::new("kill").args(["-TERM", &shard.id().to_string()]).status().unwrap();
-    assert!(killed.success());
+    sigterm(shard.id());
     // Exit status 143 (our handler), not death by the signal's default action.
     assert_eq!(shard.wait().unwrap().code(), Some(143));
     let (failed_shard, reason) = loop {
