@@ -9,12 +9,22 @@ import sys
 import uuid
 
 import pytest
+import yaml
 
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 from kube import Kubectl, wait_for  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 CRD = REPO / "crds" / "sadesim.io_simulationruns.yaml"
+
+
+def quickstart(realtime_s: int | None = None) -> dict:
+    """examples/quickstart.yaml's run; with `realtime_s`, at real time for that long."""
+    run = next(d for d in yaml.safe_load_all((REPO / "examples/quickstart.yaml").read_text()) if d)
+    if realtime_s is not None:
+        run["spec"]["clock"] = {"mode": "realtime"}
+        run["spec"]["duration"] = f"{realtime_s}s"
+    return run
 
 
 def required_env(name: str) -> str:

@@ -22,26 +22,24 @@ set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 # shellcheck source=tests/cluster/lib.sh
 . "$here/lib.sh"
-# shellcheck source=tests/cluster/versions.sh
-. "$here/versions.sh"
 
 cache_root=${SADESIM_CLUSTER_CACHE:-/var/cache/sadesim-cluster}
 buildah() { command buildah --storage-driver vfs "$@"; }
 
 # scratch_image NAME TARBALL USER ENTRYPOINT_JSON SRC:DST...: an image from scratch with the
-# given files, saved as a docker-archive tarball tagged NAME.
+# given files (root_image of a folder holding them), saved as a docker-archive tarball
+# tagged NAME.
 scratch_image() {
-  local name=$1 tarball=$2 user=$3 entrypoint=$4 c file
+  local name=$1 tarball=$2 user=$3 entrypoint=$4 root file
   shift 4
-  c=$(buildah from scratch)
+  root=$(mktemp -d)
+  chmod 755 "$root"
   for file in "$@"; do
-    buildah copy "$c" "${file%%:*}" "${file#*:}" >/dev/null
+    mkdir -p "$root$(dirname "${file#*:}")"
+    cp "${file%%:*}" "$root${file#*:}"
   done
-  buildah config --user "$user" --entrypoint "$entrypoint" "$c"
-  buildah commit --rm --quiet "$c" "$name" >/dev/null
-  rm -f "$tarball"
-  buildah push --quiet "$name" "docker-archive:$tarball:$name"
-  buildah rmi "$name" >/dev/null
+  root_image "$name" "$tarball" "$root" "$user" "$entrypoint"
+  rm -rf "$root"
 }
 
 base() {

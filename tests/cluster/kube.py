@@ -49,6 +49,17 @@ def wait_for(what: str, seconds: float, probe: Callable[[], Any], every: float =
         time.sleep(every)
 
 
+def phase(kubectl: Kubectl, namespace: str, name: str) -> str:
+    """The SimulationRun's `status.phase` ('' before the operator wrote one)."""
+    return kubectl.json("simulationrun", name, "-n", namespace).get("status", {}).get("phase", "")
+
+
+def wait_phase(kubectl: Kubectl, namespace: str, name: str, phases: set, seconds: float = 240) -> dict:
+    """Waits until the run is in one of `phases`; the run then."""
+    wait_for(f"{name} in {sorted(phases)}", seconds, lambda: phase(kubectl, namespace, name) in phases, every=2)
+    return kubectl.json("simulationrun", name, "-n", namespace)
+
+
 def condition(obj: dict, kind: str) -> dict | None:
     """The status condition of type `kind`, or None."""
     return next((c for c in obj.get("status", {}).get("conditions", []) if c.get("type") == kind), None)

@@ -11,8 +11,6 @@ here=$(cd "$(dirname "$0")" && pwd)
 . "$here/lib.sh"
 
 [ "${1:-}" = install ] || { echo "usage: $0 install" >&2; exit 2; }
-bin=$(cat "$CLUSTER_DIR/bin-dir")
-kubectl() { "$bin/kubectl" --kubeconfig="$CLUSTER_KUBECONFIG" "$@"; }
 
 src=$(cd "$here/build" && GOFLAGS=-mod=mod go mod download -json "sigs.k8s.io/kueue@$KUEUE_VERSION" \
   | sed -n 's/^\s*"Dir": "\(.*\)",$/\1/p')

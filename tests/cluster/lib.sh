@@ -33,6 +33,10 @@ CNI_NETWORK=sadesim-test
 # containerd's socket; short, since unix socket paths are limited to 107 bytes.
 CONTAINERD_SOCKET=$CLUSTER_DIR/containerd.sock
 
+# kubectl ARGS...: the cluster's own kubectl (the build up.sh recorded in bin-dir) with the
+# admin kubeconfig.
+kubectl() { "$(cat "$CLUSTER_DIR/bin-dir")/kubectl" --kubeconfig="$CLUSTER_KUBECONFIG" "$@"; }
+
 # cluster_log MESSAGE
 cluster_log() { echo "cluster: $*" >&2; }
 

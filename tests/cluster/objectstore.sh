@@ -19,7 +19,6 @@ OBJECTSTORE_ACCESS_KEY=sadesim
 OBJECTSTORE_SECRET_KEY=sadesim-e2e-secret
 data=$CLUSTER_DIR/objectstore
 bin=$(cat "$CLUSTER_DIR/bin-dir")
-kubectl() { "$bin/kubectl" --kubeconfig="$CLUSTER_KUBECONFIG" "$@"; }
 
 serve() {
   cluster_start objectstore "$bin/versitygw" --access "$OBJECTSTORE_ACCESS_KEY" --secret "$OBJECTSTORE_SECRET_KEY" \

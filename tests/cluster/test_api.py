@@ -10,7 +10,8 @@ import time
 import pytest
 import yaml
 
-from kube import condition, wait_for
+from conftest import quickstart
+from kube import condition, wait_for, wait_phase
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
@@ -146,13 +147,9 @@ def names(message: str, path: str) -> bool:
     return f'{parent}: Duplicate value: {{"{key}":' in message
 
 
-def load_run(path: pathlib.Path) -> dict:
-    return next(d for d in yaml.safe_load_all(path.read_text()) if d)
-
-
 def test_spec_is_immutable_but_abort(kubectl, crd, namespace):
     """The CRD's transition rules (CEL) as the API server enforces them on update."""
-    run = load_run(REPO / "examples/quickstart.yaml")
+    run = quickstart()
     name = run["metadata"]["name"]
     kubectl.run("apply", "-n", namespace, "-f", "-", input=yaml.safe_dump(run))
     for patch, field in [
@@ -202,10 +199,6 @@ def settled(kubectl, namespace: str, name: str, quiet_s: float = 12.0) -> dict:
     return run
 
 
-def phase_of(kubectl, namespace: str, name: str) -> str:
-    return kubectl.json("simulationrun", name, "-n", namespace).get("status", {}).get("phase", "")
-
-
 @pytest.mark.parametrize("apply", [
     pytest.param(["apply"], id="client-side-apply (Argo CD)"),
     pytest.param(["apply", "--server-side", "--field-manager=kustomize-controller"], id="server-side-apply (Flux)"),
@@ -214,13 +207,11 @@ def test_reapplying_an_unchanged_run_changes_nothing(kubectl, operator, namespac
     """What Argo CD and Flux do every few minutes: the same document again, while the run
     flies and after it ended, must not bump the generation, re-create a child, restart the
     run or (once it ended) make the operator write it again."""
-    run = load_run(REPO / "examples/quickstart.yaml")
-    run["spec"]["clock"] = {"mode": "realtime"}
-    run["spec"]["duration"] = "10m"
+    run = quickstart(realtime_s=600)
     name = run["metadata"]["name"]
     document = yaml.safe_dump(run)
     kubectl.run(*apply, "-n", namespace, "-f", "-", input=document)
-    wait_for(f"{name} Running", 180, lambda: phase_of(kubectl, namespace, name) == "Running", every=2)
+    wait_phase(kubectl, namespace, name, {"Running"}, 180)
     before = kubectl.json("simulationrun", name, "-n", namespace)
     owned = children(kubectl, namespace, before["metadata"]["uid"])
     assert any(k.startswith("Pod/") for k in owned), owned
@@ -241,7 +232,7 @@ def test_reapplying_an_unchanged_run_changes_nothing(kubectl, operator, namespac
 
     # Ended (spec.abort, the one field that may change), then re-applied: nothing moves.
     kubectl.run("patch", "simulationrun", name, "-n", namespace, "--type=merge", "-p", '{"spec":{"abort":true}}')
-    wait_for(f"{name} Aborted", 120, lambda: phase_of(kubectl, namespace, name) == "Aborted", every=2)
+    wait_phase(kubectl, namespace, name, {"Aborted"}, 120)
     ended = settled(kubectl, namespace, name)
     for _ in range(2):
         kubectl.run(*apply, "-n", namespace, "-f", "-", input=document)

@@ -10,9 +10,9 @@ import time
 
 import yaml
 
+from conftest import quickstart
 from kube import wait_for
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
 AUDIT_LOG = pathlib.Path(os.environ.get("SADESIM_CLUSTER_DIR", "/var/lib/sadesim-cluster")) / "logs" / "audit.log"
 
 
@@ -41,7 +41,7 @@ def operator_requests(namespace: str, run_namespace: str) -> dict:
 
 
 def test_what_the_quickstart_costs(kubectl, operator, namespace):
-    run = next(d for d in yaml.safe_load_all((REPO / "examples/quickstart.yaml").read_text()) if d)
+    run = quickstart()
     name = run["metadata"]["name"]
     reconciles_before = operator_metric(kubectl, operator, "sadesim_operator_reconciles_total")
     start = time.monotonic()

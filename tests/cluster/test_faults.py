@@ -7,7 +7,8 @@ import subprocess
 import pytest
 import yaml
 
-from kube import condition, wait_for
+from conftest import quickstart
+from kube import condition, phase, wait_for, wait_phase
 
 REPO = pathlib.Path(__file__).resolve().parents[2]
 SADESIM = REPO / os.environ.get("CARGO_TARGET_DIR", "target") / "debug" / "sadesim"
@@ -20,23 +21,12 @@ STORE_ENV = {
 
 def realtime_run(seconds: int) -> tuple:
     """(name, document): the quickstart at real time for `seconds`."""
-    run = next(d for d in yaml.safe_load_all((REPO / "examples/quickstart.yaml").read_text()) if d)
-    run["spec"]["clock"] = {"mode": "realtime"}
-    run["spec"]["duration"] = f"{seconds}s"
+    run = quickstart(realtime_s=seconds)
     return run["metadata"]["name"], yaml.safe_dump(run)
 
 
 def get_run(kubectl, namespace, name):
     return kubectl.json("simulationrun", name, "-n", namespace)
-
-
-def phase(kubectl, namespace, name) -> str:
-    return get_run(kubectl, namespace, name).get("status", {}).get("phase", "")
-
-
-def wait_phase(kubectl, namespace, name, phases, seconds=240) -> dict:
-    wait_for(f"{name} in {phases}", seconds, lambda: phase(kubectl, namespace, name) in phases, every=2)
-    return get_run(kubectl, namespace, name)
 
 
 def verify_archive(url: str) -> str:

@@ -111,7 +111,6 @@ kubeconfig() {
   chmod 600 "$file"
 }
 for user in admin controller-manager scheduler kubelet kube-proxy; do kubeconfig "$user"; done
-kubectl() { "$bin/kubectl" --kubeconfig="$CLUSTER_KUBECONFIG" "$@"; }
 
 # --- the control plane ----------------------------------------------------------------------
 cluster_log "starting etcd"

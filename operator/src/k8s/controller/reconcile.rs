@@ -23,7 +23,7 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 use serde_json::json;
 
-use super::lifecycle::{self, Decision, FINALIZER, Input, Sample};
+use super::lifecycle::{self, Decision, FINALIZER, Input, Note, Sample};
 use super::metrics::Metrics;
 use super::observe::QueueObservation;
 use super::observe::{Observed, WorkState};
@@ -419,6 +419,21 @@ async fn write_status(
     Ok(())
 }
 
+/// Records `note` as an Event of the run (`action`: what the operator was doing). An Event
+/// that cannot be written is logged, not worth failing the reconcile.
+async fn record_event(ctx: &Context, run: &SimulationRun, note: &Note, action: &str) {
+    let event = Event {
+        type_: if note.warning { EventType::Warning } else { EventType::Normal },
+        reason: note.reason.clone(),
+        note: Some(note.message.chars().take(1000).collect()),
+        action: action.into(),
+        secondary: None,
+    };
+    if let Err(e) = ctx.recorder.publish(&event, &run.object_ref(&())).await {
+        super::log::warn("failed to record an event", &[("run", &run.name_any()), ("error", &e.to_string())]);
+    }
+}
+
 /// Carries out a decision, in the documented order.
 async fn execute(
     run: &SimulationRun,
@@ -472,16 +487,12 @@ async fn execute(
                 if status != previous {
                     write_status(&runs, ns, &name, &status).await?;
                 }
-                let event = Event {
-                    type_: EventType::Warning,
+                let note = Note {
+                    warning: true,
                     reason: lifecycle::ARCHIVE_FAILED.into(),
-                    note: status.message.as_ref().map(|m| m.chars().take(1000).collect()),
-                    action: "Archive".into(),
-                    secondary: None,
+                    message: status.message.clone().unwrap_or_default(),
                 };
-                if let Err(e) = ctx.recorder.publish(&event, &run.object_ref(&())).await {
-                    super::log::warn("failed to record an event", &[("run", &name), ("error", &e.to_string())]);
-                }
+                record_event(ctx, run, &note, "Archive").await;
                 return Ok(Action::requeue(wait));
             }
             Err(e) => return Err(e),
@@ -506,19 +517,8 @@ async fn execute(
         write_status(&runs, ns, &name, &d.status).await?;
     }
     // 6. Events.
-    let reference = run.object_ref(&());
     for note in &d.events {
-        let event = Event {
-            type_: if note.warning { EventType::Warning } else { EventType::Normal },
-            reason: note.reason.clone(),
-            note: Some(note.message.chars().take(1000).collect()),
-            action: "Reconcile".into(),
-            secondary: None,
-        };
-        // An Event that cannot be written is not worth failing the reconcile.
-        if let Err(e) = ctx.recorder.publish(&event, &reference).await {
-            super::log::warn("failed to record an event", &[("run", &name), ("error", &e.to_string())]);
-        }
+        record_event(ctx, run, note, "Reconcile").await;
     }
     // 7. The finalizer goes last, once the evidence is archived.
     if d.remove_finalizer {
