@@ -61,7 +61,9 @@ def crd(kubectl):
 
     def established():
         crd = kubectl.json("crd", "simulationruns.sadesim.io")
-        ok = any(c["type"] == "Established" and c["status"] == "True" for c in crd.get("status", {}).get("conditions", []))
+        # Just after the create the API server has written `status.conditions: null`.
+        conditions = (crd.get("status") or {}).get("conditions") or []
+        ok = any(c["type"] == "Established" and c["status"] == "True" for c in conditions)
         return crd if ok else None
 
     return wait_for("the CRD Established", 60, established)
