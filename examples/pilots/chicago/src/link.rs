@@ -11,7 +11,7 @@
 
 use std::collections::VecDeque;
 use std::io::ErrorKind;
-use std::net::{ToSocketAddrs, UdpSocket};
+use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
 use mavlink::dialects::common::*;
@@ -29,6 +29,11 @@ const RECV_WAIT: Duration = Duration::from_millis(20);
 const ACK_WAIT: Duration = Duration::from_millis(1500);
 /// Sends of one command before giving up.
 const SENDS: u32 = 5;
+/// How long a drone's host name may take to resolve. On Kubernetes the drones are reached
+/// through the shards' DNS names, which cluster DNS serves a few seconds after the shard pod
+/// has its address (and answers "no such name" until then, cached for seconds).
+const RESOLVE_WAIT: Duration = Duration::from_secs(30);
+const RESOLVE_RETRY: Duration = Duration::from_millis(500);
 /// MAVLink 2 start marker; frame overhead: STX, 9 header bytes, 2 checksum bytes.
 const STX_V2: u8 = 0xFD;
 const OVERHEAD: usize = 12;
@@ -163,18 +168,44 @@ pub fn udp_address(url: &str) -> Result<String, LinkError> {
     }
 }
 
+/// The first address of `host:port`, asking again until it resolves or `wait` has passed.
+///
+/// # Errors
+/// The last resolver error (or "no address") after `wait`.
+pub fn resolve(address: &str, wait: Duration) -> std::io::Result<SocketAddr> {
+    retry_lookup(|| address.to_socket_addrs().map(|mut a| a.next()), wait, RESOLVE_RETRY)
+        .map_err(|e| std::io::Error::other(format!("{address} did not resolve within {} s: {e}", wait.as_secs())))
+}
+
+/// Calls `lookup` every `every` until it gives an address or `wait` has passed.
+fn retry_lookup(
+    mut lookup: impl FnMut() -> std::io::Result<Option<SocketAddr>>,
+    wait: Duration,
+    every: Duration,
+) -> std::io::Result<SocketAddr> {
+    let deadline = Instant::now() + wait;
+    loop {
+        let error = match lookup() {
+            Ok(Some(peer)) => return Ok(peer),
+            Ok(None) => std::io::Error::other("the host resolves to no address"),
+            Err(e) => e,
+        };
+        if Instant::now() >= deadline {
+            return Err(error);
+        }
+        std::thread::sleep(every);
+    }
+}
+
 impl Link {
     /// Opens a socket to the drone at `url` (system `system_id`, component `component_id`)
     /// and says hello.
     ///
     /// # Errors
-    /// Bad URL, unresolvable host, socket errors.
+    /// Bad URL, a host that does not resolve within [`RESOLVE_WAIT`], socket errors.
     pub fn open(url: &str, system_id: u8, component_id: u8) -> Result<Self, LinkError> {
-        let address = udp_address(url)?;
-        let peer = address
-            .to_socket_addrs()?
-            .next()
-            .ok_or_else(|| LinkError::Url { url: url.to_owned(), problem: "the host resolves to no address".into() })?;
+        let peer = resolve(&udp_address(url)?, RESOLVE_WAIT)
+            .map_err(|e| LinkError::Url { url: url.to_owned(), problem: e.to_string() })?;
         let local = if peer.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" };
         let socket = UdpSocket::bind(local)?;
         socket.connect(peer)?;
@@ -541,6 +572,32 @@ mod tests {
         assert_eq!(udp_address("udpout://127.0.0.1:24600").unwrap(), "127.0.0.1:24600");
         assert!(udp_address("udpin://0.0.0.0:14540").is_err());
         assert!(udp_address("udpout://127.0.0.1").is_err());
+    }
+
+    #[test]
+    fn a_name_that_resolves_late_is_asked_again_until_the_wait_ends() {
+        // Cluster DNS answers "no such name" until the shard pod has its address.
+        let peer: SocketAddr = "10.244.0.7:24600".parse().unwrap();
+        let mut asked = 0;
+        let late = retry_lookup(
+            || {
+                asked += 1;
+                if asked < 3 {
+                    Err(std::io::Error::other("Temporary failure in name resolution"))
+                } else {
+                    Ok(Some(peer))
+                }
+            },
+            Duration::from_secs(10),
+            Duration::from_millis(1),
+        );
+        assert_eq!(late.unwrap(), peer);
+        assert_eq!(asked, 3);
+        // Never: the last error, once the wait is over.
+        let never = retry_lookup(|| Ok(None), Duration::ZERO, Duration::from_millis(1)).unwrap_err();
+        assert!(never.to_string().contains("no address"), "{never}");
+        let named = resolve("127.0.0.1:24600", Duration::ZERO).unwrap();
+        assert_eq!(named, "127.0.0.1:24600".parse().unwrap());
     }
 
     #[test]

@@ -392,11 +392,19 @@ pub fn decide(input: &Input) -> Decision {
     d
 }
 
-/// The archive folder of the run (`spec.archive.url`, else the operator's default).
-fn archive_folder(input: &Input) -> Option<RunFolder> {
+/// The archive URL of the run: `spec.archive.url`, else the operator's default.
+fn archive_url<'a>(input: &'a Input) -> Option<&'a str> {
     let run = input.run;
-    let meta = &run.metadata;
-    let url = run.spec.archive.as_ref().map(|a| a.url.as_str()).or(input.settings.default_archive_url.as_deref())?;
+    run.spec.archive.as_ref().map(|a| a.url.as_str()).or(input.settings.default_archive_url.as_deref())
+}
+
+/// The archive folder of the run, in its object store ([`archive_url`]). A `file://` archive
+/// is a folder inside a pod on a cluster (the operator's own root is read-only, the
+/// coordinator's is lost with it): nothing is archived there, as the run's `Valid` warning
+/// says (`children::problems`).
+fn archive_folder(input: &Input) -> Option<RunFolder> {
+    let meta = &input.run.metadata;
+    let url = archive_url(input).filter(|u| sadesim_evidence::archive::is_object_store(u))?;
     Some(RunFolder::new(
         url,
         meta.namespace.as_deref().unwrap_or("default"),
@@ -832,18 +840,17 @@ fn archive_step(d: &mut Decision, input: &Input) {
             d.events.push(Note { warning: false, reason: "Archived".into(), message: format!("evidence in {folder}") });
         }
         None => {
-            d.condition(
-                ct::ARCHIVED,
-                false,
-                "NoArchive",
-                "no archive URL (spec.archive.url or --default-archive-url): nothing was archived",
-                now,
-                generation,
-            );
+            let why = match archive_url(input) {
+                Some(url) => format!(
+                    "the archive {url:?} is not an object store (s3://, gs:// or az://), and a folder inside the pods is lost with them"
+                ),
+                None => "no archive URL (spec.archive.url or --default-archive-url)".to_string(),
+            };
+            d.condition(ct::ARCHIVED, false, "NoArchive", format!("{why}: nothing was archived"), now, generation);
             d.events.push(Note {
                 warning: true,
                 reason: "NoArchive".into(),
-                message: "no archive URL: the run's evidence was not kept".into(),
+                message: format!("{why}: the run's evidence was not kept"),
             });
         }
     }

@@ -479,6 +479,26 @@ fn a_finished_run_archives_pilot_then_shards_then_the_rest_and_succeeds() {
 }
 
 #[test]
+fn a_file_archive_is_not_written_on_a_cluster_and_the_run_still_ends() {
+    // examples/chicago-museum.yaml archives to file://runs for local runs: on a cluster that is
+    // a folder inside the pods. The operator writes no pod logs there (its root is read-only)
+    // and says so; the run ends by its verdict.
+    let mut run = with_phase(new_run(), Phase::Running, true);
+    run.spec.archive = Some(sadesim_crds::run::Archive { url: "file://runs".into() });
+    let mut observed = workers(WorkState::Running);
+    observed.coordinator = Some(finished(true));
+    let steps = archive_to_the_end(run, observed, later(60));
+    assert!(steps.iter().all(|d| d.archive.is_none()), "no archive folder for file://runs");
+    let last = steps.last().unwrap();
+    assert_eq!(last.status.phase, Some(Phase::Succeeded));
+    let archived = cond(last, ct::ARCHIVED);
+    assert_eq!((archived.status.as_str(), archived.reason.as_str()), ("False", "NoArchive"));
+    assert!(archived.message.contains("\"file://runs\" is not an object store"), "{}", archived.message);
+    assert!(last.status.archive.is_none());
+    assert!(reasons(last).contains(&"NoArchive"));
+}
+
+#[test]
 fn failed_criteria_fail_the_run_after_archiving() {
     let run = with_phase(new_run(), Phase::Running, true);
     let mut observed = workers(WorkState::Running);
