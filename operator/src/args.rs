@@ -62,6 +62,7 @@ impl OperatorArgs {
                 object_store_secret: self.object_store_secret.filter(|s| !s.is_empty()),
                 router_service_type: self.router_service_type,
                 kueue: self.kueue,
+                file_archives: false,
             },
             max_concurrent_runs: self.max_concurrent_runs,
             metrics_addr: self.metrics_addr,

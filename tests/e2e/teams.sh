@@ -118,6 +118,8 @@ kubectl get workload -n team-a survey-a -o wide
 
 step "team B applies its run while A's runs: it must wait as a whole"
 kubectl apply -f tests/e2e/team-b.yaml
+# Its Scheduled condition says where it waits: its position from Kueue's visibility API.
+positioned=0
 for _ in 1 2 3 4 5 6; do
   sleep 5
   phase=$(field team-b survey-b '{.status.phase}')
@@ -126,8 +128,12 @@ for _ in 1 2 3 4 5 6; do
   [ "$phase" = Queued ] || { echo "teams: survey-b is $phase while survey-a still runs" >&2; exit 1; }
   pods=$(kubectl get pods -n team-b -l sadesim.io/run=survey-b -o name | wc -l)
   [ "$pods" -eq 0 ] || { echo "teams: $pods pods of survey-b exist before its admission" >&2; exit 1; }
-  echo "  survey-b: Queued, no pod; $(field team-b survey-b '{.status.conditions[?(@.type=="Scheduled")].message}')"
+  scheduled=$(field team-b survey-b '{.status.conditions[?(@.type=="Scheduled")].message}')
+  echo "  survey-b: Queued, no pod; $scheduled"
+  case "$scheduled" in *"(position "*) positioned=1 ;; esac
 done
+[ "$positioned" = 1 ] \
+  || { echo "teams: survey-b's Scheduled condition never gave its place in the queue (Kueue's visibility API)" >&2; exit 1; }
 kubectl get workload -n team-b survey-b -o wide
 
 step "A's run ends; then B's is admitted and runs"

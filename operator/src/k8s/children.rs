@@ -188,6 +188,11 @@ pub struct ClusterSettings {
     pub router_service_type: String,
     /// Kueue integration on: runs with `spec.queue` get Kueue's labels.
     pub kueue: bool,
+    /// The operator writes pod logs into `file://` archives. Off in the operator (a pod's
+    /// folder is not the run's pods' folder, and its root is read-only): runs archived to
+    /// `file://` are not archived on a cluster. The controller's tests turn it on to archive
+    /// into a temporary folder.
+    pub file_archives: bool,
 }
 
 impl Default for ClusterSettings {
@@ -198,6 +203,7 @@ impl Default for ClusterSettings {
             camera_image: "ghcr.io/sadesim/sim-worker-camera:0.1.0".into(),
             default_archive_url: None,
             object_store_secret: None,
+            file_archives: false,
             router_service_type: "ClusterIP".into(),
             kueue: false,
         }

@@ -72,6 +72,11 @@ pub struct WorkloadSpec {
     pub queue_name: String,
     /// One per role, at most 8 (Kueue's limit; a run has at most 6).
     pub pod_sets: Vec<PodSet>,
+    /// The Workload's priority in its queues: 0, what Kueue's own job integrations give a
+    /// workload without a priority class. Kueue reads it without checking: its visibility
+    /// API (v0.17.0) panics on a pending Workload without one. (Read as 0 when absent.)
+    #[serde(default)]
+    pub priority: i32,
 }
 
 /// Pods of one role: `count` pods from `template`.
@@ -211,7 +216,11 @@ pub(super) fn workload(queue: &str, mut meta: ObjectMeta, children: &[Child]) ->
         }
     }
     meta.labels.get_or_insert_with(BTreeMap::new).insert(KUEUE_QUEUE_LABEL.into(), queue.into());
-    Workload { metadata: meta, spec: WorkloadSpec { queue_name: queue.into(), pod_sets: sets }, status: None }
+    Workload {
+        metadata: meta,
+        spec: WorkloadSpec { queue_name: queue.into(), pod_sets: sets, priority: 0 },
+        status: None,
+    }
 }
 
 /// The state of the run's Workload as the run's status shows it.

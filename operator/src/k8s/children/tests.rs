@@ -315,6 +315,8 @@ fn a_queued_run_is_one_kueue_workload_with_a_pod_set_per_role() {
     let w = &w;
     assert_eq!(w.metadata.name.as_deref(), Some("test-run"));
     assert_eq!(w.spec.queue_name, "team-a");
+    // Kueue's visibility API dereferences spec.priority of every pending Workload.
+    assert_eq!(serde_json::to_value(&w.spec).unwrap()["priority"], 0);
     assert_eq!(w.metadata.labels.as_ref().unwrap()[KUEUE_QUEUE_LABEL], "team-a");
     let owner = &w.metadata.owner_references.as_ref().unwrap()[0];
     assert_eq!((owner.kind.as_str(), owner.controller), ("SimulationRun", Some(true)));

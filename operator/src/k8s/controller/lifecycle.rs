@@ -401,10 +401,11 @@ fn archive_url<'a>(input: &'a Input) -> Option<&'a str> {
 /// The archive folder of the run, in its object store ([`archive_url`]). A `file://` archive
 /// is a folder inside a pod on a cluster (the operator's own root is read-only, the
 /// coordinator's is lost with it): nothing is archived there, as the run's `Valid` warning
-/// says (`children::problems`).
+/// says (`children::problems`), unless the settings allow `file_archives` (tests).
 fn archive_folder(input: &Input) -> Option<RunFolder> {
     let meta = &input.run.metadata;
-    let url = archive_url(input).filter(|u| sadesim_evidence::archive::is_object_store(u))?;
+    let writable = |u: &&str| input.settings.file_archives || sadesim_evidence::archive::is_object_store(u);
+    let url = archive_url(input).filter(writable)?;
     Some(RunFolder::new(
         url,
         meta.namespace.as_deref().unwrap_or("default"),

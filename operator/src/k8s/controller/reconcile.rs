@@ -254,6 +254,9 @@ async fn observe_children(client: &Client, ns: &str, run: &str) -> Result<Observ
     Ok(observed)
 }
 
+/// How long a reconcile waits for Kueue's visibility API (a queue position).
+const VISIBILITY_WAIT: std::time::Duration = std::time::Duration::from_secs(2);
+
 /// The run's Kueue Workload; while it waits, its place in the LocalQueue (Kueue's
 /// visibility API; left out when that API does not answer: it is optional in Kueue and
 /// needs its own RBAC); once admitted, the ResourceFlavors its admission names.
@@ -276,16 +279,26 @@ async fn observe_workload(
         None => {
             let request = http::Request::get(pending_workloads_path(ns, queue)).body(Vec::new());
             if let Ok(request) = request {
-                match client.request::<PendingWorkloadsSummary>(request).await {
-                    Ok(summary) => {
+                // The client retries a server error with backoff for minutes: the position is
+                // worth waiting for only briefly, the reconcile goes on without it.
+                let answer = tokio::time::timeout(VISIBILITY_WAIT, client.request::<PendingWorkloadsSummary>(request));
+                match answer.await {
+                    Ok(Ok(summary)) => {
                         observation.pending = summary
                             .items
                             .into_iter()
                             .find(|p: &PendingWorkload| p.metadata.name.as_deref() == Some(&name));
                     }
-                    Err(e) => super::log::info(
+                    Ok(Err(e)) => super::log::info(
                         "no queue position from Kueue's visibility API",
                         &[("run", &format!("{ns}/{run}")), ("error", &e.to_string())],
+                    ),
+                    Err(_) => super::log::info(
+                        "no queue position from Kueue's visibility API",
+                        &[
+                            ("run", &format!("{ns}/{run}")),
+                            ("error", &format!("no answer within {} s", VISIBILITY_WAIT.as_secs())),
+                        ],
                     ),
                 }
             }

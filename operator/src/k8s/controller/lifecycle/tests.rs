@@ -683,7 +683,7 @@ fn kueue_observed(conditions: &[(&str, &str, &str, &str)], pending: Option<(i32,
     };
     let workload = KueueWorkload {
         metadata: ObjectMeta { name: Some("test-run".into()), ..Default::default() },
-        spec: WorkloadSpec { queue_name: "team-a".into(), pod_sets: Vec::new() },
+        spec: WorkloadSpec { queue_name: "team-a".into(), pod_sets: Vec::new(), priority: 0 },
         status: Some(status),
     };
     let pending = pending.map(|(local, cluster)| PendingWorkload {
