@@ -25,7 +25,8 @@ pub fn digest_name(file: &str) -> String {
     format!("{file}.sha256")
 }
 
-/// SHA-256 of `bytes`, lower-case hex.
+/// SHA-256 of `bytes`, lower-case hex: the digests of plan parts, of a world's input files
+/// (extract, DEM) and of the asset inputs in asset cache keys.
 pub fn sha256_hex(bytes: &[u8]) -> String {
     Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
 }

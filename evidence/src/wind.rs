@@ -140,7 +140,7 @@ pub fn wind_key(asset_key: &str, request: &WindRequest) -> Option<String> {
         "sectors": request.sectors,
         "sectorsBuilt": request.sectors_built(),
     });
-    Some(sadesim_world::sha256_hex(inputs.to_string().as_bytes()))
+    Some(sadesim_crds::parts::sha256_hex(inputs.to_string().as_bytes()))
 }
 
 /// The entry folder of a wind key under an asset key: `wind-<first 16 hex digits>`.

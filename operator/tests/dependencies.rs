@@ -4,8 +4,18 @@
 
 use std::process::Command;
 
-/// Crates that belong to the engine's roles, never to the controller.
-const ENGINE_CRATES: &[&str] = &["sim-worker", "rapier3d-f64", "parry3d-f64", "mavlink", "axum", "resvg"];
+/// Crates that belong to the engine's roles, never to the controller: the engine itself,
+/// MAVLink, the HTTP servers, the report's and the cameras' renderers.
+const ENGINE_CRATES: &[&str] = &["sim-worker", "sadesim-render", "mavlink", "axum", "resvg", "wgpu"];
+
+/// Every crate of [`ENGINE_CRATES`] is one the workspace uses (in Cargo.lock): a crate
+/// dropped from the workspace would make the check below pass by saying nothing.
+#[test]
+fn every_forbidden_crate_is_in_the_workspace() {
+    let lock = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../Cargo.lock")).expect("Cargo.lock");
+    let missing: Vec<&&str> = ENGINE_CRATES.iter().filter(|c| !lock.contains(&format!("\nname = \"{c}\"\n"))).collect();
+    assert!(missing.is_empty(), "not in Cargo.lock any more: {missing:?}; list the crates the engine uses now");
+}
 
 #[test]
 fn the_operator_dependency_tree_has_no_engine_crate() {

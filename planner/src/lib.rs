@@ -309,7 +309,7 @@ fn asset_cache_key(
     };
     // serde_json writes struct fields in declaration order and floats with a fixed
     // shortest-round-trip format, so the bytes are canonical for these types.
-    sadesim_world::sha256_hex(&serde_json::to_vec(&inputs).expect("asset inputs always serialize"))
+    sadesim_crds::parts::sha256_hex(&serde_json::to_vec(&inputs).expect("asset inputs always serialize"))
 }
 
 #[cfg(test)]

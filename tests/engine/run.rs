@@ -285,7 +285,7 @@ fn the_live_view_with_worker_processes_flies_the_same_run() {
     let processes = run(&r, &root.join("processes"), true).unwrap();
     assert_eq!(bytes(&processes.out_dir, "trajectory.csv"), bytes(&threads.out_dir, "trajectory.csv"));
     let log = bytes(&processes.out_dir, "coordinator.log");
-    assert!(log.contains("live stream: http://127.0.0.1:"), "{log}");
+    assert!(log.contains("live view: http://127.0.0.1:"), "{log}");
     std::fs::remove_dir_all(&root).unwrap();
 }
 

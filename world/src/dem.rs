@@ -115,7 +115,7 @@ impl Dem {
                 "neither a GeoTIFF (no TIFF header) nor an SRTM tile named like N60E024.hgt".into(),
             ));
         };
-        dem.source_sha256 = crate::sha256_hex(bytes);
+        dem.source_sha256 = sadesim_crds::parts::sha256_hex(bytes);
         Ok(dem)
     }
 

@@ -52,10 +52,3 @@ pub use inputs::{EXPLICIT_HOME_CLEARANCE_M, OpenArea, WorldInputs};
 pub use map::{OpenSpace, World, WorldData, WorldError};
 pub use stats::WorldStats;
 pub use terrain::{GroundGrid, Terrain};
-
-/// SHA-256 of `bytes` as lowercase hex: the digest of a world's input files (extract, DEM)
-/// and of the asset inputs, as it appears in asset cache keys.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    use sha2::Digest as _;
-    sha2::Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
-}

@@ -194,7 +194,7 @@ pub fn read_pbf(bytes: &[u8], frame: &LocalFrame, extent_m: f64) -> Result<OsmCi
         return Err(OsmError::NotCovering { have, need, extent_m });
     }
     let mut city = assemble::city(&raw, frame, extent_m)?;
-    city.source_sha256 = crate::sha256_hex(bytes);
+    city.source_sha256 = sadesim_crds::parts::sha256_hex(bytes);
     Ok(city)
 }
 

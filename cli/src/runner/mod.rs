@@ -17,21 +17,20 @@ use sadesim_evidence::assets::{AssetsError, AssetsOutcome, ensure_bundle};
 use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
 use sadesim_evidence::wind::WindOutcome;
 use sadesim_world::World;
-use sim_worker::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
-use sim_worker::coordinator::{self, CoordinatorError, ObserverError, RunObserver, ShardLink};
+use sim_worker::airspace::runtime::Airspace;
+use sim_worker::conduct::{ConductError, Watchers, conduct};
+use sim_worker::coordinator::{CoordinatorError, ObserverError, RunObserver, ShardLink};
 use sim_worker::events::{Event, EventKind};
 use sim_worker::mavlink::router::RouterHandle;
 use sim_worker::mavlink::signing::SecretKey;
 use sim_worker::protocol::{DroneSnapshot, FleetCounts};
-use sim_worker::record::{Recorder, RunSummary};
-use sim_worker::roles::coordinator::close_failed_run;
+use sim_worker::record::RunSummary;
 use sim_worker::roles::router::RouterOptions;
 use sim_worker::shard::MavlinkOptions;
 use sim_worker::transport;
 
 use sadesim_planner::{self as planner, Addressing, PlanError};
 
-use sim_worker::cameras;
 pub mod pilot;
 mod workers;
 
@@ -308,10 +307,9 @@ fn write_json(dir: &Path, name: &str, value: &impl serde::Serialize) -> Result<(
     std::fs::write(&path, bytes).map_err(|source| RunError::Output { path: path.display().to_string(), source })
 }
 
-/// Shows progress, forwards every window to the recorder, and starts and watches the
-/// pilot.
+/// Shows progress, and starts and watches the pilot (the conductor records every window
+/// before it).
 struct Progress<'a> {
-    recorder: &'a mut Recorder,
     bar: ProgressBar,
     duration_s: f64,
     started: std::time::Instant,
@@ -320,23 +318,12 @@ struct Progress<'a> {
     pilot_error: Option<PilotError>,
     /// The pilot exited and `onExit` is `endRun`.
     pilot_exited: bool,
-    /// The live view's publisher (`spec.rendering.enabled`).
-    view: Option<sim_worker::view::Publisher>,
-    /// The onboard cameras: frames due in a window are rendered before the next one.
-    cameras: Option<cameras::Cameras>,
 }
 
 impl RunObserver for Progress<'_> {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
-        if let Some(cameras) = &mut self.cameras {
-            cameras.before_recording(self.recorder, time_s, drones, events)?;
-        }
-        // Recorded (and flushed) before the pilot is started: it finds `pilotsReleased` in
-        // events.jsonl.
-        self.recorder.on_window(time_s, drones, events)?;
-        if let Some(view) = &mut self.view {
-            view.on_window(time_s, drones, events);
-        }
+        // The conductor recorded (and flushed) the window before: a pilot started now finds
+        // `pilotsReleased` in events.jsonl.
         if let Some(pilot) = self.pilot.as_deref_mut() {
             pilot.advance(time_s);
             if events.iter().any(|e| matches!(e.kind, EventKind::PilotsReleased))
@@ -350,12 +337,6 @@ impl RunObserver for Progress<'_> {
             show_progress(&self.bar, time_s, self.duration_s, self.started, sim_worker::protocol::fleet_counts(drones));
         }
         Ok(())
-    }
-
-    fn on_clock_started(&mut self, started: std::time::Instant) {
-        if let Some(cameras) = &mut self.cameras {
-            cameras.clock_started(started);
-        }
     }
 
     fn stop_reason(&mut self) -> Option<String> {
@@ -434,31 +415,21 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     };
     let world = Arc::new(world);
     write_json(&out_dir, "world.json", world.stats())?;
-    // The live view is up before the run starts, so a browser opened on the printed URL
-    // sees the drones from the first window.
-    // With --processes the coordinator process serves it (`--view-bind`), as its pod does.
-    let cameras = match options.processes {
-        false => cameras::Cameras::new(&plan, &world).map_err(RunError::NotSupported)?,
-        true => None,
-    };
-    let live_view = match plan.spec.rendering().enabled && !options.processes {
-        true => {
+    // The cameras and the live view are up before the run starts, so a browser opened on
+    // the printed URL sees the drones from the first window. With --processes the
+    // coordinator process serves them (`--view-bind`), as its pod does.
+    let mut watchers = match options.processes {
+        false => {
             let bind = std::net::SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http));
-            let frames = cameras.as_ref().map(cameras::Cameras::store);
-            let view = sim_worker::view::serve_live(&plan, &world, bind, frames).map_err(RunError::Worker)?;
-            eprintln!("live view: {}", view.server.url());
-            if let Some(c) = &cameras {
-                eprintln!("onboard cameras: {}cameras (rendered on {})", view.server.url(), c.adapter());
-            }
-            Some(view)
+            Watchers::start(&plan, &world, bind).map_err(RunError::NotSupported)?
         }
-        false => None,
+        true => Watchers::default(),
     };
     let mut supervisor = launch.map(Supervisor::new);
     // In-process servers listen already; a coordinator process says where its own listen
     // (`workers::run` writes the fleet file then).
     if let Some(airspace_addr) = airspace_addr {
-        let view = live_view.as_ref().map(|v| v.server.addr);
+        let view = watchers.live.as_ref().map(|v| v.server.addr);
         write_fleet_file(&plan, &out_dir, airspace_addr, view, supervisor.as_mut())?;
     }
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
@@ -480,11 +451,10 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         )
     } else {
         let surroundings = sim_worker::shard::Surroundings { world: world.clone(), sky, wind };
-        let view = live_view.as_ref().map(|v| v.feed.clone());
         let signing = signing.as_deref().map(SecretKey::from_passphrase);
         let routers = options.mavlink.then_some(signing);
-        let links = ShardInputs { surroundings, routers, view, cameras };
-        run_threads(&plan, links, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
+        let inputs = ShardInputs { surroundings, routers, watchers: &mut watchers };
+        run_threads(&plan, inputs, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
     bar.finish_and_clear();
     // The run is over, whatever its end: stop a pilot still running and record it.
@@ -577,31 +547,28 @@ fn start_routers(plan: &RunPlan, signing: Option<&SecretKey>) -> Result<Vec<Rout
 }
 
 /// What the in-process roles fly in and with, and who watches.
-struct ShardInputs {
+struct ShardInputs<'a> {
     /// The world, the GNSS sky and the urban wind field.
     surroundings: sim_worker::shard::Surroundings,
     /// Whether the drones get MAVLink endpoints and the segments routers: `None` for
     /// neither, else the routers' signing key (`None` inside: no signing).
     routers: Option<Option<SecretKey>>,
-    /// The live view's feed (`spec.rendering.enabled`).
-    view: Option<Arc<sim_worker::view::Feed>>,
-    /// The onboard cameras (`spec.fleet[].cameras`).
-    cameras: Option<cameras::Cameras>,
+    /// The onboard cameras and the live view (served until the runner is done).
+    watchers: &'a mut Watchers,
 }
 
-/// Every role in this process: one thread per shard, the coordinator on this thread, the
-/// MAVLink routers on their own threads.
+/// Every role in this process: one thread per shard, the MAVLink routers on their own
+/// threads, and the run conducted on this thread (`sim_worker::conduct`).
 fn run_threads(
     plan: &RunPlan,
-    inputs: ShardInputs,
+    inputs: ShardInputs<'_>,
     out_dir: &Path,
     bar: &ProgressBar,
     stop: &AtomicBool,
     pilot: Option<&mut Supervisor>,
     airspace: &mut Airspace,
 ) -> Result<RunSummary, RunError> {
-    let ShardInputs { surroundings, routers, view, cameras } = inputs;
-    let world = &surroundings.world;
+    let ShardInputs { surroundings, routers, watchers } = inputs;
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
     let mavlink_options = routers.is_some().then(MavlinkOptions::local);
@@ -615,47 +582,34 @@ fn run_threads(
         links.push(Box::new(link));
         threads.push(handle);
     }
-    let output_err = |source| RunError::Output { path: out_dir.display().to_string(), source };
-    let options = cameras::Cameras::recorder_options(cameras.as_ref());
-    let mut recorder = Recorder::create(out_dir, plan, world, options).map_err(output_err)?;
     let mut progress = Progress {
-        recorder: &mut recorder,
         bar: bar.clone(),
         duration_s: plan.duration_s,
         started: std::time::Instant::now(),
         pilot,
         pilot_error: None,
         pilot_exited: false,
-        view: view.map(sim_worker::view::Publisher::new),
-        cameras,
     };
-    let outcome = coordinator::run(plan, &mut links, &mut WithAirspace::new(airspace, &mut progress), stop);
-    let pilot_error = progress.pilot_error.take();
-    if let Some(cameras) = progress.cameras.take() {
-        cameras.finish(&mut recorder);
-    }
-    drop(links);
     // Each shard thread's CPU time stepping its drones; a thread that panicked or lost the
-    // coordinator before `Stop` has none (the run then failed, below).
-    let shard_cpu_s: Option<Vec<f64>> = threads.into_iter().map(|t| t.join().ok().flatten()).collect();
-    let outcome = match outcome {
-        Ok(outcome) => outcome,
-        // A shard thread died: close the files up to the last complete window, as the
-        // coordinator role does, then fail.
-        Err(CoordinatorError::RunFailed(failure)) => {
-            if let Err(e) = close_failed_run(airspace, recorder, &failure.outcome, out_dir) {
+    // coordinator before `Stop` has none (the run then failed).
+    let shard_cpu = || threads.into_iter().map(|t| t.join().ok().flatten()).collect::<Option<Vec<f64>>>();
+    let world = &surroundings.world;
+    let conducted = conduct(plan, world, links, airspace, watchers, out_dir, stop, &mut progress, shard_cpu);
+    let summary = match conducted {
+        Ok(summary) => summary,
+        Err(ConductError::RunFailed { failure, closed }) => {
+            if let Err(e) = closed {
                 eprintln!("writing the run's files into {} after the failure failed too: {e}", out_dir.display());
             }
             return Err(CoordinatorError::RunFailed(failure).into());
         }
-        Err(e) => return Err(e.into()),
+        Err(ConductError::Record(source)) => {
+            return Err(RunError::Output { path: out_dir.display().to_string(), source });
+        }
+        Err(ConductError::Coordinator(e)) => return Err(e.into()),
     };
-    write_json(out_dir, AIRSPACE_FILE, &airspace.record())?;
-    recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
-    recorder.set_shard_cpu(shard_cpu_s.unwrap_or_default());
-    let summary = recorder.finish(&outcome).map_err(output_err)?;
     // The run ended cleanly (`pilotFailed`) and its files are complete; it still failed.
-    match pilot_error {
+    match progress.pilot_error.take() {
         Some(e) => Err(e.into()),
         None => Ok(summary),
     }

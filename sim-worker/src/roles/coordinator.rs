@@ -24,11 +24,12 @@ pub use sadesim_crds::outcome::coordinator::{FailedRole, Report};
 
 use super::RoleError;
 use super::control::StopRequest;
-use crate::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
-use crate::coordinator::{self, CoordinatorError, LinkError, ObserverError, RunFailure, RunObserver, ShardLink};
+use crate::airspace::runtime::Airspace;
+use crate::conduct::{ConductError, Watchers, conduct};
+use crate::coordinator::{CoordinatorError, LinkError, ObserverError, RunFailure, RunObserver, ShardLink};
 use crate::events::{Event, EventKind};
 use crate::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION};
-use crate::record::{Recorder, RunSummary};
+use crate::record::RunSummary;
 use crate::transport::TcpLink;
 
 /// Default of `--shard-timeout`: the longest wait for a shard's answer to a window. A shard
@@ -45,27 +46,16 @@ pub fn report(r: &Report) {
     let _ = out.flush();
 }
 
-/// Forwards windows to the recorder and reports progress.
-struct Reporting<'a> {
-    recorder: &'a mut Recorder,
+/// Reports progress and the pilots' release on stdout, and passes on requests to end the
+/// run (the conductor records every window before it).
+struct Reporting {
     next_report_s: f64,
     /// Where a request to end the run early arrives.
     stop_request: StopRequest,
-    /// The live stream (`spec.rendering.enabled`), which the renderer pod follows.
-    view: Option<crate::view::Publisher>,
-    /// The onboard cameras: frames due in a window are rendered before the next one.
-    cameras: Option<crate::cameras::Cameras>,
 }
 
-impl RunObserver for Reporting<'_> {
+impl RunObserver for Reporting {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
-        if let Some(cameras) = &mut self.cameras {
-            cameras.before_recording(self.recorder, time_s, drones, events)?;
-        }
-        self.recorder.on_window(time_s, drones, events)?;
-        if let Some(view) = &mut self.view {
-            view.on_window(time_s, drones, events);
-        }
         if time_s >= self.next_report_s {
             self.next_report_s = time_s.floor() + 1.0;
             report(&Report::Progress { sim_time_s: time_s, counts: crate::protocol::fleet_counts(drones) });
@@ -78,12 +68,6 @@ impl RunObserver for Reporting<'_> {
 
     fn stop_reason(&mut self) -> Option<String> {
         self.stop_request.take()
-    }
-
-    fn on_clock_started(&mut self, started: Instant) {
-        if let Some(cameras) = &mut self.cameras {
-            cameras.clock_started(started);
-        }
     }
 }
 
@@ -159,23 +143,11 @@ pub fn run(
 ) -> Result<RunSummary, RoleError> {
     let Ends { stop, timeouts, requests } = ends;
     let result = (|| {
-        // The onboard cameras render here, in the lockstep loop's observer, and their
-        // frames are served with the live stream (`/cameras`).
-        let cameras = crate::cameras::Cameras::new(plan, world).map_err(RoleError::Protocol)?;
-        // Up before the shards connect: the renderer follows it from the start.
-        let live = match plan.spec.rendering().enabled {
-            true => {
-                let bind = view_bind.unwrap_or_else(|| SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http)));
-                let frames = cameras.as_ref().map(crate::cameras::Cameras::store);
-                let live = crate::view::serve_live(plan, world, bind, frames).map_err(RoleError::Protocol)?;
-                eprintln!("live stream: {}live", live.server.url());
-                if let Some(c) = &cameras {
-                    eprintln!("onboard cameras: {}cameras (rendered on {})", live.server.url(), c.adapter());
-                }
-                Some(live)
-            }
-            false => None,
-        };
+        // The onboard cameras render in the conductor's observer, and their frames are
+        // served with the live stream (`/cameras`), which is up before the shards connect:
+        // the renderer follows it from the start.
+        let view_bind = view_bind.unwrap_or_else(|| SocketAddr::from(([127, 0, 0, 1], plan.services.renderer_http)));
+        let mut watchers = Watchers::start(plan, world, view_bind).map_err(RoleError::Protocol)?;
         // The airspace API is up before any shard connects, so it answers as soon as pilots
         // are released. Credentials from Secrets arrive as SADESIM_CREDENTIAL_<GROUP>.
         // A port another program holds (a local run beside other runs; never in a pod, which
@@ -189,7 +161,7 @@ pub fn run(
         report(&Report::Listening {
             address: listener.local_addr()?.to_string(),
             airspace: airspace_addr.to_string(),
-            view: live.as_ref().map(|l| l.server.addr.to_string()),
+            view: watchers.live.as_ref().map(|l| l.server.addr.to_string()),
         });
         let mut links: Vec<Option<Box<dyn ShardLink>>> = (0..plan.shards.len()).map(|_| None).collect();
         let deadline = timeouts.connect.map(|t| Instant::now() + t);
@@ -218,34 +190,21 @@ pub fn run(
             link.hello = Some(FromShard::Hello { shard, version, drones });
             *slot = Some(Box::new(link));
         }
-        let mut links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
-        let record_err = |source| RoleError::Record { path: out_dir.display().to_string(), source };
-        let options = crate::cameras::Cameras::recorder_options(cameras.as_ref());
-        let mut recorder = Recorder::create(out_dir, plan, world, options).map_err(record_err)?;
-        let view = live.as_ref().map(|l| crate::view::Publisher::new(l.feed.clone()));
-        let mut observer =
-            Reporting { recorder: &mut recorder, next_report_s: 0.0, stop_request: requests, view, cameras };
-        let result = coordinator::run(plan, &mut links, &mut WithAirspace::new(&mut airspace, &mut observer), stop);
-        if let Some(cameras) = observer.cameras.take() {
-            cameras.finish(&mut recorder);
-        }
-        drop(links); // close every shard connection now: the survivors exit without waiting for us
-        let outcome = match result {
-            Ok(outcome) => outcome,
-            Err(CoordinatorError::RunFailed(failure)) => {
-                return Err(finish_failed(&airspace, recorder, failure, out_dir));
+        let links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
+        let mut reporting = Reporting { next_report_s: 0.0, stop_request: requests };
+        // The shards are processes elsewhere: their CPU time is not known here.
+        match conduct(plan, world, links, &mut airspace, &mut watchers, out_dir, stop, &mut reporting, || None) {
+            Ok(summary) => {
+                report(&Report::Finished { summary: summary.clone() });
+                Ok(summary)
             }
-            Err(e) => return Err(e.into()),
-        };
-        let json = serde_json::to_vec_pretty(&airspace.record()).map_err(std::io::Error::other).map_err(record_err)?;
-        std::fs::write(out_dir.join(AIRSPACE_FILE), json).map_err(record_err)?;
-        recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
-        let summary = recorder.finish(&outcome).map_err(record_err)?;
-        report(&Report::Finished { summary: summary.clone() });
-        Ok(summary)
+            Err(ConductError::RunFailed { failure, closed }) => Err(failed(failure, closed, out_dir)),
+            Err(ConductError::Record(source)) => Err(RoleError::Record { path: out_dir.display().to_string(), source }),
+            Err(ConductError::Coordinator(e)) => Err(e.into()),
+        }
     })();
     match &result {
-        // Reported with the shard's details and the summary by `finish_failed`.
+        // Reported with the shard's details and the summary by `failed`.
         Err(RoleError::Coordinator(CoordinatorError::RunFailed(_))) | Ok(_) => {}
         Err(e) => report(&Report::Failed {
             role: FailedRole::Coordinator,
@@ -298,43 +257,18 @@ fn accept<T>(
     }
 }
 
-/// Closes the files of a run a shard failure ended, up to its last complete window:
-/// `airspace.json`, the recordings (`recording.mcap` with its summary, the ULogs flushed)
-/// and `summary.json` with `outcome.reason` as `endReason` (no verdict: the criteria were
-/// not judged on a whole run). Both runners call it: this role and the in-process one.
-///
-/// # Errors
-/// The first file that could not be written (the others are still tried).
-pub fn close_failed_run(
-    airspace: &Airspace,
-    recorder: Recorder,
-    outcome: &coordinator::RunOutcome,
-    out_dir: &Path,
-) -> std::io::Result<RunSummary> {
-    let written = serde_json::to_vec_pretty(&airspace.record())
-        .map_err(std::io::Error::other)
-        .and_then(|json| std::fs::write(out_dir.join(AIRSPACE_FILE), json));
-    let summary = recorder.finish(outcome)?;
-    written.map(|()| summary)
-}
-
-/// A shard failed: writes what the run has (airspace record, recordings closed, summary
-/// with the failure as `endReason`; no verdict, the criteria were not judged on a whole
-/// run), reports it on stdout and stderr, and returns the error to exit with.
-fn finish_failed(airspace: &Airspace, recorder: Recorder, failure: Box<RunFailure>, out_dir: &Path) -> RoleError {
-    let (summary, written) = match close_failed_run(airspace, recorder, &failure.outcome, out_dir) {
-        Ok(summary) => (Some(summary), Ok(())),
-        Err(e) => (None, Err(e)),
-    };
+/// A shard failed and the conductor closed the run's files (`closed`: their summary, or why
+/// that failed too): reports it on stdout and stderr, and returns the error to exit with.
+fn failed(failure: Box<RunFailure>, closed: Result<Box<RunSummary>, String>, out_dir: &Path) -> RoleError {
     report(&Report::Failed {
         role: FailedRole::Shard,
         shard: Some(failure.shard),
         address: failure.peer.clone(),
         reason: failure.to_string(),
-        summary,
+        summary: closed.as_ref().ok().map(|s| s.as_ref().clone()),
     });
-    match written {
-        Ok(()) => eprintln!("the run's files up to the failure are in {}", out_dir.display()),
+    match closed {
+        Ok(_) => eprintln!("the run's files up to the failure are in {}", out_dir.display()),
         Err(e) => eprintln!("writing the run's files into {} after the failure failed too: {e}", out_dir.display()),
     }
     RoleError::Coordinator(CoordinatorError::RunFailed(failure))
@@ -449,36 +383,6 @@ mod tests {
         let pressed = press.join().unwrap();
         assert_eq!(error.to_string(), "interrupted while waiting for shards 0, 1 of 2 to connect");
         assert!(ended >= pressed, "the wait ended {:?} before the press", pressed - ended);
-    }
-
-    #[test]
-    fn a_failed_run_still_closes_its_files() {
-        let dir = TempDir::new("close-failed-run");
-        let plan = plan_of(run_with_groups(&[("a", 2)]).build());
-        let airspace = Airspace::new(&plan, &|_| None);
-        let mut recorder =
-            Recorder::create(&dir.0, &plan, &world_of(&plan), crate::record::RecorderOptions::default()).unwrap();
-        for w in 1..=50u32 {
-            let t = f64::from(w) * 0.01;
-            let drones: Vec<DroneSnapshot> =
-                (0..2).map(|index| DroneSnapshot::climbing(index, f64::from(index), t)).collect();
-            recorder.on_window(t, &drones, &[]).unwrap();
-        }
-        let outcome = coordinator::RunOutcome {
-            reason: "shardFailed: shard 1 failed: connection closed".into(),
-            sim_time_s: 0.5,
-            wall_time: Duration::from_millis(100),
-            released_at_s: None,
-        };
-        let summary = close_failed_run(&airspace, recorder, &outcome, &dir.0).unwrap();
-        assert_eq!(summary.end_reason, outcome.reason);
-        assert!(summary.verdict.is_none(), "criteria are not judged on part of a run");
-        let written: RunSummary = serde_json::from_slice(&std::fs::read(dir.0.join("summary.json")).unwrap()).unwrap();
-        assert_eq!(written.end_reason, outcome.reason);
-        assert!(dir.0.join(AIRSPACE_FILE).is_file());
-        // The MCAP was finished: summary section and closing magic, every pose in it.
-        let poses = crate::record::mcap_file::finished_pose_count(&dir.0);
-        assert_eq!(poses, 2 * 50, "100 Hz x 0.5 s x 2 drones");
     }
 
     #[test]

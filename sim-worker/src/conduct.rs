@@ -1,0 +1,236 @@
+//! One run's coordinator side, from its shards' links to its summary, for every runner: the
+//! local runner (`sadesim run`, shards as threads) and the coordinator role (`sim-worker
+//! coordinator`: a pod on Kubernetes, a process in `sadesim run --processes`). Each caller
+//! adds only what is its own through the observer it passes: a progress bar and the pilot
+//! process locally; progress lines and stop requests in the role.
+//!
+//! Conducting a run: the recorder, the onboard cameras and the live stream around the
+//! lockstep loop ([`crate::coordinator::run`]) with the airspace before them; then its end.
+//! A run a shard failure ended has its files closed up to its last complete window (no
+//! verdict: the criteria are not judged on part of a run); a run that ended has
+//! `airspace.json`, its verdict, the shards' CPU time when the caller knows it, and
+//! `summary.json`.
+
+use std::net::SocketAddr;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use sadesim_crds::plan::RunPlan;
+use sadesim_world::World;
+
+use crate::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
+use crate::cameras::Cameras;
+use crate::coordinator::{self, CoordinatorError, ObserverError, RunFailure, RunObserver, RunOutcome, ShardLink};
+use crate::events::Event;
+use crate::protocol::DroneSnapshot;
+use crate::record::{Recorder, RunSummary};
+use crate::view::{Feed, LiveView, Publisher};
+
+/// What watches a run besides its recorder: its onboard cameras (`spec.fleet[].cameras`) and
+/// its live stream (`spec.rendering.enabled`), up before the shards connect so that a
+/// browser or the renderer sees the run from its first window.
+#[derive(Debug, Default)]
+pub struct Watchers {
+    pub cameras: Option<Cameras>,
+    pub live: Option<LiveView>,
+}
+
+impl Watchers {
+    /// The cameras of `plan` and, with `spec.rendering.enabled`, the live view served on
+    /// `bind` (or a free port of its host), serving the cameras' frames too. Says on stderr
+    /// where each answers (`live view: <url>`, `onboard cameras: <url>cameras`).
+    ///
+    /// # Errors
+    /// No Vulkan adapter for the cameras, no three.js in the build, no port to listen on.
+    pub fn start(plan: &RunPlan, world: &World, bind: SocketAddr) -> Result<Self, String> {
+        let cameras = Cameras::new(plan, world)?;
+        let live = match plan.spec.rendering().enabled {
+            true => {
+                let frames = cameras.as_ref().map(Cameras::store);
+                let live = crate::view::serve_live(plan, world, bind, frames)?;
+                eprintln!("live view: {} (stream: {}live)", live.server.url(), live.server.url());
+                if let Some(c) = &cameras {
+                    eprintln!("onboard cameras: {}cameras (rendered on {})", live.server.url(), c.adapter());
+                }
+                Some(live)
+            }
+            false => None,
+        };
+        Ok(Self { cameras, live })
+    }
+
+    /// The live stream's feed, for the run's publisher.
+    pub fn feed(&self) -> Option<Arc<Feed>> {
+        self.live.as_ref().map(|l| l.feed.clone())
+    }
+}
+
+/// Why a run could not be conducted to its end.
+#[derive(Debug, thiserror::Error)]
+pub enum ConductError {
+    /// The run folder could not be written (the recordings, `airspace.json`, the summary).
+    #[error("{0}")]
+    Record(#[source] std::io::Error),
+    /// The lockstep loop failed, not by a shard's failure (the observer, a shard's link
+    /// before the run started).
+    #[error(transparent)]
+    Coordinator(CoordinatorError),
+    /// A shard failed mid-run. The run's files were closed up to its last complete window:
+    /// `closed` is their summary, or why closing them failed too.
+    #[error("{failure}")]
+    RunFailed { failure: Box<RunFailure>, closed: Result<Box<RunSummary>, String> },
+}
+
+/// Conducts the run of `plan` over its shards' `links` to its end, recording into `out_dir`
+/// what it sees in `world`, with `airspace` (already serving its API) judging the drones
+/// and `watchers` rendering and streaming (the caller keeps the live view serving as long as
+/// it likes; the cameras are finished into the recording). `caller` sees every window after the recorder
+/// (so the files hold a window before the caller acts on it, e.g. starts the pilot on
+/// `pilotsReleased`) and may end the run (`stop_reason`); `stop` ends it too (Ctrl-C,
+/// SIGTERM). Once every link is closed, `shard_cpu` gives the shards' CPU time when the
+/// caller knows it (threads it joins), recorded in the summary.
+///
+/// # Errors
+/// See [`ConductError`]; the files written so far stay in `out_dir` whatever the error.
+#[allow(clippy::too_many_arguments)] // each is one thing the run is conducted with; a struct would only rename them
+pub fn conduct(
+    plan: &RunPlan,
+    world: &World,
+    mut links: Vec<Box<dyn ShardLink>>,
+    airspace: &mut Airspace,
+    watchers: &mut Watchers,
+    out_dir: &Path,
+    stop: &AtomicBool,
+    caller: &mut dyn RunObserver,
+    shard_cpu: impl FnOnce() -> Option<Vec<f64>>,
+) -> Result<RunSummary, ConductError> {
+    let options = Cameras::recorder_options(watchers.cameras.as_ref());
+    let mut recorder = Recorder::create(out_dir, plan, world, options).map_err(ConductError::Record)?;
+    let mut conducting = Conducting {
+        recorder: &mut recorder,
+        cameras: watchers.cameras.take(),
+        view: watchers.feed().map(Publisher::new),
+        caller,
+    };
+    let result = coordinator::run(plan, &mut links, &mut WithAirspace::new(airspace, &mut conducting), stop);
+    if let Some(cameras) = conducting.cameras.take() {
+        cameras.finish(&mut recorder);
+    }
+    // Every shard connection closed now: the survivors exit without waiting for us.
+    drop(links);
+    let cpu = shard_cpu();
+    let outcome = match result {
+        Ok(outcome) => outcome,
+        Err(CoordinatorError::RunFailed(failure)) => {
+            let closed = close_failed_run(airspace, recorder, &failure.outcome, out_dir)
+                .map(Box::new)
+                .map_err(|e| e.to_string());
+            return Err(ConductError::RunFailed { failure, closed });
+        }
+        Err(e) => return Err(ConductError::Coordinator(e)),
+    };
+    write_airspace(airspace, out_dir).map_err(ConductError::Record)?;
+    recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
+    if let Some(cpu) = cpu {
+        recorder.set_shard_cpu(cpu);
+    }
+    recorder.finish(&outcome).map_err(ConductError::Record)
+}
+
+/// `airspace.json`: the airspace's record of the run (leases, requests, entries).
+fn write_airspace(airspace: &Airspace, out_dir: &Path) -> std::io::Result<()> {
+    let json = serde_json::to_vec_pretty(&airspace.record()).map_err(std::io::Error::other)?;
+    std::fs::write(out_dir.join(AIRSPACE_FILE), json)
+}
+
+/// Closes the files of a run a shard failure ended, up to its last complete window:
+/// `airspace.json`, the recordings (`recording.mcap` with its summary, the ULogs flushed)
+/// and `summary.json` with `outcome.reason` as `endReason` (no verdict: the criteria were
+/// not judged on a whole run).
+///
+/// # Errors
+/// The first file that could not be written (the others are still tried).
+fn close_failed_run(
+    airspace: &Airspace,
+    recorder: Recorder,
+    outcome: &RunOutcome,
+    out_dir: &Path,
+) -> std::io::Result<RunSummary> {
+    let written = write_airspace(airspace, out_dir);
+    let summary = recorder.finish(outcome)?;
+    written.map(|()| summary)
+}
+
+/// The run's own observer: cameras, recorder and live stream, then the caller's.
+struct Conducting<'a> {
+    recorder: &'a mut Recorder,
+    /// Frames due in a window are rendered before the next one.
+    cameras: Option<Cameras>,
+    view: Option<Publisher>,
+    caller: &'a mut dyn RunObserver,
+}
+
+impl RunObserver for Conducting<'_> {
+    fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
+        if let Some(cameras) = &mut self.cameras {
+            cameras.before_recording(self.recorder, time_s, drones, events)?;
+        }
+        self.recorder.on_window(time_s, drones, events)?;
+        if let Some(view) = &mut self.view {
+            view.on_window(time_s, drones, events);
+        }
+        self.caller.on_window(time_s, drones, events)
+    }
+
+    fn stop_reason(&mut self) -> Option<String> {
+        self.caller.stop_reason()
+    }
+
+    fn on_clock_started(&mut self, started: Instant) {
+        if let Some(cameras) = &mut self.cameras {
+            cameras.clock_started(started);
+        }
+        self.caller.on_clock_started(started);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups, world_of};
+    use crate::record::test_dir::TempDir;
+
+    #[test]
+    fn a_failed_run_still_closes_its_files() {
+        let dir = TempDir::new("close-failed-run");
+        let plan = plan_of(run_with_groups(&[("a", 2)]).build());
+        let airspace = Airspace::new(&plan, &|_| None);
+        let mut recorder =
+            Recorder::create(&dir.0, &plan, &world_of(&plan), crate::record::RecorderOptions::default()).unwrap();
+        for w in 1..=50u32 {
+            let t = f64::from(w) * 0.01;
+            let drones: Vec<DroneSnapshot> =
+                (0..2).map(|index| DroneSnapshot::climbing(index, f64::from(index), t)).collect();
+            recorder.on_window(t, &drones, &[]).unwrap();
+        }
+        let outcome = RunOutcome {
+            reason: "shardFailed: shard 1 failed: connection closed".into(),
+            sim_time_s: 0.5,
+            wall_time: Duration::from_millis(100),
+            released_at_s: None,
+        };
+        let summary = close_failed_run(&airspace, recorder, &outcome, &dir.0).unwrap();
+        assert_eq!(summary.end_reason, outcome.reason);
+        assert!(summary.verdict.is_none(), "criteria are not judged on part of a run");
+        let written: RunSummary = serde_json::from_slice(&std::fs::read(dir.0.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(written.end_reason, outcome.reason);
+        assert!(dir.0.join(AIRSPACE_FILE).is_file());
+        // The MCAP was finished: summary section and closing magic, every pose in it.
+        let poses = crate::record::mcap_file::finished_pose_count(&dir.0);
+        assert_eq!(poses, 2 * 50, "100 Hz x 0.5 s x 2 drones");
+    }
+}
