@@ -34,17 +34,29 @@ cleanup() {
 trap cleanup EXIT
 
 # The project's images, once for both clusters (tagged e2e, as tests/e2e/run.sh names them).
+images_start=$SECONDS
 tests/cluster/images.sh product e2e "$E2E_IMAGE_DIR"
 
+# Each stage's wall time, said at its end (docs/kubernetes.md quotes them).
+took() { echo "cluster: $1 took $((SECONDS - $2)) s" >&2; }
+took "images.sh product" "$images_start"
+
 if [ "${SADESIM_CLUSTER_E2E:-1}" = 1 ]; then
+  stage=$SECONDS
   KEEP_CLUSTER=0 bash tests/e2e/run.sh local
+  took "tests/e2e/run.sh local" "$stage"
+  stage=$SECONDS
   KEEP_CLUSTER=0 bash tests/e2e/teams.sh local
+  took "tests/e2e/teams.sh local" "$stage"
 fi
 
+stage=$SECONDS
 kubeconfig=$(tests/cluster/up.sh)
 tests/cluster/images.sh import "$E2E_IMAGE_DIR"
 SADESIM_CLUSTER_MEASUREMENTS=${SADESIM_CLUSTER_MEASUREMENTS:-$CLUSTER_MEASUREMENTS} \
   SADESIM_CLUSTER_BIN=$bin SADESIM_CLUSTER_KUBECONFIG=$kubeconfig SADESIM_CLUSTER_IMAGE_TAG=e2e \
   .venv/bin/python -m pytest -q -p no:cacheprovider tests/cluster "$@"
+took "the cluster tests (up, import, pytest)" "$stage"
+took "the whole lane" 0
 echo "cluster: bring-up $(cat "${SADESIM_CLUSTER_DIR:-/var/lib/sadesim-cluster}/up-seconds" 2>/dev/null || echo '?') s; measured (tests/cluster/test_cost.py):" >&2
 cat "${SADESIM_CLUSTER_MEASUREMENTS:-$CLUSTER_MEASUREMENTS}" >&2 2>/dev/null || true
