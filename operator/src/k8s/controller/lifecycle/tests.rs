@@ -12,22 +12,22 @@ use crate::k8s::controller::observe::{Observed, WorkState, Workload};
 use crate::k8s::controller::progress::{CoordinatorReport, Finished};
 use crate::k8s::controller::queue::Admission;
 
-const ARCHIVE: &str = "s3://sadesim-runs/team";
+pub(super) const ARCHIVE: &str = "s3://sadesim-runs/team";
 
-fn t0() -> Timestamp {
+pub(super) fn t0() -> Timestamp {
     Timestamp::from_second(1_800_000_000).unwrap()
 }
 
-fn later(s: i64) -> Timestamp {
+pub(super) fn later(s: i64) -> Timestamp {
     t0() + SignedDuration::from_secs(s)
 }
 
-fn settings() -> ClusterSettings {
+pub(super) fn settings() -> ClusterSettings {
     ClusterSettings { default_archive_url: Some(ARCHIVE.into()), ..Default::default() }
 }
 
 /// A valid run as the API server returns it (uid, generation, creation time).
-fn new_run() -> SimulationRun {
+pub(super) fn new_run() -> SimulationRun {
     RunBuilder::test()
         .with(|r| {
             r.metadata.uid = Some("uid-1".into());
@@ -37,14 +37,14 @@ fn new_run() -> SimulationRun {
         .build()
 }
 
-fn pilot_run() -> SimulationRun {
+pub(super) fn pilot_run() -> SimulationRun {
     let mut run = RunBuilder::test().with_pilot(&["python3", "pilot.py"]).build();
     run.spec.pilot.as_mut().unwrap().image = Some("example.com/pilot:1".into());
     run.metadata = new_run().metadata;
     run
 }
 
-fn with_phase(mut run: SimulationRun, phase: Phase, finalized: bool) -> SimulationRun {
+pub(super) fn with_phase(mut run: SimulationRun, phase: Phase, finalized: bool) -> SimulationRun {
     run.status = Some(SimulationRunStatus { phase: Some(phase), ..Default::default() });
     if finalized {
         run.metadata.finalizers = Some(vec![FINALIZER.into()]);
@@ -52,11 +52,16 @@ fn with_phase(mut run: SimulationRun, phase: Phase, finalized: bool) -> Simulati
     run
 }
 
-fn decide_with(run: &SimulationRun, observed: &Observed, admission: Option<Admission>, now: Timestamp) -> Decision {
+pub(super) fn decide_with(
+    run: &SimulationRun,
+    observed: &Observed,
+    admission: Option<Admission>,
+    now: Timestamp,
+) -> Decision {
     decide_full(run, &settings(), observed, admission, now, None)
 }
 
-fn decide_full(
+pub(super) fn decide_full(
     run: &SimulationRun,
     settings: &ClusterSettings,
     observed: &Observed,
@@ -74,11 +79,11 @@ fn decide_full(
 }
 
 /// The role labelled `label` (the tests name roles as the cluster's labels do).
-fn role(label: &str) -> Role {
+pub(super) fn role(label: &str) -> Role {
     Role::from_label(label).unwrap_or_else(|| panic!("{label:?} is not a role"))
 }
 
-fn job(label: &str, state: WorkState) -> Workload {
+pub(super) fn job(label: &str, state: WorkState) -> Workload {
     Workload {
         kind: Kind::Job,
         name: format!("test-run-{label}"),
@@ -91,7 +96,7 @@ fn job(label: &str, state: WorkState) -> Workload {
     }
 }
 
-fn pod(name: &str, label: &str, state: WorkState, job_owned: bool) -> Workload {
+pub(super) fn pod(name: &str, label: &str, state: WorkState, job_owned: bool) -> Workload {
     Workload {
         kind: Kind::Pod,
         name: name.into(),
@@ -105,7 +110,7 @@ fn pod(name: &str, label: &str, state: WorkState, job_owned: bool) -> Workload {
 }
 
 /// The workers of a started run: shard Job with one pod, coordinator, one router.
-fn workers(coordinator: WorkState) -> Observed {
+pub(super) fn workers(coordinator: WorkState) -> Observed {
     let mut shard = pod("test-run-shard-0", "shard", WorkState::Running, true);
     shard.index = Some(0);
     Observed {
@@ -119,15 +124,15 @@ fn workers(coordinator: WorkState) -> Observed {
     }
 }
 
-fn cond<'a>(d: &'a Decision, type_: &str) -> &'a k8s_openapi::apimachinery::pkg::apis::meta::v1::Condition {
+pub(super) fn cond<'a>(d: &'a Decision, type_: &str) -> &'a k8s_openapi::apimachinery::pkg::apis::meta::v1::Condition {
     condition(&d.status, type_).unwrap_or_else(|| panic!("no {type_} condition in {:?}", d.status.conditions))
 }
 
-fn roles(children: &[Child]) -> Vec<String> {
+pub(super) fn roles(children: &[Child]) -> Vec<String> {
     children.iter().map(|c| format!("{} {}", c.kind(), c.role().map_or("unlabelled", Role::label))).collect()
 }
 
-fn reasons(d: &Decision) -> Vec<&str> {
+pub(super) fn reasons(d: &Decision) -> Vec<&str> {
     d.events.iter().map(|e| e.reason.as_str()).collect()
 }
 
@@ -278,7 +283,7 @@ fn a_run_with_onboard_cameras_lists_their_frames_among_its_endpoints() {
 }
 
 /// The coordinator Pod among the applied children, with its annotations.
-fn coordinator_stop(d: &Decision) -> Option<String> {
+pub(super) fn coordinator_stop(d: &Decision) -> Option<String> {
     d.apply.iter().find_map(|c| match c {
         Child::Pod(p) if c.role() == Some(Role::Coordinator) => {
             Some(p.metadata.annotations.as_ref()?.get(crate::k8s::children::STOP_ANNOTATION)?.clone())
@@ -288,7 +293,7 @@ fn coordinator_stop(d: &Decision) -> Option<String> {
 }
 
 /// A Running pilot run whose pilot Job is in `state`, its pod `pod_state`.
-fn pilot_observed(state: WorkState, pod_state: WorkState) -> Observed {
+pub(super) fn pilot_observed(state: WorkState, pod_state: WorkState) -> Observed {
     let mut observed = workers(WorkState::Running);
     observed.jobs.push(job("pilot", state));
     observed.pods.push(pod("test-run-pilot-abcde", "pilot", pod_state, true));
@@ -383,7 +388,7 @@ fn running_reports_sim_time_and_real_time_factor() {
     assert!(d.events.is_empty());
 }
 
-fn finished(passed: bool) -> CoordinatorReport {
+pub(super) fn finished(passed: bool) -> CoordinatorReport {
     CoordinatorReport {
         sim_time_s: Some(120.0),
         pilots_released: true,
@@ -403,7 +408,7 @@ fn finished(passed: bool) -> CoordinatorReport {
 }
 
 /// Drives a run through Archiving as the cluster would: pilot, shards, coordinator, rest.
-fn archive_to_the_end(mut run: SimulationRun, mut observed: Observed, start: Timestamp) -> Vec<Decision> {
+pub(super) fn archive_to_the_end(mut run: SimulationRun, mut observed: Observed, start: Timestamp) -> Vec<Decision> {
     let mut steps = Vec::new();
     for i in 0..6 {
         let d = decide_with(&run, &observed, None, start + SignedDuration::from_secs(i));
@@ -445,199 +450,6 @@ fn archive_to_the_end(mut run: SimulationRun, mut observed: Observed, start: Tim
 }
 
 #[test]
-fn a_finished_run_archives_pilot_then_shards_then_the_rest_and_succeeds() {
-    let mut run = with_phase(pilot_run(), Phase::Running, true);
-    run.status.as_mut().unwrap().start_time = Some(Time(t0()));
-    let mut observed = workers(WorkState::Running);
-    observed.jobs.push(job("pilot", WorkState::Running));
-    observed.pods.push(pod("test-run-pilot-abcde", "pilot", WorkState::Running, true));
-    observed.coordinator = Some(finished(true));
-    let steps = archive_to_the_end(run, observed, later(60));
-
-    let first = &steps[0];
-    assert_eq!(first.status.phase, Some(Phase::Archiving));
-    assert_eq!(cond(first, ct::RUNNING).reason, outcome::FINISHED);
-    assert_eq!(first.status.sim_time_s, Some(120.0));
-    assert_eq!(first.status.real_time_factor, Some(3.5));
-    assert_eq!(first.archive_logs, ["test-run-pilot-abcde"]);
-    assert_eq!(first.delete, [Delete { kind: Kind::Job, role: Some(Role::Pilot) }]);
-    assert!(first.apply.is_empty());
-
-    let second = &steps[1];
-    assert_eq!(second.archive_logs, ["test-run-shard-0"]);
-    assert_eq!(second.delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
-
-    let last = steps.last().unwrap();
-    assert_eq!(last.status.phase, Some(Phase::Succeeded));
-    assert_eq!(cond(last, ct::ARCHIVED).status, "True");
-    assert_eq!(last.archive_logs, ["test-run-coordinator", "test-run-router-0"]);
-    assert_eq!(last.delete.len(), 4);
-    assert_eq!(last.status.archive.as_ref().unwrap().url, format!("{ARCHIVE}/default/test-run/uid-1/"));
-    assert!(last.status.completion_time.is_some());
-    assert!(reasons(last).contains(&"Succeeded"));
-    assert!(!last.remove_finalizer, "the finalizer stays until the run is deleted");
-}
-
-#[test]
-fn a_file_archive_is_not_written_on_a_cluster_and_the_run_still_ends() {
-    // examples/chicago-museum.yaml archives to file://runs for local runs: on a cluster that is
-    // a folder inside the pods. The operator writes no pod logs there (its root is read-only)
-    // and says so; the run ends by its verdict.
-    let mut run = with_phase(new_run(), Phase::Running, true);
-    run.spec.archive = Some(sadesim_crds::run::Archive { url: "file://runs".into() });
-    let mut observed = workers(WorkState::Running);
-    observed.coordinator = Some(finished(true));
-    let steps = archive_to_the_end(run, observed, later(60));
-    assert!(steps.iter().all(|d| d.archive.is_none()), "no archive folder for file://runs");
-    let last = steps.last().unwrap();
-    assert_eq!(last.status.phase, Some(Phase::Succeeded));
-    let archived = cond(last, ct::ARCHIVED);
-    assert_eq!((archived.status.as_str(), archived.reason.as_str()), ("False", "NoArchive"));
-    assert!(archived.message.contains("\"file://runs\" is not an object store"), "{}", archived.message);
-    assert!(last.status.archive.is_none());
-    assert!(reasons(last).contains(&"NoArchive"));
-}
-
-#[test]
-fn failed_criteria_fail_the_run_after_archiving() {
-    let run = with_phase(new_run(), Phase::Running, true);
-    let mut observed = workers(WorkState::Running);
-    observed.coordinator = Some(finished(false));
-    let last = archive_to_the_end(run, observed, later(60)).pop().unwrap();
-    assert_eq!(last.status.phase, Some(Phase::Failed));
-    assert!(last.status.message.as_ref().unwrap().contains("noCrashes"));
-    assert_eq!(last.status.verdict.as_ref().map(|v| v.passed), Some(false));
-}
-
-#[test]
-fn a_failed_role_fails_the_run_naming_the_role_and_reason() {
-    let run = with_phase(new_run(), Phase::Running, true);
-    let mut observed = workers(WorkState::Running);
-    observed.jobs[1].state =
-        WorkState::Failed("BackoffLimitExceeded: Job has reached the specified backoff limit".into());
-    let steps = archive_to_the_end(run, observed, later(60));
-    let first = &steps[0];
-    assert_eq!(first.status.phase, Some(Phase::Archiving));
-    assert_eq!(cond(first, ct::RUNNING).reason, outcome::ROLE_FAILED);
-    assert!(cond(first, ct::RUNNING).message.contains("role shard failed: Job test-run-shard: BackoffLimitExceeded"));
-    assert!(first.events.iter().any(|e| e.warning && e.reason == "RoleFailed"));
-    let last = steps.last().unwrap();
-    assert_eq!(last.status.phase, Some(Phase::Failed));
-    assert!(last.status.message.as_ref().unwrap().contains("role shard failed"));
-}
-
-#[test]
-fn abort_stops_the_pilot_then_the_shards_then_archives() {
-    let mut run = with_phase(pilot_run(), Phase::Running, true);
-    run.spec.abort = true;
-    let mut observed = workers(WorkState::Running);
-    observed.jobs.push(job("pilot", WorkState::Running));
-    observed.pods.push(pod("test-run-pilot-abcde", "pilot", WorkState::Running, true));
-    let steps = archive_to_the_end(run, observed, later(60));
-    assert_eq!(cond(&steps[0], ct::RUNNING).reason, outcome::ABORTED);
-    assert_eq!(steps[0].delete, [Delete { kind: Kind::Job, role: Some(Role::Pilot) }]);
-    assert_eq!(steps[1].delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
-    let last = steps.last().unwrap();
-    assert_eq!(last.status.phase, Some(Phase::Aborted));
-    assert_eq!(cond(last, ct::ARCHIVED).status, "True");
-}
-
-/// Aborting a running run: the pilot goes first, then the coordinator is asked to end the
-/// run, so its summary says `aborted`, and only then are the shards deleted.
-#[test]
-fn abort_asks_the_running_coordinator_to_end_the_run_before_the_shards_go() {
-    let mut run = with_phase(pilot_run(), Phase::Running, true);
-    run.spec.abort = true;
-    let observed = pilot_observed(WorkState::Running, WorkState::Running);
-    let steps = archive_to_the_end(run, observed, later(60));
-    assert_eq!(steps[0].delete, [Delete { kind: Kind::Job, role: Some(Role::Pilot) }]);
-    assert_eq!(coordinator_stop(&steps[0]), None, "the pilot stops first");
-    assert_eq!(coordinator_stop(&steps[1]).as_deref(), Some(stop_reason::ABORTED));
-    assert_eq!(roles(&steps[1].apply), ["Pod coordinator"], "only the coordinator Pod is applied");
-    assert!(steps[1].delete.is_empty(), "the shards stay until the coordinator has ended the run");
-    assert!(cond(&steps[1], ct::ARCHIVED).message.contains("asking the coordinator"));
-    // The coordinator answered (the helper's `finished` line): now the shards go.
-    assert!(steps[2].apply.is_empty());
-    assert_eq!(steps[2].delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
-    assert_eq!(steps.last().unwrap().status.phase, Some(Phase::Aborted));
-}
-
-#[test]
-fn a_coordinator_that_does_not_end_the_run_on_request_is_not_waited_for_long() {
-    let mut run = with_phase(new_run(), Phase::Running, true);
-    run.metadata.deletion_timestamp = Some(Time(later(5)));
-    let mut observed = workers(WorkState::Running);
-    observed.coordinator =
-        Some(CoordinatorReport { sim_time_s: Some(80.0), pilots_released: true, ..Default::default() });
-    let d = decide_with(&run, &observed, None, later(10));
-    assert_eq!(coordinator_stop(&d).as_deref(), Some(stop_reason::DELETED));
-    run.status = Some(d.status);
-    // An old worker image without --control-file never answers.
-    let d = decide_with(&run, &observed, None, later(10 + STOP_GRACE_S - 1));
-    assert!(coordinator_stop(&d).is_some() && d.delete.is_empty());
-    let d = decide_with(&run, &observed, None, later(10 + STOP_GRACE_S));
-    assert_eq!(coordinator_stop(&d), None);
-    assert_eq!(d.delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
-}
-
-#[test]
-fn a_coordinator_still_waiting_for_shards_is_not_asked_to_stop() {
-    let mut run = with_phase(new_run(), Phase::Starting, true);
-    run.spec.abort = true;
-    let mut observed = workers(WorkState::Running);
-    observed.coordinator = Some(CoordinatorReport::default());
-    let d = decide_with(&run, &observed, None, later(10));
-    assert_eq!(coordinator_stop(&d), None, "it reads requests only once the run started");
-    assert_eq!(d.delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
-}
-
-#[test]
-fn archiving_waits_for_the_coordinator_but_not_forever() {
-    let mut run = with_phase(new_run(), Phase::Running, true);
-    run.spec.abort = true;
-    let observed = Observed {
-        pods: vec![pod("test-run-coordinator", "coordinator", WorkState::Running, false)],
-        ..Default::default()
-    };
-    let d = decide_with(&run, &observed, None, later(10));
-    assert_eq!(d.status.phase, Some(Phase::Archiving));
-    assert!(d.archive_logs.is_empty() && d.delete.is_empty());
-    run.status = Some(d.status);
-    let d = decide_with(&run, &observed, None, later(10 + COORDINATOR_GRACE_S));
-    assert_eq!(d.status.phase, Some(Phase::Aborted));
-    assert_eq!(d.archive_logs, ["test-run-coordinator"]);
-}
-
-#[test]
-fn deletion_archives_before_the_finalizer_goes() {
-    let mut run = with_phase(new_run(), Phase::Running, true);
-    run.metadata.deletion_timestamp = Some(Time(later(5)));
-    let observed = workers(WorkState::Running);
-    let steps = archive_to_the_end(run, observed, later(60));
-    assert_eq!(cond(&steps[0], ct::RUNNING).reason, outcome::DELETED);
-    assert!(steps[..steps.len() - 1].iter().all(|d| !d.remove_finalizer));
-    let last = steps.last().unwrap();
-    assert_eq!(last.status.phase, Some(Phase::Aborted));
-    assert!(last.remove_finalizer);
-    assert!(!last.archive_logs.is_empty());
-}
-
-#[test]
-fn deleting_a_finished_or_never_started_run_just_removes_the_finalizer() {
-    let mut done = with_phase(new_run(), Phase::Succeeded, true);
-    done.metadata.deletion_timestamp = Some(Time(later(5)));
-    let d = decide_with(&done, &Observed::default(), None, later(6));
-    assert!(d.remove_finalizer && d.apply.is_empty() && d.delete.is_empty());
-    assert_eq!(d.status, done.status.clone().unwrap());
-
-    let mut queued = with_phase(new_run(), Phase::Queued, true);
-    queued.metadata.deletion_timestamp = Some(Time(later(5)));
-    let d = decide_with(&queued, &Observed::default(), None, later(6));
-    assert!(d.remove_finalizer && d.delete.is_empty());
-    assert_eq!(d.status.phase, Some(Phase::Aborted));
-}
-
-#[test]
 fn a_terminal_phase_is_never_left() {
     for phase in [Phase::Succeeded, Phase::Failed, Phase::Aborted] {
         let mut run = with_phase(new_run(), phase, true);
@@ -648,7 +460,7 @@ fn a_terminal_phase_is_never_left() {
     }
 }
 
-fn kueue_run() -> (SimulationRun, ClusterSettings) {
+pub(super) fn kueue_run() -> (SimulationRun, ClusterSettings) {
     let mut run = pilot_run();
     run.spec.queue = Some("team-a".into());
     (run, ClusterSettings { kueue: true, ..settings() })
@@ -656,7 +468,7 @@ fn kueue_run() -> (SimulationRun, ClusterSettings) {
 
 /// The run's Workload as Kueue would show it: `conditions` as `(type, status, reason,
 /// message)`, admitted to `team-cq` with the flavor `default-flavor` when `Admitted`.
-fn kueue_observed(conditions: &[(&str, &str, &str, &str)], pending: Option<(i32, i32)>) -> Observed {
+pub(super) fn kueue_observed(conditions: &[(&str, &str, &str, &str)], pending: Option<(i32, i32)>) -> Observed {
     use crate::k8s::children::kueue::{WorkloadAdmission, WorkloadSpec, WorkloadStatus};
     use crate::k8s::children::{PendingWorkload, PodSetAssignment, Workload as KueueWorkload};
     use k8s_openapi::apimachinery::pkg::apis::meta::v1::{Condition, ObjectMeta};
@@ -817,32 +629,4 @@ fn set_condition_keeps_the_transition_time_while_the_status_holds() {
     assert_eq!(conds[0].message, "b");
     set_condition(&mut conds, "Running", true, "PilotsReleased", "c", later(9), Some(1));
     assert_eq!(conds[0].last_transition_time, Time(later(9)));
-}
-
-#[test]
-fn an_archive_that_cannot_be_written_keeps_the_run_archiving_and_backs_off() {
-    // Archiving began at t0; the decision had reached Succeeded with the archive filled in.
-    let mut previous = SimulationRunStatus { phase: Some(Phase::Archiving), ..Default::default() };
-    set_condition(&mut previous.conditions, ct::ARCHIVED, false, "Archiving", "stopping the shards", t0(), Some(1));
-    let mut decided = previous.clone();
-    decided.phase = Some(Phase::Succeeded);
-    decided.completion_time = Some(Time(later(3)));
-    decided.archive = Some(ArchiveStatus { url: format!("{ARCHIVE}/x/"), files: Some(3), bytes: Some(9) });
-
-    let (status, wait) = archive_failed(&previous, &decided, ARCHIVE, "connection refused", later(3), Some(1));
-    assert_eq!(status.phase, Some(Phase::Archiving));
-    assert_eq!(status.completion_time, None);
-    assert_eq!(status.archive, None);
-    let archived = condition(&status, ct::ARCHIVED).unwrap();
-    assert_eq!((archived.status.as_str(), archived.reason.as_str()), ("False", ARCHIVE_FAILED));
-    assert!(
-        archived.message.contains(ARCHIVE) && archived.message.contains("connection refused"),
-        "{}",
-        archived.message
-    );
-    assert_eq!(wait, Duration::from_secs(2));
-
-    // The wait grows with the time since Archiving began, up to a minute.
-    assert_eq!(archive_failed(&previous, &decided, ARCHIVE, "e", later(40), Some(1)).1, Duration::from_secs(20));
-    assert_eq!(archive_failed(&previous, &decided, ARCHIVE, "e", later(600), Some(1)).1, Duration::from_secs(60));
 }
