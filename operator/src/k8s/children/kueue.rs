@@ -295,3 +295,6 @@ pub fn place(children: &mut [Child], assignments: &[PodSetAssignment], flavors: 
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -92,3 +92,6 @@ pub(super) fn network_policy(ctx: &Context) -> NetworkPolicy {
         }),
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -126,3 +126,6 @@ fn job(
         ..Default::default()
     }
 }
+
+#[cfg(test)]
+mod tests;

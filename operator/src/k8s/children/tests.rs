@@ -1,5 +1,7 @@
-//! Children of small and large runs: names, labels, owners, lockdown, resources, Kueue,
-//! optional roles, and sizes against the API server's limits.
+//! Children of small and large runs: names, labels, owners, lockdown, resources, optional
+//! roles, and sizes against the API server's limits; the helpers the children's modules'
+//! tests share (the Kueue Workload, the NetworkPolicy and the pilot Job are tested beside
+//! their modules).
 
 use k8s_openapi::api::core::v1::{Container, PodSpec};
 use k8s_openapi::apimachinery::pkg::api::resource::Quantity;
@@ -13,19 +15,19 @@ use serde_json::Value;
 use super::*;
 use sadesim_planner::{Addressing, fleet_file, plan};
 
-const UID: &str = "6f1c0a52-3c1e-4d7e-9a59-1f0e7c1d2b3a";
+pub(super) const UID: &str = "6f1c0a52-3c1e-4d7e-9a59-1f0e7c1d2b3a";
 
-fn with_uid(run: SimulationRun) -> SimulationRun {
+pub(super) fn with_uid(run: SimulationRun) -> SimulationRun {
     let mut run = run;
     run.metadata.uid = Some(UID.into());
     run
 }
 
-fn planned(run: &SimulationRun) -> RunPlan {
+pub(super) fn planned(run: &SimulationRun) -> RunPlan {
     plan(run).expect("fixture plans")
 }
 
-fn s3() -> ClusterSettings {
+pub(super) fn s3() -> ClusterSettings {
     ClusterSettings {
         default_archive_url: Some("s3://sadesim-runs/team-a".into()),
         object_store_secret: Some("sadesim-object-store".into()),
@@ -34,7 +36,7 @@ fn s3() -> ClusterSettings {
 }
 
 /// A run flown by a pilot image with a Secret credential: every role present.
-fn piloted(drones: u32) -> SimulationRun {
+pub(super) fn piloted(drones: u32) -> SimulationRun {
     with_uid(
         RunBuilder::test()
             .with_drones(drones)
@@ -49,16 +51,16 @@ fn piloted(drones: u32) -> SimulationRun {
     )
 }
 
-fn kinds_and_names(children: &[Child]) -> Vec<(String, String)> {
+pub(super) fn kinds_and_names(children: &[Child]) -> Vec<(String, String)> {
     children.iter().map(|c| (c.kind().to_string(), c.name().to_string())).collect()
 }
 
-fn pair(kind: &str, name: &str) -> (String, String) {
+pub(super) fn pair(kind: &str, name: &str) -> (String, String) {
     (kind.to_string(), name.to_string())
 }
 
 /// Every pod spec among the children, with the name of the object that holds it.
-fn pod_specs(children: &[Child]) -> Vec<(String, PodSpec)> {
+pub(super) fn pod_specs(children: &[Child]) -> Vec<(String, PodSpec)> {
     children
         .iter()
         .filter_map(|c| {
@@ -73,7 +75,7 @@ fn pod_specs(children: &[Child]) -> Vec<(String, PodSpec)> {
         .collect()
 }
 
-fn container(children: &[Child], name: &str) -> Container {
+pub(super) fn container(children: &[Child], name: &str) -> Container {
     pod_specs(children)
         .into_iter()
         .find(|(n, _)| n == name)
@@ -81,12 +83,12 @@ fn container(children: &[Child], name: &str) -> Container {
         .unwrap_or_else(|| panic!("no pod spec in {name}: {:?}", kinds_and_names(children)))
 }
 
-fn json(children: &[Child]) -> Value {
+pub(super) fn json(children: &[Child]) -> Value {
     serde_json::to_value(children).unwrap()
 }
 
 /// Every object key named `key` anywhere in `v`.
-fn count_key(v: &Value, key: &str) -> usize {
+pub(super) fn count_key(v: &Value, key: &str) -> usize {
     match v {
         Value::Object(m) => m.iter().map(|(k, v)| usize::from(k == key) + count_key(v, key)).sum(),
         Value::Array(a) => a.iter().map(|v| count_key(v, key)).sum(),
@@ -94,7 +96,7 @@ fn count_key(v: &Value, key: &str) -> usize {
     }
 }
 
-fn requests(c: &Container) -> (String, String) {
+pub(super) fn requests(c: &Container) -> (String, String) {
     let r = c.resources.as_ref().unwrap().requests.as_ref().unwrap();
     (r["cpu"].0.clone(), r["memory"].0.clone())
 }
@@ -158,7 +160,7 @@ fn every_child_is_owned_by_the_run_and_labelled_with_run_and_role() {
     }
 }
 
-trait TapRendering {
+pub(super) trait TapRendering {
     fn tap_rendering(self) -> Self;
 }
 
@@ -222,7 +224,7 @@ fn resources_come_from_the_plan() {
     assert!(!limits.contains_key("cpu"), "no CPU limit: throttling one shard slows the lockstep");
 }
 
-trait PerShard {
+pub(super) trait PerShard {
     fn with_drones_per_shard_of(self, n: u32) -> Self;
 }
 
@@ -300,108 +302,6 @@ fn router_fleet_file_and_dns_agree_on_every_address() {
     }
 }
 
-/// With Kueue, the run is one Workload: a podSet per role with the pods' own templates and
-/// counts, so Kueue reserves exactly what the run's pods request, all at once. No Job is
-/// labelled for Kueue or suspended (the run is admitted before any Job exists).
-#[test]
-fn a_queued_run_is_one_kueue_workload_with_a_pod_set_per_role() {
-    let mut run = piloted(3).with_queue("team-a");
-    run.spec.fleet[0].count = 600; // 3 shards, 3 router segments
-    let plan = planned(&run);
-    let settings = ClusterSettings { kueue: true, ..s3() };
-    let children = children(&run, &plan, &settings, Stage::ALL);
-    assert_eq!(count_key(&json(&children), "suspend"), 0);
-    let Some(Child::Workload(w)) = workload(&run, &plan, &settings) else { panic!("a queued run has a Workload") };
-    let w = &w;
-    assert_eq!(w.metadata.name.as_deref(), Some("test-run"));
-    assert_eq!(w.spec.queue_name, "team-a");
-    // Kueue's visibility API dereferences spec.priority of every pending Workload.
-    assert_eq!(serde_json::to_value(&w.spec).unwrap()["priority"], 0);
-    assert_eq!(w.metadata.labels.as_ref().unwrap()[KUEUE_QUEUE_LABEL], "team-a");
-    let owner = &w.metadata.owner_references.as_ref().unwrap()[0];
-    assert_eq!((owner.kind.as_str(), owner.controller), ("SimulationRun", Some(true)));
-    for c in &children {
-        assert!(c.labels().unwrap().get(KUEUE_QUEUE_LABEL).is_none(), "{} is not queued by itself", c.name());
-    }
-    let sets: Vec<(&str, i32)> = w.spec.pod_sets.iter().map(|p| (p.name.as_str(), p.count)).collect();
-    let (shards, segments) = (plan.shards.len() as i32, plan.segments.len() as i32);
-    assert!(shards >= 2 && segments >= 2, "{shards} shards, {segments} segments");
-    assert_eq!(sets, [("assets", 1), ("coordinator", 1), ("router", segments), ("shard", shards), ("pilot", 1)]);
-    // Each podSet's requests are its pods' requests.
-    let requests = |spec: &k8s_openapi::api::core::v1::PodSpec| {
-        spec.containers.iter().map(|c| c.resources.as_ref().unwrap().requests.clone()).collect::<Vec<_>>()
-    };
-    for (name, spec) in pod_specs(&children) {
-        let role = children.iter().find(|c| c.name() == name).and_then(|c| c.role()).unwrap();
-        let set = w.spec.pod_sets.iter().find(|p| p.name == role.label()).expect("a podSet per role");
-        assert_eq!(requests(set.template.spec.as_ref().unwrap()), requests(&spec), "{name}");
-    }
-    assert_eq!(kueue_queue(&plan, &settings), Some("team-a"));
-    // The Workload validates as Kueue's CRD would have it: at most 8 podSets, DNS-label names.
-    assert!(w.spec.pod_sets.len() <= 8);
-    let value = serde_json::to_value(w).unwrap();
-    assert_eq!(value["apiVersion"], "kueue.x-k8s.io/v1beta2");
-    assert_eq!(value["kind"], "Workload");
-}
-
-/// Kueue's admission names a ResourceFlavor per podSet: each role's pods get that flavor's
-/// node labels and tolerations, and only that role's.
-#[test]
-fn admitted_pods_go_to_the_flavor_kueue_chose_for_their_role() {
-    use k8s_openapi::api::core::v1::Toleration;
-    let run = piloted(3).with_queue("team-a");
-    let plan = planned(&run);
-    let settings = ClusterSettings { kueue: true, ..s3() };
-    let mut children = children(&run, &plan, &settings, Stage::ALL);
-    let assignments = vec![
-        PodSetAssignment {
-            name: "shard".into(),
-            flavors: [("cpu".into(), "spot".into()), ("memory".into(), "spot".into())].into(),
-        },
-        PodSetAssignment { name: "coordinator".into(), flavors: [("cpu".into(), "on-demand".into())].into() },
-    ];
-    let spot = FlavorPlacement {
-        node_labels: [("cloud.example.com/capacity".into(), "spot".into())].into(),
-        tolerations: vec![Toleration {
-            key: Some("spot".into()),
-            operator: Some("Exists".into()),
-            ..Default::default()
-        }],
-    };
-    let flavors = [("spot".to_string(), spot.clone()), ("on-demand".to_string(), FlavorPlacement::default())].into();
-    place(&mut children, &assignments, &flavors);
-    for (name, spec) in pod_specs(&children) {
-        let on_spot = name.starts_with("test-run-shard");
-        let selector = spec.node_selector.clone().unwrap_or_default();
-        assert_eq!(selector == spot.node_labels, on_spot, "{name}: {selector:?}");
-        assert_eq!(spec.tolerations.clone().unwrap_or_default() == spot.tolerations, on_spot, "{name}");
-    }
-}
-
-#[test]
-fn without_a_queue_or_with_kueue_off_no_kueue_label_appears() {
-    for (queue, kueue) in [(None, true), (Some("team-a"), false)] {
-        let mut run = piloted(3);
-        run.spec.queue = queue.map(String::from);
-        let plan = planned(&run);
-        let children = children(&run, &plan, &ClusterSettings { kueue, ..s3() }, Stage::ALL);
-        let text = serde_json::to_string(&children).unwrap();
-        assert!(!text.contains("kueue.x-k8s.io"), "queue {queue:?}, kueue {kueue}");
-        assert_eq!(count_key(&json(&children), "suspend"), 0);
-    }
-}
-
-trait Queue {
-    fn with_queue(self, q: &str) -> Self;
-}
-
-impl Queue for SimulationRun {
-    fn with_queue(mut self, q: &str) -> Self {
-        self.spec.queue = Some(q.into());
-        self
-    }
-}
-
 #[test]
 fn the_renderer_exists_only_with_rendering_on() {
     let off = piloted(3);
@@ -439,11 +339,11 @@ fn the_renderer_follows_the_coordinators_live_stream() {
     assert!(!container(&children, "test-run-coordinator").args.unwrap().contains(&"--view-bind".to_string()));
 }
 
-fn children_of(run: &SimulationRun) -> Vec<Child> {
+pub(super) fn children_of(run: &SimulationRun) -> Vec<Child> {
     children(run, &planned(run), &s3(), Stage::ALL)
 }
 
-fn gpu_limit(c: &Container) -> Option<String> {
+pub(super) fn gpu_limit(c: &Container) -> Option<String> {
     c.resources.as_ref()?.limits.as_ref()?.get("nvidia.com/gpu").map(|q| q.0.clone())
 }
 
@@ -640,67 +540,6 @@ fn a_stop_is_an_annotation_the_coordinator_reads_through_a_downward_api_file() {
 }
 
 #[test]
-fn the_pilot_gets_the_fleet_file_run_and_credentials_from_secrets() {
-    let run = piloted(3);
-    let plan = planned(&run);
-    let children = children(&run, &plan, &s3(), Stage::ALL);
-    let c = container(&children, "test-run-pilot");
-    assert_eq!(c.image.as_deref(), Some("registry.example/team-a/pilot:1.2"));
-    assert_eq!(c.command, Some(vec!["python3".to_string(), "/app/pilot.py".to_string()]));
-    let env = c.env.unwrap();
-    let value = |n: &str| env.iter().find(|e| e.name == n).and_then(|e| e.value.clone());
-    assert_eq!(value("SADESIM_FLEET").as_deref(), Some(FLEET_PATH));
-    assert_eq!(value("SADESIM_RUN").as_deref(), Some("test-run"));
-    let cred = env.iter().find(|e| e.name == "SADESIM_CREDENTIAL_ALPHA").unwrap();
-    let from = cred.value_from.as_ref().unwrap().secret_key_ref.as_ref().unwrap();
-    assert_eq!((from.name.as_str(), from.key.as_str(), cred.value.as_deref()), ("alpha-token", "token", None));
-    // The coordinator checks the same credential.
-    let coord = container(&children, "test-run-coordinator").env.unwrap();
-    assert!(coord.iter().any(|e| e.name == "SADESIM_CREDENTIAL_ALPHA" && e.value_from == cred.value_from));
-    // The fleet file is mounted from its ConfigMap, which holds the in-cluster addresses.
-    let Some(Child::ConfigMap(cm)) = children.iter().find(|c| c.name() == "test-run-fleet") else { panic!() };
-    let fleet: Value = serde_json::from_str(&cm.data.as_ref().unwrap()["fleet.json"]).unwrap();
-    assert_eq!(fleet["airspaceUrl"], "http://test-run-airspace.default.svc:8480");
-    let mounts = container(&children, "test-run-pilot").volume_mounts.unwrap();
-    let spec = pod_specs(&children).into_iter().find(|(n, _)| n == "test-run-pilot").unwrap().1;
-    let fleet_mount = mounts.iter().find(|m| m.mount_path == CONFIG_DIR).unwrap();
-    let volume = spec.volumes.unwrap().into_iter().find(|v| v.name == fleet_mount.name).unwrap();
-    let sources = volume.projected.unwrap().sources.unwrap();
-    let names: Vec<_> = sources.iter().map(|s| s.config_map.as_ref().unwrap().name.as_str()).collect();
-    assert_eq!(names, ["test-run-fleet"]);
-    // A small fleet file needs no joining: the only init container holds the pilot until
-    // the coordinator releases the pilots, polling the airspace API's health.
-    let init = spec.init_containers.unwrap();
-    assert_eq!(init.iter().map(|c| c.name.as_str()).collect::<Vec<_>>(), ["wait-release"]);
-    assert_eq!(init[0].args.as_deref().unwrap(), ["wait-release", "http://test-run-airspace.default.svc:8480/healthz"]);
-}
-
-/// The pilot reads the scenario it flies in, as locally (`SADESIM_SCENARIO`), and runs
-/// `containerCommand` in its image when the local `command` would not work there.
-#[test]
-fn the_pilot_gets_its_scenario_and_its_container_command() {
-    let mut run = piloted(3);
-    let plan = planned(&run);
-    let children = children(&run, &plan, &s3(), Stage::ALL);
-    let env = container(&children, "test-run-pilot").env.unwrap();
-    let scenario = env.iter().find(|e| e.name == "SADESIM_SCENARIO").and_then(|e| e.value.clone());
-    assert_eq!(scenario.as_deref(), Some("/etc/sadesim/scenario.json"));
-    let Some(Child::ConfigMap(cm)) = children.iter().find(|c| c.name() == "test-run-fleet") else { panic!() };
-    let text = &cm.data.as_ref().unwrap()["scenario.json"];
-    let parsed = sadesim_crds::document::parse_run(text).expect("a scenario sadesim reads");
-    assert_eq!(parsed.spec, run.spec);
-    assert_eq!(parsed.metadata.namespace.as_deref(), Some("default"));
-    let command_of = |run: &SimulationRun| container(&children_of(run), "test-run-pilot").command;
-    assert_eq!(command_of(&run), Some(vec!["python3".to_string(), "/app/pilot.py".to_string()]));
-    let pilot = run.spec.pilot.as_mut().unwrap();
-    pilot.command = vec!["cargo".into(), "run".into(), "-p".into(), "my-pilot".into()];
-    pilot.container_command = Some(vec!["/usr/local/bin/my-pilot".into()]);
-    assert_eq!(command_of(&run), Some(vec!["/usr/local/bin/my-pilot".to_string()]));
-    run.spec.pilot.as_mut().unwrap().container_command = Some(vec![]);
-    assert_eq!(command_of(&run), None, "[]: the image's own entrypoint");
-}
-
-#[test]
 fn only_the_routers_get_the_signing_passphrase_from_its_secret() {
     use sadesim_crds::ground_stations::{GroundStations, SIGNING_KEY_ENV, Signing};
     let mut run = piloted(600).with_drones_per_shard_of(100);
@@ -733,17 +572,6 @@ fn only_the_routers_get_the_signing_passphrase_from_its_secret() {
     let plain = piloted(3);
     let router = container(&children_of(&plain), "test-run-router-0");
     assert!(!router.env.unwrap().iter().any(|e| e.name == SIGNING_KEY_ENV));
-}
-
-#[test]
-fn a_pilot_without_an_image_is_refused_on_a_cluster_and_gets_no_job() {
-    let run = with_uid(RunBuilder::test().with_pilot(&["./pilot.sh"]).build());
-    let plan = planned(&run);
-    let p = problems(&plan, &s3());
-    assert!(p.iter().any(|p| p.fatal && p.field == "spec.pilot.image"), "{p:?}");
-    assert!(!children(&run, &plan, &s3(), Stage::ALL).iter().any(|c| c.name() == "test-run-pilot"));
-    // A run with every problem solved has none.
-    assert_eq!(problems(&planned(&piloted(3)), &s3()), vec![]);
 }
 
 #[test]
@@ -947,125 +775,4 @@ fn the_assets_job_of_an_openfoam_run_uses_the_openfoam_image() {
         assert_eq!(image_of(&run, "test-run-shard"), settings.worker_image, "{model:?}");
         assert_eq!(image_of(&run, "test-run-coordinator"), settings.worker_image, "{model:?}");
     }
-}
-
-/// `spec.queue` on an operator without Kueue is refused (Valid=False), not ignored: the run
-/// would otherwise bypass the quota its team asked to be admitted under.
-#[test]
-fn a_queue_without_the_kueue_integration_is_refused_naming_the_field() {
-    let mut run = piloted(1);
-    run.spec.queue = Some("team-a".into());
-    let plan = planned(&run);
-    let off = problems(&plan, &s3());
-    let found = off.iter().find(|p| p.field == "spec.queue").expect("refused");
-    assert!(
-        found.fatal && found.message.contains("\"team-a\"") && found.message.contains("kueue.enabled"),
-        "{found:?}"
-    );
-    let on = ClusterSettings { kueue: true, ..s3() };
-    assert!(!problems(&plan, &on).iter().any(|p| p.field == "spec.queue"));
-    // Without spec.queue nothing is said either way.
-    run.spec.queue = None;
-    assert!(!problems(&planned(&run), &s3()).iter().any(|p| p.field == "spec.queue"));
-}
-
-/// Whether `selector` selects an object labelled `labels` (matchLabels, In, NotIn: what the
-/// run's NetworkPolicy uses).
-fn selects(
-    selector: &k8s_openapi::apimachinery::pkg::apis::meta::v1::LabelSelector,
-    labels: &std::collections::BTreeMap<String, String>,
-) -> bool {
-    let by_label = selector.match_labels.iter().flatten().all(|(k, v)| labels.get(k) == Some(v));
-    let by_expression = selector.match_expressions.iter().flatten().all(|e| {
-        let value = labels.get(&e.key);
-        let listed = value.is_some_and(|v| e.values.iter().flatten().any(|x| x == v));
-        match e.operator.as_str() {
-            "In" => listed,
-            "NotIn" => !listed,
-            other => panic!("operator {other} not expected"),
-        }
-    });
-    by_label && by_expression
-}
-
-/// The labels of every pod a child makes (Pods, and the templates of Jobs and Deployments).
-fn pod_labels(children: &[Child]) -> Vec<(String, std::collections::BTreeMap<String, String>)> {
-    children
-        .iter()
-        .filter_map(|c| {
-            let labels = match c {
-                Child::Pod(p) => p.metadata.labels.clone(),
-                Child::Job(j) => j.spec.as_ref()?.template.metadata.as_ref()?.labels.clone(),
-                Child::Deployment(d) => d.spec.as_ref()?.template.metadata.as_ref()?.labels.clone(),
-                _ => None,
-            };
-            labels.map(|l| (c.name().to_string(), l))
-        })
-        .collect()
-}
-
-/// The run's NetworkPolicy isolates every pod of the run but the renderer: its own pods
-/// reach each other on any port, ground stations in `allowFrom` reach only the routers'
-/// GCS ports, the drone endpoints and the airspace API, and nothing else gets in.
-#[test]
-fn the_network_policy_admits_the_run_s_own_pods_and_its_ground_stations_only() {
-    use k8s_openapi::apimachinery::pkg::util::intstr::IntOrString;
-    use sadesim_crds::ground_stations::GroundStations;
-    let mut run = piloted(600).with_drones_per_shard_of(100).tap_rendering();
-    let other = children_of(&with_uid(
-        RunBuilder::test().with(|r| r.metadata.name = Some("other-run".into())).with_drones(3).build(),
-    ));
-    let policy_of = |children: &[Child]| match children.iter().find(|c| c.kind() == Kind::NetworkPolicy) {
-        Some(Child::NetworkPolicy(p)) => p.clone(),
-        _ => panic!("no NetworkPolicy"),
-    };
-    let children = children_of(&run);
-    let policy = policy_of(&children);
-    assert_eq!(policy.metadata.name.as_deref(), Some("test-run-isolation"));
-    let spec = policy.spec.clone().unwrap();
-    assert_eq!(spec.policy_types.as_deref(), Some(&["Ingress".to_string()][..]));
-    let isolated = spec.pod_selector.clone().unwrap_or_default();
-    let pods = pod_labels(&children);
-    assert!(pods.len() >= 6, "{pods:?}");
-    for (name, labels) in &pods {
-        assert_eq!(selects(&isolated, labels), name != "test-run-renderer", "{name}");
-    }
-    for (name, labels) in pod_labels(&other) {
-        assert!(!selects(&isolated, &labels), "another run's {name}");
-    }
-    // Without ground stations: one rule, from the run's own pods (every port).
-    let ingress = spec.ingress.unwrap();
-    assert_eq!(ingress.len(), 1);
-    let own = ingress[0].from.as_ref().unwrap()[0].pod_selector.clone().unwrap();
-    assert!(ingress[0].ports.is_none());
-    assert!(pods.iter().all(|(_, l)| selects(&own, l)));
-    assert!(pod_labels(&other).iter().all(|(_, l)| !selects(&own, l)), "another run's pods are not its own");
-
-    // With ground stations: a second rule, from those ranges, to the MAVLink and airspace ports.
-    let cidrs = vec!["10.20.0.0/16".to_string(), "192.168.7.0/24".to_string()];
-    run.spec.ground_stations = Some(GroundStations { allow_from: cidrs.clone(), signing: None });
-    let plan = planned(&run);
-    let ingress = policy_of(&super::children(&run, &plan, &s3(), Stage::ALL)).spec.unwrap().ingress.unwrap();
-    assert_eq!(ingress.len(), 2);
-    let from: Vec<String> =
-        ingress[1].from.iter().flatten().map(|p| p.ip_block.as_ref().unwrap().cidr.clone()).collect();
-    assert_eq!(from, cidrs);
-    let ports = ingress[1].ports.clone().unwrap();
-    let admits = |protocol: &str, number: u16| {
-        ports.iter().any(|p| {
-            let IntOrString::Int(first) = p.port.clone().unwrap() else { panic!("named port") };
-            let last = p.end_port.unwrap_or(first);
-            p.protocol.as_deref() == Some(protocol) && (first..=last).contains(&i32::from(number))
-        })
-    };
-    assert_eq!(plan.segments.len(), 3);
-    for s in &plan.segments {
-        assert!(admits("UDP", s.gcs_udp) && admits("TCP", s.gcs_tcp), "segment {}", s.index);
-    }
-    for d in &plan.drones {
-        assert!(admits("UDP", d.ports.endpoint) && admits("TCP", d.ports.endpoint), "{}", d.name);
-    }
-    assert!(admits("TCP", plan.services.airspace_http));
-    // Not the shard link, the live stream, or the cameras: those are the run's own.
-    assert!(!admits("TCP", plan.services.coordinator) && !admits("TCP", plan.services.renderer_http));
 }
