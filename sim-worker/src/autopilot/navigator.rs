@@ -40,6 +40,12 @@ pub struct NavigatorConfig {
     pub battery_critical: f64,
 }
 
+/// PX4's default battery thresholds as fractions of the capacity left: BAT_LOW_THR (return
+/// to launch), BAT_CRIT_THR (land), BAT_EMERGEN_THR (the ULogs' emergency warning).
+pub const BAT_LOW_THR: f64 = 0.15;
+pub const BAT_CRIT_THR: f64 = 0.07;
+pub const BAT_EMERGEN_THR: f64 = 0.05;
+
 impl Default for NavigatorConfig {
     fn default() -> Self {
         Self {
@@ -51,8 +57,8 @@ impl Default for NavigatorConfig {
             land_slow_below_m: 5.0,
             rtl_altitude_m: 30.0,
             offboard_timeout_s: 1.0,
-            battery_low: 0.15,
-            battery_critical: 0.07,
+            battery_low: BAT_LOW_THR,
+            battery_critical: BAT_CRIT_THR,
         }
     }
 }

@@ -66,6 +66,31 @@ pub fn base_mode(mode: FlightMode, armed: bool) -> u8 {
     CUSTOM_MODE_ENABLED | autonomy | if armed { SAFETY_ARMED } else { 0 }
 }
 
+/// PX4's `vehicle_status.nav_state` (what its ULogs record) of a flight mode: the navigation
+/// state PX4's commander enters for the mode's (main, sub) pair of [`to_px4`].
+pub fn nav_state(mode: FlightMode) -> u8 {
+    use auto_sub_mode::*;
+    match to_px4(mode) {
+        (main_mode::AUTO, TAKEOFF) => nav_state::AUTO_TAKEOFF,
+        (main_mode::AUTO, MISSION) => nav_state::AUTO_MISSION,
+        (main_mode::AUTO, RTL) => nav_state::AUTO_RTL,
+        (main_mode::AUTO, LAND) => nav_state::AUTO_LAND,
+        (main_mode::OFFBOARD, _) => nav_state::OFFBOARD,
+        _ => nav_state::AUTO_LOITER,
+    }
+}
+
+/// PX4's navigation states (`vehicle_status_s::NAVIGATION_STATE_*`) the built-in autopilot's
+/// modes map to.
+pub mod nav_state {
+    pub const AUTO_MISSION: u8 = 3;
+    pub const AUTO_LOITER: u8 = 4;
+    pub const AUTO_RTL: u8 = 5;
+    pub const OFFBOARD: u8 = 14;
+    pub const AUTO_TAKEOFF: u8 = 17;
+    pub const AUTO_LAND: u8 = 18;
+}
+
 /// The flight mode a DO_SET_MODE (`param2` main, `param3` sub) asks for; `None` for PX4
 /// modes the built-in autopilot does not fly (manual, altitude, position control, ...),
 /// which the endpoint refuses with MAV_RESULT_UNSUPPORTED.

@@ -207,7 +207,7 @@ fn yaw_of(q: &UnitQuaternion<f64>) -> f64 {
 }
 
 /// The ZYX yaw away from gimbal lock: `atan2(m10, m00)` of the rotation matrix.
-fn unlocked_yaw(q: &UnitQuaternion<f64>) -> f64 {
+pub(crate) fn unlocked_yaw(q: &UnitQuaternion<f64>) -> f64 {
     let (w, x, y, z) = (q.w, q.i, q.j, q.k);
     (2.0 * (x * y + w * z)).atan2(1.0 - 2.0 * (y * y + z * z))
 }

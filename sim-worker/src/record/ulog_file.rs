@@ -49,7 +49,8 @@ use crate::protocol::DroneSnapshot;
 use crate::record::Sampler;
 use crate::vehicle::BatterySpec;
 
-pub use self::convert::{nav_state, q_ned_frd};
+pub use self::convert::q_ned_frd;
+pub use crate::mavlink::px4_mode::nav_state;
 
 /// The cruise speed parameter, logged as the scripted mission's speed.
 const CRUISE_PARAM: &str = "MPC_XY_CRUISE";

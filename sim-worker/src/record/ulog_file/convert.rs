@@ -1,15 +1,16 @@
 //! Our snapshots (world ENU, body FLU, SI units) as PX4 messages (NED from the drone's
 //! local origin, body FRD, float32 where PX4 uses it).
 
-use nalgebra::{Quaternion, UnitQuaternion};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
 
 use super::topics::{
     ActuatorOutputs, BatteryStatus, MAV_TYPE_QUADROTOR, SensorGps, VEHICLE_TYPE_ROTARY_WING, VehicleAttitude,
     VehicleGlobalPosition, VehicleLocalPosition, VehicleStatus, arming_state, nav_state,
 };
+use crate::autopilot::navigator::{BAT_CRIT_THR, BAT_EMERGEN_THR, BAT_LOW_THR};
 use crate::events::FlightMode;
-use crate::mavlink::telemetry::attitude_ned_frd;
+use crate::mavlink::telemetry::{attitude_ned_frd, enu_to_ned, unlocked_yaw};
 use crate::protocol::{DroneSnapshot, GnssDetail};
 use crate::vehicle::BatterySpec;
 
@@ -18,22 +19,10 @@ pub fn micros(time_s: f64) -> u64 {
     ((time_s * 1e6).round() as u64).max(1)
 }
 
-/// PX4's `nav_state` for a flight mode (the same mapping as HEARTBEAT's custom mode in
-/// `mavlink::px4_mode`: a drone idle on the ground is in AUTO.LOITER, as PX4 after boot).
-pub fn nav_state(mode: FlightMode) -> u8 {
-    match mode {
-        FlightMode::Idle | FlightMode::Hold => nav_state::AUTO_LOITER,
-        FlightMode::Takeoff => nav_state::AUTO_TAKEOFF,
-        FlightMode::Mission => nav_state::AUTO_MISSION,
-        FlightMode::Offboard => nav_state::OFFBOARD,
-        FlightMode::ReturnToLaunch => nav_state::AUTO_RTL,
-        FlightMode::Land => nav_state::AUTO_LAND,
-    }
-}
-
-/// ENU vector -> NED components.
+/// ENU vector -> NED components (`mavlink::telemetry::enu_to_ned`, on arrays).
 fn ned(v: [f64; 3]) -> [f64; 3] {
-    [v[1], v[0], -v[2]]
+    let n = enu_to_ned(&Vector3::from(v));
+    [n.x, n.y, n.z]
 }
 
 /// Body FLU -> ENU (w, x, y, z) as body FRD -> NED (w, x, y, z), w >= 0.
@@ -44,10 +33,10 @@ pub fn q_ned_frd(q_enu_flu_wxyz: [f64; 4]) -> [f64; 4] {
     [s * q.w, s * q.i, s * q.j, s * q.k]
 }
 
-/// Yaw of an FRD -> NED attitude: from north, clockwise, -pi..pi, rad.
+/// Yaw of an FRD -> NED attitude (w, x, y, z): from north, clockwise, -pi..pi, rad.
 fn heading_rad(q: [f64; 4]) -> f64 {
     let [w, x, y, z] = q;
-    (2.0 * (w * z + x * y)).atan2(1.0 - 2.0 * (y * y + z * z))
+    unlocked_yaw(&UnitQuaternion::new_unchecked(Quaternion::new(w, x, y, z)))
 }
 
 /// One drone's geometry for the conversions: the run's ENU frame and the drone's local
@@ -214,7 +203,7 @@ pub fn sensor_gps(t_us: u64, f: &DroneFrame, g: &GnssDetail) -> SensorGps {
 
 /// PX4's default battery thresholds (BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR), as
 /// fractions of the capacity left.
-const BATTERY_THRESHOLDS: [f64; 3] = [0.15, 0.07, 0.05];
+const BATTERY_THRESHOLDS: [f64; 3] = [BAT_LOW_THR, BAT_CRIT_THR, BAT_EMERGEN_THR];
 
 pub fn battery_status(t_us: u64, d: &DroneSnapshot, spec: Option<&BatterySpec>) -> BatteryStatus {
     let b = &d.detail;

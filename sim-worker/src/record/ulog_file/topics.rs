@@ -339,14 +339,7 @@ pub mod arming_state {
 }
 
 /// `vehicle_status.nav_state` values (`NAVIGATION_STATE_*`) of the modes we fly.
-pub mod nav_state {
-    pub const AUTO_MISSION: u8 = 3;
-    pub const AUTO_LOITER: u8 = 4;
-    pub const AUTO_RTL: u8 = 5;
-    pub const OFFBOARD: u8 = 14;
-    pub const AUTO_TAKEOFF: u8 = 17;
-    pub const AUTO_LAND: u8 = 18;
-}
+pub use crate::mavlink::px4_mode::nav_state;
 
 /// `vehicle_status.vehicle_type`: multicopter.
 pub const VEHICLE_TYPE_ROTARY_WING: u8 = 1;
