@@ -1,7 +1,13 @@
-//! The `sadesim` command line as a library: the commands (`cli`), the local runner that
-//! runs every role of a `SimulationRun` in one process or as child processes (`runner`),
-//! and the benchmarks (`bench`). `sadesim operator` runs the Kubernetes operator of the
-//! `sadesim-operator` crate.
+//! The `sadesim` command line as a library; the binary is flags and an exit code.
+//!
+//! - `cli`: the commands (`validate`, `plan`, `run`, `report`, `view`, `assets`, `archive`,
+//!   `gnss`, ...): flags and glue over the other crates;
+//! - `runner`: the local runner of `sadesim run`, every role of a `SimulationRun` in one
+//!   process (shards as threads) or as `sim-worker` child processes (`--processes`), and the
+//!   pilot's supervision;
+//! - `bench`: `sadesim bench`, drone-steps per second of the full per-drone stack.
+//!
+//! `sadesim operator` runs the Kubernetes operator of the `sadesim-operator` crate.
 
 pub mod bench;
 pub mod cli;

@@ -3,6 +3,14 @@
 //! It validates, numbers every drone, assigns MAVLink system ids and router segments,
 //! shards, ports and homes, hashes the asset inputs and estimates resources. Everything is
 //! deterministic: the same run always gives the same plan, byte for byte.
+//!
+//! The entry points are in this file: [`plan`] (builds the world itself), [`plan_with`]
+//! (with the files a mapped world names, read at the edge), [`plan_in`] (in a world already
+//! built or loaded) and [`asset_key`]. Its modules:
+//!
+//! - `ports`: the deterministic port plan (PX4 SITL conventions, router segments);
+//! - `resources`: the resource estimate per role instance (Kubernetes requests);
+//! - `fleet_file`: the fleet file a pilot reads, for the addressing of where it runs.
 
 mod fleet_file;
 mod ports;

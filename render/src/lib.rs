@@ -1,15 +1,23 @@
 //! SADE-SIM onboard cameras: RGB and depth frames of the world, rendered offscreen through a
 //! real GPU API (wgpu on Vulkan; Mesa's lavapipe on machines without a GPU).
 //!
-//! A pure library for the simulator's camera sensors (issue 18): the simulator builds a
-//! [`Scene`] from its [`sadesim_world::World`] once, a [`Renderer`] once per process, and at
-//! each camera's simulated instant calls [`Renderer::render`] with the [`CameraView`]s due
-//! (pose from the drone's state through [`CameraPose::from_body`] and the camera's
-//! [`Mount`]). The renderer reads no clock and keeps no state that changes a frame: the
-//! same scene and views give the same bytes on the same adapter.
+//! A pure library for the simulator's camera sensors (`sim_worker::cameras` renders every
+//! run's onboard cameras with it): the simulator builds a [`Scene`] from its
+//! [`sadesim_world::World`] once, a [`Renderer`] once per process, and at each camera's
+//! simulated instant calls [`Renderer::render`] with the [`CameraView`]s due (pose from the
+//! drone's state through [`CameraPose::from_body`] and the camera's [`Mount`]). The renderer
+//! reads no clock and keeps no state that changes a frame: the same scene and views give
+//! the same bytes on the same adapter.
 //!
-//! Frames, units and pixel convention are in [`camera`]; depth is defined on
-//! [`Frame::depth_m`].
+//! - [`camera`]: pinhole models, mounts, poses, projection and the calibration record
+//!   (frames, units and pixel convention);
+//! - [`scene`]: what the cameras see: the world's triangles and flat ground markers;
+//! - [`aruco`]: ArUco fiducials (OpenCV's `DICT_4X4_50`) for the markers;
+//! - [`tiles`]: view-frustum culling over 100 m tiles of the ground plane;
+//! - [`renderer`]: the GPU side (one wgpu device on Vulkan, offscreen targets, readback);
+//! - [`frame`]: one rendered frame and its encodings (PNG, JPEG, 16-bit depth); depth is
+//!   defined on [`Frame::depth_m`];
+//! - [`error`]: the renderer's one error type.
 //!
 //! ```no_run
 //! use sadesim_render::{CameraModel, CameraPose, CameraView, Mount, Renderer, Scene};

@@ -1,5 +1,6 @@
-//! The world as a pure library: ground, buildings and open areas around the run origin
-//! (procedural city), with the ground and line-of-sight queries every role reads.
+//! The world as a pure library: ground, buildings and open areas around the run origin (a
+//! procedural city, or real geometry from a map and an elevation model), with the ground and
+//! line-of-sight queries every role reads.
 //!
 //! No I/O and no physics-engine types: the planner, the shards (whose building contacts
 //! are [`World::ball_touches_building`]), the asset role and every test use the same
@@ -23,6 +24,7 @@
 //! - [`bundle`]: the world as bytes, saved once in the asset bundle and loaded by every role.
 //! - [`mesh`]: the world as triangle meshes (buildings, ground) for glTF, recordings, renderers.
 //! - [`osm`]: real buildings and open areas from an OpenStreetMap extract (`.osm.pbf` bytes).
+//! - [`protobuf`]: a minimal Protocol Buffers reader, for the OSM extract and recorded poses.
 
 mod building;
 pub mod bundle;

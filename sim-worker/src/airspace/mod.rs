@@ -7,8 +7,9 @@
 //!   leases, request, sim time).
 //! - [`service`]: the authority's HTTP/JSON API (axum), part of the coordinator role.
 //!   `docs/airspace-api.yaml` is its OpenAPI description.
-//! - [`load`]: a small blocking HTTP/1.1 client and the API's load generator
-//!   (`sadesim bench --airspace`).
+//! - [`runtime`]: the authority, the monitor and the API together around a run: the
+//!   coordinator's observer that merges their events into each window and writes
+//!   `airspace.json` at the end.
 //! - [`monitor`]: the compliance monitor on ground truth, every coordinator window
 //!   (100 Hz at the default 1 kHz physics and 10-step windows): zone entries and exits,
 //!   entries without a lease, constraint and altitude-limit breaches, separation.

@@ -2,12 +2,14 @@
 //! Chicago museum scenario over MAVLink and asking the airspace authority before entering
 //! its zone.
 //!
-//! - [`pilot::run`] is the whole program: fleet file and zones in, every drone flown;
+//! - [`pilot`]: [`pilot::run`] is the whole program: fleet file and zones in, every drone
+//!   flown;
 //! - [`plan`] decides once who flies where (hold points, watch points, spots, parks);
 //! - [`flight`] flies one drone through its task on its own thread, timed by the drone's
 //!   clock;
 //! - [`link`] is the MAVLink link to a drone, [`airspace`] and [`http`] the authority's
-//!   API, [`zones`] and [`geometry`] the zones on the run's local plane.
+//!   API, [`zones`] and [`geometry`] the zones on the run's local plane;
+//! - [`rng`] is the small seeded generator of the hobbyists' waypoints.
 
 pub mod airspace;
 pub mod flight;
