@@ -184,7 +184,7 @@ impl RunObserver for Conducting<'_> {
         self.caller.on_window(time_s, drones, events)
     }
 
-    fn stop_reason(&mut self) -> Option<String> {
+    fn stop_reason(&mut self) -> Option<crate::events::EndReason> {
         self.caller.stop_reason()
     }
 

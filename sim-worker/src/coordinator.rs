@@ -69,8 +69,7 @@ pub enum CoordinatorError {
     RunFailed(Box<RunFailure>),
 }
 
-/// `endReason` prefix of a run that a shard failure ended.
-pub const SHARD_FAILED: &str = "shardFailed";
+pub use sadesim_crds::outcome::ending::{EndReason, SHARD_FAILED};
 
 /// A run ended by a failed shard (its process died, its host went away, it reported
 /// `Failed` or broke the protocol). The coordinator ends such a run as cleanly as it can:
@@ -93,8 +92,8 @@ pub struct RunFailure {
 impl RunFailure {
     /// `shardFailed: shard 1 (10.77.0.3:40122) failed: connection closed`: the reason in
     /// `runEnded` and `endReason`, machine-matchable by its [`SHARD_FAILED`] prefix.
-    pub fn end_reason(&self) -> String {
-        format!("{SHARD_FAILED}: {}", self.describe())
+    pub fn end_reason(&self) -> EndReason {
+        EndReason::ShardFailed(self.describe())
     }
 
     fn describe(&self) -> String {
@@ -133,7 +132,7 @@ pub trait RunObserver {
         None
     }
     /// Asked after each window: `Some(reason)` ends the run (e.g. the pilot exited).
-    fn stop_reason(&mut self) -> Option<String> {
+    fn stop_reason(&mut self) -> Option<EndReason> {
         None
     }
     /// The clock started at `started`: in a paced run (realtime, scaled), simulated time
@@ -147,8 +146,9 @@ pub trait RunObserver {
 /// How a run ended.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunOutcome {
-    /// `duration`, `interrupted`, or the observer's reason.
-    pub reason: String,
+    /// [`EndReason::Duration`], [`EndReason::Interrupted`], the observer's reason, or
+    /// [`EndReason::ShardFailed`] inside a [`RunFailure`].
+    pub reason: EndReason,
     pub sim_time_s: f64,
     pub wall_time: Duration,
     /// Sim time when pilots were released.
@@ -194,7 +194,7 @@ pub fn run(
         peer: links.get(shard as usize).and_then(|l| l.peer()),
         cause,
         outcome: RunOutcome {
-            reason: String::new(),
+            reason: EndReason::Duration,
             sim_time_s,
             wall_time: started.elapsed(),
             released_at_s: state.released_at_s,
@@ -257,7 +257,7 @@ fn run_inner(
     observer: &mut dyn RunObserver,
     stop: &AtomicBool,
     state: &mut LoopState,
-) -> Result<String, CoordinatorError> {
+) -> Result<EndReason, CoordinatorError> {
     for (i, link) in links.iter_mut().enumerate() {
         match link.recv().map_err(|source| CoordinatorError::Link { shard: i, source })? {
             FromShard::Hello { version, .. } if version == PROTOCOL_VERSION => {}
@@ -283,7 +283,7 @@ fn run_inner(
 
     loop {
         if stop.load(Ordering::Relaxed) {
-            return Ok("interrupted".to_string());
+            return Ok(EndReason::Interrupted);
         }
         let step = state.step;
         let until = (step + window).min(total_steps);
@@ -324,7 +324,7 @@ fn run_inner(
         let time_s = until as f64 * dt_s;
         observer.on_window(time_s, &state.drones, &events).map_err(CoordinatorError::Observer)?;
         if until >= total_steps {
-            return Ok("duration".to_string());
+            return Ok(EndReason::Duration);
         }
         if let Some(reason) = observer.stop_reason() {
             return Ok(reason);

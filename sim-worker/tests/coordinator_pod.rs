@@ -11,6 +11,7 @@ use std::process::{Child, ChildStdout, Command, ExitStatus, Stdio};
 
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::outcome::coordinator::{Report, UPLOAD_FAILED_EXIT};
+use sadesim_crds::outcome::ending::EndReason;
 use sadesim_crds::outcome::run_folder;
 use sadesim_crds::outcome::summary::RunSummary;
 use sadesim_crds::plan::RunPlan;
@@ -135,7 +136,7 @@ fn the_coordinator_pod_reports_and_archives_its_run_folder() {
     let status = Pod::start(&plan_file, &plan, &out, &format!("file://{}", archive.display())).wait();
     assert!(status.success(), "{status}");
     let summary = check_archived(&archive, &out);
-    assert_eq!(summary.end_reason, "duration");
+    assert_eq!(summary.end_reason, EndReason::Duration);
     // The plan is the one the Pod was given, byte for byte.
     assert_eq!(std::fs::read(out.join(run_folder::PLAN)).unwrap(), std::fs::read(&plan_file).unwrap());
     std::fs::remove_dir_all(&dir).unwrap();
@@ -167,7 +168,7 @@ fn sigterm_ends_the_run_and_the_folder_is_still_archived() {
     let status = pod.wait();
     assert!(status.success(), "{status}");
     let summary = check_archived(&archive, &out);
-    assert_eq!(summary.end_reason, "interrupted");
+    assert_eq!(summary.end_reason, EndReason::Interrupted);
     assert!(summary.sim_time_s < 60.0, "the run went on after SIGTERM: {}", summary.sim_time_s);
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -193,7 +194,7 @@ fn sigterm_ends_a_shard_at_once_and_the_coordinator_fails_the_run_naming_it() {
     let status = pod.coordinator.wait().unwrap();
     assert!(!status.success(), "{status}");
     let summary = check_archived(&archive, &out);
-    assert!(summary.end_reason.starts_with("shardFailed"), "{}", summary.end_reason);
+    assert!(matches!(summary.end_reason, EndReason::ShardFailed(_)), "{:?}", summary.end_reason);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -17,6 +17,7 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::Credential;
 use sadesim_crds::fleet_file::FleetFile;
+use sadesim_crds::outcome::ending::EndReason;
 use sadesim_crds::run::{Clock, ClockMode, EnvVar, Pilot, PilotExit};
 use sadesim_integration_tests::{mavlink_ports, plan};
 
@@ -102,7 +103,7 @@ fn pilot_exit_ends_the_run(processes: bool) {
     let (s, out) = (&report.summary, &report.out_dir);
 
     // The run ended because the pilot exited, long before its 10 minutes.
-    assert_eq!(s.end_reason, "pilotExited");
+    assert_eq!(s.end_reason, EndReason::PilotExited);
     assert!(s.sim_time_s < 600.0, "{}", s.sim_time_s);
     assert!(read(&out.join("events.jsonl")).trim_end().ends_with(r#""event":"runEnded","reason":"pilotExited"}"#));
     let p = pilot_json(out);
@@ -166,7 +167,7 @@ fn fleet_file_names_the_airspace_api_where_it_answers(processes: bool) {
     // Held by this test, or by another program already: taken either way.
     let _held = std::net::TcpListener::bind(("127.0.0.1", planned));
     let report = run(&r, &options(&root, processes)).unwrap();
-    assert_eq!(report.summary.end_reason, "pilotExited");
+    assert_eq!(report.summary.end_reason, EndReason::PilotExited);
     let seen = read(&report.out_dir.join("seen-airspace"));
     let lines: Vec<&str> = seen.lines().collect();
     assert!(lines[0].starts_with("HTTP/1.") && lines[0].ends_with(" 200 OK"), "{seen}");
@@ -191,7 +192,7 @@ fn with_on_exit_continue_the_run_goes_on_to_its_duration() {
     let mut r = scenario(&["sh", "-c", "exit 0"], "20s", scaled(20.0));
     r.spec.pilot.as_mut().unwrap().on_exit = Some(PilotExit::Continue);
     let report = run(&r, &options(&root, false)).unwrap();
-    assert_eq!((report.summary.end_reason.as_str(), report.summary.sim_time_s), ("duration", 20.0));
+    assert_eq!((&report.summary.end_reason, report.summary.sim_time_s), (&EndReason::Duration, 20.0));
     let p = pilot_json(&report.out_dir);
     assert_eq!((p.exit_code, p.stopped_by_runner, p.on_exit), (Some(0), false, PilotExit::Continue), "{p:?}");
     assert!(p.exited_at_s.unwrap() < 20.0, "{p:?}");
@@ -207,7 +208,7 @@ fn a_pilot_still_running_at_the_end_is_stopped_with_what_it_started() {
     let wall = Instant::now();
     let report = run(&r, &options(&root, false)).unwrap();
     assert!(wall.elapsed() < Duration::from_secs(30), "the run waited for the pilot: {:?}", wall.elapsed());
-    assert_eq!(report.summary.end_reason, "duration");
+    assert_eq!(report.summary.end_reason, EndReason::Duration);
     let p = pilot_json(&report.out_dir);
     assert_eq!((p.exit_code, p.signal, p.stopped_by_runner), (None, Some(15), true), "SIGTERM sufficed: {p:?}");
     assert_eq!(p.exited_at_s, Some(5.0));
@@ -235,7 +236,7 @@ fn no_pilot_leaves_the_pilot_to_the_user_and_still_writes_the_fleet_file() {
     let root = root("no-pilot");
     let r = scenario(&["sh", "-c", r#"touch "$SADESIM_OUT/started"; exit 0"#], "3s", afap());
     let report = run(&r, &RunOptions { start_pilot: false, ..options(&root, false) }).unwrap();
-    assert_eq!((report.summary.end_reason.as_str(), report.summary.sim_time_s), ("duration", 3.0));
+    assert_eq!((&report.summary.end_reason, report.summary.sim_time_s), (&EndReason::Duration, 3.0));
     assert!(report.pilot.is_none());
     for absent in ["started", "pilot.json", "pilot.log"] {
         assert!(!report.out_dir.join(absent).exists(), "{absent}");
@@ -264,7 +265,7 @@ fn a_group_without_a_mission_is_left_to_the_pilot_with_mavlink_on() {
     r.spec.duration = "10m".parse().unwrap();
     r.spec.clock = Some(afap());
     let report = run(&r, &RunOptions { mavlink: true, ..options(&root, false) }).unwrap();
-    assert_eq!(report.summary.end_reason, "pilotExited");
+    assert_eq!(report.summary.end_reason, EndReason::PilotExited);
     let fleet: FleetFile = serde_json::from_str(&read(&report.out_dir.join("fleet.json"))).unwrap();
     assert!(!fleet.drones[0].scripted);
     // Nobody flew it: the pilot exited without a word.

@@ -10,6 +10,7 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::{Area, HomePlacement};
 use sadesim_crds::geo::{Enu, LocalFrame};
+use sadesim_crds::outcome::ending::EndReason;
 use sadesim_crds::run::{Clock, ClockMode};
 use sadesim_integration_tests::{fly_to_and_land, plan, world};
 
@@ -76,7 +77,7 @@ fn same_scenario_and_seed_give_identical_recordings() {
     let root = out_root("determinism");
     let a = run(&scenario(3, 100), &root.join("a"), false).unwrap();
     let b = run(&scenario(3, 100), &root.join("b"), false).unwrap();
-    assert_eq!(a.summary.end_reason, "duration");
+    assert_eq!(a.summary.end_reason, EndReason::Duration);
     for file in ["trajectory.csv", "events.jsonl", "trajectory.geojson", "plan.json"] {
         assert_same(&bytes(&a.out_dir, file), &bytes(&b.out_dir, file), file);
     }
@@ -253,7 +254,7 @@ fn flying_into_a_building_is_a_crash_event_and_the_run_goes_on() {
     let events = bytes(&report.out_dir, "events.jsonl");
     assert!(events.contains(r#""event":"crashed","with":"building""#), "{events}");
     assert_eq!(report.summary.crashed, 2, "both drones flew the same route into the tower");
-    assert_eq!(report.summary.end_reason, "duration");
+    assert_eq!(report.summary.end_reason, EndReason::Duration);
     std::fs::remove_dir_all(&root).unwrap();
 }
 

@@ -3,6 +3,7 @@
 use std::io::Write;
 use std::path::Path;
 
+use sadesim_crds::outcome::ending::EndReason;
 use sadesim_planner as planner;
 
 use super::scenario::{load_one, report_problems};
@@ -76,7 +77,7 @@ pub(super) fn run_file(
                 }
                 _ => false,
             };
-            if s.end_reason == "interrupted" {
+            if s.end_reason == EndReason::Interrupted {
                 return Ok(Outcome::Interrupted);
             }
             Ok(if failed { Outcome::Problems } else { Outcome::Success })

@@ -20,7 +20,7 @@ use sadesim_world::World;
 use sim_worker::airspace::runtime::Airspace;
 use sim_worker::conduct::{ConductError, Watchers, conduct};
 use sim_worker::coordinator::{CoordinatorError, ObserverError, RunObserver, ShardLink};
-use sim_worker::events::{Event, EventKind};
+use sim_worker::events::{EndReason, Event, EventKind};
 use sim_worker::mavlink::router::RouterHandle;
 use sim_worker::mavlink::signing::SecretKey;
 use sim_worker::protocol::{DroneSnapshot, FleetCounts};
@@ -339,11 +339,11 @@ impl RunObserver for Progress<'_> {
         Ok(())
     }
 
-    fn stop_reason(&mut self) -> Option<String> {
+    fn stop_reason(&mut self) -> Option<EndReason> {
         if self.pilot_error.is_some() {
-            Some(pilot::PILOT_FAILED.into())
+            Some(EndReason::PilotFailed)
         } else if self.pilot_exited {
-            Some(pilot::PILOT_EXITED.into())
+            Some(EndReason::PilotExited)
         } else {
             None
         }

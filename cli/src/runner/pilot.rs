@@ -27,7 +27,6 @@ use sadesim_crds::run::{Pilot, PilotExit};
 
 use sadesim_planner::credential_env_var;
 
-pub use sadesim_crds::outcome::control::{PILOT_EXITED, PILOT_FAILED};
 pub use sadesim_crds::outcome::pilot::PilotRecord;
 
 /// The fleet file in the output folder (path in `SADESIM_FLEET`).

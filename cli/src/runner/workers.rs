@@ -12,12 +12,13 @@ use std::time::{Duration, Instant};
 use indicatif::ProgressBar;
 use sadesim_crds::ground_stations::SIGNING_KEY_ENV;
 use sadesim_crds::plan::RunPlan;
+use sim_worker::events::EndReason;
 use sim_worker::record::RunSummary;
 use sim_worker::roles::control::Control;
 use sim_worker::roles::coordinator::Report;
 
 use super::RunError;
-use super::pilot::{self, PilotError, Supervisor};
+use super::pilot::{PilotError, Supervisor};
 
 /// The `sim-worker` binary: the option, `$SADESIM_WORKER`, else next to this executable.
 fn worker_binary(configured: Option<&Path>) -> Result<PathBuf, RunError> {
@@ -237,15 +238,15 @@ pub(super) fn run(
         // after its current window, with that reason.
         let exited = pilot.as_deref_mut().is_some_and(Supervisor::poll);
         let reason = if pilot_error.is_some() {
-            Some(pilot::PILOT_FAILED)
+            Some(EndReason::PilotFailed)
         } else if exited {
-            Some(pilot::PILOT_EXITED)
+            Some(EndReason::PilotExited)
         } else {
             None
         };
         if let (Some(reason), Some(stdin), false) = (reason, control.as_mut(), stop_sent) {
             stop_sent = true;
-            let mut line = serde_json::to_vec(&Control::Stop { reason: reason.into() }).expect("serializable");
+            let mut line = serde_json::to_vec(&Control::Stop { reason }).expect("serializable");
             line.push(b'\n');
             // A coordinator that already finished has closed its stdin: nothing to stop.
             let _ = stdin.write_all(&line).and_then(|()| stdin.flush());

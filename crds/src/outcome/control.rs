@@ -1,8 +1,10 @@
 //! Requests to end a running coordinator's run early, from outside its process: the stdin
-//! line (`sadesim run --processes`) and the Pod annotation (Kubernetes), with the end
-//! reasons the runners use. The polling and parsing live with the coordinator role.
+//! line (`sadesim run --processes`) and the Pod annotation (Kubernetes), each carrying an
+//! [`EndReason`]. The polling and parsing live with the coordinator role.
 
 use serde::{Deserialize, Serialize};
+
+use super::ending::EndReason;
 
 /// Pod annotation whose value is the reason to end the run (e.g. `pilotExited`).
 pub const STOP_ANNOTATION: &str = "sadesim.io/stop";
@@ -12,11 +14,5 @@ pub const STOP_ANNOTATION: &str = "sadesim.io/stop";
 #[serde(tag = "type", rename_all = "camelCase", rename_all_fields = "camelCase")]
 pub enum Control {
     /// End the run after the current window with this reason (e.g. `pilotExited`).
-    Stop { reason: String },
+    Stop { reason: EndReason },
 }
-
-/// The run's end reason when the pilot exits and `spec.pilot.onExit` is `endRun`.
-pub const PILOT_EXITED: &str = "pilotExited";
-
-/// The run's end reason when the pilot could not be started (the run then fails).
-pub const PILOT_FAILED: &str = "pilotFailed";

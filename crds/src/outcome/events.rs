@@ -3,6 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::ending::{CrashCause, EndReason};
+
 /// Flight mode of the built-in autopilot, named as PX4 users know them.
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 #[serde(rename_all = "camelCase")]
@@ -51,9 +53,9 @@ pub enum EventKind {
     },
     /// Pilots released (all drones ready, as in the paper).
     PilotsReleased,
-    /// The run ended at `reason` (duration, pilotExited, aborted, failed).
+    /// The run ended, for `reason`.
     RunEnded {
-        reason: String,
+        reason: EndReason,
     },
     Armed,
     Disarmed,
@@ -63,7 +65,7 @@ pub enum EventKind {
     Landed,
     /// Hit a building or the ground too hard; the drone stops.
     Crashed {
-        with: String,
+        with: CrashCause,
         speed_mps: f64,
     },
     ModeChanged {

@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::ending::EndReason;
 use super::verdict::RunVerdict;
 
 /// Per-drone outcome.
@@ -95,7 +96,7 @@ impl ErrorStats {
 #[serde(rename_all = "camelCase")]
 pub struct RunSummary {
     pub run: String,
-    pub end_reason: String,
+    pub end_reason: EndReason,
     pub sim_time_s: f64,
     pub wall_time_s: f64,
     /// Simulated seconds per wall second over the whole run.

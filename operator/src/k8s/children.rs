@@ -40,6 +40,7 @@ use k8s_openapi::api::batch::v1::Job;
 use k8s_openapi::api::core::v1::{ConfigMap, Pod, Service};
 use k8s_openapi::api::networking::v1::NetworkPolicy;
 use sadesim_crds::SimulationRun;
+use sadesim_crds::outcome::ending::EndReason;
 use sadesim_crds::plan::RunPlan;
 use serde::Serialize;
 
@@ -211,7 +212,7 @@ impl Default for ClusterSettings {
 }
 
 /// Which optional children exist at this point of the run's life.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Stage {
     /// The asset cache misses: create the assets Job.
     pub assets_job: bool,
@@ -220,7 +221,7 @@ pub struct Stage {
     /// Ask the coordinator to end the run with this reason (e.g. `pilotExited`): the
     /// coordinator Pod carries the annotation [`STOP_ANNOTATION`], which it reads through a
     /// downward-API file.
-    pub stop: Option<&'static str>,
+    pub stop: Option<EndReason>,
 }
 
 impl Stage {
@@ -530,7 +531,7 @@ fn children_in(ctx: &pod::Context, stage: Stage) -> Vec<Child> {
         out.push(Child::Job(job));
     }
     out.push(Child::Service(workers::airspace_service(ctx)));
-    out.push(Child::Pod(workers::coordinator_pod(ctx, stage.stop)));
+    out.push(Child::Pod(workers::coordinator_pod(ctx, stage.stop.as_ref())));
     for segment in &plan.segments {
         out.push(Child::Service(workers::mavlink_service(ctx, segment)));
         out.push(Child::Pod(workers::router_pod(ctx, segment)));

@@ -204,7 +204,7 @@ impl RunObserver for WithAirspace<'_> {
         self.airspace.leases_changed()
     }
 
-    fn stop_reason(&mut self) -> Option<String> {
+    fn stop_reason(&mut self) -> Option<crate::events::EndReason> {
         self.inner.stop_reason()
     }
 

@@ -111,7 +111,11 @@ fn a_shard_that_disappears_ends_the_run_at_the_last_complete_window() {
     );
     // Three windows of 10 steps at 1 kHz completed.
     assert_eq!(failure.outcome.sim_time_s, 0.03);
-    assert_eq!(failure.outcome.reason, "shardFailed: shard 1 (10.0.0.3:4000) failed: connection closed");
+    assert_eq!(
+        failure.outcome.reason,
+        EndReason::ShardFailed("shard 1 (10.0.0.3:4000) failed: connection closed".into())
+    );
+    assert_eq!(failure.outcome.reason.to_string(), "shardFailed: shard 1 (10.0.0.3:4000) failed: connection closed");
     assert_eq!(
         failure.to_string(),
         "shard 1 (10.0.0.3:4000) failed: connection closed (the run ended at 0.03 s of simulated time)"
@@ -133,7 +137,8 @@ fn a_shard_reporting_failure_is_named_with_its_reason() {
     let (result, _) = run_two(Then::Report("out of memory"), 1, &mut windows);
     let Err(CoordinatorError::RunFailed(failure)) = result else { panic!("expected RunFailed, got {result:?}") };
     assert_eq!(failure.cause, "it reported: out of memory");
-    assert!(failure.outcome.reason.starts_with("shardFailed: shard 1 (10.0.0.3:4000)"), "{}", failure.outcome.reason);
+    let EndReason::ShardFailed(what) = &failure.outcome.reason else { panic!("{:?}", failure.outcome.reason) };
+    assert!(what.starts_with("shard 1 (10.0.0.3:4000)"), "{what}");
 }
 
 #[test]
@@ -150,7 +155,7 @@ fn a_run_without_failures_still_ends_with_duration() {
     let mut windows = Windows::default();
     let (result, sent) = run_two(Then::Answer, 0, &mut windows);
     let outcome = result.unwrap();
-    assert_eq!((outcome.reason.as_str(), outcome.sim_time_s), ("duration", 1.0));
+    assert_eq!((&outcome.reason, outcome.sim_time_s), (&EndReason::Duration, 1.0));
     assert_eq!(windows.0.last().unwrap().1[0].kind, EventKind::RunEnded { reason: "duration".into() });
     assert_eq!(sent.last(), Some(&ToShard::Stop));
 }

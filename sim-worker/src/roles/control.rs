@@ -19,6 +19,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 pub use sadesim_crds::outcome::control::{Control, STOP_ANNOTATION};
+use sadesim_crds::outcome::ending::EndReason;
 
 /// How often the annotations file is read. The kubelet's own refresh takes longer.
 pub const POLL_PERIOD: Duration = Duration::from_millis(250);
@@ -30,7 +31,7 @@ pub struct StopRequest(Arc<Mutex<Slot>>);
 
 #[derive(Debug, Default)]
 struct Slot {
-    reason: Option<String>,
+    reason: Option<EndReason>,
     /// A request arrived once (taken or not): later ones change nothing.
     requested: bool,
 }
@@ -41,7 +42,7 @@ impl StopRequest {
     }
 
     /// Asks to end the run with `reason`, unless a request came first.
-    pub fn request(&self, reason: impl Into<String>) {
+    pub fn request(&self, reason: impl Into<EndReason>) {
         if let Ok(mut slot) = self.0.lock()
             && !slot.requested
         {
@@ -51,7 +52,7 @@ impl StopRequest {
     }
 
     /// The request, once: the run loop ends the run with it.
-    pub fn take(&self) -> Option<String> {
+    pub fn take(&self) -> Option<EndReason> {
         self.0.lock().ok()?.reason.take()
     }
 
@@ -115,7 +116,7 @@ impl StopRequest {
 /// The kubelet writes one `key="value"` line per annotation, sorted, the value quoted as
 /// Go's `%q` does. A reason is 1 to 64 ASCII letters, digits or `-_.:` (it becomes
 /// `endReason` in `summary.json`).
-pub fn stop_reason(annotations: &str) -> Option<Result<String, String>> {
+pub fn stop_reason(annotations: &str) -> Option<Result<EndReason, String>> {
     let prefix = format!("{STOP_ANNOTATION}=");
     let quoted = annotations.lines().find_map(|line| line.strip_prefix(&prefix))?;
     let refuse = |why: &str| Err(format!("annotation {STOP_ANNOTATION}={quoted}: {why}; the run goes on"));
@@ -125,7 +126,11 @@ pub fn stop_reason(annotations: &str) -> Option<Result<String, String>> {
     let valid = !value.is_empty()
         && value.len() <= 64
         && value.chars().all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.' | ':'));
-    Some(if valid { Ok(value) } else { refuse("expected 1 to 64 ASCII letters, digits or -_.:") })
+    Some(if valid {
+        Ok(EndReason::from(value.as_str()))
+    } else {
+        refuse("expected 1 to 64 ASCII letters, digits or -_.:")
+    })
 }
 
 /// A Go `%q` string: `"..."` with `\"`, `\\`, `\n`, `\t` and `\r` escapes (a reason needs
@@ -162,7 +167,7 @@ mod tests {
 
     #[test]
     fn the_stop_annotation_is_read_among_the_others() {
-        assert_eq!(stop_reason(ANNOTATIONS), Some(Ok("pilotExited".into())));
+        assert_eq!(stop_reason(ANNOTATIONS), Some(Ok(EndReason::PilotExited)));
         assert_eq!(stop_reason("team=\"drones\"\nkubernetes.io/config.source=\"api\""), None);
         assert_eq!(stop_reason(""), None);
         // Another annotation whose name ends the same way is not ours.
@@ -188,11 +193,16 @@ mod tests {
     fn the_first_request_wins_and_is_taken_once() {
         let stop = StopRequest::new();
         assert_eq!(stop.take(), None);
-        stop.request("pilotExited");
-        stop.request("aborted");
-        assert_eq!(stop.take().as_deref(), Some("pilotExited"));
+        stop.request(EndReason::PilotExited);
+        stop.request(EndReason::Aborted);
+        assert_eq!(stop.take(), Some(EndReason::PilotExited));
         assert_eq!(stop.take(), None);
         stop.request("again");
+        // A reason of the requester's own is kept as given.
+        assert_eq!(
+            stop_reason("sadesim.io/stop=\"operatorSaidSo\""),
+            Some(Ok(EndReason::Requested("operatorSaidSo".into())))
+        );
         assert_eq!(stop.take(), None, "a request after the first changes nothing");
     }
 
@@ -214,7 +224,7 @@ mod tests {
             }
             std::thread::sleep(POLL_PERIOD / 2);
         }
-        assert_eq!(reason.as_deref(), Some("pilotExited"));
+        assert_eq!(reason, Some(EndReason::PilotExited));
     }
 
     #[test]

@@ -66,7 +66,7 @@ impl RunObserver for Reporting {
         Ok(())
     }
 
-    fn stop_reason(&mut self) -> Option<String> {
+    fn stop_reason(&mut self) -> Option<crate::events::EndReason> {
         self.stop_request.take()
     }
 }

@@ -14,7 +14,7 @@ use crate::autopilot::geofence::Geofence;
 use crate::autopilot::mission::MissionPlan;
 use crate::autopilot::navigator::{Command, NavigatorConfig, Rejection};
 use crate::env::{EnvSample, SampleContext};
-use crate::events::{EventKind, FlightMode};
+use crate::events::{CrashCause, EventKind, FlightMode};
 use crate::mavlink::session::{Outgoing, Session, Vehicle};
 use crate::mavlink::telemetry::{BatteryView, MissionProgress, PositionEstimate, VehicleView};
 use crate::pilot::ScriptedPilot;
@@ -390,7 +390,7 @@ impl DroneSim {
         self.height_agl_m = contact.height_agl_m;
         self.on_ground = contact.on_ground;
         if let Some(speed_mps) = contact.crash_speed_mps {
-            self.crash("ground", speed_mps);
+            self.crash(CrashCause::Ground, speed_mps);
         }
     }
 
@@ -400,7 +400,7 @@ impl DroneSim {
     }
 
     /// Stops the drone where it is: motors off, nothing simulated any more.
-    pub fn crash(&mut self, with: &str, speed_mps: f64) {
+    pub fn crash(&mut self, with: CrashCause, speed_mps: f64) {
         if self.crashed {
             return;
         }
@@ -408,7 +408,7 @@ impl DroneSim {
         for m in &mut self.motors {
             m.set_omega(0.0);
         }
-        self.events.push(EventKind::Crashed { with: with.into(), speed_mps });
+        self.events.push(EventKind::Crashed { with, speed_mps });
     }
 
     pub fn speed_mps(&self) -> f64 {

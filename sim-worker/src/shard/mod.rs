@@ -22,7 +22,7 @@ use sadesim_crds::plan::RunPlan;
 
 use crate::airspace::volume::ZoneVolume;
 use crate::env::{EnvSample, Environment};
-use crate::events::Event;
+use crate::events::{CrashCause, Event};
 use crate::pilot::scripted::{self, GroundHeight};
 use crate::protocol::{FromShard, PROTOCOL_VERSION, ToShard};
 use crate::sensors::SensorSuite;
@@ -312,7 +312,7 @@ impl Shard {
                     // drone-drone contact is judged on the merged snapshot, DESIGN §5).
                     if !drone.is_crashed() && drone.touches_building(&self.world) {
                         let speed = drone.speed_mps();
-                        drone.crash("building", speed);
+                        drone.crash(CrashCause::Building, speed);
                     }
                 }
                 // Times are step counts times dt, never sums, so they print the same

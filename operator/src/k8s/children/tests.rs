@@ -518,7 +518,7 @@ fn a_stop_is_an_annotation_the_coordinator_reads_through_a_downward_api_file() {
             .expect("a coordinator pod")
     };
     let running = pod_of(None);
-    let stopping = pod_of(Some("pilotExited"));
+    let stopping = pod_of(Some(EndReason::PilotExited));
     assert_eq!(running.metadata.annotations, None);
     assert_eq!(stopping.metadata.annotations, Some([(STOP_ANNOTATION.to_string(), "pilotExited".to_string())].into()));
     assert_eq!(running.spec, stopping.spec, "the spec of a running Pod cannot change");

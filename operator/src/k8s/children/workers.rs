@@ -13,6 +13,7 @@ use k8s_openapi::api::core::v1::{
 };
 use k8s_openapi::apimachinery::pkg::apis::meta::v1::LabelSelector;
 use k8s_openapi::apimachinery::pkg::util::intstr::IntOrString;
+use sadesim_crds::outcome::ending::EndReason;
 use sadesim_crds::plan::{RoleResources, RouterSegment};
 
 use super::pod::{
@@ -180,7 +181,7 @@ fn coordinator_args(ctx: &Context) -> Vec<String> {
 /// reads its annotations from a downward-API file ([`CONTROL_FILE`]) and ends the run after
 /// the current window with that reason. An annotation is the one thing of a running Pod the
 /// operator may change, so the same server-side apply that created the Pod asks it to stop.
-pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&str>) -> Pod {
+pub(super) fn coordinator_pod(ctx: &Context, stop: Option<&EndReason>) -> Pod {
     let command = strings(&[SIM_WORKER]);
     let mut c =
         worker_container(ctx, Role::Coordinator, command, coordinator_args(ctx), ctx.plan.resources.coordinator);

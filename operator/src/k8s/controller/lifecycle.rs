@@ -25,6 +25,7 @@ use k8s_openapi::apimachinery::pkg::apis::meta::v1::{Condition, Time};
 use k8s_openapi::jiff::Timestamp;
 use sadesim_crds::SimulationRun;
 use sadesim_crds::outcome::assets::AssetsOutcome;
+use sadesim_crds::outcome::ending::EndReason;
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::run::PilotExit;
 use sadesim_crds::status::{Endpoints, Phase, ShardStatus, SimulationRunStatus, condition_types as ct};
@@ -51,45 +52,73 @@ pub const COORDINATOR_GRACE_S: i64 = 120;
 /// run on request (the stop annotation) before the shards are deleted under it, seconds.
 pub const STOP_GRACE_S: i64 = 60;
 
-/// The `endReason` the coordinator is asked to end the run with (the stop annotation's
-/// value), by how the run ended.
-pub mod stop_reason {
-    /// `spec.abort: true`.
-    pub const ABORTED: &str = "aborted";
-    /// The SimulationRun was deleted.
-    pub const DELETED: &str = "deleted";
-    /// Another role (a router, the pilot's image) failed.
-    pub const ROLE_FAILED: &str = "roleFailed";
-    /// The spec no longer plans.
-    pub const INVALID: &str = "invalidSpec";
-    /// Kueue evicted the run's Workload.
-    pub const EVICTED: &str = "evicted";
-}
-
 /// Requeue periods: polls while children move (they also wake the controller by watch).
 const REQUEUE_QUEUED: Duration = Duration::from_secs(15);
 const REQUEUE_ACTIVE: Duration = Duration::from_secs(5);
 const REQUEUE_RUNNING: Duration = Duration::from_secs(10);
 const REQUEUE_ARCHIVING: Duration = Duration::from_secs(2);
 
-/// The reasons the Running condition ends with; the final phase follows from it.
-pub mod outcome {
+/// How a run's Running condition ends (the condition's reason); the final phase follows
+/// from it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RunEnd {
     /// The coordinator finished the run: the verdict decides Succeeded or Failed.
-    pub const FINISHED: &str = "Finished";
+    Finished,
     /// A role failed (the paper's rule: any role failing fails the run).
-    pub const ROLE_FAILED: &str = "RoleFailed";
+    RoleFailed,
     /// The spec no longer plans (the CEL rule normally refuses such an update).
-    pub const INVALID: &str = "InvalidSpec";
+    InvalidSpec,
     /// `spec.abort: true`.
-    pub const ABORTED: &str = "Aborted";
+    Aborted,
     /// The run was deleted before it ended.
-    pub const DELETED: &str = "Deleted";
+    Deleted,
     /// Kueue evicted the run's Workload (preemption, deactivation, a time limit).
-    pub const EVICTED: &str = "Evicted";
-    /// Not an end: the pilot Job ended while the run is Running (the Running condition
-    /// stays True with this reason until the coordinator's summary arrives).
-    pub const PILOT_EXITED: &str = "PilotExited";
+    Evicted,
 }
+
+impl RunEnd {
+    const ALL: [RunEnd; 6] =
+        [RunEnd::Finished, RunEnd::RoleFailed, RunEnd::InvalidSpec, RunEnd::Aborted, RunEnd::Deleted, RunEnd::Evicted];
+
+    /// The Running condition's reason (and the Event's, for a warning).
+    pub fn reason(self) -> &'static str {
+        match self {
+            RunEnd::Finished => "Finished",
+            RunEnd::RoleFailed => "RoleFailed",
+            RunEnd::InvalidSpec => "InvalidSpec",
+            RunEnd::Aborted => "Aborted",
+            RunEnd::Deleted => "Deleted",
+            RunEnd::Evicted => "Evicted",
+        }
+    }
+
+    /// The end a Running condition's reason names (`None` while the run goes on).
+    pub fn of_reason(reason: &str) -> Option<RunEnd> {
+        Self::ALL.into_iter().find(|end| end.reason() == reason)
+    }
+
+    /// The `endReason` a coordinator still running is asked to end the run with (the stop
+    /// annotation's value); `None` when the coordinator ended the run itself.
+    pub fn stop_reason(self) -> Option<EndReason> {
+        match self {
+            RunEnd::Finished => None,
+            RunEnd::RoleFailed => Some(EndReason::RoleFailed),
+            RunEnd::InvalidSpec => Some(EndReason::InvalidSpec),
+            RunEnd::Aborted => Some(EndReason::Aborted),
+            RunEnd::Deleted => Some(EndReason::Deleted),
+            RunEnd::Evicted => Some(EndReason::Evicted),
+        }
+    }
+
+    /// Ends that fail the run for a reason outside it, recorded as a Warning Event.
+    fn warns(self) -> bool {
+        matches!(self, RunEnd::RoleFailed | RunEnd::InvalidSpec | RunEnd::Evicted)
+    }
+}
+
+/// The Running condition's reason while the run goes on after the pilot Job ended (it stays
+/// True with this reason until the coordinator's summary arrives); not an end.
+pub const PILOT_EXITED: &str = "PilotExited";
 
 /// A simulated time seen at a wall-clock time: the base of the real-time factor.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -297,14 +326,21 @@ pub fn decide(input: &Input) -> Decision {
             return d;
         }
         if !children_may_exist(&prev, input.observed) {
-            d.condition(ct::RUNNING, false, outcome::DELETED, "the run was deleted before it started", now, generation);
+            d.condition(
+                ct::RUNNING,
+                false,
+                RunEnd::Deleted.reason(),
+                "the run was deleted before it started",
+                now,
+                generation,
+            );
             d.enter(Phase::Aborted, "the run was deleted before it started");
             d.status.completion_time = Some(Time(now));
             d.remove_finalizer = true;
             return d;
         }
         if prev_phase != Phase::Archiving {
-            end(&mut d, input, outcome::DELETED, "the run was deleted: stopping it and archiving its evidence");
+            end(&mut d, input, RunEnd::Deleted, "the run was deleted: stopping it and archiving its evidence");
         }
         archive_step(&mut d, input);
         d.remove_finalizer = d.phase().is_terminal();
@@ -344,7 +380,7 @@ pub fn decide(input: &Input) -> Decision {
         }
         (Err(message), _) => {
             d.condition(ct::VALID, false, "InvalidSpec", message.clone(), now, generation);
-            end(&mut d, input, outcome::INVALID, format!("the spec no longer plans: {message}"));
+            end(&mut d, input, RunEnd::InvalidSpec, format!("the spec no longer plans: {message}"));
             archive_step(&mut d, input);
             return d;
         }
@@ -373,7 +409,7 @@ pub fn decide(input: &Input) -> Decision {
         return d;
     }
     if run.spec.abort {
-        end(&mut d, input, outcome::ABORTED, "spec.abort is true: stopping the pilot, then the shards, then archiving");
+        end(&mut d, input, RunEnd::Aborted, "spec.abort is true: stopping the pilot, then the shards, then archiving");
         archive_step(&mut d, input);
         return d;
     }
@@ -470,7 +506,7 @@ fn evicted(d: &mut Decision, input: &Input) -> bool {
     end(
         d,
         input,
-        outcome::EVICTED,
+        RunEnd::Evicted,
         format!("evicted by Kueue ({why}): a simulation cannot be paused; stopping and archiving"),
     );
     true
@@ -516,7 +552,7 @@ fn generating_assets(d: &mut Decision, input: &Input, plan: &RunPlan) {
             end(
                 d,
                 input,
-                outcome::ROLE_FAILED,
+                RunEnd::RoleFailed,
                 format!("role assets failed: Job {}: {reason}", names::assets_job(&plan.run.name)),
             );
         }
@@ -541,7 +577,7 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
     }
     let coordinator_failure = observed.coordinator.as_ref().and_then(|r| r.failed.clone());
     if let Some((role, reason)) = coordinator_failure.or_else(|| observed.failure()) {
-        end(d, input, outcome::ROLE_FAILED, format!("role {role} failed: {reason}"));
+        end(d, input, RunEnd::RoleFailed, format!("role {role} failed: {reason}"));
         return;
     }
     let report = observed.coordinator.clone().unwrap_or_default();
@@ -601,24 +637,24 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
         d.status.sim_time_s = Some(finished.sim_time_s);
         d.status.real_time_factor = Some(round3(finished.real_time_factor));
         d.status.verdict = finished.verdict.clone();
-        end(d, input, outcome::FINISHED, format!("the coordinator finished the run ({})", finished.end_reason));
+        end(d, input, RunEnd::Finished, format!("the coordinator finished the run ({})", finished.end_reason));
         return;
     }
     match observed.coordinator_state() {
         Some(WorkState::Succeeded) => {
-            end(d, input, outcome::ROLE_FAILED, "role coordinator failed: it exited without a summary".to_string());
+            end(d, input, RunEnd::RoleFailed, "role coordinator failed: it exited without a summary".to_string());
         }
         _ => d.requeue_at_most(if running { REQUEUE_RUNNING } else { REQUEUE_ACTIVE }),
     }
 }
 
 /// The pilot Job has ended (complete or failed) while the run is Running. With `onExit:
-/// endRun` the coordinator is asked to end the run (`Some(PILOT_EXITED)`, the stop
+/// endRun` the coordinator is asked to end the run (`Some(EndReason::PilotExited)`, the stop
 /// annotation on its Pod), as `sadesim run` ends it when the pilot process exits; the
 /// coordinator's summary then ends the run. With `onExit: continue` the run goes on to
 /// `duration`. Either way the Running condition says so and one Event records it (a
 /// Warning when the Job failed).
-fn pilot_exited(d: &mut Decision, input: &Input, plan: &RunPlan) -> Option<&'static str> {
+fn pilot_exited(d: &mut Decision, input: &Input, plan: &RunPlan) -> Option<EndReason> {
     let end = input.observed.pilot_end()?;
     let (now, generation) = (input.now, input.run.metadata.generation);
     let ends_run = plan.spec.pilot.as_ref().is_some_and(|p| p.on_exit.unwrap_or_default() == PilotExit::EndRun);
@@ -630,12 +666,12 @@ fn pilot_exited(d: &mut Decision, input: &Input, plan: &RunPlan) -> Option<&'sta
     } else {
         format!("the pilot exited ({how}); onExit: continue, so the run goes on until spec.duration")
     };
-    let first = condition(&d.status, ct::RUNNING).is_none_or(|c| c.reason != outcome::PILOT_EXITED);
+    let first = condition(&d.status, ct::RUNNING).is_none_or(|c| c.reason != PILOT_EXITED);
     if first {
-        d.events.push(Note { warning: end.is_err(), reason: outcome::PILOT_EXITED.into(), message: message.clone() });
+        d.events.push(Note { warning: end.is_err(), reason: PILOT_EXITED.into(), message: message.clone() });
     }
-    d.condition(ct::RUNNING, true, outcome::PILOT_EXITED, message, now, generation);
-    ends_run.then_some(sadesim_crds::outcome::control::PILOT_EXITED)
+    d.condition(ct::RUNNING, true, PILOT_EXITED, message, now, generation);
+    ends_run.then_some(EndReason::PilotExited)
 }
 
 fn round3(x: f64) -> f64 {
@@ -663,13 +699,13 @@ fn endpoints(plan: &RunPlan) -> Endpoints {
     }
 }
 
-/// Ends the run with `reason` (an [`outcome`]) and enters Archiving.
-fn end(d: &mut Decision, input: &Input, reason: &str, message: impl Into<String>) {
+/// Ends the run with `end` and enters Archiving.
+fn end(d: &mut Decision, input: &Input, end: RunEnd, message: impl Into<String>) {
     let message = message.into();
     let (now, generation) = (input.now, input.run.metadata.generation);
     // Nothing more is created once the run ends.
     d.apply.clear();
-    d.condition(ct::RUNNING, false, reason, message.clone(), now, generation);
+    d.condition(ct::RUNNING, false, end.reason(), message.clone(), now, generation);
     d.condition(
         ct::ARCHIVED,
         false,
@@ -678,8 +714,8 @@ fn end(d: &mut Decision, input: &Input, reason: &str, message: impl Into<String>
         now,
         generation,
     );
-    if reason == outcome::ROLE_FAILED || reason == outcome::INVALID || reason == outcome::EVICTED {
-        d.events.push(Note { warning: true, reason: reason.into(), message: message.clone() });
+    if end.warns() {
+        d.events.push(Note { warning: true, reason: end.reason().into(), message: message.clone() });
     }
     d.enter(Phase::Archiving, message);
 }

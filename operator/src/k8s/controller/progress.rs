@@ -3,6 +3,7 @@
 //! released, and the final summary with the criteria verdict.
 
 use sadesim_crds::outcome::coordinator::Report;
+use sadesim_crds::outcome::ending::EndReason;
 use sadesim_crds::status::Verdict;
 
 /// Lines of the coordinator's log the operator reads per reconcile. Progress comes once
@@ -31,7 +32,7 @@ pub struct Finished {
     /// Simulated seconds per wall-clock second over the whole run.
     pub real_time_factor: f64,
     /// Why the run ended (`duration`, `pilotExited`, `interrupted`, ...).
-    pub end_reason: String,
+    pub end_reason: EndReason,
     /// The criteria's outcome (absent when the run did not get that far).
     pub verdict: Option<Verdict>,
 }

@@ -3,7 +3,7 @@ use sadesim_crds::plan::RunPlan;
 
 use super::test_plan::{over, plan_of, rect_zone, run_with_groups, volumes};
 use super::*;
-use crate::events::FlightMode;
+use crate::events::{CrashCause, FlightMode};
 
 /// The test zone: 100 m x 100 m, east and north of the origin, ground to 150 m AGL.
 fn tfr() -> sadesim_crds::zones::Zone {
@@ -438,8 +438,11 @@ fn flying_above_the_group_limit_anywhere_is_a_violation_with_the_highest_altitud
 fn crashes_are_recorded_once_from_events_and_flags_and_end_the_stay() {
     let mut h = harness(2, |_| {});
     h.window(1.0, &[at(0, 50.0, 50.0, 30.0), at(1, -50.0, 0.0, 30.0)]);
-    let crash =
-        Event { time_s: 1.004, drone: Some(0), kind: EventKind::Crashed { with: "building".into(), speed_mps: 9.0 } };
+    let crash = Event {
+        time_s: 1.004,
+        drone: Some(0),
+        kind: EventKind::Crashed { with: CrashCause::Building, speed_mps: 9.0 },
+    };
     let mut wreck = at(0, 50.0, 50.0, 12.0);
     wreck.crashed = true;
     let mut wreck1 = at(1, -50.0, 0.0, 0.0);

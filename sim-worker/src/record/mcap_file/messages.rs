@@ -245,7 +245,7 @@ pub fn level(kind: &EventKind) -> u8 {
         | EventKind::CommandRejected { .. }
         | EventKind::ZoneDenied { .. }
         | EventKind::ZoneEntered { authorized: false, .. } => 3,
-        EventKind::RunEnded { reason } if reason == "failed" => 4,
+        EventKind::RunEnded { reason } if reason.is_failure() => 4,
         _ => 2,
     }
 }

@@ -613,3 +613,17 @@ fn a_recording_without_cameras_declares_no_image_schemas() {
     let names: BTreeSet<_> = summary.schemas.values().map(|s| s.name.clone()).collect();
     assert!(!names.contains("foxglove.CompressedImage") && !names.contains("foxglove.CameraCalibration"), "{names:?}");
 }
+
+/// A run's end is an ERROR log when the run failed (a shard or the pilot), INFO otherwise;
+/// drone trouble is a WARNING.
+#[test]
+fn log_levels_follow_the_typed_end_reason() {
+    use super::messages::level;
+    use crate::events::{CrashCause, EndReason};
+    let ended = |reason: EndReason| level(&EventKind::RunEnded { reason });
+    assert_eq!(ended(EndReason::ShardFailed("shard 1 failed: connection closed".into())), 4);
+    assert_eq!(ended(EndReason::PilotFailed), 4);
+    assert_eq!(ended(EndReason::Duration), 2);
+    assert_eq!(ended(EndReason::Aborted), 2);
+    assert_eq!(level(&EventKind::Crashed { with: CrashCause::Ground, speed_mps: 4.0 }), 3);
+}

@@ -10,8 +10,8 @@ use sadesim_crds::status::{ArchiveStatus, Phase, SimulationRunStatus, condition_
 
 use super::super::observe::WorkState;
 use super::{
-    COORDINATOR_GRACE_S, Decision, Delete, Input, Note, REQUEUE_ARCHIVING, STOP_GRACE_S, children_for,
-    children_may_exist, condition, kueue_mode, outcome, set_condition, stop_reason,
+    COORDINATOR_GRACE_S, Decision, Delete, Input, Note, REQUEUE_ARCHIVING, RunEnd, STOP_GRACE_S, children_for,
+    children_may_exist, condition, kueue_mode, set_condition,
 };
 use crate::k8s::children::{Child, Kind, Role, RunFolder, Stage};
 
@@ -95,15 +95,11 @@ fn coordinator_to_stop(input: &Input, status: &SimulationRunStatus, waited_s: i1
     if waited_s >= i128::from(STOP_GRACE_S) {
         return None;
     }
-    let ended = condition(status, ct::RUNNING).map(|c| c.reason.clone());
-    let reason = match ended.as_deref().unwrap_or(outcome::ABORTED) {
-        outcome::ABORTED => stop_reason::ABORTED,
-        outcome::DELETED => stop_reason::DELETED,
-        outcome::ROLE_FAILED => stop_reason::ROLE_FAILED,
-        outcome::INVALID => stop_reason::INVALID,
-        outcome::EVICTED => stop_reason::EVICTED,
-        _ => return None,
+    let ended = match condition(status, ct::RUNNING) {
+        Some(c) => RunEnd::of_reason(&c.reason)?,
+        None => RunEnd::Aborted,
     };
+    let reason = ended.stop_reason()?;
     let plan = input.plan.as_ref().ok()?;
     let stage = Stage { assets_job: false, pilot: false, stop: Some(reason) };
     children_for(input, plan, stage, |r| r == Role::Coordinator).into_iter().find(|c| c.kind() == Kind::Pod)
@@ -194,23 +190,26 @@ pub(super) fn archive_step(d: &mut Decision, input: &Input) {
         }
     }
     let ended = condition(&d.status, ct::RUNNING).map(|c| (c.reason.clone(), c.message.clone()));
-    let (reason, message) = ended.unwrap_or_else(|| (outcome::ABORTED.into(), "the run ended".into()));
-    let phase = match reason.as_str() {
-        outcome::FINISHED => {
+    let (end, message) = match ended {
+        Some((reason, message)) => (RunEnd::of_reason(&reason), message),
+        None => (Some(RunEnd::Aborted), "the run ended".to_string()),
+    };
+    let phase = match end {
+        Some(RunEnd::Finished) => {
             let passed = match &d.status.verdict {
                 Some(v) => v.passed,
                 None => input.run.spec.criteria.is_empty(),
             };
             if passed { Phase::Succeeded } else { Phase::Failed }
         }
-        outcome::ABORTED | outcome::DELETED => Phase::Aborted,
+        Some(RunEnd::Aborted | RunEnd::Deleted) => Phase::Aborted,
         _ => Phase::Failed,
     };
     let message = match (phase, &d.status.verdict) {
-        (Phase::Failed, Some(v)) if reason == outcome::FINISHED && !v.failures.is_empty() => {
+        (Phase::Failed, Some(v)) if end == Some(RunEnd::Finished) && !v.failures.is_empty() => {
             format!("criteria failed: {}", v.failures.join("; "))
         }
-        (Phase::Failed, None) if reason == outcome::FINISHED => "the criteria were not judged".to_string(),
+        (Phase::Failed, None) if end == Some(RunEnd::Finished) => "the criteria were not judged".to_string(),
         _ => message,
     };
     d.status.completion_time = Some(Time(now));

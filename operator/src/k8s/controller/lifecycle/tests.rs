@@ -315,7 +315,7 @@ fn a_pilot_job_that_completes_asks_the_coordinator_to_end_the_run() {
     assert_eq!(d.status.phase, Some(Phase::Running), "the coordinator's summary ends the run, not the Job");
     assert_eq!(coordinator_stop(&d).as_deref(), Some("pilotExited"));
     let running = cond(&d, ct::RUNNING);
-    assert_eq!((running.status.as_str(), running.reason.as_str()), ("True", outcome::PILOT_EXITED));
+    assert_eq!((running.status.as_str(), running.reason.as_str()), ("True", PILOT_EXITED));
     assert!(running.message.contains("Job test-run-pilot complete"), "{}", running.message);
     assert!(running.message.contains("onExit: endRun"), "{}", running.message);
     assert_eq!(reasons(&d), ["PilotExited"]);
@@ -331,7 +331,7 @@ fn a_pilot_job_that_completes_asks_the_coordinator_to_end_the_run() {
     // The coordinator ended the run: the usual end, through Archiving.
     let mut observed = observed;
     let mut done = finished(true);
-    done.finished.as_mut().unwrap().end_reason = "pilotExited".into();
+    done.finished.as_mut().unwrap().end_reason = EndReason::PilotExited;
     observed.coordinator = Some(done);
     let last = archive_to_the_end(run, observed, later(304)).pop().unwrap();
     assert_eq!(last.status.phase, Some(Phase::Succeeded));
@@ -357,7 +357,7 @@ fn with_on_exit_continue_the_run_goes_on_after_the_pilot_job() {
     let d = decide_with(&run, &pilot_observed(WorkState::Succeeded, WorkState::Succeeded), None, later(300));
     assert_eq!(d.status.phase, Some(Phase::Running));
     assert_eq!(coordinator_stop(&d), None);
-    assert_eq!(cond(&d, ct::RUNNING).reason, outcome::PILOT_EXITED);
+    assert_eq!(cond(&d, ct::RUNNING).reason, PILOT_EXITED);
     assert!(cond(&d, ct::RUNNING).message.contains("goes on until spec.duration"));
     assert_eq!(reasons(&d), ["PilotExited"]);
 }
@@ -368,7 +368,7 @@ fn a_pilot_image_that_cannot_be_pulled_fails_the_run() {
     let observed = pilot_observed(WorkState::Running, WorkState::Failed("ImagePullBackOff: no such image".into()));
     let d = decide_with(&run, &observed, None, later(30));
     assert_eq!(d.status.phase, Some(Phase::Archiving));
-    assert_eq!(cond(&d, ct::RUNNING).reason, outcome::ROLE_FAILED);
+    assert_eq!(cond(&d, ct::RUNNING).reason, RunEnd::RoleFailed.reason());
     assert!(cond(&d, ct::RUNNING).message.contains("role pilot failed: Pod test-run-pilot-abcde: ImagePullBackOff"));
 }
 
@@ -395,7 +395,7 @@ pub(super) fn finished(passed: bool) -> CoordinatorReport {
         finished: Some(Finished {
             sim_time_s: 120.0,
             real_time_factor: 3.5,
-            end_reason: "duration".into(),
+            end_reason: EndReason::Duration,
             verdict: Some(Verdict {
                 passed,
                 failures: if passed { vec![] } else { vec!["spec.criteria[0] noCrashes: 1 crash".into()] },
@@ -432,7 +432,12 @@ pub(super) fn archive_to_the_end(mut run: SimulationRun, mut observed: Observed,
             && report.finished.is_none()
         {
             let sim_time_s = report.sim_time_s.unwrap_or_default();
-            report.finished = Some(Finished { sim_time_s, real_time_factor: 1.0, end_reason: reason, verdict: None });
+            report.finished = Some(Finished {
+                sim_time_s,
+                real_time_factor: 1.0,
+                end_reason: EndReason::from(reason.as_str()),
+                verdict: None,
+            });
         }
         // The coordinator finishes its upload and exits once the shards are gone.
         if !observed.has_job(Role::Shard) {

@@ -22,7 +22,7 @@ fn a_finished_run_archives_pilot_then_shards_then_the_rest_and_succeeds() {
 
     let first = &steps[0];
     assert_eq!(first.status.phase, Some(Phase::Archiving));
-    assert_eq!(cond(first, ct::RUNNING).reason, outcome::FINISHED);
+    assert_eq!(cond(first, ct::RUNNING).reason, RunEnd::Finished.reason());
     assert_eq!(first.status.sim_time_s, Some(120.0));
     assert_eq!(first.status.real_time_factor, Some(3.5));
     assert_eq!(first.archive_logs, ["test-run-pilot-abcde"]);
@@ -84,7 +84,7 @@ fn a_failed_role_fails_the_run_naming_the_role_and_reason() {
     let steps = archive_to_the_end(run, observed, later(60));
     let first = &steps[0];
     assert_eq!(first.status.phase, Some(Phase::Archiving));
-    assert_eq!(cond(first, ct::RUNNING).reason, outcome::ROLE_FAILED);
+    assert_eq!(cond(first, ct::RUNNING).reason, RunEnd::RoleFailed.reason());
     assert!(cond(first, ct::RUNNING).message.contains("role shard failed: Job test-run-shard: BackoffLimitExceeded"));
     assert!(first.events.iter().any(|e| e.warning && e.reason == "RoleFailed"));
     let last = steps.last().unwrap();
@@ -100,7 +100,7 @@ fn abort_stops_the_pilot_then_the_shards_then_archives() {
     observed.jobs.push(job("pilot", WorkState::Running));
     observed.pods.push(pod("test-run-pilot-abcde", "pilot", WorkState::Running, true));
     let steps = archive_to_the_end(run, observed, later(60));
-    assert_eq!(cond(&steps[0], ct::RUNNING).reason, outcome::ABORTED);
+    assert_eq!(cond(&steps[0], ct::RUNNING).reason, RunEnd::Aborted.reason());
     assert_eq!(steps[0].delete, [Delete { kind: Kind::Job, role: Some(Role::Pilot) }]);
     assert_eq!(steps[1].delete, [Delete { kind: Kind::Job, role: Some(Role::Shard) }]);
     let last = steps.last().unwrap();
@@ -118,7 +118,7 @@ fn abort_asks_the_running_coordinator_to_end_the_run_before_the_shards_go() {
     let steps = archive_to_the_end(run, observed, later(60));
     assert_eq!(steps[0].delete, [Delete { kind: Kind::Job, role: Some(Role::Pilot) }]);
     assert_eq!(coordinator_stop(&steps[0]), None, "the pilot stops first");
-    assert_eq!(coordinator_stop(&steps[1]).as_deref(), Some(stop_reason::ABORTED));
+    assert_eq!(coordinator_stop(&steps[1]).as_deref(), Some("aborted"));
     assert_eq!(roles(&steps[1].apply), ["Pod coordinator"], "only the coordinator Pod is applied");
     assert!(steps[1].delete.is_empty(), "the shards stay until the coordinator has ended the run");
     assert!(cond(&steps[1], ct::ARCHIVED).message.contains("asking the coordinator"));
@@ -136,7 +136,7 @@ fn a_coordinator_that_does_not_end_the_run_on_request_is_not_waited_for_long() {
     observed.coordinator =
         Some(CoordinatorReport { sim_time_s: Some(80.0), pilots_released: true, ..Default::default() });
     let d = decide_with(&run, &observed, None, later(10));
-    assert_eq!(coordinator_stop(&d).as_deref(), Some(stop_reason::DELETED));
+    assert_eq!(coordinator_stop(&d).as_deref(), Some("deleted"));
     run.status = Some(d.status);
     // An old worker image without --control-file never answers.
     let d = decide_with(&run, &observed, None, later(10 + STOP_GRACE_S - 1));
@@ -180,7 +180,7 @@ fn deletion_archives_before_the_finalizer_goes() {
     run.metadata.deletion_timestamp = Some(Time(later(5)));
     let observed = workers(WorkState::Running);
     let steps = archive_to_the_end(run, observed, later(60));
-    assert_eq!(cond(&steps[0], ct::RUNNING).reason, outcome::DELETED);
+    assert_eq!(cond(&steps[0], ct::RUNNING).reason, RunEnd::Deleted.reason());
     assert!(steps[..steps.len() - 1].iter().all(|d| !d.remove_finalizer));
     let last = steps.last().unwrap();
     assert_eq!(last.status.phase, Some(Phase::Aborted));
