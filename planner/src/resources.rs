@@ -1,9 +1,10 @@
 //! Resource estimate per role instance (Kubernetes requests; `sadesim plan` shows them).
 //!
 //! Physics cost scales with drone-steps per wall-clock second: drones x physicsRateHz x
-//! real-time factor. `sadesim bench` measured ~360 000 drone-steps per core-second for the
-//! full per-drone stack (docs/performance.md); we request for 250 000 to leave headroom for
-//! slower cluster cores and for the MAVLink and recording work still to come.
+//! real-time factor. `sadesim bench` measures well over 1 M drone-steps per core-second of
+//! flight for the full per-drone stack with recordings (docs/performance.md, "Throughput by
+//! fleet size"); we request for 250 000, which leaves headroom for slower cluster cores, the
+//! ground phase, MAVLink and the recorder.
 
 use sadesim_crds::SimulationRunSpec;
 use sadesim_crds::plan::{PlannedShard, ResourcePlan, RoleResources};

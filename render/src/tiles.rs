@@ -3,7 +3,7 @@
 //!
 //! Why: lavapipe pays for every triangle of a draw, seen or not (`docs/performance.md`:
 //! triangles cost more than pixels). A procedural city of 12 000 buildings is some 150 000
-//! triangles, about 5 ms a view on 2 cores, while a drone's downward camera at 20-60 m sees
+//! triangles, several milliseconds a view on 2 cores, while a drone's downward camera at 20-60 m sees
 //! a few dozen buildings. What every engine does (three.js culls per object) we do per
 //! tile, which keeps one vertex buffer and one draw per run of visible tiles.
 //!

@@ -1,9 +1,10 @@
 //! The high-rate recordings, `recording.mcap` and `ulog/*.ulg`, written on their own thread.
 //!
 //! Why a thread: the coordinator runs the lockstep loop, and every shard waits while it
-//! handles a window. Encoding and compressing a window's poses (about 150-180 µs per drone
-//! and simulated second, `docs/performance.md`) is most of that handling; for a 1000-drone
-//! run it would stall every shard for about 150 ms per simulated second. Handed to this thread, it
+//! handles a window. Encoding and compressing a window's poses (about 140-170 µs per drone
+//! and simulated second for MCAP and ULog together, `docs/performance.md` "Recording cost")
+//! is most of that handling; for a 1000-drone run it would stall every shard for about
+//! 150 ms per simulated second. Handed to this thread, it
 //! overlaps with the shards' next window instead. It costs as much CPU as before; it only
 //! leaves the critical path.
 //!

@@ -115,8 +115,8 @@ pub struct Shard {
 }
 
 /// Sim seconds between MAVLink socket rounds. Every round costs a datagram per peer for
-/// each drone (reads only where the shard's readiness wait found data); every 10 ms the
-/// sockets cost a 250-drone shard more than its physics (docs/performance.md). Messages
+/// each drone (reads only where the shard's readiness wait found data), so rounds as often
+/// as the 10 ms windows would cost a shard more than its physics. Messages
 /// are still built at their own rates (100 Hz ATTITUDE is 100 ATTITUDE messages a second,
 /// each with its own timestamp), only sent in batches; 20 ms adds at most 20 ms of
 /// latency, below what SDKs and ground stations notice (MAVSDK's offboard needs > 2 Hz
@@ -126,7 +126,7 @@ pub const MAVLINK_IO_PERIOD_S: f64 = 0.02;
 /// The environment is sampled every this many physics steps (100 Hz at 1 kHz) and held in
 /// between: wind gusts and GNSS conditions change over tenths of seconds (the Dryden
 /// filters' bandwidth is V/L, well under 1 Hz at low altitude), while sampling them every
-/// millisecond cost a fifth of the step time (docs/performance.md).
+/// millisecond would cost a large share of the step for no change in the flight.
 pub const ENV_SAMPLE_DIVIDER: u64 = 10;
 
 impl Shard {

@@ -3,7 +3,7 @@
 //! ([`Outgoing::Telemetry`]), encoding it and the sends overlap the shard's next window.
 //!
 //! Why: with the I/O on the shard's thread, MAVLink took about a fifth of the shard's time
-//! at 1024 drones (docs/performance.md, issue 20), and the shard is the lockstep's critical
+//! at 1024 drones, and the shard is the lockstep's critical
 //! path. PX4 runs its mavlink module as a task of its own for the same reason.
 //!
 //! # Order and timing (what peers see)

@@ -3,6 +3,16 @@
 
 use super::*;
 
+/// Settings that archive into the folder `tmp` (`file://`, which a cluster refuses; the
+/// controller tests allow it to read what was archived).
+fn archive_into(tmp: &std::path::Path) -> ClusterSettings {
+    ClusterSettings {
+        default_archive_url: Some(format!("file://{}", tmp.display())),
+        file_archives: true,
+        ..Default::default()
+    }
+}
+
 #[tokio::test]
 async fn a_finished_coordinator_ends_the_run_and_stops_the_shards_first() {
     let mut run = in_phase(new_run(), Phase::Running);
@@ -23,11 +33,7 @@ async fn a_finished_coordinator_ends_the_run_and_stops_the_shards_first() {
     };
     // The archive is an object store the test does not reach: no logs are due in this step.
     let tmp = tempdir("finished");
-    let settings = ClusterSettings {
-        default_archive_url: Some(format!("file://{}", tmp.display())),
-        file_archives: true,
-        ..Default::default()
-    };
+    let settings = archive_into(&tmp);
     let (seen, _) = reconcile_once(cluster, settings, t0() + SignedDuration::from_secs(40)).await;
     assert!(applies(&seen).is_empty(), "nothing is created once the run ended: {:?}", paths(&seen));
     let delete = seen.iter().find(|s| s.method == Method::DELETE).expect("shards stopped");
@@ -69,11 +75,7 @@ async fn abort_stops_the_pilot_first_archiving_its_log() {
         ]),
         ..Default::default()
     };
-    let settings = ClusterSettings {
-        default_archive_url: Some(format!("file://{}", tmp.display())),
-        file_archives: true,
-        ..Default::default()
-    };
+    let settings = archive_into(&tmp);
     let (seen, _) = reconcile_once(cluster, settings, t0()).await;
     let order: Vec<String> = seen
         .iter()
@@ -123,11 +125,7 @@ async fn deletion_archives_the_remaining_logs_then_removes_the_finalizer() {
         ]),
         ..Default::default()
     };
-    let settings = ClusterSettings {
-        default_archive_url: Some(format!("file://{}", tmp.display())),
-        file_archives: true,
-        ..Default::default()
-    };
+    let settings = archive_into(&tmp);
     let (seen, _) = reconcile_once(cluster, settings, t0()).await;
     let deletes: Vec<String> = seen.iter().filter(|s| s.method == Method::DELETE).map(|s| s.path.clone()).collect();
     assert_eq!(
