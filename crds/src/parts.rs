@@ -1,12 +1,13 @@
-//! A file too big for one Kubernetes ConfigMap (1 MiB of data), stored as parts (issue 19,
-//! "10 000 drones"): `plan.json` of a 10 000-drone run is about 4.6 MB.
+//! A file too big for one Kubernetes ConfigMap (1 MiB of data), stored as parts: `plan.json`
+//! of a 10 000-drone run is about 4.6 MB.
 //!
 //! `<file>.part-000`, `<file>.part-001`, ... hold consecutive slices of the file's bytes,
 //! cut at UTF-8 character boundaries, and `<file>.sha256` the SHA-256 of the whole file (lower
 //! case hex). The operator puts each part in a ConfigMap of its own and mounts them all in
-//! one folder (a projected volume); [`read`] joins them and checks the digest, so a part
+//! one folder (a projected volume); [`join`] joins them and checks the digest, so a part
 //! missing, stale (a ConfigMap of another generation) or cut short is an error naming it.
-//! A file that fits one ConfigMap stays whole and is read as is.
+//! A file that fits one ConfigMap stays whole and is read as is. Pure: the caller reads the
+//! files (`sim_worker::roles::read_parts` from a folder).
 
 use std::path::{Path, PathBuf};
 
@@ -52,43 +53,50 @@ pub fn split(text: &str, part_bytes: usize) -> Vec<&str> {
 /// Why a file could not be read whole.
 #[derive(Debug, thiserror::Error)]
 pub enum PartsError {
+    /// A file or part exists but could not be read (the reader's I/O error).
     #[error("{path}: {source}")]
     Io { path: String, source: std::io::Error },
     #[error("{path}: neither the file nor its first part {first} exists")]
     Missing { path: String, first: String },
+    #[error("{path}: its parts are there but not their digest {digest}")]
+    NoDigest { path: String, digest: String },
     #[error(
         "{path}: its {parts} part(s) join to SHA-256 {found}, but {digest} says {expected}: a part is missing or from another version of the run"
     )]
     Digest { path: String, parts: usize, found: String, digest: String, expected: String },
 }
 
-fn read_file(path: &Path) -> Result<Vec<u8>, PartsError> {
-    std::fs::read(path).map_err(|source| PartsError::Io { path: path.display().to_string(), source })
-}
-
-/// The bytes of `path`: the file itself when it exists, otherwise its parts joined in
-/// order and checked against its digest file.
+/// The bytes of the file `path`: the file itself when `fetch` has it, otherwise its parts
+/// beside it joined in order and checked against its digest file. `fetch(path)` gives a
+/// file's bytes, `None` when there is no such file (the caller does the reading: a folder,
+/// a ConfigMap's data).
 ///
 /// # Errors
-/// Neither the file nor its parts, an unreadable part or digest, or a digest mismatch.
-pub fn read(path: &Path) -> Result<Vec<u8>, PartsError> {
-    if path.exists() {
-        return read_file(path);
+/// Neither the file nor its first part, the digest missing or not matching, or what
+/// `fetch` returns.
+pub fn join(
+    path: &Path,
+    mut fetch: impl FnMut(&Path) -> Result<Option<Vec<u8>>, PartsError>,
+) -> Result<Vec<u8>, PartsError> {
+    if let Some(bytes) = fetch(path)? {
+        return Ok(bytes);
     }
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let sibling = |file: String| -> PathBuf { path.with_file_name(file) };
     let first = sibling(part_name(&name, 0));
-    if !first.exists() {
+    let Some(mut bytes) = fetch(&first)? else {
         return Err(PartsError::Missing { path: path.display().to_string(), first: first.display().to_string() });
-    }
-    let mut bytes = Vec::new();
-    let mut parts = 0;
-    while sibling(part_name(&name, parts)).exists() {
-        bytes.extend(read_file(&sibling(part_name(&name, parts)))?);
+    };
+    let mut parts = 1;
+    while let Some(part) = fetch(&sibling(part_name(&name, parts)))? {
+        bytes.extend(part);
         parts += 1;
     }
     let digest = sibling(digest_name(&name));
-    let expected = String::from_utf8_lossy(&read_file(&digest)?).trim().to_string();
+    let Some(text) = fetch(&digest)? else {
+        return Err(PartsError::NoDigest { path: path.display().to_string(), digest: digest.display().to_string() });
+    };
+    let expected = String::from_utf8_lossy(&text).trim().to_string();
     let found = sha256_hex(&bytes);
     if found != expected {
         return Err(PartsError::Digest {
@@ -104,22 +112,24 @@ pub fn read(path: &Path) -> Result<Vec<u8>, PartsError> {
 
 #[cfg(test)]
 mod tests {
+    use std::collections::BTreeMap;
+
     use super::*;
 
-    fn folder(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("sadesim-parts-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
+    /// Files by path, as a folder or a ConfigMap's data holds them.
+    type Files = BTreeMap<PathBuf, Vec<u8>>;
 
-    fn write_parts(dir: &Path, text: &str, part_bytes: usize) -> usize {
+    fn write_parts(files: &mut Files, text: &str, part_bytes: usize) -> usize {
         let parts = split(text, part_bytes);
         for (i, part) in parts.iter().enumerate() {
-            std::fs::write(dir.join(part_name("plan.json", i)), part).unwrap();
+            files.insert(PathBuf::from(format!("run/{}", part_name("plan.json", i))), part.as_bytes().to_vec());
         }
-        std::fs::write(dir.join(digest_name("plan.json")), sha256_hex(text.as_bytes())).unwrap();
+        files.insert(PathBuf::from(format!("run/{}", digest_name("plan.json"))), sha256_hex(text.as_bytes()).into());
         parts.len()
+    }
+
+    fn read(files: &Files, path: &str) -> Result<Vec<u8>, PartsError> {
+        join(Path::new(path), |p| Ok(files.get(p).cloned()))
     }
 
     #[test]
@@ -135,24 +145,31 @@ mod tests {
 
     #[test]
     fn a_file_in_parts_reads_as_the_whole_and_a_bad_part_is_named() {
-        let dir = folder("read");
+        let mut files = Files::new();
         let text = "x".repeat(2500) + "end";
-        assert_eq!(write_parts(&dir, &text, 1000), 3);
-        let path = dir.join("plan.json");
-        assert_eq!(read(&path).unwrap(), text.as_bytes());
+        assert_eq!(write_parts(&mut files, &text, 1000), 3);
+        assert_eq!(read(&files, "run/plan.json").unwrap(), text.as_bytes());
         // A part from another version of the file: the digest names the mismatch.
-        std::fs::write(dir.join(part_name("plan.json", 1)), "y".repeat(1000)).unwrap();
-        let e = read(&path).unwrap_err().to_string();
-        assert!(e.contains("3 part(s)") && e.contains("plan.json.sha256"), "{e}");
+        files.insert(PathBuf::from(format!("run/{}", part_name("plan.json", 1))), vec![b'y'; 1000]);
+        let e = read(&files, "run/plan.json").unwrap_err().to_string();
+        assert!(e.contains("3 part(s)") && e.contains("run/plan.json.sha256"), "{e}");
         // The last part missing.
-        write_parts(&dir, &text, 1000);
-        std::fs::remove_file(dir.join(part_name("plan.json", 2))).unwrap();
-        assert!(matches!(read(&path), Err(PartsError::Digest { parts: 2, .. })));
+        write_parts(&mut files, &text, 1000);
+        files.remove(&PathBuf::from(format!("run/{}", part_name("plan.json", 2))));
+        assert!(matches!(read(&files, "run/plan.json"), Err(PartsError::Digest { parts: 2, .. })));
+        // The digest missing.
+        files.remove(&PathBuf::from(format!("run/{}", digest_name("plan.json"))));
+        let e = read(&files, "run/plan.json").unwrap_err().to_string();
+        assert!(e.contains("run/plan.json.sha256"), "{e}");
         // A whole file wins, parts or not.
-        std::fs::write(&path, "whole").unwrap();
-        assert_eq!(read(&path).unwrap(), b"whole");
-        let e = read(&dir.join("fleet.json")).unwrap_err().to_string();
+        files.insert(PathBuf::from("run/plan.json"), b"whole".to_vec());
+        assert_eq!(read(&files, "run/plan.json").unwrap(), b"whole");
+        let e = read(&files, "run/fleet.json").unwrap_err().to_string();
         assert!(e.contains("fleet.json.part-000"), "{e}");
-        std::fs::remove_dir_all(dir).unwrap();
+        // The reader's errors pass through.
+        let e = join(Path::new("run/plan.json"), |p| {
+            Err(PartsError::Io { path: p.display().to_string(), source: std::io::ErrorKind::PermissionDenied.into() })
+        });
+        assert!(matches!(e, Err(PartsError::Io { .. })));
     }
 }

@@ -288,12 +288,10 @@ fn main() -> ExitCode {
                 roles::renderer::run(&plan, &world, listen, &feed, &stop)
             })
         }
-        Role::Join { file, out } => {
-            sadesim_crds::parts::read(&file).map_err(roles::RoleError::from).and_then(|bytes| {
-                std::fs::write(&out, bytes)
-                    .map_err(|source| roles::RoleError::Write { path: out.display().to_string(), source })
-            })
-        }
+        Role::Join { file, out } => roles::read_parts(&file).map_err(roles::RoleError::from).and_then(|bytes| {
+            std::fs::write(&out, bytes)
+                .map_err(|source| roles::RoleError::Write { path: out.display().to_string(), source })
+        }),
         Role::WaitRelease { url } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();

@@ -162,6 +162,20 @@ pub fn surroundings(
     Ok(crate::shard::Surroundings { world, sky, wind: Some(Arc::new(field)) })
 }
 
+/// The bytes of the file `path`, whole or joined from its parts beside it
+/// ([`sadesim_crds::parts::join`]): how roles read what the operator mounts from ConfigMaps.
+///
+/// # Errors
+/// [`PartsError`](sadesim_crds::parts::PartsError): unreadable, missing, or parts that do
+/// not join.
+pub fn read_parts(path: &Path) -> Result<Vec<u8>, sadesim_crds::parts::PartsError> {
+    sadesim_crds::parts::join(path, |file| match std::fs::read(file) {
+        Ok(bytes) => Ok(Some(bytes)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(source) => Err(sadesim_crds::parts::PartsError::Io { path: file.display().to_string(), source }),
+    })
+}
+
 /// Reads a RunPlan written by the planner (`plan.json`), whole or, as the operator stores a
 /// large plan, in parts beside it (`plan.json.part-000`, ..., checked against
 /// `plan.json.sha256`).
@@ -171,11 +185,42 @@ pub fn surroundings(
 /// version.
 pub fn read_plan(path: &Path) -> Result<RunPlan, RoleError> {
     let name = path.display().to_string();
-    let bytes = sadesim_crds::parts::read(path)?;
+    let bytes = read_parts(path)?;
     let plan: RunPlan =
         serde_json::from_slice(&bytes).map_err(|source| RoleError::ParsePlan { path: name.clone(), source })?;
     if plan.format_version != PLAN_FORMAT_VERSION {
         return Err(RoleError::PlanVersion { path: name, found: plan.format_version });
     }
     Ok(plan)
+}
+
+#[cfg(test)]
+mod tests {
+    use sadesim_crds::parts::{PartsError, digest_name, part_name, sha256_hex, split};
+
+    use super::read_parts;
+    use crate::record::test_dir::TempDir;
+
+    /// A file the operator stored in parts, read from the folder its ConfigMaps are mounted
+    /// in: joined whole; a part that cannot be read is named with the reader's error.
+    #[test]
+    fn a_mounted_file_in_parts_is_read_whole() {
+        let dir = TempDir::new("read-parts");
+        let text = "plan ".repeat(500);
+        for (i, part) in split(&text, 1000).iter().enumerate() {
+            std::fs::write(dir.0.join(part_name("plan.json", i)), part).unwrap();
+        }
+        std::fs::write(dir.0.join(digest_name("plan.json")), sha256_hex(text.as_bytes())).unwrap();
+        assert_eq!(read_parts(&dir.0.join("plan.json")).unwrap(), text.as_bytes());
+        let missing = read_parts(&dir.0.join("fleet.json")).unwrap_err();
+        assert!(matches!(missing, PartsError::Missing { .. }), "{missing}");
+        // A folder where a part should be: not "missing", the read error itself.
+        std::fs::remove_file(dir.0.join(part_name("plan.json", 1))).unwrap();
+        std::fs::create_dir(dir.0.join(part_name("plan.json", 1))).unwrap();
+        let unreadable = read_parts(&dir.0.join("plan.json")).unwrap_err();
+        assert!(
+            matches!(&unreadable, PartsError::Io { path, .. } if path.ends_with("plan.json.part-001")),
+            "{unreadable}"
+        );
+    }
 }

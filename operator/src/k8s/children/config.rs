@@ -5,7 +5,7 @@
 //! grow linearly. A file over [`sadesim_crds::parts::PART_BYTES`] is stored in parts
 //! (`plan.json.part-000`, ... and `plan.json.sha256`), one ConfigMap each (`<run>-config`,
 //! `<run>-config-1`, ...), all mounted in one folder by a projected volume: a 10 000-drone
-//! plan is 6 ConfigMaps. `sim-worker` joins and checks them (`sadesim_crds::parts::read`); the
+//! plan is 6 ConfigMaps. `sim-worker` joins and checks them (`sadesim_crds::parts::join`); the
 //! pilot's fleet file is joined by an init container into the file the pilot reads.
 
 use std::collections::BTreeMap;

@@ -634,18 +634,19 @@ fn ten_thousand_drones_store_the_plan_in_parts_every_object_under_its_limit() {
             into.extend(data);
         }
     }
-    // The parts, written side by side as the projected volume does, read back as the plan.
-    let dir = std::env::temp_dir().join(format!("sadesim-plan-parts-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    for (file, text) in config.iter().chain(&fleet) {
-        std::fs::write(dir.join(file), text).unwrap();
-    }
+    // The parts, side by side as the projected volume mounts them, join back into the plan.
     assert!(config.len() >= 6 && !config.contains_key("plan.json"), "{:?}", config.keys());
-    let read: RunPlan = serde_json::from_slice(&sadesim_crds::parts::read(&dir.join("plan.json")).unwrap()).unwrap();
-    assert_eq!(read, plan);
-    let joined = sadesim_crds::parts::read(&dir.join("fleet.json")).unwrap();
-    assert_eq!(joined, serde_json::to_vec(&fleet_file(&plan, &Addressing::Cluster)).unwrap());
-    std::fs::remove_dir_all(&dir).unwrap();
+    let mounted: std::collections::BTreeMap<&str, &String> =
+        config.iter().chain(&fleet).map(|(file, text)| (file.as_str(), text)).collect();
+    let read = |file: &str| {
+        sadesim_crds::parts::join(std::path::Path::new(file), |p| {
+            Ok(mounted.get(p.to_str().unwrap()).map(|text| text.as_bytes().to_vec()))
+        })
+        .unwrap()
+    };
+    let joined_plan: RunPlan = serde_json::from_slice(&read("plan.json")).unwrap();
+    assert_eq!(joined_plan, plan);
+    assert_eq!(read("fleet.json"), serde_json::to_vec(&fleet_file(&plan, &Addressing::Cluster)).unwrap());
     // Every worker pod mounts every part of the plan.
     let config_maps: Vec<String> =
         children.iter().filter(|c| c.name().starts_with("test-run-config")).map(|c| c.name().to_string()).collect();
