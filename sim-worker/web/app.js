@@ -295,7 +295,11 @@ async function live() {
     events.push(ev);
     if (events.length > 500) events.splice(0, events.length - 500);
     showEvents(events);
-    if (ev.event === 'runEnded') $('status').textContent = `run ended: ${ev.reason}`;
+    if (ev.event === 'runEnded') {
+      // The server ends the stream here; closed, the page does not try to reconnect.
+      source.close();
+      $('status').textContent = `run ended: ${ev.reason}`;
+    }
   });
   source.addEventListener('lagged', (m) => { $('status').textContent = `this browser missed ${m.data} events`; });
   source.onerror = () => { if (!$('status').textContent.startsWith('run ended')) $('status').textContent = 'stream closed'; };

@@ -167,8 +167,11 @@ def test_the_live_view_shows_the_zone_and_moving_drones(live, tmp_path):
         {"shot": "live-1", "project": [*inside_zone, beside_zone]},
         {"sleepMs": 2500},
         {"shot": "live-2", "project": [*inside_zone, beside_zone]},
+        # The run ends: the server ends the stream after `runEnded` and the page stops
+        # listening (a cut connection would be a console error, which `drive` refuses).
+        {"waitFor": "document.getElementById('status').textContent === 'run ended: duration'", "timeoutMs": 90000},
     ])
-    first, second = results[-3], results[-1]
+    first, second = results[5], results[7]
     keep(first["path"], second["path"])
     shown_labels = results[3]["value"]
     assert "museum" in shown_labels and {d["name"] for d in scene["drones"]} <= set(shown_labels), shown_labels

@@ -122,11 +122,7 @@ impl Publisher {
     pub fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) {
         let now = Instant::now();
         let started = *self.started.get_or_insert(now);
-        for event in events {
-            if let Ok(json) = serde_json::to_string(event) {
-                self.feed.publish_event(json.into());
-            }
-        }
+        // The frame first: a browser's stream ends at `runEnded` with the frame then current.
         let last = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
         let due = self.last_frame.is_none_or(|t| now.duration_since(t) >= self.interval);
         if due || last {
@@ -135,6 +131,11 @@ impl Publisher {
             self.poses.extend(drones.iter().map(Pose::of));
             self.feed.publish_frame(encode_frame(time_s, Some(wall_s), &self.poses).into());
             self.last_frame = Some(now);
+        }
+        for event in events {
+            if let Ok(json) = serde_json::to_string(event) {
+                self.feed.publish_event(json.into());
+            }
         }
     }
 }

@@ -10,7 +10,7 @@
 //! | `/vendor/three/...` | three.js from npm, embedded at build time |
 //! | `/scene.json` | [`super::scene::Scene`] |
 //! | `/world.glb` | the bundle's glTF (404 when the run has none) |
-//! | `/live` | live runs: `text/event-stream`, events `frame` and `event` (and `lagged`) |
+//! | `/live` | live runs: `text/event-stream`, events `frame` and `event` (and `lagged`); ends after `runEnded` |
 //! | `/replay.json` | replays: every frame and event of the recording |
 //! | `/healthz` | `ok` (Kubernetes probes) |
 //! | `/cameras/...` | onboard camera frames for pilots ([`super::frames`]), in runs with cameras |
@@ -139,31 +139,108 @@ async fn live(State(c): State<Content>) -> Response {
     }
 }
 
+/// An item of a browser's stream, or its end.
+enum Item {
+    Send(SseEvent),
+    End,
+}
+
+fn event_item(json: &str) -> Item {
+    Item::Send(SseEvent::default().event("event").data(json))
+}
+
+fn frame_item(json: &str) -> Item {
+    Item::Send(SseEvent::default().event("frame").data(json))
+}
+
+/// Whether an event's JSON is the run's `runEnded`.
+fn is_run_end(json: &str) -> bool {
+    json.contains(r#""event":"runEnded""#)
+        && serde_json::from_str::<serde_json::Value>(json).is_ok_and(|v| v["event"] == "runEnded")
+}
+
 /// One browser's stream: the backlog of events, the current frame, then frames and events
-/// as they come. Each browser's stream is polled by its own connection task, so a slow one
-/// holds only itself.
+/// as they come, until the run's `runEnded` event and its last frame: then the response
+/// ends properly, so the page sees a finished stream, not a cut connection. Each browser's
+/// stream is polled by its own connection task, so a slow one holds only itself.
 fn stream_of(sub: Subscription) -> impl Stream<Item = Result<SseEvent, Infallible>> {
     let Subscription { backlog, mut frames, events } = sub;
     let current = frames.borrow_and_update().clone();
-    let first = stream::iter(
-        backlog
-            .into_iter()
-            .map(|e| SseEvent::default().event("event").data(&*e))
-            .chain(current.map(|f| SseEvent::default().event("frame").data(&*f))),
-    );
+    let ended_before = backlog.iter().any(|e| is_run_end(e));
+    let first: Vec<Item> = backlog
+        .iter()
+        .map(|e| event_item(e))
+        .chain(current.map(|f| frame_item(&f)))
+        .chain(ended_before.then_some(Item::End))
+        .collect();
+    let last_frame = frames.clone();
     let frames = stream::unfold(frames, |mut rx| async move {
         rx.changed().await.ok()?;
         let frame = rx.borrow_and_update().clone();
-        Some((frame.map(|f| SseEvent::default().event("frame").data(&*f)), rx))
+        Some((frame.map(|f| frame_item(&f)), rx))
     })
-    .filter_map(|e| async move { e });
-    let events = stream::unfold(events, |mut rx| async move {
-        let event = match rx.recv().await {
-            Ok(e) => SseEvent::default().event("event").data(&*e),
-            Err(RecvError::Lagged(n)) => SseEvent::default().event("lagged").data(n.to_string()),
+    .filter_map(|item| async move { item });
+    let events = stream::unfold((events, last_frame), |(mut rx, last_frame)| async move {
+        let items = match rx.recv().await {
+            // The feed publishes the last window's frame before its events.
+            Ok(e) if is_run_end(&e) => {
+                let frame = last_frame.borrow().clone();
+                vec![event_item(&e)].into_iter().chain(frame.map(|f| frame_item(&f))).chain([Item::End]).collect()
+            }
+            Ok(e) => vec![event_item(&e)],
+            Err(RecvError::Lagged(n)) => vec![Item::Send(SseEvent::default().event("lagged").data(n.to_string()))],
             Err(RecvError::Closed) => return None,
         };
-        Some((event, rx))
-    });
-    first.chain(stream::select(frames, events)).map(Ok)
+        Some((stream::iter(items), (rx, last_frame)))
+    })
+    .flatten();
+    let items = stream::iter(first).chain(stream::select(frames, events));
+    stream::unfold(Box::pin(items), |mut items| async move {
+        match items.next().await? {
+            Item::Send(event) => Some((Ok(event), items)),
+            Item::End => None,
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn collect(sub: Subscription) -> Vec<String> {
+        let runtime = tokio::runtime::Builder::new_current_thread().enable_time().build().unwrap();
+        runtime.block_on(async {
+            let items = stream_of(sub).map(|e| format!("{:?}", e.unwrap())).collect::<Vec<_>>();
+            tokio::time::timeout(Duration::from_secs(5), items).await.expect("the stream ends after runEnded")
+        })
+    }
+
+    const RUN_ENDED: &str = r#"{"timeS":2.0,"event":"runEnded","reason":"duration"}"#;
+
+    /// A browser watching when the run ends gets `runEnded` and the last frame, then the
+    /// response ends; one that opens after the end gets the backlog and the frame, and ends.
+    #[test]
+    fn the_live_stream_ends_after_the_run_ends() {
+        let feed = Feed::new();
+        feed.publish_event(r#"{"timeS":0.0,"event":"runStarted","drones":1,"shards":1}"#.into());
+        let watching = feed.subscribe();
+        feed.publish_frame(r#"{"t":2.0}"#.into());
+        feed.publish_event(RUN_ENDED.into());
+        let seen = collect(watching);
+        assert!(seen.iter().any(|e| e.contains("runEnded")), "{seen:?}");
+        let last = seen.last().unwrap();
+        assert!(last.contains("event: frame") && last.contains("2.0"), "the last frame comes last: {seen:?}");
+        let late = collect(feed.subscribe());
+        assert_eq!(late.len(), 3, "runStarted, runEnded, the frame: {late:?}");
+        // Other events do not end it: a stream with no end is still open after them.
+        let feed = Feed::new();
+        let open = feed.subscribe();
+        feed.publish_event(r#"{"timeS":1.0,"drone":0,"event":"reason","command":"runEnded"}"#.into());
+        let runtime = tokio::runtime::Builder::new_current_thread().enable_time().build().unwrap();
+        let still_open = runtime.block_on(async {
+            tokio::time::timeout(Duration::from_millis(200), stream_of(open).count()).await.is_err()
+        });
+        assert!(still_open);
+        assert!(is_run_end(RUN_ENDED) && !is_run_end(r#"{"event":"landed","note":"\"event\":\"runEnded\""}"#));
+    }
 }
