@@ -1,7 +1,8 @@
-//! The pure crates stay pure: no file system, processes, threads or sockets in the code they
-//! build (their own unit tests aside), and no I/O crate among their dependencies. What a run
-//! reads and writes goes through the crates at the edges (`evidence`, `sim-worker`'s roles,
-//! the CLI, the operator), which hand the pure crates bytes and values.
+//! The layers hold: the pure crates build no file system, process, thread or socket code
+//! (their own unit tests aside) and depend on no I/O crate; what a run reads and writes goes
+//! through the crates at the edges (`evidence`, `sim-worker`'s roles, the CLI, the
+//! operator), which hand the pure crates bytes and values. The operator links no engine
+//! crate, so its image stays small and its reviewers read no physics.
 
 use std::path::{Path, PathBuf};
 
@@ -137,20 +138,55 @@ fn pure_crates_build_no_file_process_thread_or_socket_code() {
     );
 }
 
-#[test]
-fn pure_crates_depend_on_no_io_crate() {
+/// The names of the crates in the normal dependency trees of `packages` (`cargo tree` on
+/// the real lock file).
+fn dependency_tree(packages: &[&str]) -> Vec<String> {
     let out = std::process::Command::new(env!("CARGO"))
         .args(["tree", "--offline", "--locked", "-e", "normal", "--prefix", "none", "--format", "{p}"])
-        .args(PURE_CRATES.iter().flat_map(|c| ["-p", c]))
+        .args(packages.iter().flat_map(|c| ["-p", c]))
         .current_dir(WORKSPACE)
         .output()
         .expect("cargo tree runs");
     assert!(out.status.success(), "cargo tree failed: {}", String::from_utf8_lossy(&out.stderr));
     let tree = String::from_utf8(out.stdout).unwrap();
-    let names: Vec<&str> = tree.lines().filter_map(|l| l.split_whitespace().next()).collect();
-    assert!(names.contains(&"serde"), "the tree was read: {tree}");
-    let found: Vec<&&str> = IO_CRATES.iter().filter(|c| names.contains(c)).collect();
+    let names: Vec<String> = tree.lines().filter_map(|l| l.split_whitespace().next()).map(str::to_string).collect();
+    assert!(names.iter().any(|n| n == "serde"), "the tree was read: {tree}");
+    names
+}
+
+#[test]
+fn pure_crates_depend_on_no_io_crate() {
+    let names = dependency_tree(PURE_CRATES);
+    let found: Vec<&&str> = IO_CRATES.iter().filter(|c| names.iter().any(|n| n == *c)).collect();
     assert!(found.is_empty(), "a pure crate depends on {found:?}; `cargo tree -i <crate>` shows which");
+}
+
+/// Crates of the engine's roles, never of the controller: the engine itself, MAVLink, the
+/// HTTP servers, the report's and the cameras' renderers.
+const ENGINE_CRATES: &[&str] = &["sim-worker", "sadesim-render", "mavlink", "axum", "resvg", "wgpu"];
+
+/// The operator links no simulation engine: its normal dependency tree (what the
+/// `sadesim-operator` binary and image contain) has no physics, MAVLink or HTTP server
+/// framework crate.
+#[test]
+fn the_operator_dependency_tree_has_no_engine_crate() {
+    let names = dependency_tree(&["sadesim-operator"]);
+    assert!(names.iter().any(|n| n == "kube"), "the operator's tree was read: {names:?}");
+    let found: Vec<&&str> = ENGINE_CRATES.iter().filter(|c| names.iter().any(|n| n == *c)).collect();
+    assert!(
+        found.is_empty(),
+        "the operator depends on {found:?}; `cargo tree -p sadesim-operator -i <crate>` shows why"
+    );
+}
+
+/// Every crate the checks above forbid is one the workspace uses (in Cargo.lock): a crate
+/// dropped from the workspace would make a check pass by saying nothing.
+#[test]
+fn every_forbidden_crate_is_in_the_workspace() {
+    let lock = std::fs::read_to_string(format!("{WORKSPACE}/Cargo.lock")).expect("Cargo.lock");
+    let missing: Vec<&&str> =
+        ENGINE_CRATES.iter().chain(IO_CRATES).filter(|c| !lock.contains(&format!("\nname = \"{c}\"\n"))).collect();
+    assert!(missing.is_empty(), "not in Cargo.lock any more: {missing:?}; list the crates used now");
 }
 
 #[test]
