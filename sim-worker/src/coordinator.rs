@@ -75,7 +75,7 @@ pub use sadesim_crds::outcome::ending::{EndReason, SHARD_FAILED};
 /// `Failed` or broke the protocol). The coordinator ends such a run as cleanly as it can:
 /// the surviving shards are told to stop, and the observer gets a last window at the time
 /// of the last window every shard completed, carrying a `runEnded` event whose reason is
-/// [`RunFailure::end_reason`]. `outcome` describes the run up to there, so the caller can
+/// `outcome.reason`. `outcome` describes the run up to there, so the caller can
 /// still finish its recording (summary, recordings) before reporting the failure.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunFailure {
@@ -85,28 +85,25 @@ pub struct RunFailure {
     pub peer: Option<String>,
     /// What went wrong, e.g. `connection closed`.
     pub cause: String,
-    /// The run up to the last complete window; `reason` is [`RunFailure::end_reason`].
+    /// The run up to the last complete window; `reason` is [`EndReason::ShardFailed`] with
+    /// [`describe`]'s text.
     pub outcome: RunOutcome,
 }
 
-impl RunFailure {
-    /// `shardFailed: shard 1 (10.77.0.3:40122) failed: connection closed`: the reason in
-    /// `runEnded` and `endReason`, machine-matchable by its [`SHARD_FAILED`] prefix.
-    pub fn end_reason(&self) -> EndReason {
-        EndReason::ShardFailed(self.describe())
-    }
-
-    fn describe(&self) -> String {
-        match &self.peer {
-            Some(peer) => format!("shard {} ({peer}) failed: {}", self.shard, self.cause),
-            None => format!("shard {} failed: {}", self.shard, self.cause),
-        }
+/// `shard 1 (10.77.0.3:40122) failed: connection closed`: a failed shard as the run's end
+/// reason names it (`shardFailed: shard 1 ...`, machine-matchable by its [`SHARD_FAILED`]
+/// prefix) and as [`RunFailure`] displays it.
+fn describe(shard: u32, peer: Option<&str>, cause: &str) -> String {
+    match peer {
+        Some(peer) => format!("shard {shard} ({peer}) failed: {cause}"),
+        None => format!("shard {shard} failed: {cause}"),
     }
 }
 
 impl std::fmt::Display for RunFailure {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} (the run ended at {:.2} s of simulated time)", self.describe(), self.outcome.sim_time_s)
+        let what = describe(self.shard, self.peer.as_deref(), &self.cause);
+        write!(f, "{what} (the run ended at {:.2} s of simulated time)", self.outcome.sim_time_s)
     }
 }
 
@@ -189,19 +186,15 @@ pub fn run(
     };
     let Some((shard, cause)) = shard_cause(&error) else { return Err(error) };
     let sim_time_s = state.time_s(plan);
-    let mut failure = RunFailure {
+    let peer = links.get(shard as usize).and_then(|l| l.peer());
+    let reason = EndReason::ShardFailed(describe(shard, peer.as_deref(), &cause));
+    let end = [Event { time_s: sim_time_s, drone: None, kind: EventKind::RunEnded { reason: reason.clone() } }];
+    let failure = RunFailure {
         shard,
-        peer: links.get(shard as usize).and_then(|l| l.peer()),
+        peer,
         cause,
-        outcome: RunOutcome {
-            reason: EndReason::Duration,
-            sim_time_s,
-            wall_time: started.elapsed(),
-            released_at_s: state.released_at_s,
-        },
+        outcome: RunOutcome { reason, sim_time_s, wall_time: started.elapsed(), released_at_s: state.released_at_s },
     };
-    failure.outcome.reason = failure.end_reason();
-    let end = [Event { time_s: sim_time_s, drone: None, kind: EventKind::RunEnded { reason: failure.end_reason() } }];
     observer
         .on_window(sim_time_s, &state.drones, &end)
         .map_err(|source| CoordinatorError::ObserverAfterFailure { failure: Box::new(failure.clone()), source })?;

@@ -340,13 +340,7 @@ impl RunObserver for Progress<'_> {
     }
 
     fn stop_reason(&mut self) -> Option<EndReason> {
-        if self.pilot_error.is_some() {
-            Some(EndReason::PilotFailed)
-        } else if self.pilot_exited {
-            Some(EndReason::PilotExited)
-        } else {
-            None
-        }
+        pilot::end_reason(self.pilot_error.is_some(), self.pilot_exited)
     }
 }
 

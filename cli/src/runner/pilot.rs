@@ -27,6 +27,7 @@ use sadesim_crds::run::{Pilot, PilotExit};
 
 use sadesim_planner::credential_env_var;
 
+use sadesim_crds::outcome::ending::EndReason;
 pub use sadesim_crds::outcome::pilot::PilotRecord;
 
 /// The fleet file in the output folder (path in `SADESIM_FLEET`).
@@ -220,6 +221,18 @@ pub struct Supervisor {
     state: State,
     /// Latest simulated time the runner reported, s.
     now_s: f64,
+}
+
+/// The reason to end the run for the pilot, if any: it could not be started (`failed`), or
+/// it exited and `onExit` is `endRun` (`exited`, [`Supervisor::poll`]).
+pub fn end_reason(failed: bool, exited: bool) -> Option<EndReason> {
+    if failed {
+        Some(EndReason::PilotFailed)
+    } else if exited {
+        Some(EndReason::PilotExited)
+    } else {
+        None
+    }
 }
 
 impl Supervisor {

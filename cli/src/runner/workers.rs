@@ -12,13 +12,12 @@ use std::time::{Duration, Instant};
 use indicatif::ProgressBar;
 use sadesim_crds::ground_stations::SIGNING_KEY_ENV;
 use sadesim_crds::plan::RunPlan;
-use sim_worker::events::EndReason;
 use sim_worker::record::RunSummary;
 use sim_worker::roles::control::Control;
 use sim_worker::roles::coordinator::Report;
 
 use super::RunError;
-use super::pilot::{PilotError, Supervisor};
+use super::pilot::{self, PilotError, Supervisor};
 
 /// The `sim-worker` binary: the option, `$SADESIM_WORKER`, else next to this executable.
 fn worker_binary(configured: Option<&Path>) -> Result<PathBuf, RunError> {
@@ -237,13 +236,7 @@ pub(super) fn run(
         // The pilot exited (`endRun`) or could not start: the coordinator ends the run
         // after its current window, with that reason.
         let exited = pilot.as_deref_mut().is_some_and(Supervisor::poll);
-        let reason = if pilot_error.is_some() {
-            Some(EndReason::PilotFailed)
-        } else if exited {
-            Some(EndReason::PilotExited)
-        } else {
-            None
-        };
+        let reason = pilot::end_reason(pilot_error.is_some(), exited);
         if let (Some(reason), Some(stdin), false) = (reason, control.as_mut(), stop_sent) {
             stop_sent = true;
             let mut line = serde_json::to_vec(&Control::Stop { reason }).expect("serializable");

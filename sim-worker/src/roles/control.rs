@@ -170,6 +170,11 @@ mod tests {
         assert_eq!(stop_reason(ANNOTATIONS), Some(Ok(EndReason::PilotExited)));
         assert_eq!(stop_reason("team=\"drones\"\nkubernetes.io/config.source=\"api\""), None);
         assert_eq!(stop_reason(""), None);
+        // A reason of the requester's own is kept as given.
+        assert_eq!(
+            stop_reason("sadesim.io/stop=\"operatorSaidSo\""),
+            Some(Ok(EndReason::Requested("operatorSaidSo".into())))
+        );
         // Another annotation whose name ends the same way is not ours.
         assert_eq!(stop_reason("example.com/sadesim.io/stop=\"x\""), None);
     }
@@ -198,11 +203,6 @@ mod tests {
         assert_eq!(stop.take(), Some(EndReason::PilotExited));
         assert_eq!(stop.take(), None);
         stop.request("again");
-        // A reason of the requester's own is kept as given.
-        assert_eq!(
-            stop_reason("sadesim.io/stop=\"operatorSaidSo\""),
-            Some(Ok(EndReason::Requested("operatorSaidSo".into())))
-        );
         assert_eq!(stop.take(), None, "a request after the first changes nothing");
     }
 
