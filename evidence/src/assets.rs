@@ -169,14 +169,17 @@ pub fn build_run_assets(
     plan: &RunPlan,
     archive_url: &str,
     scratch: &Path,
-    build_wind: impl FnOnce(&World, &crate::wind::WindRequest) -> Result<sadesim_wind::UrbanWindField, AssetsError>,
+    build_wind: impl FnOnce(
+        &World,
+        &sadesim_wind::request::WindRequest,
+    ) -> Result<sadesim_wind::UrbanWindField, AssetsError>,
 ) -> Result<(AssetsOutcome, Option<crate::wind::WindOutcome>), AssetsError> {
     let key = &plan.asset_cache_key;
     let origin = plan.spec.origin.geo();
     let build = || Ok(crate::world::load_world(&plan.spec)?);
     let (outcome, world) = ensure_bundle(key, origin, archive_url, scratch, build)?;
-    let request = crate::wind::wind_request(&plan.spec, &world);
-    let Some(request) = request.filter(|r| !matches!(r.model, crate::wind::FieldModel::Imported(_))) else {
+    let request = sadesim_wind::request::wind_request(&plan.spec, &world);
+    let Some(request) = request.filter(|r| !matches!(r.model, sadesim_wind::request::FieldModel::Imported(_))) else {
         return Ok((outcome, None));
     };
     let field = || build_wind(&world, &request);

@@ -9,8 +9,8 @@
 
 use std::time::Instant;
 
-use sim_worker::events::FlightMode;
-use sim_worker::protocol::{DroneDetail, DroneSnapshot};
+use sadesim_engine::events::FlightMode;
+use sadesim_engine::protocol::{DroneDetail, DroneSnapshot};
 use sim_worker::view::feed::{Pose, encode_frame};
 use sim_worker::view::{Feed, Publisher};
 

@@ -46,7 +46,7 @@ use sadesim_wind::profile::FIELD_PROFILE;
 use sadesim_wind::rockle::WindAxes;
 use sadesim_wind::{GridSpec, SectorField, UrbanWindField, WindGrid};
 use sadesim_world::{Building, Footprint, World};
-use sim_worker::env::openfoam_run::{import_case_dir, run_case};
+use sim_worker::wind_field::openfoam_run::{import_case_dir, run_case};
 
 struct Args {
     scenario: PathBuf,

@@ -19,15 +19,15 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use crate::coordinator::ObserverError;
-use crate::events::{Event, EventKind};
-use crate::pacing::Pacer;
-use crate::protocol::DroneSnapshot;
 use crate::record::{CameraImage, CameraStream, Recorder, RecorderOptions};
 use crate::view::frames::{CameraFrame, FrameImage, FrameStore};
 use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::outcome::summary::CameraTally;
 use sadesim_crds::plan::RunPlan;
+use sadesim_engine::coordinator::ObserverError;
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::pacing::Pacer;
+use sadesim_engine::protocol::DroneSnapshot;
 use sadesim_render::{CameraModel, CameraPose, CameraView, Frame, Marker, Mount, Renderer, Scene};
 use sadesim_world::World;
 

@@ -5,7 +5,7 @@
 //! process locally; progress lines and stop requests in the role.
 //!
 //! Conducting a run: the recorder, the onboard cameras and the live stream around the
-//! lockstep loop ([`crate::coordinator::run`]) with the airspace before them; then its end.
+//! lockstep loop ([`sadesim_engine::coordinator::run`]) with the airspace before them; then its end.
 //! A run a shard failure ended has its files closed up to its last complete window (no
 //! verdict: the criteria are not judged on part of a run); a run that ended has
 //! `airspace.json`, its verdict, the shards' CPU time when the caller knows it, and
@@ -22,11 +22,13 @@ use sadesim_world::World;
 
 use crate::airspace::runtime::{AIRSPACE_FILE, Airspace, WithAirspace};
 use crate::cameras::Cameras;
-use crate::coordinator::{self, CoordinatorError, ObserverError, RunFailure, RunObserver, RunOutcome, ShardLink};
-use crate::events::Event;
-use crate::protocol::DroneSnapshot;
 use crate::record::{Recorder, RunSummary};
 use crate::view::{Feed, LiveView, Publisher};
+use sadesim_engine::coordinator::{
+    self, CoordinatorError, ObserverError, RunFailure, RunObserver, RunOutcome, ShardLink,
+};
+use sadesim_engine::events::Event;
+use sadesim_engine::protocol::DroneSnapshot;
 
 /// What watches a run besides its recorder: its onboard cameras (`spec.fleet[].cameras`) and
 /// its live stream (`spec.rendering.enabled`), up before the shards connect so that a
@@ -114,7 +116,13 @@ pub fn conduct(
         view: watchers.feed().map(Publisher::new),
         caller,
     };
-    let result = coordinator::run(plan, &mut links, &mut WithAirspace::new(airspace, &mut conducting), stop);
+    let result = coordinator::run(
+        plan,
+        &mut links,
+        &mut WithAirspace::new(airspace, &mut conducting),
+        stop,
+        &crate::transport::SystemClock,
+    );
     if let Some(cameras) = conducting.cameras.take() {
         cameras.finish(&mut recorder);
     }
@@ -184,7 +192,7 @@ impl RunObserver for Conducting<'_> {
         self.caller.on_window(time_s, drones, events)
     }
 
-    fn stop_reason(&mut self) -> Option<crate::events::EndReason> {
+    fn stop_reason(&mut self) -> Option<sadesim_engine::events::EndReason> {
         self.caller.stop_reason()
     }
 
@@ -201,8 +209,8 @@ mod tests {
     use super::*;
     use std::time::Duration;
 
-    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups, world_of};
     use crate::record::test_dir::TempDir;
+    use sadesim_engine::fixtures::{plan_of, run_with_groups, world_of};
 
     #[test]
     fn a_failed_run_still_closes_its_files() {

@@ -208,10 +208,10 @@ fn main() -> ExitCode {
                 }),
             };
             api_host.and_then(|api_host| {
-                let mavlink = (!no_mavlink).then(|| sim_worker::shard::MavlinkOptions {
+                let mavlink = (!no_mavlink).then(|| sim_worker::shard_io::MavlinkOptions {
                     bind_ip: mavlink_bind,
                     api_host,
-                    ..sim_worker::shard::MavlinkOptions::local()
+                    ..sim_worker::shard_io::MavlinkOptions::local()
                 });
                 let timeout = Duration::from_secs_f64(connect_timeout);
                 roles::read_plan(&plan).and_then(|plan| {

@@ -11,12 +11,26 @@ use std::thread::JoinHandle;
 
 use sadesim_crds::plan::RunPlan;
 
-use crate::coordinator::{LinkError, ShardLink};
-use crate::protocol::{FromShard, ToShard};
 use crate::record::Lap;
-use crate::roles::shard::{MavlinkThread, ShardSockets};
-use crate::shard::{MavlinkIo, Shard};
+use crate::shard_io::{MavlinkOptions, MavlinkThread, ShardSockets, StartError};
+use sadesim_engine::coordinator::{LinkError, ShardLink};
+use sadesim_engine::protocol::{FromShard, ToShard};
+use sadesim_engine::shard::{MavlinkIo, Shard};
 use wire::{MAX_FRAME_BYTES, Wire};
+
+/// The machine's wall clock, which paces a run (`sadesim_engine::pacing::WallClock`).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SystemClock;
+
+impl sadesim_engine::pacing::WallClock for SystemClock {
+    fn now(&self) -> std::time::Instant {
+        std::time::Instant::now()
+    }
+
+    fn sleep(&self, duration: std::time::Duration) {
+        std::thread::sleep(duration);
+    }
+}
 
 /// The coordinator's end of an in-process shard thread.
 #[derive(Debug)]
@@ -75,9 +89,9 @@ pub fn serve<E>(
 pub fn spawn_thread(
     plan: &RunPlan,
     index: u32,
-    surroundings: &crate::shard::Surroundings,
-    mavlink: Option<&crate::shard::MavlinkOptions>,
-) -> Result<(ThreadLink, JoinHandle<Option<f64>>), crate::shard::ShardError> {
+    surroundings: &sadesim_engine::shard::Surroundings,
+    mavlink: Option<&MavlinkOptions>,
+) -> Result<(ThreadLink, JoinHandle<Option<f64>>), StartError> {
     let mut shard = Shard::new(plan, index, surroundings)?;
     let sockets = mavlink
         .map(|options| ShardSockets::open(&mut shard, plan, options))

@@ -7,7 +7,7 @@
 use sadesim_wind::compare::correlation;
 use sadesim_wind::{GridSpec, UrbanWindField};
 use sadesim_world::{Building, Footprint, World};
-use sim_worker::env::openfoam_run::{check_installed, compute_sector};
+use sim_worker::wind_field::openfoam_run::{check_installed, compute_sector};
 
 /// Cube edge and cell, metres.
 const H: f64 = 20.0;

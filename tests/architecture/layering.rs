@@ -1,16 +1,17 @@
-//! The layers hold: the pure crates build no file system, process, thread or socket code
-//! (their own unit tests aside) and depend on no I/O crate; what a run reads and writes goes
-//! through the crates at the edges (`evidence`, `sim-worker`'s roles, the CLI, the
-//! operator), which hand the pure crates bytes and values. The operator links no engine
+//! The layers hold: the pure crates (the engine among them) build no file system, process,
+//! thread or socket code (their own unit tests aside) and depend on no I/O crate; what a
+//! run reads and writes goes through the crates at the edges (`evidence`, `sim-worker`, the
+//! CLI, the operator), which hand the pure crates bytes and values. The operator links no engine
 //! crate, so its image stays small and its reviewers read no physics.
 
 use std::path::{Path, PathBuf};
 
 use super::{WORKSPACE, members, module_decls};
 
-/// The crates with no I/O: the contracts, the world, satellite navigation, the wind field
-/// and the planner.
-const PURE_CRATES: &[&str] = &["sadesim-crds", "sadesim-world", "sadesim-gnss", "sadesim-wind", "sadesim-planner"];
+/// The crates with no I/O: the contracts, the world, satellite navigation, the wind field,
+/// the planner and the simulation engine.
+const PURE_CRATES: &[&str] =
+    &["sadesim-crds", "sadesim-world", "sadesim-gnss", "sadesim-wind", "sadesim-planner", "sadesim-engine"];
 
 /// Uses of the standard library's I/O that a pure crate must not make.
 const FORBIDDEN_STD: &[&str] = &[
@@ -26,14 +27,17 @@ const FORBIDDEN_STD: &[&str] = &[
 ];
 
 /// Crates that do I/O (runtimes, networking, object stores, the Kubernetes client,
-/// processes) a pure crate must not depend on. (`crds` uses `kube`'s derive only.)
+/// processes) a pure crate must not depend on. (`crds` uses `kube`'s derive only; the
+/// engine uses `mavlink`'s messages and framing only, see
+/// [`mavlink_is_built_without_its_connections`].)
 const IO_CRATES: &[&str] = &[
     "tokio",
     "object_store",
     "reqwest",
     "hyper",
     "axum",
-    "mavlink",
+    "mio",
+    "socket2",
     "kube-client",
     "kube-runtime",
     "ctrlc",
@@ -161,9 +165,33 @@ fn pure_crates_depend_on_no_io_crate() {
     assert!(found.is_empty(), "a pure crate depends on {found:?}; `cargo tree -i <crate>` shows which");
 }
 
-/// Crates of the engine's roles, never of the controller: the engine itself, MAVLink, the
+/// The `mavlink` crate the engine depends on is its message set and framing only: none of
+/// its connection features (TCP, UDP, serial, async runtimes) is enabled anywhere in the
+/// workspace, so the engine cannot open a MAVLink connection; the sockets are
+/// `sim-worker`'s.
+#[test]
+fn mavlink_is_built_without_its_connections() {
+    let out = std::process::Command::new(env!("CARGO"))
+        .args(["tree", "--offline", "--locked", "-e", "normal", "--prefix", "none", "--format", "{p} [{f}]"])
+        .args(["-p", "sadesim-engine", "-i", "mavlink"])
+        .current_dir(WORKSPACE)
+        .output()
+        .expect("cargo tree runs");
+    assert!(out.status.success(), "cargo tree failed: {}", String::from_utf8_lossy(&out.stderr));
+    let tree = String::from_utf8(out.stdout).unwrap();
+    let line = tree.lines().find(|l| l.starts_with("mavlink ")).unwrap_or_else(|| panic!("no mavlink in {tree}"));
+    let features = &line[line.find('[').unwrap() + 1..line.rfind(']').unwrap()];
+    assert!(features.contains("std"), "the features were read: {line}");
+    let connections: Vec<&str> = features
+        .split(',')
+        .filter(|f| ["tcp", "udp", "direct-serial", "tokio-1", "embedded", "embedded-hal-02"].contains(f))
+        .collect();
+    assert!(connections.is_empty(), "mavlink is built with connection features {connections:?}: {line}");
+}
+
+/// Crates of the engine and its roles, never of the controller: the engine itself, MAVLink, the
 /// HTTP servers, the report's and the cameras' renderers.
-const ENGINE_CRATES: &[&str] = &["sim-worker", "sadesim-render", "mavlink", "axum", "resvg", "wgpu"];
+const ENGINE_CRATES: &[&str] = &["sadesim-engine", "sim-worker", "sadesim-render", "mavlink", "axum", "resvg", "wgpu"];
 
 /// The operator links no simulation engine: its normal dependency tree (what the
 /// `sadesim-operator` binary and image contain) has no physics, MAVLink or HTTP server

@@ -5,11 +5,12 @@ use nalgebra::{UnitQuaternion, Vector3};
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::{Mission, MissionItem};
 use sadesim_crds::geo::{Enu, LocalFrame};
+use sadesim_engine::autopilot::control::{Controller, EstimatedState, Setpoint};
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::preset::Preset;
+use sadesim_engine::protocol::DroneSnapshot;
+use sadesim_engine::vehicle::{Airframe, GRAVITY_MPS2, Motor, RigidState, wrench};
 use sadesim_integration_tests::{environment, median, over_seeds, plan};
-use sim_worker::autopilot::control::{Controller, EstimatedState, Setpoint};
-use sim_worker::events::{Event, EventKind};
-use sim_worker::protocol::DroneSnapshot;
-use sim_worker::vehicle::{GRAVITY_MPS2, Motor, RigidState, preset, wrench};
 
 const DT: f64 = 0.001;
 
@@ -20,7 +21,7 @@ const DT: f64 = 0.001;
 #[test]
 fn hover_needs_thrust_equal_to_weight_within_two_percent() {
     for name in ["x500", "mini250"] {
-        let airframe = preset(name).unwrap();
+        let airframe = physics_of(name);
         let mut controller = Controller::for_airframe(&airframe).unwrap();
         let mut motors = Motor::for_airframe(&airframe);
         let mut state = RigidState::at_rest(Vector3::new(0.0, 0.0, 20.0));
@@ -49,7 +50,7 @@ fn hover_needs_thrust_equal_to_weight_within_two_percent() {
 }
 
 /// Seconds for `airframe`, motors stopped, to fall `height_m` from rest in still air.
-fn fall_time_s(airframe: &sim_worker::vehicle::Airframe, height_m: f64) -> f64 {
+fn fall_time_s(airframe: &sadesim_engine::vehicle::Airframe, height_m: f64) -> f64 {
     let motors = Motor::for_airframe(airframe);
     let mut state = RigidState::at_rest(Vector3::new(0.0, 0.0, height_m));
     let mut t = 0.0;
@@ -71,20 +72,20 @@ fn fall_time_s(airframe: &sim_worker::vehicle::Airframe, height_m: f64) -> f64 {
 #[test]
 fn a_twenty_metre_free_fall_takes_the_analytic_time() {
     // Drag off: the analytic time is sqrt(2 h / g).
-    let mut airframe = preset("x500").unwrap();
+    let mut airframe = physics_of("x500");
     airframe.drag_coeff_linear = Vector3::zeros();
     airframe.drag_coeff_quadratic = Vector3::zeros();
     let t = fall_time_s(&airframe, 20.0);
     let analytic = (2.0 * 20.0 / GRAVITY_MPS2).sqrt();
     assert!((t - analytic).abs() / analytic < 0.01, "fell in {t:.4} s, analytic {analytic:.4} s");
     // With the airframe's drag the same fall is slower, never faster.
-    let t_drag = fall_time_s(&preset("x500").unwrap(), 20.0);
+    let t_drag = fall_time_s(&physics_of("x500"), 20.0);
     assert!(t_drag > t, "drag {t_drag:.3} s vs vacuum {t:.3} s");
 }
 
 #[test]
 fn without_control_a_drone_drifts_downwind() {
-    let airframe = preset("x500").unwrap();
+    let airframe = physics_of("x500");
     let mut motors = Motor::for_airframe(&airframe);
     for m in &mut motors {
         m.set_omega(airframe.hover_omega_rad_s());
@@ -222,4 +223,9 @@ fn hold_in_a_steady_ten_metre_per_second_wind_stays_within_two_metres() {
     let [w, x, y, z] = s.attitude_wxyz;
     let q = UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(w, x, y, z));
     assert!((q * Vector3::z()).x < -0.05, "body z axis {:?}", q * Vector3::z());
+}
+
+/// The physics of preset `name`.
+fn physics_of(name: &str) -> Airframe {
+    Preset::named(name).unwrap_or_else(|| panic!("no preset {name}")).airframe
 }

@@ -4,8 +4,8 @@
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::fleet::{Mission, MissionItem};
 use sadesim_crds::geo::{Enu, LocalFrame};
-use sim_worker::events::{EventKind, FlightMode};
-use sim_worker::shard::Shard;
+use sadesim_engine::events::{EventKind, FlightMode};
+use sadesim_engine::shard::Shard;
 
 use sadesim_integration_tests::{
     environment, fly_to_and_land, median, over_seeds, plan as plan_for, world as world_for,
@@ -23,7 +23,8 @@ fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
     run.spec.fleet[0].mission = Some(fly_to_and_land(wp, 20.0, 30.0, Some(3.0), 5.0));
     let plan = plan_for(&run);
     let world = world_for(&plan);
-    let mut shard = Shard::new(&plan, 0, &sim_worker::shard::Surroundings::new(&plan, world.clone(), None)).unwrap();
+    let mut shard =
+        Shard::new(&plan, 0, &sadesim_engine::shard::Surroundings::new(&plan, world.clone(), None)).unwrap();
     let mut events = Vec::new();
     // Warm up until the estimator has a fix and a settled height, then release the pilot.
     events.extend(shard.advance(5_000));
@@ -32,12 +33,12 @@ fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
     let mut closest = f64::INFINITY;
     let target = frame.to_enu(wp);
     for window in 1..=900 {
-        let msg = shard.handle(sim_worker::protocol::ToShard::Advance {
+        let msg = shard.handle(sadesim_engine::protocol::ToShard::Advance {
             until_step: 5_000 + window * 100,
             release_pilots: true,
             leases: None,
         });
-        let Some(sim_worker::protocol::FromShard::Advanced { drones, events: e, .. }) = msg else { panic!() };
+        let Some(sadesim_engine::protocol::FromShard::Advanced { drones, events: e, .. }) = msg else { panic!() };
         events.extend(e);
         let s = &drones[0];
         max_agl = max_agl.max(s.height_agl_m);
@@ -61,7 +62,7 @@ fn a_scripted_mission_takes_off_reaches_its_waypoint_and_lands() {
 fn fly(
     run: &sadesim_crds::SimulationRun,
     seconds: u64,
-) -> (Vec<sim_worker::events::Event>, Vec<sim_worker::protocol::DroneSnapshot>) {
+) -> (Vec<sadesim_engine::events::Event>, Vec<sadesim_engine::protocol::DroneSnapshot>) {
     sadesim_integration_tests::fly(run, seconds, 100)
 }
 
@@ -183,7 +184,7 @@ fn a_shard_gives_the_same_flights_whatever_its_window() {
     let plan = plan_for(&run);
     let world = world_for(&plan);
     let fly = |window: u64| {
-        let surroundings = sim_worker::shard::Surroundings::new(&plan, world.clone(), None);
+        let surroundings = sadesim_engine::shard::Surroundings::new(&plan, world.clone(), None);
         let mut shard = Shard::new(&plan, 0, &surroundings).unwrap();
         let mut events = Vec::new();
         let mut step = 0;
@@ -191,8 +192,8 @@ fn a_shard_gives_the_same_flights_whatever_its_window() {
             // Pilots released from step 5 000 on, whatever the window.
             let release_pilots = step >= 5_000;
             step += window;
-            let Some(sim_worker::protocol::FromShard::Advanced { events: e, .. }) =
-                shard.handle(sim_worker::protocol::ToShard::Advance { until_step: step, release_pilots, leases: None })
+            let Some(sadesim_engine::protocol::FromShard::Advanced { events: e, .. }) = shard
+                .handle(sadesim_engine::protocol::ToShard::Advance { until_step: step, release_pilots, leases: None })
             else {
                 panic!("the shard stopped")
             };

@@ -9,9 +9,9 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::RunPlan;
+use sadesim_engine::events::{EventKind, FlightMode};
 use sadesim_gnss::{Constellation, RunSky};
 use sadesim_world::{Building, Footprint, World};
-use sim_worker::events::{EventKind, FlightMode};
 
 use sadesim_integration_tests::{environment, fly_in, fly_to_and_land, plan as plan_for};
 
@@ -63,7 +63,7 @@ fn a_drone_holding_on_gnss_in_a_deep_canyon_wanders_more_than_over_the_park() {
     // end or until the drone touches a wall: the estimator follows the canyon's fixes, whose
     // reflected signals bias them by metres to tens of metres, and flies the drone with them.
     let hold = [e, n + 150.0];
-    let stray_m = |track: &[sim_worker::protocol::DroneSnapshot], events: &[sim_worker::events::Event]| {
+    let stray_m = |track: &[sadesim_engine::protocol::DroneSnapshot], events: &[sadesim_engine::events::Event]| {
         let end_s =
             events.iter().find(|ev| matches!(ev.kind, EventKind::Crashed { .. })).map_or(f64::INFINITY, |ev| ev.time_s);
         track[480..]
@@ -78,7 +78,7 @@ fn a_drone_holding_on_gnss_in_a_deep_canyon_wanders_more_than_over_the_park() {
     assert!(park_m < 3.0, "over the park the hold is as tight as the open-sky fix: {park_m:.2} m");
     assert!(canyon_m > 3.0 * park_m && canyon_m > 5.0, "canyon {canyon_m:.2} m vs park {park_m:.2} m");
     // The receiver's own account: fewer satellites used in the canyon.
-    let used = |track: &[sim_worker::protocol::DroneSnapshot]| {
+    let used = |track: &[sadesim_engine::protocol::DroneSnapshot]| {
         let fixes: Vec<u8> =
             track[400..500].iter().filter_map(|s| s.detail.gnss.as_ref()).map(|g| g.satellites).collect();
         fixes.iter().map(|&k| f64::from(k)).sum::<f64>() / fixes.len() as f64

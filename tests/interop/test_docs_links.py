@@ -75,7 +75,7 @@ def named_paths(doc: pathlib.Path, root: pathlib.Path, folders: set[str]):
             path = target.split("#", 1)[0]
             if path:
                 yield number, path, doc.parent
-        # Backticked or not: `sim-worker/src/env/`, (docs/kubernetes.md, "...").
+        # Backticked or not: `engine/src/env/`, (docs/kubernetes.md, "...").
         for word in re.split(r"[\s`|]+", LINK.sub(" ", line)):
             word = clean(word)
             if "/" in word and "://" not in word and word.split("/", 1)[0] in folders:

@@ -6,10 +6,10 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::fleet::{Mission, MissionItem};
 use sadesim_crds::geo::GeoPoint;
 use sadesim_crds::plan::RunPlan;
+use sadesim_engine::events::Event;
+use sadesim_engine::protocol::{DroneSnapshot, FromShard, ToShard};
+use sadesim_engine::shard::Shard;
 use sadesim_world::{World, WorldInputs};
-use sim_worker::events::Event;
-use sim_worker::protocol::{DroneSnapshot, FromShard, ToShard};
-use sim_worker::shard::Shard;
 
 /// Plans a run that must be valid.
 pub fn plan(run: &SimulationRun) -> RunPlan {
@@ -35,7 +35,7 @@ pub fn fly_in(
 ) -> (Vec<Event>, Vec<DroneSnapshot>) {
     let steps_per_s = u64::from(plan.physics_rate_hz);
     let mut shard =
-        Shard::new(plan, 0, &sim_worker::shard::Surroundings::new(plan, world, sky)).expect("the shard builds");
+        Shard::new(plan, 0, &sadesim_engine::shard::Surroundings::new(plan, world, sky)).expect("the shard builds");
     // Warm up as the coordinator does: pilots are released once every drone is ready (a
     // position estimate with a settled height, a few seconds of fixes), at least 0.3 s.
     let mut warm_up = steps_per_s * 3 / 10;

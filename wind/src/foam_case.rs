@@ -1,7 +1,7 @@
 //! An OpenFOAM case of the wind over a rectangle of the world: the files of a steady RANS
 //! run (blockMesh background mesh, snappyHexMesh around the buildings as an STL surface,
 //! simpleFoam with standard k-epsilon and an atmospheric boundary-layer inflow), written as
-//! bytes; running them is the caller's (`sim_worker::env::openfoam_run`).
+//! bytes; running them is the caller's (`sim_worker::wind_field::openfoam_run`).
 //!
 //! Frame: the case's axes are the run's ENU axes, in metres from the run's origin, with no
 //! rotation or offset (x = east, y = north, z = up), so the cell centres the case writes are

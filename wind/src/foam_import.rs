@@ -1,5 +1,5 @@
 //! An OpenFOAM case's wind mapped onto the wind grid: the cell centres `C` and velocity `U`
-//! of a case (run by `sim_worker::env::openfoam_run`, or computed elsewhere by a user)
+//! of a case (run by `sim_worker::wind_field::openfoam_run`, or computed elsewhere by a user)
 //! become a [`SectorField`] of factors of the reference wind.
 //!
 //! # What a case must be

@@ -11,9 +11,11 @@
 //! - [`openfoam`]: OpenFOAM ASCII vector fields (cell centres `C`, velocity `U`) of a case
 //!   computed elsewhere, read from their text;
 //! - [`foam_case`]: the files of an OpenFOAM case of the wind over the world's buildings;
-//! - [`foam_import`]: an OpenFOAM case's cells mapped onto the wind grid as a sector field.
+//! - [`foam_import`]: an OpenFOAM case's cells mapped onto the wind grid as a sector field;
+//! - [`request`]: which field a run needs (grid, sectors, direction, model), from its
+//!   scenario and world.
 //!
-//! Pure: the world in, numbers out; the same inputs give the same bits.
+//! Pure: the world (and the scenario) in, numbers out; the same inputs give the same bits.
 
 pub mod compare;
 pub mod field;
@@ -22,6 +24,7 @@ pub mod foam_import;
 pub mod grid;
 pub mod openfoam;
 pub mod profile;
+pub mod request;
 pub mod rockle;
 pub mod solver;
 

@@ -1,6 +1,6 @@
 //! The undisturbed wind: the neutral log law over the city's roughness, as a factor of the
 //! wind at the reference height (the same law as the flight's mean wind,
-//! `sim_worker::env::MeanWind`).
+//! `sadesim_engine::env::MeanWind`).
 
 /// `u(h) / u(h_ref) = ln(h / z0) / ln(h_ref / z0)`, with `h` clamped to at least `z0`
 /// (zero in the roughness sublayer), heights above the local ground in metres.

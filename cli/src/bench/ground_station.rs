@@ -130,7 +130,7 @@ fn gcs_heartbeat(sequence: u8) -> Vec<u8> {
     let payload = [0, 0, 0, 0, 6, 8, 0, 0, 3];
     let mut frame = vec![0xFD, payload.len() as u8, 0, 0, sequence, GCS_SYSTEM_ID, 190, 0, 0, 0];
     frame.extend_from_slice(&payload);
-    let crc = sim_worker::mavlink::frame::checksum(&frame[1..], HEARTBEAT_CRC_EXTRA);
+    let crc = sadesim_engine::mavlink::frame::checksum(&frame[1..], HEARTBEAT_CRC_EXTRA);
     frame.extend_from_slice(&crc.to_le_bytes());
     frame
 }
@@ -141,12 +141,12 @@ mod tests {
 
     #[test]
     fn the_heartbeat_is_a_frame_the_routers_parser_takes_from_a_ground_station() {
-        let mut parser = sim_worker::mavlink::frame::FrameParser::new();
+        let mut parser = sadesim_engine::mavlink::frame::FrameParser::new();
         let frames = parser.push(&gcs_heartbeat(7));
         assert_eq!(frames.len(), 1, "{frames:?}");
         let (h, id) = (frames[0].header, frames[0].message_id);
         assert_eq!((h.system_id, h.component_id, h.sequence, id), (255, 190, 7, 0));
-        assert!(matches!(frames[0].message, sim_worker::mavlink::frame::Decoded::Message(_)), "decoded");
+        assert!(matches!(frames[0].message, sadesim_engine::mavlink::frame::Decoded::Message(_)), "decoded");
         assert_eq!(count_frames(&gcs_heartbeat(0)), 1);
     }
 

@@ -115,7 +115,7 @@ pub(super) fn build(file: &Path, cache: Option<String>, quiet: bool, out: &mut d
         .map_err(|source| CliError::Run { path: file.display().to_string(), source })?;
     if let Some((Some(outcome), field)) = wind {
         writeln!(out, "{outcome}")?;
-        writeln!(out, "  {}", sim_worker::env::describe_urban_wind(&field, started.elapsed().as_secs_f64()))?;
+        writeln!(out, "  {}", sadesim_engine::env::describe_urban_wind(&field, started.elapsed().as_secs_f64()))?;
     }
     Ok(Outcome::Success)
 }
@@ -203,8 +203,12 @@ fn wind_slice(
         direction_from_deg: wind.direction_from_deg,
         // The field's factors are of the wind at its reference height over open ground:
         // the scenario's wind there, by the flight's profile.
-        speed_mps: sim_worker::env::MeanWind::urban(wind.speed_mps, wind.direction_from_deg, wind.reference_height_m)
-            .speed_at_mps(field.profile.reference_height_m),
+        speed_mps: sadesim_engine::env::MeanWind::urban(
+            wind.speed_mps,
+            wind.direction_from_deg,
+            wind.reference_height_m,
+        )
+        .speed_at_mps(field.profile.reference_height_m),
         height_agl_m: args.height_agl_m,
         area: args.area.unwrap_or([-e, -e, e, e]),
         run: plan.run.name.clone(),

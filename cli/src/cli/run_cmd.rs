@@ -95,7 +95,7 @@ pub(super) fn run_file(
 }
 
 /// Prints the criteria verdict: one line per criterion, then each failure.
-fn report_verdict(out: &mut dyn Write, v: &sim_worker::airspace::criteria::RunVerdict) -> std::io::Result<()> {
+fn report_verdict(out: &mut dyn Write, v: &sadesim_engine::airspace::criteria::RunVerdict) -> std::io::Result<()> {
     let passed = v.criteria.iter().filter(|c| c.passed).count();
     let word = if v.passed { "PASSED" } else { "FAILED" };
     writeln!(out, "  criteria {word}: {passed} of {} passed", v.criteria.len())?;

@@ -12,6 +12,10 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::fleet::Credential;
 use sadesim_crds::plan::RunPlan;
+use sadesim_engine::coordinator::{CoordinatorError, ObserverError, RunObserver, ShardLink};
+use sadesim_engine::events::{EndReason, Event, EventKind};
+use sadesim_engine::mavlink::signing::SecretKey;
+use sadesim_engine::protocol::{DroneSnapshot, FleetCounts};
 use sadesim_evidence::archive::is_object_store;
 use sadesim_evidence::assets::{AssetsError, AssetsOutcome, ensure_bundle};
 use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
@@ -19,14 +23,10 @@ use sadesim_evidence::wind::WindOutcome;
 use sadesim_world::World;
 use sim_worker::airspace::runtime::Airspace;
 use sim_worker::conduct::{ConductError, Watchers, conduct};
-use sim_worker::coordinator::{CoordinatorError, ObserverError, RunObserver, ShardLink};
-use sim_worker::events::{EndReason, Event, EventKind};
 use sim_worker::mavlink::router::RouterHandle;
-use sim_worker::mavlink::signing::SecretKey;
-use sim_worker::protocol::{DroneSnapshot, FleetCounts};
 use sim_worker::record::RunSummary;
 use sim_worker::roles::router::RouterOptions;
-use sim_worker::shard::MavlinkOptions;
+use sim_worker::shard_io::MavlinkOptions;
 use sim_worker::transport;
 
 use sadesim_planner::{self as planner, Addressing, PlanError};
@@ -114,7 +114,7 @@ pub enum RunError {
     #[error("failed to write the output folder {path}: {source}")]
     Output { path: String, source: std::io::Error },
     #[error("failed to start shard {shard}: {source}")]
-    Shard { shard: u32, source: sim_worker::shard::ShardError },
+    Shard { shard: u32, source: sim_worker::shard_io::StartError },
     #[error(transparent)]
     Coordinator(#[from] CoordinatorError),
     /// A `sim-worker` process could not be started or failed.
@@ -192,7 +192,7 @@ pub fn run_wind(
     cache: Option<&str>,
     progress: bool,
 ) -> Result<Option<(Option<WindOutcome>, sadesim_wind::UrbanWindField)>, RunError> {
-    use sadesim_evidence::wind::{FieldModel, wind_request};
+    use sadesim_wind::request::{FieldModel, wind_request};
     let Some(request) = wind_request(&plan.spec, world) else { return Ok(None) };
     let total = request.sectors_built().len() as u64;
     let bar = if progress { ProgressBar::new(total) } else { ProgressBar::hidden() };
@@ -205,14 +205,15 @@ pub fn run_wind(
     };
     let build = || {
         bar.set_message(format!("urban wind: {what}"));
-        sim_worker::env::build_field(world, &request, &scratch, |done, _| bar.set_position(u64::from(done)))
+        sim_worker::wind_field::build_field(world, &request, &scratch, |done, _| bar.set_position(u64::from(done)))
             .map_err(|e| AssetsError::WindBuild(e.to_string()))
     };
     let made = match (cache, &request.model) {
         (_, FieldModel::Imported(_)) | (None, FieldModel::OpenFoam) => build().map(|field| (None, field)),
-        (None, FieldModel::Diagnostic) => {
-            Ok((None, sim_worker::env::urban_wind_field(&plan.spec, world).expect("the run wants the built-in field")))
-        }
+        (None, FieldModel::Diagnostic) => Ok((
+            None,
+            sadesim_engine::env::urban_wind_field(&plan.spec, world).expect("the run wants the built-in field"),
+        )),
         (Some(cache), _) => {
             bar.set_message(format!("urban wind: looking in {cache}"));
             sadesim_evidence::wind::ensure_wind(
@@ -334,7 +335,13 @@ impl RunObserver for Progress<'_> {
             self.pilot_exited = pilot.poll();
         }
         if !self.bar.is_hidden() {
-            show_progress(&self.bar, time_s, self.duration_s, self.started, sim_worker::protocol::fleet_counts(drones));
+            show_progress(
+                &self.bar,
+                time_s,
+                self.duration_s,
+                self.started,
+                sadesim_engine::protocol::fleet_counts(drones),
+            );
         }
         Ok(())
     }
@@ -444,7 +451,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             plan.spec.rendering().enabled.then(|| local(plan.services.renderer_http)),
         )
     } else {
-        let surroundings = sim_worker::shard::Surroundings { world: world.clone(), sky, wind };
+        let surroundings = sadesim_engine::shard::Surroundings { world: world.clone(), sky, wind };
         let signing = signing.as_deref().map(SecretKey::from_passphrase);
         let routers = options.mavlink.then_some(signing);
         let inputs = ShardInputs { surroundings, routers, watchers: &mut watchers };
@@ -543,7 +550,7 @@ fn start_routers(plan: &RunPlan, signing: Option<&SecretKey>) -> Result<Vec<Rout
 /// What the in-process roles fly in and with, and who watches.
 struct ShardInputs<'a> {
     /// The world, the GNSS sky and the urban wind field.
-    surroundings: sim_worker::shard::Surroundings,
+    surroundings: sadesim_engine::shard::Surroundings,
     /// Whether the drones get MAVLink endpoints and the segments routers: `None` for
     /// neither, else the routers' signing key (`None` inside: no signing).
     routers: Option<Option<SecretKey>>,

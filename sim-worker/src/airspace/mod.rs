@@ -1,29 +1,16 @@
-//! Airspace management (DESIGN §6 `airspace`, the paper's SADE Zones and DO3).
+//! The airspace authority at run time (the decisions themselves are
+//! `sadesim_engine::airspace`):
 //!
-//! - [`volume`]: zones as volumes in the run's local ENU frame (polygon, floor and ceiling
-//!   AGL or MSL, time window) with point and segment queries. Pure geometry.
-//! - [`authority`]: the airspace authority's decisions on entry requests (credentials,
-//!   capacity, altitude, activity) and its lease table. Pure: a function of (zone policy,
-//!   leases, request, sim time).
 //! - [`service`]: the authority's HTTP/JSON API (axum), part of the coordinator role.
 //!   `docs/airspace-api.yaml` is its OpenAPI description.
 //! - [`runtime`]: the authority, the monitor and the API together around a run: the
 //!   coordinator's observer that merges their events into each window and writes
 //!   `airspace.json` at the end.
-//! - [`monitor`]: the compliance monitor on ground truth, every coordinator window
-//!   (100 Hz at the default 1 kHz physics and 10-step windows): zone entries and exits,
-//!   entries without a lease, constraint and altitude-limit breaches, separation.
-//! - [`criteria`]: the run's pass/fail verdict from the scenario's `criteria`.
 //!
 //! Time is simulated seconds since the start of the run everywhere in this module.
-//! Positions are world ENU metres (x east, y north, z up from the origin's ground).
 
-pub mod authority;
-pub mod criteria;
-pub mod monitor;
 pub mod runtime;
 pub mod service;
-pub mod volume;
 
 use std::sync::{Arc, Mutex};
 
@@ -31,7 +18,8 @@ use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::zones::Zone;
 
-use crate::events::Event;
+use sadesim_engine::airspace::{authority, volume};
+use sadesim_engine::events::Event;
 
 /// What the HTTP service and the coordinator's observer share.
 #[derive(Debug)]

@@ -14,13 +14,13 @@ use sadesim_crds::plan::RunPlan;
 use serde::Serialize;
 
 use super::authority::{Lease, RequestRecord};
-use super::criteria::{self, RunVerdict};
-use super::monitor::{ComplianceReport, Monitor};
 use super::service::{self, ServiceHandle};
 use super::{AirspaceState, SharedAirspace};
-use crate::coordinator::{ObserverError, RunObserver};
-use crate::events::{Event, EventKind};
-use crate::protocol::DroneSnapshot;
+use sadesim_engine::airspace::criteria::{self, RunVerdict};
+use sadesim_engine::airspace::monitor::{ComplianceReport, Monitor};
+use sadesim_engine::coordinator::{ObserverError, RunObserver};
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::protocol::DroneSnapshot;
 
 /// The file the airspace records of a run go to, next to `summary.json`.
 pub const AIRSPACE_FILE: &str = sadesim_crds::outcome::run_folder::AIRSPACE;
@@ -204,7 +204,7 @@ impl RunObserver for WithAirspace<'_> {
         self.airspace.leases_changed()
     }
 
-    fn stop_reason(&mut self) -> Option<crate::events::EndReason> {
+    fn stop_reason(&mut self) -> Option<sadesim_engine::events::EndReason> {
         self.inner.stop_reason()
     }
 
@@ -216,7 +216,7 @@ impl RunObserver for WithAirspace<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::airspace::monitor::test_plan::plan_of;
+    use sadesim_engine::fixtures::plan_of;
 
     /// `/healthz` says `pilotsReleased` from the window that carries the event on, and
     /// keeps saying it: the pilot pod's init container polls it.

@@ -39,7 +39,7 @@ use serde_json::{Value, json};
 
 use super::authority::{Authority, AuthorityError, EntryRequest};
 use super::{AirspaceState, SharedAirspace};
-use crate::events::Event;
+use sadesim_engine::events::Event;
 
 /// Largest request body accepted, bytes (an entry request is about 100 bytes).
 pub const MAX_BODY_BYTES: usize = 16 * 1024;

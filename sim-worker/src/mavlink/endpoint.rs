@@ -39,10 +39,10 @@ use ::mavlink::dialects::common::MavMessage;
 use mio::net::{TcpListener, TcpStream, UdpSocket};
 use mio::{Events, Interest, Poll, Token};
 
-use crate::mavlink::frame::{Frame, FrameParser, MAX_FRAME_LEN, encode_command_ack, encode_into};
 use crate::mavlink::router::{ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID};
-use crate::mavlink::session::{COMPONENT_ID, Outgoing};
 use crate::mavlink::uplink::Uplink;
+use sadesim_engine::mavlink::frame::{Frame, FrameParser, MAX_FRAME_LEN, encode_command_ack, encode_into};
+use sadesim_engine::mavlink::session::{COMPONENT_ID, Outgoing};
 
 /// Datagrams are filled up to this many bytes (below the 1500-byte Ethernet MTU with IP
 /// and UDP headers, so nothing fragments on a real network).

@@ -1,19 +1,7 @@
-//! The MAVLink edge of a drone: PX4's flight-mode encoding, framing, message signing, the
-//! per-drone session state machine (pure), the socket endpoint that carries it, and the
-//! fleet router.
-//!
-//! Frames at this edge are MAVLink's: NED (x north, y east, z down) for local positions,
-//! WGS84 lat/lon in 1e-7 degrees, altitudes in metres AMSL or relative to home. The engine
-//! inside is ENU; conversions happen here and nowhere else.
+//! The MAVLink sockets: a drone's endpoint (UDP to ground stations and the API link, TCP
+//! for pilots that dial in), the uplink to the fleet router, and the router itself. The
+//! frames, signing and the per-drone session they carry are `sadesim_engine::mavlink`.
 
 pub mod endpoint;
-pub mod frame;
-pub mod mission_protocol;
-pub mod params;
-pub mod px4_mode;
 pub mod router;
-pub mod session;
-pub mod signing;
-pub mod streams;
-pub mod telemetry;
 pub mod uplink;

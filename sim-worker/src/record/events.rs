@@ -4,7 +4,7 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
-use crate::events::Event;
+use sadesim_engine::events::Event;
 
 /// Appends events as JSON lines.
 #[derive(Debug)]

@@ -4,7 +4,7 @@
 
 use sadesim_crds::outcome::summary::{ErrorStats, GnssSummary};
 
-use crate::protocol::DroneSnapshot;
+use sadesim_engine::protocol::DroneSnapshot;
 
 /// One row of `gnss.csv`: a drone's receiver epoch in flight, at most one per second.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -112,7 +112,7 @@ impl GnssTally {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::protocol::{GnssDetail, SkyDetail};
+    use sadesim_engine::protocol::{GnssDetail, SkyDetail};
 
     fn snap(t: f64, fix: Option<[f64; 3]>) -> DroneSnapshot {
         let mut s = DroneSnapshot::climbing(0, 0.0, t);

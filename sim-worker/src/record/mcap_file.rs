@@ -63,9 +63,9 @@ use sadesim_crds::run::{Compression, RecordingRates};
 use sadesim_world::World;
 
 use self::writer::{ChunkCompression, McapWriter};
-use crate::events::{Event, EventKind};
-use crate::protocol::DroneSnapshot;
 use crate::record::{CameraImage, CameraStream, Sampler};
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::protocol::DroneSnapshot;
 
 /// File name inside the run folder.
 pub const MCAP_FILE: &str = "recording.mcap";

@@ -11,10 +11,10 @@ use super::{
     CameraImage, CameraStream, DroneSummary, EventLog, McapRecorder, RunSummary, Sampler, StreamWriter, TrajectoryCsv,
     TrajectoryGeoJson, UlogRecorder,
 };
-use crate::airspace::criteria::RunVerdict;
-use crate::coordinator::{ObserverError, RunObserver, RunOutcome};
-use crate::events::{Event, EventKind};
-use crate::protocol::DroneSnapshot;
+use sadesim_engine::airspace::criteria::RunVerdict;
+use sadesim_engine::coordinator::{ObserverError, RunObserver, RunOutcome};
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::protocol::DroneSnapshot;
 
 /// Sampling rates of the recorded streams, and the recorded cameras.
 #[derive(Clone, Debug, PartialEq)]
@@ -234,8 +234,8 @@ mod tests {
     use sadesim_crds::run::Recording;
 
     use super::*;
-    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups, world_of};
     use crate::record::test_dir::TempDir;
+    use sadesim_engine::fixtures::{plan_of, run_with_groups, world_of};
 
     /// Three simulated seconds of 4 drones climbing, recorded with `recording`; the summary.
     fn record(dir: &TempDir, recording: Recording) -> RunSummary {

@@ -30,8 +30,8 @@ use std::thread::JoinHandle;
 
 use super::cost::{Lap, RecordingCost};
 use super::{CameraImage, McapRecorder, UlogRecorder};
-use crate::events::Event;
-use crate::protocol::DroneSnapshot;
+use sadesim_engine::events::Event;
+use sadesim_engine::protocol::DroneSnapshot;
 
 /// Windows handed over at once (10 ms of simulated time each by default): one wake-up of
 /// the thread per batch, not per window. Per window, the hand-over (a futex wake and a
@@ -206,9 +206,9 @@ fn write_all(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups, world_of};
     use crate::record::test_dir::TempDir;
     use crate::record::{MCAP_FILE, ULOG_DIR};
+    use sadesim_engine::fixtures::{plan_of, run_with_groups, world_of};
 
     fn windows() -> impl Iterator<Item = (f64, Vec<DroneSnapshot>)> {
         (1..=200u32).map(|w| {

@@ -2,8 +2,8 @@
 
 pub use sadesim_crds::outcome::summary::{DroneSummary, RunSummary};
 
-use crate::events::{Event, EventKind};
-use crate::protocol::{DroneSnapshot, fleet_counts};
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::protocol::{DroneSnapshot, fleet_counts};
 
 /// Folds one window into the totals.
 pub fn observe_window(
@@ -53,7 +53,7 @@ pub fn observe_window(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::airspace::monitor::test_plan::over;
+    use sadesim_engine::fixtures::over;
 
     #[test]
     fn the_wind_met_is_tallied_while_airborne_only_and_only_in_runs_with_wind() {

@@ -11,7 +11,7 @@ use sadesim_crds::plan::RunPlan;
 use serde_json::json;
 
 use super::fixed;
-use crate::protocol::DroneSnapshot;
+use sadesim_engine::protocol::DroneSnapshot;
 
 /// Column names of `trajectory.csv`. Angles are Euler angles of the body (FLU) relative to
 /// ENU: roll about x, pitch about y, yaw about z (0 = facing east, counter-clockwise).

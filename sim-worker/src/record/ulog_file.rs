@@ -43,14 +43,14 @@ use sadesim_crds::plan::{PlannedDrone, RunPlan};
 use self::convert::{DroneFrame, Solution, StatusTracker, micros};
 use self::topics::Topic;
 use self::writer::{ParamValue, UlogWriter};
-use crate::events::{Event, EventKind};
-use crate::mavlink::params::{self as mavlink_params, plan::drone_table};
-use crate::protocol::DroneSnapshot;
 use crate::record::Sampler;
-use crate::vehicle::BatterySpec;
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::mavlink::params::{self as mavlink_params, plan::drone_table};
+use sadesim_engine::protocol::DroneSnapshot;
+use sadesim_engine::vehicle::BatterySpec;
 
 pub use self::convert::q_ned_frd;
-pub use crate::mavlink::px4_mode::nav_state;
+pub use sadesim_engine::mavlink::px4_mode::nav_state;
 
 /// The cruise speed parameter, logged as the scripted mission's speed.
 const CRUISE_PARAM: &str = "MPC_XY_CRUISE";
@@ -152,7 +152,7 @@ impl UlogRecorder {
                 out,
                 system_id: drone.system_id,
                 component_id: drone.component_id,
-                battery: crate::vehicle::Preset::named(&drone.airframe).map(|p| p.airframe.battery),
+                battery: sadesim_engine::preset::Preset::named(&drone.airframe).map(|p| p.airframe.battery),
                 frame: None,
                 last_gnss_s: None,
                 status: StatusTracker::default(),

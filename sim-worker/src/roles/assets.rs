@@ -32,8 +32,8 @@ pub fn run(plan: &RunPlan, archive_url: &str, report_file: Option<&Path>) -> Res
     let progress = |done: u32, total: u32| {
         eprintln!("urban wind: sector {done} of {total} computed ({:.1} s)", started.elapsed().as_secs_f64());
     };
-    let build_wind = |world: &sadesim_world::World, request: &sadesim_evidence::wind::WindRequest| {
-        crate::env::build_field(world, request, &scratch.join("wind"), progress)
+    let build_wind = |world: &sadesim_world::World, request: &sadesim_wind::request::WindRequest| {
+        crate::wind_field::build_field(world, request, &scratch.join("wind"), progress)
             .map_err(|e| sadesim_evidence::assets::AssetsError::WindBuild(e.to_string()))
     };
     let built = sadesim_evidence::assets::build_run_assets(plan, archive_url, &scratch, build_wind);
@@ -55,8 +55,8 @@ pub fn run(plan: &RunPlan, archive_url: &str, report_file: Option<&Path>) -> Res
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups};
     use crate::record::test_dir::TempDir;
+    use sadesim_engine::fixtures::{plan_of, run_with_groups};
 
     #[test]
     fn builds_once_then_reports_a_cache_hit_in_the_report_file() {

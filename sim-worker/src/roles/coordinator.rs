@@ -26,11 +26,11 @@ use super::RoleError;
 use super::control::StopRequest;
 use crate::airspace::runtime::Airspace;
 use crate::conduct::{ConductError, Watchers, conduct};
-use crate::coordinator::{CoordinatorError, LinkError, ObserverError, RunFailure, RunObserver, ShardLink};
-use crate::events::{Event, EventKind};
-use crate::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION};
 use crate::record::RunSummary;
 use crate::transport::TcpLink;
+use sadesim_engine::coordinator::{CoordinatorError, LinkError, ObserverError, RunFailure, RunObserver, ShardLink};
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION};
 
 /// Default of `--shard-timeout`: the longest wait for a shard's answer to a window. A shard
 /// whose process dies is noticed at once (its connection closes); this bounds the wait
@@ -58,7 +58,7 @@ impl RunObserver for Reporting {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
         if time_s >= self.next_report_s {
             self.next_report_s = time_s.floor() + 1.0;
-            report(&Report::Progress { sim_time_s: time_s, counts: crate::protocol::fleet_counts(drones) });
+            report(&Report::Progress { sim_time_s: time_s, counts: sadesim_engine::protocol::fleet_counts(drones) });
         }
         if let Some(e) = events.iter().find(|e| matches!(e.kind, EventKind::PilotsReleased)) {
             report(&Report::PilotsReleased { sim_time_s: e.time_s });
@@ -66,7 +66,7 @@ impl RunObserver for Reporting {
         Ok(())
     }
 
-    fn stop_reason(&mut self) -> Option<crate::events::EndReason> {
+    fn stop_reason(&mut self) -> Option<sadesim_engine::events::EndReason> {
         self.stop_request.take()
     }
 }
@@ -320,7 +320,7 @@ impl Greeted {
 }
 
 impl ShardLink for Greeted {
-    fn send(&mut self, msg: &crate::protocol::ToShard) -> Result<(), LinkError> {
+    fn send(&mut self, msg: &sadesim_engine::protocol::ToShard) -> Result<(), LinkError> {
         self.link.send(msg).map_err(|e| self.explain(e))
     }
     fn recv(&mut self) -> Result<FromShard, LinkError> {
@@ -339,8 +339,8 @@ mod tests {
     use super::*;
     use std::sync::Arc;
 
-    use crate::airspace::monitor::test_plan::{plan_of, run_with_groups, world_of};
     use crate::record::test_dir::TempDir;
+    use sadesim_engine::fixtures::{plan_of, run_with_groups, world_of};
 
     /// The coordinator of a 4-drone plan in 2 shards on free ports of 127.0.0.1.
     fn wait_for_shards(name: &str, stop: &AtomicBool, connect: Option<Duration>) -> (RoleError, Duration) {
@@ -389,7 +389,7 @@ mod tests {
     fn progress_lines_keep_their_flat_shape() {
         let line = serde_json::to_string(&Report::Progress {
             sim_time_s: 1.0,
-            counts: crate::protocol::FleetCounts { airborne: 4, on_ground: 0, crashed: 0 },
+            counts: sadesim_engine::protocol::FleetCounts { airborne: 4, on_ground: 0, crashed: 0 },
         })
         .unwrap();
         assert_eq!(line, r#"{"type":"progress","simTimeS":1.0,"airborne":4,"onGround":0,"crashed":0}"#);

@@ -15,7 +15,7 @@ use std::sync::Arc;
 use sadesim_crds::plan::{PLAN_FORMAT_VERSION, RunPlan};
 use sadesim_world::World;
 
-use crate::env::urban_wind_field;
+use sadesim_engine::env::urban_wind_field;
 
 /// Why a role could not start.
 #[derive(Debug, thiserror::Error)]
@@ -34,9 +34,11 @@ pub enum RoleError {
     #[error("network: {0}")]
     Io(#[from] std::io::Error),
     #[error(transparent)]
-    Shard(#[from] crate::shard::ShardError),
+    Shard(#[from] sadesim_engine::shard::ShardError),
     #[error(transparent)]
-    Coordinator(#[from] crate::coordinator::CoordinatorError),
+    ShardStart(#[from] crate::shard_io::StartError),
+    #[error(transparent)]
+    Coordinator(#[from] sadesim_engine::coordinator::CoordinatorError),
     #[error("failed to record into {path}: {source}")]
     Record { path: String, source: std::io::Error },
     #[error("{0}")]
@@ -122,11 +124,12 @@ pub fn surroundings(
     world: Arc<World>,
     sky: Option<Arc<sadesim_gnss::RunSky>>,
     assets: Option<&str>,
-) -> Result<crate::shard::Surroundings, RoleError> {
-    use sadesim_evidence::wind::{load_wind, wind_entry_url_beside, wind_key, wind_request};
+) -> Result<sadesim_engine::shard::Surroundings, RoleError> {
+    use sadesim_evidence::wind::{load_wind, wind_entry_url_beside, wind_key};
+    use sadesim_wind::request::wind_request;
     let started = std::time::Instant::now();
     let Some(request) = wind_request(&plan.spec, &world) else {
-        return Ok(crate::shard::Surroundings { world, sky, wind: None });
+        return Ok(sadesim_engine::shard::Surroundings { world, sky, wind: None });
     };
     let cached = match (wind_key(&plan.asset_cache_key, &request), assets) {
         (Some(key), Some(assets)) => {
@@ -150,7 +153,7 @@ pub fn surroundings(
             Some(field) => field,
             None => {
                 let scratch = std::env::temp_dir().join(format!("sadesim-wind-{}", std::process::id()));
-                let built = crate::env::build_field(&world, &request, &scratch, |done, total| {
+                let built = crate::wind_field::build_field(&world, &request, &scratch, |done, total| {
                     eprintln!("urban wind: sector {done} of {total} made");
                 });
                 let _ = std::fs::remove_dir_all(&scratch);
@@ -158,8 +161,8 @@ pub fn surroundings(
             }
         },
     };
-    eprintln!("{}", crate::env::describe_urban_wind(&field, started.elapsed().as_secs_f64()));
-    Ok(crate::shard::Surroundings { world, sky, wind: Some(Arc::new(field)) })
+    eprintln!("{}", sadesim_engine::env::describe_urban_wind(&field, started.elapsed().as_secs_f64()));
+    Ok(sadesim_engine::shard::Surroundings { world, sky, wind: Some(Arc::new(field)) })
 }
 
 /// The bytes of the file `path`, whole or joined from its parts beside it

@@ -24,7 +24,7 @@ use serde::Serialize;
 
 use super::RoleError;
 use crate::mavlink::router::{self, RoutedDrone, RouterConfig, RouterStats};
-use crate::mavlink::signing::SecretKey;
+use sadesim_engine::mavlink::signing::SecretKey;
 
 /// `--drone-host` when not given: every shard runs on this machine.
 pub const DEFAULT_DRONE_HOST: &str = "127.0.0.1";
@@ -217,7 +217,7 @@ mod tests {
     use sadesim_crds::fixtures::RunBuilder;
 
     use super::*;
-    use crate::airspace::monitor::test_plan::plan_of;
+    use sadesim_engine::fixtures::plan_of;
 
     /// The planned run of `n` drones, `per_shard` drones per shard: 250 drones per router
     /// segment (system ids restart at 1 in each).

@@ -9,11 +9,7 @@
 //! The role owns the drones' MAVLink sockets ([`ShardSockets`]), on a thread of their own
 //! ([`MavlinkThread`]); the shard core only sees their queues.
 
-mod io_thread;
-mod sockets;
-
-pub use io_thread::MavlinkThread;
-pub use sockets::ShardSockets;
+use crate::shard_io::{MavlinkOptions, MavlinkThread, ShardSockets};
 
 use std::io::{BufReader, BufWriter};
 use std::net::{TcpStream, ToSocketAddrs};
@@ -22,10 +18,10 @@ use std::time::{Duration, Instant};
 use sadesim_crds::plan::RunPlan;
 
 use super::RoleError;
-use crate::coordinator::LinkError;
-use crate::protocol::ToShard;
-use crate::shard::Shard;
 use crate::transport;
+use sadesim_engine::coordinator::LinkError;
+use sadesim_engine::protocol::ToShard;
+use sadesim_engine::shard::Shard;
 
 /// Default of `--connect-timeout`: how long a shard keeps trying to reach a coordinator
 /// that is not up yet (its pod scheduled later, its Service name not yet resolving).
@@ -47,10 +43,10 @@ const RETRY_PAUSE: Duration = Duration::from_millis(200);
 /// connection to it is lost before it says `Stop`.
 pub fn run(
     plan: &RunPlan,
-    surroundings: &crate::shard::Surroundings,
+    surroundings: &sadesim_engine::shard::Surroundings,
     index: u32,
     coordinator: &str,
-    mavlink: Option<&crate::shard::MavlinkOptions>,
+    mavlink: Option<&MavlinkOptions>,
     connect_timeout: Duration,
 ) -> Result<(), RoleError> {
     let mut shard = Shard::new(plan, index, surroundings)?;

@@ -2,7 +2,7 @@ use std::io::Cursor;
 use std::net::{TcpListener, TcpStream};
 
 use super::*;
-use crate::protocol::DroneSnapshot;
+use sadesim_engine::protocol::DroneSnapshot;
 
 fn frames(messages: &[FromShard]) -> Vec<u8> {
     let (mut out, mut buf) = (Vec::new(), Vec::new());
@@ -15,7 +15,7 @@ fn frames(messages: &[FromShard]) -> Vec<u8> {
 #[test]
 fn frames_follow_each_other_and_the_stream_ends_between_them() {
     let sent = [
-        FromShard::Hello { version: crate::protocol::PROTOCOL_VERSION, shard: 1, drones: 2 },
+        FromShard::Hello { version: sadesim_engine::protocol::PROTOCOL_VERSION, shard: 1, drones: 2 },
         FromShard::Advanced {
             shard: 1,
             step: 10,

@@ -20,8 +20,8 @@
 //! A flag byte is 0 (absent, false) or 1 (present, true); anything else is refused. Every
 //! decoding error names the byte offset in the payload and the field it was reading.
 
-use crate::events::{Event, FlightMode};
-use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, FromShard, GnssDetail, SkyDetail, ToShard};
+use sadesim_engine::events::{Event, FlightMode};
+use sadesim_engine::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, FromShard, GnssDetail, SkyDetail, ToShard};
 
 /// Largest accepted payload (a 2000-drone shard's window is about 1 MB).
 pub const MAX_FRAME_BYTES: usize = 64 * 1024 * 1024;

@@ -22,8 +22,8 @@ use std::time::{Duration, Instant};
 
 use tokio::sync::{broadcast, watch};
 
-use crate::events::{Event, EventKind};
-use crate::protocol::DroneSnapshot;
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::protocol::DroneSnapshot;
 
 /// Events each browser may fall behind before it is told it lagged.
 pub const EVENT_QUEUE: usize = 4096;

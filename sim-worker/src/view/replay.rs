@@ -179,8 +179,8 @@ fn read_doubles(data: &[u8], out: &mut [f64]) -> Result<(), Bad> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::protocol::DroneSnapshot;
     use crate::record::mcap_file::messages;
+    use sadesim_engine::protocol::DroneSnapshot;
 
     #[test]
     fn a_pose_reads_back_as_written() {

@@ -10,7 +10,7 @@ use sadesim_crds::plan::RunPlan;
 use sadesim_world::World;
 use serde::Serialize;
 
-use crate::airspace::volume::ZoneVolume;
+use sadesim_engine::airspace::volume::ZoneVolume;
 
 /// Group colours, in `spec.fleet` order, repeating after ten (Tableau 10: distinct on a grey
 /// city and for the common colour-vision deficiencies). None is the zones' pink.

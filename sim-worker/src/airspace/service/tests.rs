@@ -11,7 +11,7 @@ use serde_json::{Value, json};
 
 use super::client::{HttpClient, HttpResponse};
 use super::*;
-use crate::airspace::monitor::test_plan::plan_of;
+use sadesim_engine::fixtures::plan_of;
 
 const DPS: &str = "dps-token-local-only";
 const NEWS: &str = "news-token-local-only";
@@ -220,9 +220,9 @@ fn each_verdict_over_http() {
         .history
         .iter()
         .map(|e| match &e.kind {
-            crate::events::EventKind::ZoneRequested { .. } => "requested",
-            crate::events::EventKind::ZoneGranted { .. } => "granted",
-            crate::events::EventKind::ZoneDenied { .. } => "denied",
+            sadesim_engine::events::EventKind::ZoneRequested { .. } => "requested",
+            sadesim_engine::events::EventKind::ZoneGranted { .. } => "granted",
+            sadesim_engine::events::EventKind::ZoneDenied { .. } => "denied",
             _ => "other",
         })
         .collect();

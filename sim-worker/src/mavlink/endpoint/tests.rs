@@ -4,7 +4,7 @@ use std::time::{Duration, Instant};
 use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavMessage};
 
 use super::*;
-use crate::mavlink::frame::{Decoded, encode};
+use sadesim_engine::mavlink::frame::{Decoded, encode};
 
 fn open(api_target: Option<SocketAddr>) -> Endpoint {
     Endpoint::open(EndpointConfig {

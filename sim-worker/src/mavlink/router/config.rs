@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use crate::mavlink::signing::SecretKey;
+use sadesim_engine::mavlink::signing::SecretKey;
 
 /// The router's own system id: outside the drones' 1..=250 and below the 255 ground stations
 /// use by default (254 is MAVProxy's and some companion computers'), so it clashes with

@@ -8,7 +8,7 @@ use std::net::SocketAddr;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use crate::mavlink::signing::{Refusal, SecretKey, Signer, Verifier};
+use sadesim_engine::mavlink::signing::{Refusal, SecretKey, Signer, Verifier};
 
 /// The link id in the signatures of frames the router sends to ground stations. Receivers
 /// keep one replay stream per (link id, system id, component id); the system and component

@@ -15,8 +15,10 @@ use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavM
 
 use super::config::{MAX_UDP_GCS, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone};
 use super::gcs_signing::{GcsSigning, SETUP_SIGNING_ID};
-use crate::mavlink::frame::{DatagramFrames, Decoded, Frame, FrameParser, FrameRef, ParseStats, encode, target_system};
-use crate::mavlink::signing::{Refusal, timestamp_at};
+use sadesim_engine::mavlink::frame::{
+    DatagramFrames, Decoded, Frame, FrameParser, FrameRef, ParseStats, encode, target_system,
+};
+use sadesim_engine::mavlink::signing::{Refusal, timestamp_at};
 
 /// A poisoned lock only means another router thread panicked; the tables stay usable.
 pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {

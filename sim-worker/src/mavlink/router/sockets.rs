@@ -14,7 +14,7 @@ use super::config::{
 };
 use super::handle::spawn;
 use super::routing_table::{GcsOrigin, Shared, TcpClient, add, lock};
-use crate::mavlink::frame::{FrameParser, whole_frame_len};
+use sadesim_engine::mavlink::frame::{FrameParser, whole_frame_len};
 
 pub(super) fn is_timeout(e: &io::Error) -> bool {
     matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut | io::ErrorKind::Interrupted)

@@ -20,8 +20,8 @@ use std::time::{Duration, Instant};
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
 
-use crate::mavlink::frame::{Decoded, Frame, FrameParser, encode};
-use crate::mavlink::signing::{IFLAG_SIGNED, Refusal, SecretKey, Signer, Verifier, timestamp_at};
+use sadesim_engine::mavlink::frame::{Decoded, Frame, FrameParser, encode};
+use sadesim_engine::mavlink::signing::{IFLAG_SIGNED, Refusal, SecretKey, Signer, Verifier, timestamp_at};
 
 const DEADLINE: Duration = Duration::from_secs(5);
 const GCS_SYSID: u32 = 255;
@@ -417,7 +417,7 @@ fn with_signing_only_signed_gcs_frames_pass_and_the_gcs_gets_signed_frames() {
     unsigned.send_to(&frame(GCS_SYSID, &heartbeat(MavType::MAV_TYPE_GCS)), router.gcs_udp()).unwrap();
     unsigned.send_to(&frame(GCS_SYSID, &command(1, 1.0)), router.gcs_udp()).unwrap();
     let mut v1 = vec![0xFE, 9, 0, 255, 190, 0, 0, 0, 0, 0, 6, 8, 0, 4, 3];
-    let crc = crate::mavlink::frame::checksum(&v1[1..], 50); // HEARTBEAT's CRC_EXTRA
+    let crc = sadesim_engine::mavlink::frame::checksum(&v1[1..], 50); // HEARTBEAT's CRC_EXTRA
     v1.extend(crc.to_le_bytes());
     unsigned.send_to(&v1, router.gcs_udp()).unwrap();
     unsigned.send_to(&signed(&stranger, &frame(GCS_SYSID, &command(1, 2.0))), router.gcs_udp()).unwrap();

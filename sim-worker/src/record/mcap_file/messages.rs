@@ -7,9 +7,9 @@ use sadesim_crds::geo::{Enu, GeoPoint};
 
 use super::json::{self, COARSE, DEGREES, METRES};
 use super::protobuf;
-use crate::events::{Event, EventKind};
-use crate::protocol::{DroneSnapshot, EstimateDetail, GnssDetail};
 use crate::record::CameraStream;
+use sadesim_engine::events::{Event, EventKind};
+use sadesim_engine::protocol::{DroneSnapshot, EstimateDetail, GnssDetail};
 
 fn norm(v: [f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()

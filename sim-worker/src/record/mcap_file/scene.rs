@@ -17,7 +17,7 @@ use sadesim_world::mesh::{self, TriangleMesh};
 use serde_json::{Value, json};
 
 use super::json;
-use crate::airspace::volume::ZoneVolume;
+use sadesim_engine::airspace::volume::ZoneVolume;
 
 fn point(e: f64, n: f64, u: f64) -> Value {
     json!({"x": e, "y": n, "z": u})

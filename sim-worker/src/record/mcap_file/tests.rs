@@ -8,9 +8,9 @@ use sadesim_crds::run::{Compression, RecordingRates};
 use serde_json::Value;
 
 use super::{CHUNK_BYTES, MCAP_FILE, McapRecorder};
-use crate::airspace::monitor::test_plan::{plan_of, rect_zone, run_with_groups, world_of};
-use crate::events::{Event, EventKind, FlightMode};
-use crate::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail, SkyDetail};
+use sadesim_engine::events::{Event, EventKind, FlightMode};
+use sadesim_engine::fixtures::{plan_of, rect_zone, run_with_groups, world_of};
+use sadesim_engine::protocol::{DroneDetail, DroneSnapshot, EstimateDetail, GnssDetail, SkyDetail};
 
 /// Physics windows of 10 ms, as the default plan.
 const WINDOW_S: f64 = 0.01;
@@ -619,7 +619,7 @@ fn a_recording_without_cameras_declares_no_image_schemas() {
 #[test]
 fn log_levels_follow_the_typed_end_reason() {
     use super::messages::level;
-    use crate::events::{CrashCause, EndReason};
+    use sadesim_engine::events::{CrashCause, EndReason};
     let ended = |reason: EndReason| level(&EventKind::RunEnded { reason });
     assert_eq!(ended(EndReason::ShardFailed("shard 1 failed: connection closed".into())), 4);
     assert_eq!(ended(EndReason::PilotFailed), 4);

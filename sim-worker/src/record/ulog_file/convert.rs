@@ -8,11 +8,11 @@ use super::topics::{
     ActuatorOutputs, BatteryStatus, MAV_TYPE_QUADROTOR, SensorGps, VEHICLE_TYPE_ROTARY_WING, VehicleAttitude,
     VehicleGlobalPosition, VehicleLocalPosition, VehicleStatus, arming_state, nav_state,
 };
-use crate::autopilot::navigator::{BAT_CRIT_THR, BAT_EMERGEN_THR, BAT_LOW_THR};
-use crate::events::FlightMode;
-use crate::mavlink::telemetry::{attitude_ned_frd, enu_to_ned, unlocked_yaw};
-use crate::protocol::{DroneSnapshot, GnssDetail};
-use crate::vehicle::BatterySpec;
+use sadesim_engine::autopilot::navigator::{BAT_CRIT_THR, BAT_EMERGEN_THR, BAT_LOW_THR};
+use sadesim_engine::events::FlightMode;
+use sadesim_engine::mavlink::telemetry::{attitude_ned_frd, enu_to_ned, unlocked_yaw};
+use sadesim_engine::protocol::{DroneSnapshot, GnssDetail};
+use sadesim_engine::vehicle::BatterySpec;
 
 /// Microseconds of simulated time, at least 1 (ULog readers treat 0 as "no time").
 pub fn micros(time_s: f64) -> u64 {

@@ -3,7 +3,7 @@
 //! denials and expiries WARNING, rule violations ERROR, crashes EMERGENCY.
 
 use super::writer::LogLevel;
-use crate::events::{EventKind, FlightMode};
+use sadesim_engine::events::{EventKind, FlightMode};
 
 /// Mode names as PX4 shows them (Flight Review, QGroundControl).
 pub fn mode_name(mode: FlightMode) -> &'static str {

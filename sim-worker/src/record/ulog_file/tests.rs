@@ -6,9 +6,9 @@ use sadesim_crds::geo::{Enu, LocalFrame};
 use super::topics::*;
 use super::writer::{LogLevel, MAGIC, ParamValue, UlogWriter};
 use super::*;
-use crate::airspace::monitor::test_plan::plan_of;
-use crate::events::FlightMode;
-use crate::protocol::{DroneDetail, EstimateDetail, GnssDetail};
+use sadesim_engine::events::FlightMode;
+use sadesim_engine::fixtures::plan_of;
+use sadesim_engine::protocol::{DroneDetail, EstimateDetail, GnssDetail};
 
 // ---------------------------------------------------------------------------------------
 // A small, strict ULog reader: enough to check what the writer produced byte by byte.
@@ -511,9 +511,9 @@ fn files_are_flushed_every_simulated_second() {
 fn ulog_parameters_equal_the_mavlink_table_for_every_preset() {
     use ::mavlink::dialects::common::{MavMessage, PARAM_REQUEST_LIST_DATA};
 
-    use crate::mavlink::params::{self as mavlink_params, plan::drone_table};
+    use sadesim_engine::mavlink::params::{self as mavlink_params, plan::drone_table};
 
-    for preset in crate::vehicle::Preset::all() {
+    for preset in sadesim_engine::preset::Preset::all() {
         let name = preset.name().to_owned();
         let tmp = TempDir::new(&format!("params-{name}"));
         let plan = plan_of(RunBuilder::test().with_drones(1).with(|r| r.spec.fleet[0].airframe = name.clone()).build());
@@ -554,6 +554,6 @@ fn ulog_cruise_parameter_is_the_scripted_mission_speed() {
     UlogRecorder::create(&tmp.0, &plan).unwrap().finish().unwrap();
     let p = parse(&std::fs::read(tmp.0.join("ulog/alpha-0.ulg")).unwrap());
     assert_eq!(p.params["MPC_XY_CRUISE"], ParamValue::Float(8.0));
-    let table = crate::mavlink::params::plan::drone_table(&plan, &plan.drones[0]).unwrap();
+    let table = sadesim_engine::mavlink::params::plan::drone_table(&plan, &plan.drones[0]).unwrap();
     assert_eq!(p.params.len(), table.len(), "every other parameter is the table's");
 }

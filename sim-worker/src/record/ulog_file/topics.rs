@@ -339,7 +339,7 @@ pub mod arming_state {
 }
 
 /// `vehicle_status.nav_state` values (`NAVIGATION_STATE_*`) of the modes we fly.
-pub use crate::mavlink::px4_mode::nav_state;
+pub use sadesim_engine::mavlink::px4_mode::nav_state;
 
 /// `vehicle_status.vehicle_type`: multicopter.
 pub const VEHICLE_TYPE_ROTARY_WING: u8 = 1;

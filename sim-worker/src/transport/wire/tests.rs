@@ -1,7 +1,7 @@
 use proptest::prelude::*;
 
 use super::*;
-use crate::events::EventKind;
+use sadesim_engine::events::EventKind;
 
 /// A drone with every optional part present, and numbers JSON would have to get exactly
 /// right too: negative zero, subnormals, the extremes, a sum with no short decimal.
@@ -110,7 +110,7 @@ fn every_other_message_comes_back() {
         assert_eq!(ToShard::decode(&encoded(&sent)).unwrap(), sent);
     }
     for sent in [
-        FromShard::Hello { version: crate::protocol::PROTOCOL_VERSION, shard: 3, drones: 100 },
+        FromShard::Hello { version: sadesim_engine::protocol::PROTOCOL_VERSION, shard: 3, drones: 100 },
         FromShard::Stopped { shard: 1 },
         FromShard::Failed { shard: 1, reason: "drone 4: NaN in the state".into() },
     ] {
