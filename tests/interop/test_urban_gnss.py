@@ -112,7 +112,7 @@ def test_the_canyon_example_degrades_the_fix_in_the_street_and_not_above_the_roo
     assert roofs["fixErrorM"]["median"] < 1.5 * park["fixErrorM"]["median"]
     # Below the eaves the street is a canyon: the median error is at least three times the
     # open sky's and in the range published for single-frequency receivers in dense city
-    # centres (metres to tens of metres; docs/scenarios.md cites them).
+    # centres (metres to tens of metres; docs/environment.md cites them).
     assert low["medianHdop"] > street["medianHdop"]  # (and three fewer satellites, above)
     assert low["fixErrorM"]["median"] > 3 * park["fixErrorM"]["median"]
     assert 1.5 < low["fixErrorM"]["median"] < 50
