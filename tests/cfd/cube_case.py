@@ -370,3 +370,17 @@ def run_steady(case, n_h, max_iterations, full=False):
     latest = max((d for d in case.iterdir() if re.fullmatch(r"\d+", d.name) and d.name != "0"),
                  key=lambda d: int(d.name))
     return read_vector_field(latest / "C"), read_vector_field(latest / "U"), solver_log(case)
+
+
+def solution_fields(centres, cells_per_h, log):
+    """The result's fields on the mesh and the steady solver: cells, iterations, whether
+    the residual targets were met, the final residuals and the targets."""
+    iterations, converged, residuals = log
+    return {
+        "cells": len(centres),
+        "cells_per_h": cells_per_h,
+        "iterations": iterations,
+        "converged": converged,
+        "residuals": residuals,
+        "residual_targets": RESIDUAL_TARGETS,
+    }

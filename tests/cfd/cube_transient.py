@@ -8,8 +8,8 @@ import time
 
 import numpy as np
 
-from cube_case import (C_MU, H, RESIDUAL_TARGETS, U_BULK, foam_file, inlet_profiles, openfoam_version,
-                       read_vector_field, reattachment_length, run, run_steady)
+from cube_case import (C_MU, H, U_BULK, foam_file, inlet_profiles, openfoam_version,
+                       read_vector_field, reattachment_length, run, run_steady, solution_fields)
 
 # Turbulence models the unsteady run accepts, with the fields each solves besides U and p.
 TRANSIENT_MODELS = {
@@ -247,7 +247,7 @@ def pimple_log(case):
 def run_unsteady(args, case, start):
     """--unsteady: the steady solution on the full domain, then pimpleFoam from it, averaging
     U over the window [spin-up, spin-up + window]. Returns the JSON result."""
-    centres, steady_u, (iterations, converged, residuals) = run_steady(
+    centres, steady_u, log = run_steady(
         case, args.cells_per_h, args.max_iterations, full=True)
     steady_s = time.monotonic() - start
     t_end = args.spin_up + args.window
@@ -281,12 +281,7 @@ def run_unsteady(args, case, start):
         "reattachment_mirror_H": reattachment_length(centres, u_mean, side=-1.0),
         "halves": halves,
         "steady_reattachment_H": reattachment_length(centres, steady_u),
-        "cells": len(centres),
-        "cells_per_h": args.cells_per_h,
-        "iterations": iterations,
-        "converged": converged,
-        "residuals": residuals,
-        "residual_targets": RESIDUAL_TARGETS,
+        **solution_fields(centres, args.cells_per_h, log),
         "unsteady": True,
         "model": args.model,
         "window_s": [args.spin_up, t_last],

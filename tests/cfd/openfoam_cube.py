@@ -103,7 +103,7 @@ import shutil
 import sys
 import time
 
-from cube_case import RESIDUAL_TARGETS, openfoam_version, reattachment_length, run_steady
+from cube_case import openfoam_version, reattachment_length, run_steady, solution_fields
 from cube_transient import TRANSIENT_MODELS, run_unsteady
 
 
@@ -138,17 +138,11 @@ def main():
         if result["reattachment_H"] is None:
             sys.exit("no reversed flow behind the cube")
         return
-    centres, velocity, (iterations, converged, residuals) = run_steady(
-        case, args.cells_per_h, args.max_iterations)
+    centres, velocity, log = run_steady(case, args.cells_per_h, args.max_iterations)
     wall_s = time.monotonic() - start
     result = {
         "reattachment_H": reattachment_length(centres, velocity),
-        "cells": len(centres),
-        "cells_per_h": args.cells_per_h,
-        "iterations": iterations,
-        "converged": converged,
-        "residuals": residuals,
-        "residual_targets": RESIDUAL_TARGETS,
+        **solution_fields(centres, args.cells_per_h, log),
         "wall_s": round(wall_s, 1),
         "openfoam": openfoam_version(case),
     }
