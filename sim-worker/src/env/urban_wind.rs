@@ -1,11 +1,11 @@
-//! Which urban wind field a run flies in (the decision is `sadesim_evidence::wind::
+//! Which urban wind field a run flies in (the decision is `sadesim_sources::wind::
 //! wind_request`, shared with the asset role), and the field's computation: the built-in
 //! model, OpenFOAM, or an imported OpenFOAM case.
 
 use std::path::Path;
 
 use sadesim_crds::SimulationRunSpec;
-use sadesim_evidence::wind::{FieldModel, WindRequest, wind_request};
+use sadesim_sources::wind::{FieldModel, WindRequest, wind_request};
 use sadesim_wind::UrbanWindField;
 use sadesim_wind::foam_import::ImportSpec;
 use sadesim_world::World;

@@ -32,11 +32,11 @@ pub fn run(plan: &RunPlan, archive_url: &str, report_file: Option<&Path>) -> Res
     let progress = |done: u32, total: u32| {
         eprintln!("urban wind: sector {done} of {total} computed ({:.1} s)", started.elapsed().as_secs_f64());
     };
-    let build_wind = |world: &sadesim_world::World, request: &sadesim_evidence::wind::WindRequest| {
+    let build_wind = |world: &sadesim_world::World, request: &sadesim_sources::wind::WindRequest| {
         crate::env::build_field(world, request, &scratch.join("wind"), progress)
-            .map_err(|e| sadesim_evidence::assets::AssetsError::WindBuild(e.to_string()))
+            .map_err(|e| sadesim_sources::assets::AssetsError::WindBuild(e.to_string()))
     };
-    let built = sadesim_evidence::assets::build_run_assets(plan, archive_url, &scratch, build_wind);
+    let built = sadesim_sources::assets::build_run_assets(plan, archive_url, &scratch, build_wind);
     let _ = std::fs::remove_dir_all(&scratch);
     let (outcome, wind) = built?;
     if let Some(wind) = wind {

@@ -29,11 +29,11 @@
 use sadesim_crds::SimulationRunSpec;
 use sadesim_crds::environment::UrbanWindModel;
 use sadesim_crds::geo::GeoPoint;
+use sadesim_evidence::archive::{Archive, ArchiveError};
 use sadesim_wind::{DEFAULT_SECTORS, DIAGNOSTIC_MODEL_VERSION, GridSpec, SectorField, UrbanWindField, WindGrid};
 use sadesim_world::World;
 use serde_json::{Value, json};
 
-use crate::archive::{Archive, ArchiveError};
 use crate::assets::{ASSETS_NAMESPACE, AssetsError};
 use crate::zarr::{self, ArrayOut, Compression, Dtype, ZarrError};
 
