@@ -51,7 +51,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 (_, true) => None,
                 (Some(url), false) => Some(url),
                 (None, false) => Some(
-                    sadesim_evidence::assets::local_cache_url(&|k| std::env::var(k).ok())
+                    sadesim_sources::assets::local_cache_url(&|k| std::env::var(k).ok())
                         .map_err(|e| CliError::Failed(e.to_string()))?,
                 ),
             };
@@ -127,8 +127,8 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
         }
         Command::Archive { command } => archive_command(command, out),
         Command::Report { run_dir } => {
-            let files =
-                sadesim_evidence::report::write_report(&run_dir).map_err(|e| CliError::Failed(e.to_string()))?;
+            let files = sadesim_evidence::report::write_report(&run_dir, sadesim_sources::assets::find_world)
+                .map_err(|e| CliError::Failed(e.to_string()))?;
             writeln!(out, "report: {}", files.html.display())?;
             Ok(Outcome::Success)
         }

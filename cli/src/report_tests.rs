@@ -12,6 +12,7 @@ use sadesim_crds::fleet::{Area, HomePlacement, Mission, MissionItem, Role};
 use sadesim_crds::run::{Clock, ClockMode};
 
 use sadesim_evidence::report::*;
+use sadesim_sources::assets::find_world;
 
 use crate::runner::{RunOptions, run_local};
 
@@ -165,7 +166,7 @@ fn gnss_rows_give_a_timeline_of_three_series_and_a_map_of_the_estimate_error() {
         }
     }
     std::fs::write(dir.join("gnss.csv"), csv).unwrap();
-    let files = write_report(&dir).unwrap();
+    let files = write_report(&dir, find_world).unwrap();
     for file in ["gnss-timeline.svg", "gnss-timeline.png", "gnss-map.svg", "gnss-map.png"] {
         assert!(files.images.contains(&dir.join("report").join(file)), "{file} not written");
     }
@@ -241,7 +242,7 @@ fn every_request_in_airspace_json_has_a_row_with_its_verdict() {
          "altitude": {"minAglM": 20.0, "maxAglM": 30.0}, "verdict": "denied", "reason": "insufficient_credentials"}
     ]);
     std::fs::write(dir.join("airspace.json"), serde_json::to_vec(&airspace).unwrap()).unwrap();
-    write_report(&dir).unwrap();
+    write_report(&dir, find_world).unwrap();
     let html = read(&dir, HTML_FILE);
     let table = &html[html.find(r#"id="requests-table""#).unwrap()..];
     let table = &table[..table.find("</table>").unwrap()];
@@ -271,12 +272,12 @@ fn a_malformed_trajectory_fails_naming_the_file_line_and_column() {
     fields[7] = "12.5.3".into();
     lines[4] = fields.join(",");
     std::fs::write(dir.join("trajectory.csv"), lines.join("\n")).unwrap();
-    let err = write_report(&dir).unwrap_err().to_string();
+    let err = write_report(&dir, find_world).unwrap_err().to_string();
     assert!(err.contains("trajectory.csv: line 5: column `east_m`") && err.contains("\"12.5.3\""), "{err}");
     // A row with a missing field.
     lines[4] = "1.0,0,intruders-0".into();
     std::fs::write(dir.join("trajectory.csv"), lines.join("\n")).unwrap();
-    let err = write_report(&dir).unwrap_err().to_string();
+    let err = write_report(&dir, find_world).unwrap_err().to_string();
     assert!(err.contains("trajectory.csv: line 5: 3 fields, the header has 22"), "{err}");
 }
 
@@ -286,13 +287,13 @@ fn malformed_json_files_name_the_file_and_the_field() {
     let mut airspace: serde_json::Value = serde_json::from_str(&read(&dir, "airspace.json")).unwrap();
     airspace["violations"][0]["kind"] = "flyingTooFast".into();
     std::fs::write(dir.join("airspace.json"), serde_json::to_vec_pretty(&airspace).unwrap()).unwrap();
-    let err = write_report(&dir).unwrap_err().to_string();
+    let err = write_report(&dir, find_world).unwrap_err().to_string();
     assert!(err.contains("airspace.json: field `violations[0].kind`") && err.contains("flyingTooFast"), "{err}");
     let dir = copy_of_run("bad-events");
     let events = format!("{}{{\"timeS\": \"late\"}}\n", read(&dir, "events.jsonl"));
     let line = events.lines().count();
     std::fs::write(dir.join("events.jsonl"), events).unwrap();
-    let err = write_report(&dir).unwrap_err().to_string();
+    let err = write_report(&dir, find_world).unwrap_err().to_string();
     assert!(err.contains(&format!("events.jsonl: line {line}: not an event")), "{err}");
 }
 
@@ -301,10 +302,10 @@ fn missing_files_are_noted_and_a_missing_plan_is_an_error() {
     let dir = std::env::temp_dir().join(format!("sadesim-report-{}-plan-only", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let err = write_report(&dir).unwrap_err().to_string();
+    let err = write_report(&dir, find_world).unwrap_err().to_string();
     assert!(err.contains("plan.json: failed to read"), "{err}");
     std::fs::copy(run_dir().join("plan.json"), dir.join("plan.json")).unwrap();
-    write_report(&dir).unwrap();
+    write_report(&dir, find_world).unwrap();
     let html = read(&dir, HTML_FILE);
     for file in ["trajectory.csv", "events.jsonl", "airspace.json", "summary.json", "world.json"] {
         assert!(html.contains(&format!("{file}: not recorded")), "{file}");
@@ -318,9 +319,9 @@ fn missing_files_are_noted_and_a_missing_plan_is_an_error() {
 fn rebuilding_an_unchanged_folder_writes_the_same_bytes() {
     let dir = copy_of_run("rebuild");
     let files = ["report.html", "report/map.svg", "report/altitude.svg", "report/map.png", "report/altitude.png"];
-    write_report(&dir).unwrap();
+    write_report(&dir, find_world).unwrap();
     let first: Vec<Vec<u8>> = files.iter().map(|f| std::fs::read(dir.join(f)).unwrap()).collect();
-    write_report(&dir).unwrap();
+    write_report(&dir, find_world).unwrap();
     for (f, bytes) in files.iter().zip(&first) {
         assert_eq!(&std::fs::read(dir.join(f)).unwrap(), bytes, "{f} changed");
     }
@@ -332,7 +333,7 @@ fn a_folder_that_cannot_take_the_plots_fails_naming_the_path() {
     std::fs::remove_file(dir.join(HTML_FILE)).unwrap();
     // A file where the plots' folder goes.
     std::fs::write(dir.join(IMAGES_DIR), b"not a folder").unwrap();
-    let err = write_report(&dir).unwrap_err().to_string();
+    let err = write_report(&dir, find_world).unwrap_err().to_string();
     assert!(err.contains(&format!("{}: cannot create", dir.join(IMAGES_DIR).display())), "{err}");
     // The page is written last: no page without its plots.
     assert!(!dir.join(HTML_FILE).exists());

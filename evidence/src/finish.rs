@@ -35,10 +35,10 @@ pub struct Finished {
 }
 
 /// Finishes the run folder `run_dir`: writes the report (its map drawn over `world`, the
-/// run's; `None` looks it up as `report::write_report` does; a failure is recorded in
-/// `report-error.txt`), writes `manifest.json`, then, with `upload_to` (an archive URL:
-/// object store or `file://`), uploads the folder to `<upload_to>/<namespace>/<run>/<uid>/`,
-/// manifest last. `progress` shows a progress bar for the upload.
+/// run's; `None` draws it without buildings; a failure is recorded in `report-error.txt`),
+/// writes `manifest.json`, then, with `upload_to` (an archive URL: object store or
+/// `file://`), uploads the folder to `<upload_to>/<namespace>/<run>/<uid>/`, manifest last.
+/// `progress` shows a progress bar for the upload.
 ///
 /// Without `upload_to` the folder itself is the archive (a local run whose `spec.archive`
 /// is a folder, or no archive at all).

@@ -1,7 +1,8 @@
 //! The SADE-SIM Kubernetes operator: reconciles `SimulationRun`s into Jobs, Pods, Services
 //! and ConfigMaps, follows them through their lifecycle, and renders the same objects
-//! offline. It plans runs with `sadesim-planner` and archives with `sadesim-evidence`, and
-//! links no simulation engine (no physics, MAVLink or HTTP server crates: a test checks it).
+//! offline. It plans runs with `sadesim-planner` over the world's files read by
+//! `sadesim-sources`, archives with `sadesim-evidence`, and links no simulation engine (no
+//! physics, MAVLink or HTTP server crates: a test checks it).
 //!
 //! - `k8s`: what a run becomes on a cluster (`k8s::children`, pure), the controller that
 //!   reconciles runs into it (`k8s::controller`: read, decide, act; queue, leader election,

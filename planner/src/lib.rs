@@ -80,7 +80,7 @@ pub fn plan(run: &SimulationRun) -> Result<RunPlan, PlanError> {
 
 /// [`plan`] with the files the world names (the OpenStreetMap extract of `world.source:
 /// osm`, the DEM of `world.terrain.dem`), read at the I/O edge
-/// (`sadesim_evidence::world::read_data`): they decide where homes may be and at what
+/// (`sadesim_sources::world::read_data`): they decide where homes may be and at what
 /// ground height, and their bytes' digests are part of the asset cache key.
 ///
 /// # Errors

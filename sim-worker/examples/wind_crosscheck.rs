@@ -109,7 +109,7 @@ fn load_world(scenario: &std::path::Path) -> World {
             osm.file = base.join(path).display().to_string();
         }
     }
-    sadesim_evidence::world::load_world(&run.spec).unwrap_or_else(|e| panic!("{}: {e}", scenario.display()))
+    sadesim_sources::world::load_world(&run.spec).unwrap_or_else(|e| panic!("{}: {e}", scenario.display()))
 }
 
 /// The buildings whose footprint's bounding-box centre is in the `side` square centred at

@@ -1,8 +1,9 @@
 //! The layers hold: the pure crates (the engine among them) build no file system, process,
 //! thread or socket code (their own unit tests aside) and depend on no I/O crate; what a
-//! run reads and writes goes through the crates at the edges (`evidence`, `sim-worker`, the
-//! CLI, the operator), which hand the pure crates bytes and values. The operator links no engine
-//! crate, so its image stays small and its reviewers read no physics.
+//! run reads and writes goes through the crates at the edges (`sources`, `evidence`,
+//! `sim-worker`, the CLI, the operator), which hand the pure crates bytes and values. The
+//! operator links no engine crate, so its image stays small and its reviewers read no
+//! physics.
 
 use std::path::{Path, PathBuf};
 
@@ -137,7 +138,7 @@ fn pure_crates_build_no_file_process_thread_or_socket_code() {
     assert!(
         problems.is_empty(),
         "pure crates take bytes and values, never files, processes, threads, sockets or the environment; \
-         move the I/O to the edge (evidence, sim-worker's roles, the CLI) and pass what it reads:\n{}",
+         move the I/O to the edge (sources, evidence, sim-worker's roles, the CLI) and pass what it reads:\n{}",
         problems.join("\n")
     );
 }

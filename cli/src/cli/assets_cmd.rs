@@ -7,8 +7,8 @@ use std::time::Duration;
 
 use indicatif::ProgressBar;
 use sadesim_crds::plan::RunPlan;
-use sadesim_evidence::assets::{AssetsOutcome, local_cache_url};
 use sadesim_planner as planner;
+use sadesim_sources::assets::{AssetsOutcome, local_cache_url};
 use sadesim_world::World;
 
 use super::scenario::{load_one, report_problems};
@@ -52,7 +52,7 @@ fn world_and_plan(file: &Path, cache: Cache, quiet: bool, out: &mut dyn Write) -
     let spinner = if progress { ProgressBar::new_spinner() } else { ProgressBar::hidden() };
     spinner.set_message(format!("reading the world's files of {path}"));
     spinner.enable_steady_tick(Duration::from_millis(120));
-    let data = sadesim_evidence::world::read_data(&run.spec);
+    let data = sadesim_sources::world::read_data(&run.spec);
     spinner.finish_and_clear();
     let run_err = |source: RunError| CliError::Run { path: path.clone(), source };
     let data = data.map_err(|e| run_err(e.into()))?;

@@ -106,10 +106,10 @@ pub(super) fn sky_and_world(
     scenario: &Path,
 ) -> Result<(sadesim_gnss::RunSky, sadesim_world::World), CliError> {
     let sky =
-        sadesim_evidence::gnss::load_sky(&run.spec).map_err(|e| CliError::Failed(e.to_string()))?.ok_or_else(|| {
+        sadesim_sources::gnss::load_sky(&run.spec).map_err(|e| CliError::Failed(e.to_string()))?.ok_or_else(|| {
             CliError::Failed(format!("{}: spec.environment.gnss.constellation is not set", scenario.display()))
         })?;
-    let world = sadesim_evidence::world::load_world(&run.spec).map_err(|e| CliError::Failed(e.to_string()))?;
+    let world = sadesim_sources::world::load_world(&run.spec).map_err(|e| CliError::Failed(e.to_string()))?;
     Ok((sky, world))
 }
 

@@ -4,7 +4,7 @@ use std::io::Write;
 use std::path::Path;
 
 use sadesim_crds::geo::{GeoPoint, LocalFrame};
-use sadesim_evidence::assets::footprint_polygon;
+use sadesim_sources::assets::footprint_polygon;
 use sadesim_world::osm::{self, DEFAULT_HEIGHT_M, ElementId, OsmCity};
 use sadesim_world::{World, WorldData, WorldInputs};
 use serde_json::{Value, json};
@@ -46,7 +46,7 @@ pub(super) fn osm_file(
         let inputs = WorldInputs { origin: frame.origin(), world: spec, open_areas: Vec::new() };
         let data = WorldData { osm: Some(city.clone()), dem: None };
         let world = World::build(&inputs, &data).map_err(|e| CliError::Failed(format!("{path}: {e}")))?;
-        write(target, &sadesim_evidence::gltf::world_glb(&world, frame.origin()))?;
+        write(target, &sadesim_sources::gltf::world_glb(&world, frame.origin()))?;
     }
     let area_m2: f64 = city.buildings.iter().map(|b| b.building.footprint_area_m2()).sum();
     let mut roofs: Vec<f64> = city.buildings.iter().map(|b| b.building.roof_up_m()).collect();

@@ -21,7 +21,7 @@ pub(super) fn plan_file(
     if namespace.is_some() {
         run.metadata.namespace = namespace;
     }
-    let world_data = match sadesim_evidence::world::read_data(&run.spec) {
+    let world_data = match sadesim_sources::world::read_data(&run.spec) {
         Ok(data) => data,
         Err(e) => {
             writeln!(out, "error: {path}: {e}")?;

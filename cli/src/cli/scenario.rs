@@ -84,7 +84,7 @@ fn resolve_paths(run: &mut SimulationRun, scenario: &Path) {
     for file in
         osm.into_iter().chain(dem).chain(orbits).chain(case).filter(|f| !sadesim_evidence::archive::is_object_store(f))
     {
-        let path = sadesim_evidence::world::file_path(file);
+        let path = sadesim_sources::world::file_path(file);
         if path.is_relative() {
             let absolute = std::path::absolute(base.join(&path)).unwrap_or_else(|_| base.join(&path));
             *file = absolute.display().to_string();

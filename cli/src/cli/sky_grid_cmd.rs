@@ -69,7 +69,7 @@ fn write_zarr(
     epoch_unix_s: f64,
     mask_deg: f64,
 ) -> std::io::Result<u64> {
-    use sadesim_evidence::zarr::{ArrayOut, Compression, group_files, write_group};
+    use sadesim_sources::zarr::{ArrayOut, Compression, group_files, write_group};
     let [nx, ny, nz] = grid.dims;
     let slices = grid.spec.slices;
     let o = &run.spec.origin;

@@ -44,7 +44,7 @@ pub fn view(location: &str, listen: SocketAddr, rate_hz: f64, out: &mut dyn Writ
     // checked against the statistics the run wrote (another city's buildings would lie).
     let recorded: Option<serde_json::Value> =
         read.file(WORLD_STATS).ok().and_then(|bytes| serde_json::from_slice(&bytes).ok());
-    let world: Option<World> = sadesim_evidence::report::find_world(&plan)
+    let world: Option<World> = sadesim_sources::assets::find_world(&plan)
         .filter(|w| recorded.as_ref().is_some_and(|r| serde_json::to_value(w.stats()).ok().as_ref() == Some(r)));
     if world.is_none() {
         writeln!(
@@ -53,7 +53,7 @@ pub fn view(location: &str, listen: SocketAddr, rate_hz: f64, out: &mut dyn Writ
             plan.asset_cache_key
         )?;
     }
-    let glb = world.as_ref().map(|w| Arc::new(sadesim_evidence::gltf::world_glb(w, plan.spec.origin.geo())));
+    let glb = world.as_ref().map(|w| Arc::new(sadesim_sources::gltf::world_glb(w, plan.spec.origin.geo())));
     let scene = view::scene::scene(&plan, world.as_ref(), "replay", glb.is_some());
     let content = Content {
         scene_json: Arc::new(serde_json::to_vec(&scene).expect("a scene is JSON")),

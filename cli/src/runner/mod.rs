@@ -17,9 +17,9 @@ use sadesim_engine::events::{EndReason, Event, EventKind};
 use sadesim_engine::mavlink::signing::SecretKey;
 use sadesim_engine::protocol::{DroneSnapshot, FleetCounts};
 use sadesim_evidence::archive::is_object_store;
-use sadesim_evidence::assets::{AssetsError, AssetsOutcome, ensure_bundle};
 use sadesim_evidence::finish::{Finished, RunAddress, finish_run};
-use sadesim_evidence::wind::WindOutcome;
+use sadesim_sources::assets::{AssetsError, AssetsOutcome, ensure_bundle};
+use sadesim_sources::wind::WindOutcome;
 use sadesim_world::World;
 use sim_worker::airspace::runtime::Airspace;
 use sim_worker::conduct::{ConductError, Watchers, conduct};
@@ -62,7 +62,7 @@ pub struct RunOptions {
     /// over MAVLink, so they are refused without it. The shards read this option.
     pub mavlink: bool,
     /// The asset cache (an archive URL; `sadesim run` uses the user cache folder,
-    /// `sadesim_evidence::assets::local_cache_url`): the world is loaded from the bundle of
+    /// `sadesim_sources::assets::local_cache_url`): the world is loaded from the bundle of
     /// its key when one verifies there, else built and stored there, and `--processes`
     /// shards load it from there. `None` (`--no-asset-cache`): built in memory, stored
     /// nowhere, and every shard process builds it again.
@@ -90,11 +90,11 @@ pub enum RunError {
     #[error(transparent)]
     Plan(#[from] PlanError),
     #[error(transparent)]
-    World(#[from] sadesim_evidence::world::WorldReadError),
+    World(#[from] sadesim_sources::world::WorldReadError),
     #[error(transparent)]
-    Assets(#[from] sadesim_evidence::assets::AssetsError),
+    Assets(#[from] sadesim_sources::assets::AssetsError),
     #[error(transparent)]
-    Sky(#[from] sadesim_evidence::gnss::SkyReadError),
+    Sky(#[from] sadesim_sources::gnss::SkyReadError),
     /// The scenario asks for something this build cannot do yet.
     #[error("not supported yet: {0}")]
     NotSupported(String),
@@ -216,7 +216,7 @@ pub fn run_wind(
         )),
         (Some(cache), _) => {
             bar.set_message(format!("urban wind: looking in {cache}"));
-            sadesim_evidence::wind::ensure_wind(
+            sadesim_sources::wind::ensure_wind(
                 &plan.asset_cache_key,
                 &request,
                 plan.spec.origin.geo(),
@@ -367,7 +367,7 @@ fn show_progress(bar: &ProgressBar, time_s: f64, duration_s: f64, started: std::
 /// See [`RunError`]. When the coordinator fails mid-run, the files written so far stay in
 /// the output folder.
 pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool>) -> Result<RunReport, RunError> {
-    let world_data = sadesim_evidence::world::read_data(&run.spec)?;
+    let world_data = sadesim_sources::world::read_data(&run.spec)?;
     let (assets, world) = run_world(run, &world_data, options.asset_cache.as_deref(), options.progress)?;
     let plan = planner::plan_in(run, &world_data, &world)?;
     check_supported(&plan, options)?;
@@ -383,7 +383,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         );
     }
     // The orbit file is read before anything is written: a bad one fails the run at once.
-    let sky = sadesim_evidence::gnss::load_sky(&plan.spec)?.map(Arc::new);
+    let sky = sadesim_sources::gnss::load_sky(&plan.spec)?.map(Arc::new);
     let base = out_root(&plan, options).join(&plan.run.name);
     let stamp = utc_stamp(SystemTime::now());
     // Two runs started within the same second get `-2`, `-3`, ... rather than mixing files.

@@ -14,6 +14,7 @@
 
 use std::path::{Path, PathBuf};
 
+use sadesim_crds::plan::RunPlan;
 use sadesim_world::World;
 
 pub mod data;
@@ -51,37 +52,14 @@ pub struct Report {
     pub gnss_map_svg: Option<String>,
 }
 
-/// The run's world when the caller does not have it (`sadesim report` on a folder): the
-/// bundle of the plan's asset cache key in the local asset cache, else built from the plan
-/// and the files it names; `None` when neither works (a map without buildings).
-pub fn find_world(plan: &sadesim_crds::plan::RunPlan) -> Option<World> {
-    let cache = crate::assets::local_cache_url(&|k| std::env::var(k).ok()).ok();
-    let cached =
-        cache.and_then(|url| crate::assets::load_bundle(&crate::assets::entry_url(&url, &plan.asset_cache_key)).ok());
-    // An extract that is gone gives no world: no map footprints.
-    cached.or_else(|| crate::world::load_world(&plan.spec).ok())
-}
-
 /// Building footprints for the map, only when `world` is the world the run had
 /// (`world.json`'s statistics match). Otherwise none: a map without buildings is right, one
 /// with another city's would not be.
 fn buildings(data: &RunData, world: Option<&World>) -> Vec<svg::Footprint> {
-    let Some(recorded) = &data.world else { return Vec::new() };
-    let found;
-    let world = match world {
-        Some(world) => world,
-        None => match find_world(&data.plan) {
-            Some(world) => {
-                found = world;
-                &found
-            }
-            None => return Vec::new(),
-        },
-    };
-    if world.stats() != recorded {
-        return Vec::new();
+    match (&data.world, world) {
+        (Some(recorded), Some(world)) if world.stats() == recorded => footprints(world),
+        _ => Vec::new(),
     }
-    footprints(world)
 }
 
 /// The world's building footprints as the maps draw them.
@@ -100,8 +78,8 @@ pub fn footprints(world: &World) -> Vec<svg::Footprint> {
         .collect()
 }
 
-/// Builds the report of already-read run data in the run's `world` (pure when given; else
-/// the world is looked up as [`write_report`] says).
+/// Builds the report of already-read run data in the run's `world` (pure; `None`: a map
+/// without buildings).
 pub fn build(data: &RunData, world: Option<&World>) -> Report {
     let styles = model::group_styles(&data.plan);
     let zones = model::zone_shapes(&data.plan);
@@ -147,25 +125,37 @@ pub enum ReportError {
 /// `report/map.svg`, `report/altitude.svg`, `report/map.png`, `report/altitude.png`, and
 /// with `gnss.csv` `report/gnss-timeline.{svg,png}` and `report/gnss-map.{svg,png}`.
 ///
-/// The map draws the buildings of the run's world: loaded from the local asset cache (the
-/// plan's asset cache key), else built from the plan and its files; none when neither is
-/// the world the run had. [`write_report_in`] takes the world from a caller that has it.
+/// The map draws the buildings of the run's world, which `find_world` looks up from the
+/// folder's plan (`sadesim report` passes `sadesim_sources::assets::find_world`: the local
+/// asset cache, else the plan's files); it is called only when the folder records a world
+/// (`world.json`), and its world is drawn only when it is the one the run had.
+/// [`write_report_in`] takes the world from a caller that has it.
 ///
 /// # Errors
 /// A message naming the file (and line or field) when a file of the folder is malformed
 /// or `plan.json` is missing, or the file that could not be written.
-pub fn write_report(run_dir: &Path) -> Result<ReportFiles, ReportError> {
-    write_report_in(run_dir, None)
+pub fn write_report(
+    run_dir: &Path,
+    find_world: impl FnOnce(&RunPlan) -> Option<World>,
+) -> Result<ReportFiles, ReportError> {
+    let data = RunData::read(run_dir)?;
+    // Without `world.json` no world is drawn: nothing to look up.
+    let world = if data.world.is_some() { find_world(&data.plan) } else { None };
+    write_files(run_dir, &build(&data, world.as_ref()))
 }
 
 /// [`write_report`] with the run's world when the caller has it (the runner and the
-/// coordinator flew in it); `None` looks it up.
+/// coordinator flew in it); `None` draws the map without buildings.
 ///
 /// # Errors
 /// As [`write_report`].
 pub fn write_report_in(run_dir: &Path, world: Option<&World>) -> Result<ReportFiles, ReportError> {
     let data = RunData::read(run_dir)?;
-    let report = build(&data, world);
+    write_files(run_dir, &build(&data, world))
+}
+
+/// Writes `report` into the run folder `run_dir`: the plots, then the page.
+fn write_files(run_dir: &Path, report: &Report) -> Result<ReportFiles, ReportError> {
     let images_dir = run_dir.join(IMAGES_DIR);
     std::fs::create_dir_all(&images_dir)
         .map_err(|source| ReportError::Create { path: images_dir.display().to_string(), source })?;

@@ -418,9 +418,9 @@ pub fn asset_cache_location(plan: &RunPlan, settings: &ClusterSettings) -> Optio
     Some(format!(
         "{}/{}/{}/{}/",
         url.trim_end_matches('/'),
-        sadesim_evidence::assets::ASSETS_NAMESPACE,
+        sadesim_sources::assets::ASSETS_NAMESPACE,
         plan.asset_cache_key,
-        sadesim_evidence::assets::WORLD_FOLDER
+        sadesim_sources::assets::WORLD_FOLDER
     ))
 }
 

@@ -34,9 +34,9 @@ pub fn run(plan: &RunPlan, archive_url: &str, report_file: Option<&Path>) -> Res
     };
     let build_wind = |world: &sadesim_world::World, request: &sadesim_wind::request::WindRequest| {
         crate::wind_field::build_field(world, request, &scratch.join("wind"), progress)
-            .map_err(|e| sadesim_evidence::assets::AssetsError::WindBuild(e.to_string()))
+            .map_err(|e| sadesim_sources::assets::AssetsError::WindBuild(e.to_string()))
     };
-    let built = sadesim_evidence::assets::build_run_assets(plan, archive_url, &scratch, build_wind);
+    let built = sadesim_sources::assets::build_run_assets(plan, archive_url, &scratch, build_wind);
     let _ = std::fs::remove_dir_all(&scratch);
     let (outcome, wind) = built?;
     if let Some(wind) = wind {

@@ -56,13 +56,13 @@ pub enum RoleError {
     ControlFile(std::io::Error),
     /// The run's world cannot be read (its extract).
     #[error(transparent)]
-    World(#[from] sadesim_evidence::world::WorldReadError),
+    World(#[from] sadesim_sources::world::WorldReadError),
     /// `--assets` names a bundle that cannot be loaded (missing, damaged, another format).
     #[error(transparent)]
-    Assets(#[from] sadesim_evidence::assets::AssetsError),
+    Assets(#[from] sadesim_sources::assets::AssetsError),
     /// The run's GNSS constellation cannot be read (its orbit file, its epoch).
     #[error(transparent)]
-    Sky(#[from] sadesim_evidence::gnss::SkyReadError),
+    Sky(#[from] sadesim_sources::gnss::SkyReadError),
     /// The run's urban wind field cannot be made (OpenFOAM, an imported case).
     #[error("urban wind field: {0}")]
     Wind(String),
@@ -79,8 +79,8 @@ pub enum RoleError {
 pub fn world(plan: &RunPlan, assets: Option<&str>) -> Result<Arc<World>, RoleError> {
     let started = std::time::Instant::now();
     let world = match assets {
-        Some(url) => sadesim_evidence::assets::load_bundle(url)?,
-        None => sadesim_evidence::world::load_world(&plan.spec)?,
+        Some(url) => sadesim_sources::assets::load_bundle(url)?,
+        None => sadesim_sources::world::load_world(&plan.spec)?,
     };
     // On stderr (the role's log): where the world came from.
     let from = assets.map_or_else(
@@ -98,7 +98,7 @@ pub fn world(plan: &RunPlan, assets: Option<&str>) -> Result<Arc<World>, RoleErr
 /// # Errors
 /// The orbit file cannot be read or parsed, or the epoch is not a time.
 pub fn sky(plan: &RunPlan) -> Result<Option<Arc<sadesim_gnss::RunSky>>, RoleError> {
-    let sky = sadesim_evidence::gnss::load_sky(&plan.spec)?;
+    let sky = sadesim_sources::gnss::load_sky(&plan.spec)?;
     if let Some(s) = &sky {
         eprintln!(
             "sky: {} navigation satellites, mask {}°, t = 0 at UNIX {:.0} s",
@@ -125,7 +125,7 @@ pub fn surroundings(
     sky: Option<Arc<sadesim_gnss::RunSky>>,
     assets: Option<&str>,
 ) -> Result<sadesim_engine::shard::Surroundings, RoleError> {
-    use sadesim_evidence::wind::{load_wind, wind_entry_url_beside, wind_key};
+    use sadesim_sources::wind::{load_wind, wind_entry_url_beside, wind_key};
     use sadesim_wind::request::wind_request;
     let started = std::time::Instant::now();
     let Some(request) = wind_request(&plan.spec, &world) else {

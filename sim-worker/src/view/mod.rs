@@ -49,7 +49,7 @@ pub fn serve_live(
         return Err(server::NO_THREE.into());
     }
     let feed = Feed::new();
-    let glb = sadesim_evidence::gltf::world_glb(world, plan.spec.origin.geo());
+    let glb = sadesim_sources::gltf::world_glb(world, plan.spec.origin.geo());
     let scene = scene::scene(plan, Some(world), "live", true);
     let content = Content {
         scene_json: Arc::new(serde_json::to_vec(&scene).expect("a scene is JSON")),

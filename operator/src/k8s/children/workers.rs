@@ -70,7 +70,7 @@ pub const TERMINATION_LOG: &str = "/dev/termination-log";
 /// archive (there is no cache to fill; every shard builds the world itself).
 ///
 /// Runs `sim-worker assets --plan P --archive URL --report-file /dev/termination-log`,
-/// which fills `<archive>/assets/<asset cache key>/world/` (see `sadesim_evidence::assets`)
+/// which fills `<archive>/assets/<asset cache key>/world/` (see `sadesim_sources::assets`)
 /// or exits at once on a verified cache hit, and says which in its termination message
 /// (read back by [`crate::k8s::controller`] into the `AssetsReady` condition).
 pub(super) fn assets_job(ctx: &Context) -> Option<Job> {
@@ -352,7 +352,7 @@ pub(super) fn shard_job(ctx: &Context) -> Job {
     let mut c = worker_container(ctx, Role::Shard, strings(&[SIM_WORKER]), args, shard_resources(ctx));
     // The bundle, or without one the world's own files (a map or DEM in a bucket), are read
     // with the object-store credentials.
-    if assets.is_some() || !sadesim_evidence::world::world_files(&ctx.plan.spec).is_empty() {
+    if assets.is_some() || !sadesim_sources::world::world_files(&ctx.plan.spec).is_empty() {
         c.env_from = ctx.object_store_env();
     }
     let mut spec = pod_spec(vec![c], vec![super::config::plan_volume(ctx), empty_dir("tmp")], "Never");

@@ -19,8 +19,8 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::run::SimulationRunSpec;
 use sadesim_evidence::archive::is_object_store;
-use sadesim_evidence::world::{WorldReadError, world_files};
 use sadesim_planner::PlanError;
+use sadesim_sources::world::{WorldReadError, world_files};
 use sadesim_world::WorldData;
 
 /// Why a run does not plan on the cluster.
@@ -75,7 +75,7 @@ pub struct ObjectStoreFiles;
 
 impl WorldFiles for ObjectStoreFiles {
     fn read(&self, spec: &SimulationRunSpec) -> Result<WorldData, WorldReadError> {
-        sadesim_evidence::world::read_data(spec)
+        sadesim_sources::world::read_data(spec)
     }
 }
 

@@ -21,7 +21,7 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::plan::RunPlan;
 use sadesim_crds::status::{Phase, SimulationRunStatus, condition_types as ct};
-use sadesim_evidence::world::WorldReadError;
+use sadesim_sources::world::WorldReadError;
 use sadesim_world::WorldData;
 use serde_json::{Value, json};
 use tower_test::mock;

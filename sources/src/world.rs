@@ -31,7 +31,7 @@ pub enum WorldReadError {
     Fetch {
         field: &'static str,
         #[source]
-        source: crate::archive::ArchiveError,
+        source: sadesim_evidence::archive::ArchiveError,
     },
     #[error("spec.world.osm.file {path}: {source}")]
     Osm {
@@ -93,8 +93,9 @@ pub fn read_data(spec: &SimulationRunSpec) -> Result<WorldData, WorldReadError> 
 }
 
 pub(crate) fn read_file(field: &'static str, file: &str) -> Result<(String, Vec<u8>), WorldReadError> {
-    if crate::archive::is_object_store(file) {
-        let bytes = crate::archive::read_object(file).map_err(|source| WorldReadError::Fetch { field, source })?;
+    if sadesim_evidence::archive::is_object_store(file) {
+        let bytes =
+            sadesim_evidence::archive::read_object(file).map_err(|source| WorldReadError::Fetch { field, source })?;
         return Ok((file.to_string(), bytes));
     }
     let path = file_path(file);

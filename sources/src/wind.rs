@@ -1,5 +1,5 @@
-//! The urban wind field of a run (crate `sadesim-wind`): whether a run has one, its asset
-//! cache entry, and its file format.
+//! The urban wind field of a run (crate `sadesim-wind`; which field a run needs is
+//! `sadesim_wind::request`): its asset cache entry and its file format.
 //!
 //! # The format: a Zarr v2 group `wind.zarr`
 //! One format for the built-in model, OpenFOAM runs and imported cases; Python reads it with
@@ -27,11 +27,11 @@
 //! a scenario that changes only its wind speed or direction reuses the entry.
 
 use sadesim_crds::geo::GeoPoint;
+use sadesim_evidence::archive::{Archive, ArchiveError};
 use sadesim_wind::request::{FieldModel, WindRequest};
 use sadesim_wind::{DIAGNOSTIC_MODEL_VERSION, SectorField, UrbanWindField, WindGrid};
 use serde_json::{Value, json};
 
-use crate::archive::{Archive, ArchiveError};
 use crate::assets::{ASSETS_NAMESPACE, AssetsError};
 use crate::zarr::{self, ArrayOut, Compression, Dtype, ZarrError};
 

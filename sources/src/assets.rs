@@ -21,10 +21,9 @@ use std::path::Path;
 
 use sadesim_crds::geo::{Enu, GeoPoint, LocalFrame};
 use sadesim_crds::plan::RunPlan;
+use sadesim_evidence::archive::{Archive, ArchiveError};
 use sadesim_world::{Footprint, World};
 use serde_json::json;
-
-use crate::archive::{Archive, ArchiveError};
 
 /// Namespace segment of the cache inside an archive.
 pub const ASSETS_NAMESPACE: &str = "assets";
@@ -107,6 +106,16 @@ pub fn load_bundle(entry_url: &str) -> Result<World, AssetsError> {
     let archive = Archive::open(entry_url)?;
     let bytes = archive.read_checked("", WORLD_BIN)?;
     World::from_bytes(&bytes).map_err(|source| AssetsError::Bundle { url: format!("{entry_url}{WORLD_BIN}"), source })
+}
+
+/// The run's world when the caller does not have it (`sadesim report` and `sadesim view` on
+/// a run folder): the bundle of the plan's asset cache key in the local asset cache, else
+/// built from the plan and the files it names; `None` when neither works (an extract that
+/// is gone: a map without buildings).
+pub fn find_world(plan: &RunPlan) -> Option<World> {
+    let cache = local_cache_url(&|k| std::env::var(k).ok()).ok();
+    let cached = cache.and_then(|url| load_bundle(&entry_url(&url, &plan.asset_cache_key)).ok());
+    cached.or_else(|| crate::world::load_world(&plan.spec).ok())
 }
 
 /// The city's buildings as a GeoJSON FeatureCollection (WGS84 polygons; `heightM` and
