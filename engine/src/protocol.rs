@@ -1,6 +1,6 @@
 //! The shard <-> coordinator message set (DESIGN §5): the same types travel over in-process
-//! channels and, as binary frames (`transport::wire`), over TCP between `sim-worker shard`
-//! and `sim-worker coordinator` processes.
+//! channels and, as binary frames (`sim_worker::transport::wire`), over TCP between
+//! `sim-worker shard` and `sim-worker coordinator` processes.
 
 use serde::{Deserialize, Serialize};
 

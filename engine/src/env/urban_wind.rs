@@ -16,8 +16,8 @@ pub fn wants_urban_wind(spec: &SimulationRunSpec, world: &World) -> bool {
 
 /// The run's built-in field with only the sectors of its wind direction computed (what a
 /// run without an asset cache needs); `None` when the run does not want one, or wants
-/// OpenFOAM's (`sim_worker::wind_field::build_field`: minutes and files, so the roles make it). Seconds for a city
-/// (docs/performance.md).
+/// OpenFOAM's (`sim_worker::wind_field::build_field`: minutes and files, so the roles make
+/// it). Seconds for a city (docs/performance.md).
 pub fn urban_wind_field(spec: &SimulationRunSpec, world: &World) -> Option<UrbanWindField> {
     let request = wind_request(spec, world).filter(|r| r.model == FieldModel::Diagnostic)?;
     let mut field = UrbanWindField::new(world, request.grid, request.sectors);

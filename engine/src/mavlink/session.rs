@@ -495,8 +495,8 @@ pub enum Outgoing {
 /// Why deferred: building the messages (Euler angles, the geodetic conversion) and
 /// encoding them are most of MAVLink's cost in a shard, and both depend on this snapshot
 /// alone. So the shard keeps only the snapshot, and whoever encodes the queue (the shard's
-/// MAVLink I/O thread, `roles::shard::MavlinkThread`) builds the messages while the shard
-/// steps its next window. PX4 does the same: its streams run in the mavlink module's own
+/// MAVLink I/O thread, `sim_worker::shard_io::MavlinkThread`) builds the messages while the
+/// shard steps its next window. PX4 does the same: its streams run in the mavlink module's own
 /// task and read the uORB topics the controllers published. The frames are the ones an
 /// immediate build gives: same messages, same order, same sequence numbers.
 #[derive(Clone, Debug, PartialEq)]

@@ -1,7 +1,7 @@
 //! The shard core's MAVLink boundary: every drone's session reads the frames that arrived
 //! for it from an inbound queue and writes what it sends to an outbound queue. The queues
 //! belong to the shard; whatever moves them to and from the network (the sockets of
-//! `roles::shard::ShardSockets`, or nothing at all in tests) implements [`MavlinkIo`] and
+//! `sim_worker::shard_io::ShardSockets`, or nothing at all in tests) implements [`MavlinkIo`] and
 //! is called by [`super::Shard::advance_with`] at fixed points of a window, so the core
 //! never waits on a socket.
 //!

@@ -48,7 +48,7 @@ pub enum ShardError {
     Control(#[from] crate::autopilot::control::ControlError),
     /// The sky and the plan disagree: the run names a GNSS constellation and no sky was
     /// given, or a sky was given to a run without one (a caller's bug; the roles load the
-    /// sky with `roles::sky`).
+    /// sky with `sim_worker::roles::sky`).
     #[error("spec.environment.gnss.constellation is {0} but the shard was given {1}")]
     SkyMismatch(&'static str, &'static str),
     /// The urban wind field and the plan disagree (a caller's bug: `Surroundings::new`

@@ -14,7 +14,7 @@ use crate::env::urban_wind_field;
 #[derive(Clone, Debug)]
 pub struct Surroundings {
     pub world: Arc<World>,
-    /// `roles::sky`: read from the run's orbit file (I/O, so the caller loads it).
+    /// `sim_worker::roles::sky`: read from the run's orbit file (I/O, so the caller loads it).
     pub sky: Option<Arc<RunSky>>,
     /// Computed here from the world and the spec (`env::urban_wind_field`): seconds for a
     /// city, so built once per process, not per shard.
@@ -24,7 +24,7 @@ pub struct Surroundings {
 impl Surroundings {
     /// The surroundings of `plan` in `world` under `sky`; computes the urban wind field
     /// (the sectors of the run's direction only: a run with an asset cache loads every
-    /// sector from it instead, `roles::surroundings`).
+    /// sector from it instead, `sim_worker::roles::surroundings`).
     pub fn new(plan: &RunPlan, world: Arc<World>, sky: Option<Arc<RunSky>>) -> Self {
         let wind = urban_wind_field(&plan.spec, &world).map(Arc::new);
         Self { world, sky, wind }
