@@ -1,5 +1,6 @@
-//! Test support (feature `fixtures`, for this crate's tests and its users'): a `RunPlan` planned from a fixture run by the real planner, zones given
-//! as ENU rectangles, and drone snapshots.
+//! Test support (feature `fixtures`, for this crate's tests and its users'): a `RunPlan`
+//! planned from a fixture run by the real planner, zones given as ENU rectangles, and
+//! drone snapshots.
 
 use sadesim_crds::fixtures::{RunBuilder, zone};
 use sadesim_crds::fleet::LatLon;

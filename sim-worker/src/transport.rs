@@ -12,7 +12,7 @@ use std::thread::JoinHandle;
 use sadesim_crds::plan::RunPlan;
 
 use crate::record::Lap;
-use crate::shard_io::{MavlinkOptions, MavlinkThread, ShardSockets, StartError};
+use crate::shard_io::{self, MavlinkOptions, StartError};
 use sadesim_engine::coordinator::{LinkError, ShardLink};
 use sadesim_engine::protocol::{FromShard, ToShard};
 use sadesim_engine::shard::{MavlinkIo, Shard};
@@ -92,11 +92,7 @@ pub fn spawn_thread(
     surroundings: &sadesim_engine::shard::Surroundings,
     mavlink: Option<&MavlinkOptions>,
 ) -> Result<(ThreadLink, JoinHandle<Option<f64>>), StartError> {
-    let mut shard = Shard::new(plan, index, surroundings)?;
-    let sockets = mavlink
-        .map(|options| ShardSockets::open(&mut shard, plan, options))
-        .transpose()?
-        .map(|sockets| MavlinkThread::spawn(sockets, format!("shard-{index}-mavlink")));
+    let (shard, sockets) = shard_io::start(plan, index, surroundings, mavlink)?;
     let (to_shard, shard_rx) = channel::<ToShard>();
     let (shard_tx, from_shard) = channel::<FromShard>();
     let handle = std::thread::Builder::new()

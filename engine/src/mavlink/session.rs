@@ -540,7 +540,7 @@ impl Outgoing {
 
     /// The typed messages (an unknown command's ack has none): what peers decode.
     #[cfg(test)]
-    pub fn into_messages(self) -> Vec<MavMessage> {
+    pub(crate) fn into_messages(self) -> Vec<MavMessage> {
         match self {
             Outgoing::Message(m) => vec![m],
             Outgoing::UnknownCommandAck { .. } => Vec::new(),

@@ -144,7 +144,7 @@ pub(crate) fn preset(name: &str) -> Option<Airframe> {
 /// of tilt (7.3 N), and vertical drag from the larger top area. Battery: the X500 kit's 4S
 /// 5000 mAh LiPo, ~20 mΩ pack. Limits are PX4 defaults: MPC_TILTMAX_AIR 45°,
 /// MPC_XY_VEL_MAX 12 m/s, MPC_Z_VEL_MAX_UP 3 m/s, MPC_Z_VEL_MAX_DN 1.5 m/s.
-pub fn x500() -> Airframe {
+pub(crate) fn x500() -> Airframe {
     let a = 0.174;
     let h = 0.06;
     let rotor = |x: f64, y: f64, spin| Rotor { position_body_m: Vector3::new(x, y, h), spin };
@@ -192,7 +192,7 @@ pub fn x500() -> Airframe {
 /// * Drag: 15 m/s needs ~26° of tilt (1.2 N, DJI's sport-mode top speed is 16 m/s).
 /// * Battery: 2S 2450 mAh (Mini 3 class), ~60 mΩ; hover draws ~34 W, i.e. ~32 min.
 /// * Limits: 35° tilt, 15 m/s, climb 5 m/s, descent 3.5 m/s (DJI Mini 2 published limits).
-pub fn mini250() -> Airframe {
+pub(crate) fn mini250() -> Airframe {
     let arm_m = 0.213 / 2.0;
     let xy = arm_m / SQRT_2;
     let (body_kg, body_m) = (0.161, Vector3::new(0.14, 0.08, 0.055));

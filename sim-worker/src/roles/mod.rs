@@ -33,8 +33,7 @@ pub enum RoleError {
     PlanVersion { path: String, found: u32 },
     #[error("network: {0}")]
     Io(#[from] std::io::Error),
-    #[error(transparent)]
-    Shard(#[from] sadesim_engine::shard::ShardError),
+    /// The shard cannot be built or its sockets opened.
     #[error(transparent)]
     ShardStart(#[from] crate::shard_io::StartError),
     #[error(transparent)]

@@ -6,10 +6,9 @@
 //! Losing the coordinator before it said `Stop` is an error (exit 2 with the address):
 //! the run is over and this shard's part of it was not recorded to the end.
 //!
-//! The role owns the drones' MAVLink sockets ([`ShardSockets`]), on a thread of their own
-//! ([`MavlinkThread`]); the shard core only sees their queues.
-
-use crate::shard_io::{MavlinkOptions, MavlinkThread, ShardSockets};
+//! The role owns the drones' MAVLink sockets ([`shard_io::ShardSockets`]), on a thread of
+//! their own ([`MavlinkThread`]), both opened by [`shard_io::start`]; the shard core only
+//! sees their queues.
 
 use std::io::{BufReader, BufWriter};
 use std::net::{TcpStream, ToSocketAddrs};
@@ -18,6 +17,7 @@ use std::time::{Duration, Instant};
 use sadesim_crds::plan::RunPlan;
 
 use super::RoleError;
+use crate::shard_io::{self, MavlinkOptions, MavlinkThread};
 use crate::transport;
 use sadesim_engine::coordinator::LinkError;
 use sadesim_engine::protocol::ToShard;
@@ -49,11 +49,7 @@ pub fn run(
     mavlink: Option<&MavlinkOptions>,
     connect_timeout: Duration,
 ) -> Result<(), RoleError> {
-    let mut shard = Shard::new(plan, index, surroundings)?;
-    let sockets = mavlink
-        .map(|options| ShardSockets::open(&mut shard, plan, options))
-        .transpose()?
-        .map(|sockets| MavlinkThread::spawn(sockets, format!("shard-{index}-mavlink")));
+    let (shard, sockets) = shard_io::start(plan, index, surroundings, mavlink)?;
     let stream = connect(coordinator, connect_timeout)?;
     // On stderr (the role's log), so a run across hosts says who was where.
     let local = stream.local_addr().map_or_else(|_| "?".into(), |a| a.to_string());
