@@ -122,7 +122,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             crate::bench::pairs::run_pairs(setup, comparison, repeat, out)
         }
         Command::Crd => {
-            out.write_all(sadesim_crds::crd::crd_yaml().as_bytes())?;
+            out.write_all(sadesim_crds::crd::all_crds_yaml().as_bytes())?;
             Ok(Outcome::Success)
         }
         Command::Archive { command } => archive_command(command, out),

@@ -174,10 +174,12 @@ fn plan_refuses_invalid_runs_with_all_problems() {
 }
 
 #[test]
-fn crd_command_prints_the_checked_in_crd() {
+fn crd_command_prints_the_checked_in_crds() {
     let out = sadesim(&["crd"]);
     assert!(out.status.success());
-    let checked_in = std::fs::read_to_string(repo().join("crds/sadesim.io_simulationruns.yaml")).unwrap();
+    let file = |name: &str| std::fs::read_to_string(repo().join("crds").join(name)).unwrap();
+    let checked_in =
+        format!("{}---\n{}", file("sadesim.io_simulationruns.yaml"), file("sadesim.io_simulationsweeps.yaml"));
     assert_eq!(String::from_utf8(out.stdout).unwrap(), checked_in);
 }
 

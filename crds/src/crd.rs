@@ -7,6 +7,7 @@ use kube::CustomResourceExt;
 use serde_json::Value;
 
 use crate::run::SimulationRun;
+use crate::sweep::SimulationSweep;
 
 /// Header of the checked-in CRD file.
 pub const CRD_HEADER: &str =
@@ -17,7 +18,16 @@ pub const CRD_HEADER: &str =
 /// kube's structural rewriter keeps the `additionalProperties: false` that schemars emits
 /// for empty structs (`returnToLaunch: {}`), which the API server forbids; we strip it.
 pub fn crd() -> CustomResourceDefinition {
-    let mut value = serde_json::to_value(SimulationRun::crd()).expect("a CRD always serializes");
+    cleaned(SimulationRun::crd())
+}
+
+/// The SimulationSweep CRD (the same cleaning as [`crd`]).
+pub fn sweep_crd() -> CustomResourceDefinition {
+    cleaned(SimulationSweep::crd())
+}
+
+fn cleaned(crd: CustomResourceDefinition) -> CustomResourceDefinition {
+    let mut value = serde_json::to_value(crd).expect("a CRD always serializes");
     strip_additional_properties_false(&mut value);
     serde_json::from_value(value).expect("stripping a keyword keeps a valid CRD")
 }
@@ -35,10 +45,22 @@ fn strip_additional_properties_false(v: &mut Value) {
     }
 }
 
-/// The CRD as YAML, exactly as checked in under `crds/` and `charts/sadesim/crds/`.
+/// The SimulationRun CRD as YAML, exactly as checked in under `crds/` and
+/// `charts/sadesim/crds/`.
 pub fn crd_yaml() -> String {
     let body = serde_yaml::to_string(&crd()).expect("a CRD always serializes");
     format!("{CRD_HEADER}{body}")
+}
+
+/// The SimulationSweep CRD as YAML, exactly as checked in.
+pub fn sweep_crd_yaml() -> String {
+    let body = serde_yaml::to_string(&sweep_crd()).expect("a CRD always serializes");
+    format!("{CRD_HEADER}{body}")
+}
+
+/// Every CRD of the project as one YAML stream (`sadesim crd`).
+pub fn all_crds_yaml() -> String {
+    format!("{}---\n{}", crd_yaml(), sweep_crd_yaml())
 }
 
 const JUNCTORS: [&str; 4] = ["allOf", "anyOf", "oneOf", "not"];
@@ -167,9 +189,11 @@ mod tests {
     }
 
     #[test]
-    fn generated_crd_is_structural() {
-        let crd = serde_json::to_value(crd()).unwrap();
-        assert_eq!(structural_problems(&crd), Vec::<String>::new());
+    fn generated_crds_are_structural() {
+        for crd in [crd(), sweep_crd()] {
+            let crd = serde_json::to_value(crd).unwrap();
+            assert_eq!(structural_problems(&crd), Vec::<String>::new());
+        }
     }
 
     #[test]
@@ -221,8 +245,12 @@ mod checked_in {
     #[test]
     fn checked_in_crd_files_are_current() {
         let root = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
-        let generated = super::crd_yaml();
-        for rel in ["crds/sadesim.io_simulationruns.yaml", "charts/sadesim/crds/sadesim.io_simulationruns.yaml"] {
+        for (rel, generated) in [
+            ("crds/sadesim.io_simulationruns.yaml", super::crd_yaml()),
+            ("charts/sadesim/crds/sadesim.io_simulationruns.yaml", super::crd_yaml()),
+            ("crds/sadesim.io_simulationsweeps.yaml", super::sweep_crd_yaml()),
+            ("charts/sadesim/crds/sadesim.io_simulationsweeps.yaml", super::sweep_crd_yaml()),
+        ] {
             let path = format!("{root}/{rel}");
             if std::env::var("SADESIM_BLESS").as_deref() == Ok("1") {
                 std::fs::create_dir_all(std::path::Path::new(&path).parent().unwrap()).unwrap();

@@ -47,9 +47,9 @@ pub enum DocumentError {
     Syntax { document: usize, message: String },
     /// A document is not a SimulationRun.
     #[error(
-        "document {document}: expected apiVersion {API_VERSION:?} and kind {KIND:?}, got apiVersion {api_version:?} and kind {kind:?}"
+        "document {document}: expected apiVersion {API_VERSION:?} and kind {expected:?}, got apiVersion {api_version:?} and kind {kind:?}"
     )]
-    WrongKind { document: usize, api_version: String, kind: String },
+    WrongKind { document: usize, expected: &'static str, api_version: String, kind: String },
     /// A field has the wrong type, an unknown name, or a non-finite number.
     #[error("document {document}: {path}: {message}")]
     Field { document: usize, path: String, message: String },
@@ -131,7 +131,7 @@ fn renumber(e: DocumentError, document: usize) -> DocumentError {
     }
 }
 
-fn looks_like_json(text: &str) -> bool {
+pub(crate) fn looks_like_json(text: &str) -> bool {
     matches!(text.trim_start().as_bytes().first(), Some(b'{') | Some(b'['))
 }
 
@@ -179,7 +179,7 @@ fn is_list(v: &Value) -> bool {
     v.get("kind").and_then(Value::as_str) == Some("List") && v.get("items").is_some_and(Value::is_array)
 }
 
-fn json_documents(text: &str) -> Result<Vec<Result<Value, DocumentError>>, DocumentError> {
+pub(crate) fn json_documents(text: &str) -> Result<Vec<Result<Value, DocumentError>>, DocumentError> {
     let value: Value = serde_json::from_str(text)
         .map_err(|e| DocumentError::Syntax { document: 1, message: format!("invalid JSON: {e}") })?;
     Ok(match value {
@@ -188,7 +188,7 @@ fn json_documents(text: &str) -> Result<Vec<Result<Value, DocumentError>>, Docum
     })
 }
 
-fn yaml_documents(text: &str) -> Result<Vec<Result<Value, DocumentError>>, DocumentError> {
+pub(crate) fn yaml_documents(text: &str) -> Result<Vec<Result<Value, DocumentError>>, DocumentError> {
     use serde::Deserialize;
     let mut out = Vec::new();
     for (i, doc) in serde_yaml::Deserializer::from_str(text).enumerate() {
@@ -274,11 +274,11 @@ fn yaml_to_json(v: &serde_yaml::Value, path: &mut String, document: usize) -> Re
     })
 }
 
-fn to_run(document: usize, v: Value) -> Result<SimulationRun, DocumentError> {
+pub(crate) fn to_run(document: usize, v: Value) -> Result<SimulationRun, DocumentError> {
     let field = |v: &Value, name: &str| v.get(name).and_then(Value::as_str).unwrap_or("").to_string();
     let (api_version, kind) = (field(&v, "apiVersion"), field(&v, "kind"));
     if api_version != API_VERSION || kind != KIND {
-        return Err(DocumentError::WrongKind { document, api_version, kind });
+        return Err(DocumentError::WrongKind { document, expected: KIND, api_version, kind });
     }
     let typed = serde_path_to_error::deserialize::<_, SimulationRun>(&v);
     let e = match typed {

@@ -14,6 +14,8 @@
 //! - `zones`: airspace zones (polygon, floor, ceiling) and their entry policy;
 //! - `ground_stations`: who outside the run may reach its MAVLink and airspace endpoints;
 //! - `criteria`: the pass/fail criteria judged when a run ends;
+//! - `sweep`: the `SimulationSweep` resource (a base run over a parameter space) and its
+//!   expansion into runs;
 //! - `document`: reading scenario documents (YAML, JSON, `kind: List`) with field paths;
 //! - `validate`: everything the schema cannot check, every problem at once;
 //! - `crd`: the generated CustomResourceDefinition and a structural-schema checker;
@@ -46,10 +48,12 @@ pub mod polygon;
 pub mod random;
 pub mod run;
 pub mod status;
+pub mod sweep;
 pub mod validate;
 pub mod zones;
 
 pub use document::{DocumentError, parse_run, parse_runs};
 pub use run::{SimulationRun, SimulationRunSpec};
 pub use status::{Phase, SimulationRunStatus};
+pub use sweep::{SimulationSweep, SimulationSweepSpec};
 pub use validate::{FieldError, ValidationErrors, validate};

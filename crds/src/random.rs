@@ -21,6 +21,8 @@ pub enum Purpose {
     Sensors,
     /// The procedural world (drone index is unused: use 0).
     World,
+    /// A sweep's random parameter values (the "drone index" is the parameter's).
+    Sweep,
 }
 
 impl Purpose {
@@ -34,6 +36,7 @@ impl Purpose {
             Purpose::Gnss => 0x676e_7373,
             Purpose::Sensors => 0x7365_6e73,
             Purpose::World => 0x776f_726c,
+            Purpose::Sweep => 0x7377_6570,
         }
     }
 }
