@@ -4,7 +4,9 @@
 use serde_json::Value;
 
 use super::SimulationSweep;
-use crate::document::{API_VERSION, DocumentError, MAX_DOCUMENT_BYTES, json_documents, looks_like_json, yaml_documents};
+use crate::document::{
+    API_VERSION, DocumentError, MAX_DOCUMENT_BYTES, json_documents, looks_like_json, yaml_documents,
+};
 
 /// The kind of a sweep document.
 pub const SWEEP_KIND: &str = "SimulationSweep";

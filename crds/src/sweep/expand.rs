@@ -68,7 +68,8 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
     if name.is_empty() {
         push(&mut problems, "metadata.name", "is required (a DNS label such as `chicago-wind`)".into());
     } else if !is_dns_label(&name, MAX_SWEEP_NAME_LEN) {
-        push(&mut problems, 
+        push(
+            &mut problems,
             "metadata.name",
             format!(
                 "must be a DNS label of at most {MAX_SWEEP_NAME_LEN} characters (its runs are named `<sweep>-c<cell>-r<repetition>`), got {name:?}"
@@ -78,7 +79,11 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
     let spec = &sweep.spec;
     let given = [spec.base.spec.is_some(), spec.base.file.is_some()].iter().filter(|g| **g).count();
     if given != 1 {
-        push(&mut problems, "spec.base", format!("give exactly one of spec (the run inline) and file (a scenario file); got {given}"));
+        push(
+            &mut problems,
+            "spec.base",
+            format!("give exactly one of spec (the run inline) and file (a scenario file); got {given}"),
+        );
     }
     let repetitions = spec.repetitions();
     if !(1..=MAX_REPETITIONS).contains(&repetitions) {
@@ -91,7 +96,8 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
         push(&mut problems, "spec.queue", format!("must be a DNS label (a Kueue LocalQueue's name), got {q:?}"));
     }
     if spec.parameters.is_empty() {
-        push(&mut problems, 
+        push(
+            &mut problems,
             "spec.parameters",
             "is empty: name at least one run field to vary (to repeat one run over seeds, vary `spec.seed`)".into(),
         );
@@ -102,13 +108,25 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
     let sweep_seed = spec.seed.unwrap_or(0);
     for (i, p) in spec.parameters.iter().enumerate() {
         if !is_dns_label(&p.name, 63) {
-            push(&mut problems, &format!("spec.parameters[{i}].name"), format!("must be a DNS label such as `wind`, got {:?}", p.name));
+            push(
+                &mut problems,
+                &format!("spec.parameters[{i}].name"),
+                format!("must be a DNS label such as `wind`, got {:?}", p.name),
+            );
         } else if let Some(first) = names.insert(p.name.clone(), i) {
-            push(&mut problems, &format!("spec.parameters[{i}].name"), format!("{:?} is already the name of parameters[{first}]", p.name));
+            push(
+                &mut problems,
+                &format!("spec.parameters[{i}].name"),
+                format!("{:?} is already the name of parameters[{first}]", p.name),
+            );
         }
         match path::parse(&p.field) {
             Ok(steps) if fields.contains(&steps) => {
-                push(&mut problems, &format!("spec.parameters[{i}].field"), format!("{} is varied by another parameter already", p.field));
+                push(
+                    &mut problems,
+                    &format!("spec.parameters[{i}].field"),
+                    format!("{} is varied by another parameter already", p.field),
+                );
                 fields.push(Vec::new());
             }
             Ok(steps) => fields.push(steps),
@@ -118,9 +136,12 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
             }
         }
         if p.field == "spec.seed" && repetitions > 1 {
-            push(&mut problems, 
+            push(
+                &mut problems,
                 &format!("spec.parameters[{i}].field"),
-                format!("varies spec.seed, which repetitions also set: use repetitions 1 (got {repetitions}) or drop this parameter"),
+                format!(
+                    "varies spec.seed, which repetitions also set: use repetitions 1 (got {repetitions}) or drop this parameter"
+                ),
             );
         }
         match space::values_of(p, i, sweep_seed) {
@@ -144,6 +165,15 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
     if let Some(report) = &spec.report {
         check_report(report, &names, &mut problems);
     }
+    if base.criteria.is_empty() {
+        let at = if spec.base.file.is_some() { "spec.base.file" } else { "spec.base.spec.criteria" };
+        push(
+            &mut problems,
+            at,
+            "the base run has no criteria: a sweep counts the runs that pass theirs, so declare at least one (spec.criteria)"
+                .into(),
+        );
+    }
     if !problems.is_empty() {
         return Err(ValidationErrors(problems));
     }
@@ -152,6 +182,7 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
     let namespace = sweep.metadata.namespace.clone();
     let base_json = serde_json::to_value(base).expect("a spec always serializes");
     let base_seed = base.seed.unwrap_or(0);
+    let base_doc = json!({ "spec": base_json });
     let mut runs = Vec::with_capacity(total);
     let mut seen = std::collections::BTreeSet::new();
     for cell in &cells {
@@ -179,7 +210,12 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
             }
             for (i, ((_, value), steps)) in cell.values.iter().zip(&fields).enumerate() {
                 if let Err(e) = path::set(&mut doc, steps, value.clone()) {
-                    note(&mut seen, &mut problems, value_path(spec, i, value), format!("{}: {e}", spec.parameters[i].field));
+                    note(
+                        &mut seen,
+                        &mut problems,
+                        value_path(spec, i, value),
+                        format!("{}: {e}", spec.parameters[i].field),
+                    );
                 }
             }
             let checked = to_run(1, doc)
@@ -189,7 +225,7 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
                 Ok(run) => runs.push(SweepRun { cell: cell.index, repetition, run }),
                 Err(errors) => {
                     for e in errors {
-                        let (path, message) = blame(spec, cell, &fields, &e);
+                        let (path, message) = blame(spec, cell, &fields, &e, &base_doc);
                         note(&mut seen, &mut problems, path, message);
                     }
                 }
@@ -244,11 +280,20 @@ fn value_path(spec: &super::SimulationSweepSpec, i: usize, value: &Value) -> Str
 }
 
 /// Who is to blame for a problem of an expanded run: the parameter whose field it is in
-/// (or under), else the base.
-fn blame(spec: &super::SimulationSweepSpec, cell: &Cell, fields: &[Vec<Step>], e: &FieldError) -> (String, String) {
+/// (or under, or on the way to when the base does not have that field: a misspelt name),
+/// else the base.
+fn blame(
+    spec: &super::SimulationSweepSpec,
+    cell: &Cell,
+    fields: &[Vec<Step>],
+    e: &FieldError,
+    base: &Value,
+) -> (String, String) {
+    let under = |a: &str, b: &str| a == b || a.starts_with(&format!("{b}.")) || a.starts_with(&format!("{b}["));
+    let not_in_base = || path::parse(&e.path).is_ok_and(|steps| path::get(base, &steps).is_none());
     for (i, steps) in fields.iter().enumerate() {
         let field = &spec.parameters[i].field;
-        if !steps.is_empty() && (e.path == *field || e.path.starts_with(&format!("{field}.")) || e.path.starts_with(&format!("{field}["))) {
+        if !steps.is_empty() && (under(&e.path, field) || (under(field, &e.path) && not_in_base())) {
             let value = &cell.values[i].1;
             return (value_path(spec, i, value), format!("{} = {}: {}: {}", field, value, e.path, e.message));
         }

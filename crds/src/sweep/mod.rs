@@ -249,3 +249,6 @@ impl SimulationSweepSpec {
         self.repetitions.unwrap_or(1)
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -22,14 +22,17 @@ pub fn parse(path: &str) -> Result<Vec<Step>, String> {
             None => (part, ""),
         };
         if key.is_empty() || !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
-            return Err(format!("{path:?} is not a field path like `spec.environment.wind.speedMps` or `spec.fleet[1].count`"));
+            return Err(format!(
+                "{path:?} is not a field path like `spec.environment.wind.speedMps` or `spec.fleet[1].count`"
+            ));
         }
         steps.push(Step::Key(key.to_string()));
         while !rest.is_empty() {
             let Some(close) = rest.find(']').filter(|_| rest.starts_with('[')) else {
                 return Err(format!("{path:?}: an index is written `[n]`"));
             };
-            let index = rest[1..close].parse().map_err(|_| format!("{path:?}: {:?} is not an index", &rest[1..close]))?;
+            let index =
+                rest[1..close].parse().map_err(|_| format!("{path:?}: {:?} is not an index", &rest[1..close]))?;
             steps.push(Step::Index(index));
             rest = &rest[close + 1..];
         }
@@ -38,6 +41,14 @@ pub fn parse(path: &str) -> Result<Vec<Step>, String> {
         return Err(format!("{path:?} must name a field of the run's spec, starting with `spec.`"));
     }
     Ok(steps)
+}
+
+/// The value at `steps` in `doc`, if there is one.
+pub fn get<'a>(doc: &'a Value, steps: &[Step]) -> Option<&'a Value> {
+    steps.iter().try_fold(doc, |here, step| match step {
+        Step::Key(key) => here.get(key.as_str()),
+        Step::Index(i) => here.get(*i),
+    })
 }
 
 /// Sets the field at `steps` in `doc` to `value`. Missing objects on the way are created

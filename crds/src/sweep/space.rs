@@ -148,8 +148,9 @@ mod tests {
         let e = values_of(&param(Some(vec![]), None, None), 2, 0).unwrap_err();
         assert_eq!(e[0].path, "spec.parameters[2].values");
         assert!(e[0].message.contains("is empty"));
-        let e = values_of(&param(Some(vec![json!(1)]), Some(NumberRange { from: 0.0, to: 1.0, step: 1.0 }), None), 0, 0)
-            .unwrap_err();
+        let e =
+            values_of(&param(Some(vec![json!(1)]), Some(NumberRange { from: 0.0, to: 1.0, step: 1.0 }), None), 0, 0)
+                .unwrap_err();
         assert!(e[0].message.contains("exactly one of values, range and random; got 2"), "{e:?}");
         let e = values_of(&param(None, Some(NumberRange { from: 5.0, to: 1.0, step: 1.0 }), None), 0, 0).unwrap_err();
         assert_eq!(e[0].path, "spec.parameters[0].range");
