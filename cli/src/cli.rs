@@ -12,6 +12,7 @@ mod plan_cmd;
 mod run_cmd;
 mod scenario;
 mod sky_grid_cmd;
+mod sweep_cmd;
 mod validate_cmd;
 mod view_cmd;
 
@@ -64,6 +65,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 start_pilot: !no_pilot,
                 mavlink: !no_mavlink,
                 asset_cache,
+                ..Default::default()
             };
             run_file(&file, options, clock, out)
         }
@@ -126,6 +128,11 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             Ok(Outcome::Success)
         }
         Command::Archive { command } => archive_command(command, out),
+        Command::Report { run_dir } if crate::sweep::is_sweep_folder(&run_dir) => {
+            crate::sweep::rebuild_report(&run_dir).map_err(|e| CliError::Failed(e.to_string()))?;
+            writeln!(out, "report: {}", run_dir.join(sadesim_evidence::sweep::SWEEP_HTML).display())?;
+            Ok(Outcome::Success)
+        }
         Command::Report { run_dir } => {
             let files = sadesim_evidence::report::write_report(&run_dir, sadesim_sources::assets::find_world)
                 .map_err(|e| CliError::Failed(e.to_string()))?;
@@ -185,6 +192,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
         Command::Gnss { command: GnssCommand::Grid { scenario, out: dir, spacing_m, slice_s } } => {
             sky_grid_cmd::grid(&scenario, &dir, spacing_m, slice_s, out)
         }
+        Command::Sweep(args) => sweep_cmd::sweep(args, out),
         Command::Operator(args) => {
             sadesim_operator::k8s::controller::run(args.options()).map_err(|e| CliError::Failed(e.to_string()))?;
             Ok(Outcome::Success)

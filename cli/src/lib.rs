@@ -5,6 +5,8 @@
 //! - `runner`: the local runner of `sadesim run`, every role of a `SimulationRun` in one
 //!   process (shards as threads) or as `sim-worker` child processes (`--processes`), and the
 //!   pilot's supervision;
+//! - `sweep`: `sadesim sweep`, a `SimulationSweep`'s runs in parallel, resumable, and its
+//!   report;
 //! - `bench`: `sadesim bench`, drone-steps per second of the full per-drone stack.
 //!
 //! `sadesim operator` runs the Kubernetes operator of the `sadesim-operator` crate.
@@ -12,6 +14,7 @@
 pub mod bench;
 pub mod cli;
 pub mod runner;
+pub mod sweep;
 
 #[cfg(test)]
 mod report_tests;

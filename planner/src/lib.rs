@@ -31,7 +31,8 @@ pub use fleet_file::{
     Addressing, CAMERAS_URL_ENV, add_camera_urls, cluster_cameras_url, credential_env_var, fleet_file, zones_geojson,
 };
 pub use ports::{
-    MAX_SEGMENTS, SYSTEM_IDS_PER_SEGMENT, api_udp_port, endpoint_port, gcs_tcp_port, gcs_udp_port, service_ports,
+    MAX_SEGMENTS, SYSTEM_IDS_PER_SEGMENT, api_udp_port, concurrent_offsets, endpoint_port, gcs_tcp_port, gcs_udp_port,
+    offset_ports, service_ports,
 };
 
 /// Namespace used for local runs and for documents without one.

@@ -41,7 +41,8 @@ pub enum Command {
         #[arg(long)]
         namespace: Option<String>,
     },
-    /// Print the SimulationRun CustomResourceDefinition (YAML), for `kubectl apply -f -`.
+    /// Print the CustomResourceDefinitions (SimulationRun, SimulationSweep) as one YAML
+    /// stream, for `kubectl apply -f -`.
     Crd,
     /// Measure simulation throughput (drone-steps per second) on a synthetic scenario:
     /// x500s flying random waypoints over Chicago at 1 kHz with wind, GNSS noise and
@@ -181,9 +182,10 @@ pub enum Command {
         command: ArchiveCommand,
     },
     /// Rebuild a run's report (report.html, report/*.svg, report/*.png) from the files in
-    /// its run folder.
+    /// its run folder, or a sweep's (sweep.html, sweep.json) from its runs' folders.
     Report {
-        /// Run folder (`runs/<run>/<UTC time>/`, or one fetched with `archive get`).
+        /// Run folder (`runs/<run>/<UTC time>/`, or one fetched with `archive get`), or a
+        /// sweep's folder (`sweeps/<sweep>/`).
         run_dir: PathBuf,
     },
     /// Replay a recorded run in the browser: the live view's page on the run's
@@ -290,6 +292,15 @@ pub enum Command {
     /// Logs JSON lines to stderr; stops cleanly on SIGTERM. The Lease for leader election is
     /// `sadesim-operator` in POD_NAMESPACE, held as POD_NAME.
     Operator(sadesim_operator::OperatorArgs),
+    /// Run a SimulationSweep: its runs in parallel on this machine, each in its own folder
+    /// under `<out>/<sweep>/`, then its report (sweep.html, sweep.json). Resumable: a rerun
+    /// skips every run whose evidence is complete and verifies. Exits 0 when every run
+    /// finished (whatever their verdicts), 1 when the sweep is invalid or a run could not
+    /// be flown, 130 when interrupted.
+    ///
+    /// `sadesim sweep compare OLD NEW` compares two sweeps over the same space.
+    #[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+    Sweep(SweepArgs),
 }
 
 /// `sadesim gnss ...`
@@ -415,6 +426,58 @@ fn parse_area(s: &str) -> Result<[f64; 4], String> {
         [_, _, _, _] => Err("expected EAST_MIN < EAST_MAX and NORTH_MIN < NORTH_MAX".into()),
         _ => Err(format!("expected four comma-separated numbers E0,N0,E1,N1, found {}", v.len())),
     }
+}
+
+/// `sadesim sweep FILE` or `sadesim sweep compare OLD NEW`.
+#[derive(Debug, clap::Args)]
+pub struct SweepArgs {
+    #[command(subcommand)]
+    pub command: Option<SweepCommand>,
+    /// The SimulationSweep file (YAML or JSON).
+    #[arg(required = true)]
+    pub file: Option<PathBuf>,
+    /// Folder to create the sweep's folder in.
+    #[arg(long, default_value = "sweeps")]
+    pub out: PathBuf,
+    /// Runs in flight at once (default: the sweep's `parallelism`, at most this machine's
+    /// cores).
+    #[arg(long, short, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub jobs: Option<u32>,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub quiet: bool,
+    /// Override every run's clock: `realtime`, `asFastAsPossible` (or `afap`), or
+    /// `scaled:FACTOR`.
+    #[arg(long, value_parser = parse_clock)]
+    pub clock: Option<sadesim_crds::run::Clock>,
+    /// Print the sweep's runs as SimulationRun documents (a YAML stream) and run nothing:
+    /// `sadesim run` on one of them flies that run alone, byte for byte as in the sweep.
+    #[arg(long)]
+    pub expand: bool,
+    /// The asset cache URL (as for `sadesim run`).
+    #[arg(long, value_name = "URL", conflicts_with = "no_asset_cache")]
+    pub asset_cache: Option<String>,
+    /// Build each run's world in memory and store no bundle.
+    #[arg(long)]
+    pub no_asset_cache: bool,
+}
+
+/// `sadesim sweep ...` subcommands.
+#[derive(Debug, Subcommand)]
+pub enum SweepCommand {
+    /// Compare two sweeps over the same parameter space (e.g. two pilot versions): per
+    /// cell, the pass rates and a one-sided Fisher exact test that NEW passes less often
+    /// than OLD, then the same pooled over every cell. Exits 1 when NEW is significantly
+    /// worse in a cell or pooled, so CI can gate a pilot on it.
+    Compare {
+        /// The old sweep's folder (or its sweep.json).
+        old: PathBuf,
+        /// The new sweep's folder (or its sweep.json).
+        new: PathBuf,
+        /// Significance level of the tests.
+        #[arg(long, default_value_t = 0.05)]
+        alpha: f64,
+    },
 }
 
 /// `sadesim archive ...`

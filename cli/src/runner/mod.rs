@@ -67,6 +67,15 @@ pub struct RunOptions {
     /// shards load it from there. `None` (`--no-asset-cache`): built in memory, stored
     /// nowhere, and every shard process builds it again.
     pub asset_cache: Option<String>,
+    /// The run folder itself (created; it must not exist), instead of
+    /// `<out_root>/<run>/<UTC time>/` (`sadesim sweep` puts each run in its sweep's folder).
+    pub run_dir: Option<PathBuf>,
+    /// Moves every MAVLink port of the run up by this much (`planner::offset_ports`), so
+    /// runs can fly at once on this machine; the fleet file names the moved ports.
+    pub port_offset: u16,
+    /// The document `SADESIM_SCENARIO` names, when it is not `scenario` (a sweep's run: its
+    /// own expanded document, while the pilot starts in the sweep file's folder).
+    pub scenario_document: Option<PathBuf>,
 }
 
 impl Default for RunOptions {
@@ -80,6 +89,9 @@ impl Default for RunOptions {
             start_pilot: true,
             mavlink: true,
             asset_cache: None,
+            run_dir: None,
+            port_offset: 0,
+            scenario_document: None,
         }
     }
 }
@@ -369,7 +381,10 @@ fn show_progress(bar: &ProgressBar, time_s: f64, duration_s: f64, started: std::
 pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool>) -> Result<RunReport, RunError> {
     let world_data = sadesim_sources::world::read_data(&run.spec)?;
     let (assets, world) = run_world(run, &world_data, options.asset_cache.as_deref(), options.progress)?;
-    let plan = planner::plan_in(run, &world_data, &world)?;
+    let mut plan = planner::plan_in(run, &world_data, &world)?;
+    planner::offset_ports(&mut plan, options.port_offset).map_err(|top| {
+        RunError::NotSupported(format!("MAVLink ports moved up by {} would reach {top}", options.port_offset))
+    })?;
     check_supported(&plan, options)?;
     // The routers' passphrase is resolved before anything is written, like the pilot's
     // credentials; only runs with MAVLink have routers.
@@ -384,16 +399,32 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     }
     // The orbit file is read before anything is written: a bad one fails the run at once.
     let sky = sadesim_sources::gnss::load_sky(&plan.spec)?.map(Arc::new);
-    let base = out_root(&plan, options).join(&plan.run.name);
-    let stamp = utc_stamp(SystemTime::now());
-    // Two runs started within the same second get `-2`, `-3`, ... rather than mixing files.
-    let out_dir = (1..)
-        .map(|n| if n == 1 { base.join(&stamp) } else { base.join(format!("{stamp}-{n}")) })
-        .find(|d| !d.exists())
-        .expect("some suffix is free");
+    let out_dir = match &options.run_dir {
+        Some(dir) if dir.exists() => {
+            let source = std::io::Error::new(std::io::ErrorKind::AlreadyExists, "the run folder exists already");
+            return Err(RunError::Output { path: dir.display().to_string(), source });
+        }
+        Some(dir) => dir.clone(),
+        None => {
+            let base = out_root(&plan, options).join(&plan.run.name);
+            let stamp = utc_stamp(SystemTime::now());
+            // Two runs started within the same second get `-2`, `-3`, ... rather than mixing
+            // files.
+            (1..)
+                .map(|n| if n == 1 { base.join(&stamp) } else { base.join(format!("{stamp}-{n}")) })
+                .find(|d| !d.exists())
+                .expect("some suffix is free")
+        }
+    };
     // Everything about the pilot that can be wrong is found before the run starts.
     let launch = match (&plan.spec.pilot, options.start_pilot) {
-        (Some(p), true) => Some(pilot::Launch::prepare(&plan, p, options.scenario.as_deref(), &out_dir)?),
+        (Some(p), true) => {
+            let mut launch = pilot::Launch::prepare(&plan, p, options.scenario.as_deref(), &out_dir)?;
+            if let Some(document) = &options.scenario_document {
+                launch.set_scenario_document(document)?;
+            }
+            Some(launch)
+        }
         _ => None,
     };
     std::fs::create_dir_all(&out_dir)

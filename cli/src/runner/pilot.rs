@@ -157,6 +157,18 @@ impl Launch {
         })
     }
 
+    /// Points `SADESIM_SCENARIO` at `document` (made absolute) instead of the scenario file
+    /// the pilot starts beside.
+    ///
+    /// # Errors
+    /// [`PilotError::Folder`]: the path cannot be made absolute.
+    pub fn set_scenario_document(&mut self, document: &Path) -> Result<(), PilotError> {
+        let path = absolute(document)?.display().to_string();
+        self.env.retain(|(k, _)| k != "SADESIM_SCENARIO");
+        self.env.push(("SADESIM_SCENARIO".into(), path));
+        Ok(())
+    }
+
     /// Tells the pilot where the run's onboard camera frames are: `SADESIM_CAMERAS_URL`,
     /// the frame server's `/cameras` (known once the server listens, after [`Self::prepare`]).
     pub fn set_cameras_url(&mut self, cameras_url: &str) {

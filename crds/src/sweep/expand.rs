@@ -102,6 +102,20 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
             "is empty: name at least one run field to vary (to repeat one run over seeds, vary `spec.seed`)".into(),
         );
     }
+    let mut overrides = Vec::new();
+    for (i, o) in spec.overrides.iter().enumerate() {
+        match path::parse(&o.field) {
+            Ok(_) if o.field == "spec.seed" && repetitions > 1 => {
+                push(
+                    &mut problems,
+                    &format!("spec.overrides[{i}].field"),
+                    format!("sets spec.seed, which repetitions also set: use repetitions 1 (got {repetitions})"),
+                );
+            }
+            Ok(steps) => overrides.push((i, steps)),
+            Err(e) => push(&mut problems, &format!("spec.overrides[{i}].field"), e),
+        }
+    }
     let mut fields: Vec<Vec<Step>> = Vec::new();
     let mut names = BTreeMap::new();
     let mut values = Vec::new();
@@ -208,6 +222,12 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
             if let Some(q) = &spec.queue {
                 doc["spec"]["queue"] = json!(q);
             }
+            for (i, steps) in &overrides {
+                let o = &spec.overrides[*i];
+                if let Err(e) = path::set(&mut doc, steps, o.value.clone()) {
+                    note(&mut seen, &mut problems, format!("spec.overrides[{i}].value"), format!("{}: {e}", o.field));
+                }
+            }
             for (i, ((_, value), steps)) in cell.values.iter().zip(&fields).enumerate() {
                 if let Err(e) = path::set(&mut doc, steps, value.clone()) {
                     note(
@@ -296,6 +316,14 @@ fn blame(
         if !steps.is_empty() && (under(&e.path, field) || (under(field, &e.path) && not_in_base())) {
             let value = &cell.values[i].1;
             return (value_path(spec, i, value), format!("{} = {}: {}: {}", field, value, e.path, e.message));
+        }
+    }
+    for (i, o) in spec.overrides.iter().enumerate() {
+        if under(&e.path, &o.field) || (under(&o.field, &e.path) && not_in_base()) {
+            return (
+                format!("spec.overrides[{i}].value"),
+                format!("{} = {}: {}: {}", o.field, o.value, e.path, e.message),
+            );
         }
     }
     let path = match e.path.strip_prefix("spec") {

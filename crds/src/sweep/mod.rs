@@ -68,6 +68,10 @@ pub const REPETITION_LABEL: &str = "sadesim.io/sweep-repetition";
 pub struct SimulationSweepSpec {
     /// The run every run of the sweep starts from.
     pub base: SweepBase,
+    /// Fields set to one value in every run of the sweep, before the parameters (the clock
+    /// `asFastAsPossible` for a sweep of a real-time scenario, a shorter duration).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub overrides: Vec<Override>,
     /// The fields varied, each over its own values. The sweep runs every combination (the
     /// cells of a full grid), in the order of this list (the last parameter varies fastest).
     pub parameters: Vec<Parameter>,
@@ -102,6 +106,17 @@ pub struct SweepBase {
     /// only: on Kubernetes give the spec inline).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub file: Option<String>,
+}
+
+/// A field set to one value in every run.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+pub struct Override {
+    /// The run field, as in `parameters[].field`.
+    pub field: String,
+    /// Its value.
+    #[schemars(schema_with = "any_value")]
+    pub value: Value,
 }
 
 /// One varied field and its values: exactly one of `values`, `range` and `random`.
@@ -162,6 +177,10 @@ pub struct SweepReportSpec {
     /// Confidence level of the pass-rate intervals (default 0.95).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub confidence: Option<f64>,
+}
+
+fn any_value(_: &mut schemars::SchemaGenerator) -> schemars::Schema {
+    schemars::json_schema!({"x-kubernetes-preserve-unknown-fields": true})
 }
 
 fn any_values(_: &mut schemars::SchemaGenerator) -> schemars::Schema {

@@ -136,3 +136,22 @@ fn list_values_set_whole_fields() {
     assert_eq!(e.runs[0].run.spec.pilot.as_ref().unwrap().command, ["a", "1"]);
     assert_eq!(e.cells[1].label(), "pilot=[\"b\"]");
 }
+
+#[test]
+fn overrides_set_every_run_and_name_themselves_when_refused() {
+    let (s, base) = sweep(
+        "    - {name: wind, field: spec.environment.wind.speedMps, values: [1, 2]}",
+        "  overrides:\n    - {field: spec.clock, value: {mode: asFastAsPossible}}\n    - {field: spec.duration, value: 90s}",
+    );
+    let e = expand(&s, &base).unwrap();
+    for r in &e.runs {
+        assert_eq!(r.run.spec.clock.as_ref().unwrap().mode, crate::run::ClockMode::AsFastAsPossible);
+        assert_eq!(crate::validate::duration_s(&r.run.spec.duration), 90.0);
+    }
+    let (s, base) = sweep(
+        "    - {name: wind, field: spec.environment.wind.speedMps, values: [1]}",
+        "  overrides:\n    - {field: spec.physicsRateHz, value: 3}",
+    );
+    let p = problems(&s, &base);
+    assert!(p[0].starts_with("spec.overrides[0].value: spec.physicsRateHz = 3: spec.physicsRateHz: must be between 50"), "{p:?}");
+}

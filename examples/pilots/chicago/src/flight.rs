@@ -66,6 +66,10 @@ pub struct Context {
     pub target: usize,
     /// The non-compliant variant: journalists enter after a denial.
     pub journalists_ignore_denials: bool,
+    /// Each journalist ignores its denial with this probability (a worse pilot version).
+    pub ignore_denials_share: f64,
+    /// The run's `spec.seed` (0 without the scenario): draws `ignore_denials_share`.
+    pub run_seed: u64,
     /// Seed of the hobbyists' random waypoints.
     pub seed: u64,
     /// The forecast wind (the scenario's), for the cost of the way home; `None`: unknown.
@@ -598,6 +602,15 @@ impl Pilot<'_> {
         }
     }
 
+    /// Whether this journalist enters after a denial: always in the non-compliant variant,
+    /// else with probability `ignore_denials_share` (drawn per run seed and drone).
+    fn ignores_denials(&self) -> bool {
+        let share = self.ctx.ignore_denials_share;
+        self.ctx.journalists_ignore_denials
+            || (share > 0.0
+                && crate::rng::Rng::for_drone(self.ctx.run_seed ^ 0x1a7e_d0c5, self.spec.index).unit() < share)
+    }
+
     /// News crew: to the spot north of the zone, ask, loiter when denied (or, in the
     /// non-compliant variant, go in anyway).
     fn journalist(&mut self, cruise_m: f64, spot: Point, inside: Point) -> Result<(), Abort> {
@@ -606,7 +619,7 @@ impl Pilot<'_> {
         let zone = self.zone().name.clone();
         match self.request(plan::JOURNALIST_BAND)? {
             Verdict::Granted { lease, .. } => self.visit(lease, spot, inside, cruise_m, plan::JOURNALIST_BAND, 60.0),
-            Verdict::Denied { .. } if self.ctx.journalists_ignore_denials => {
+            Verdict::Denied { .. } if self.ignores_denials() => {
                 self.log(format!("ignoring the denial: entering {zone} without a lease"));
                 self.goto(inside, cruise_m)?;
                 self.log(format!("inside {zone} without a lease: filming {:.0} s", plan::INTRUSION_S));

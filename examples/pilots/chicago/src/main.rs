@@ -32,10 +32,20 @@ struct Args {
     /// then fail its criteria).
     #[arg(long)]
     journalists_ignore_denials: bool,
+    /// A worse pilot version (for sweeps comparing versions): each journalist ignores its
+    /// denial with this probability, drawn from the run's seed and the drone's index.
+    #[arg(long, value_name = "P", default_value_t = 0.0, value_parser = share)]
+    ignore_denials_share: f64,
     /// Seed of the hobbyists' random waypoints (each drone's stream also depends on its
     /// index).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+}
+
+/// A probability: 0 to 1.
+fn share(text: &str) -> Result<f64, String> {
+    let p: f64 = text.parse().map_err(|e| format!("{text:?}: {e}"))?;
+    if (0.0..=1.0).contains(&p) { Ok(p) } else { Err(format!("must be between 0 and 1, got {p}")) }
 }
 
 fn main() -> ExitCode {
@@ -45,6 +55,7 @@ fn main() -> ExitCode {
         scenario: args.scenario,
         zone: args.zone,
         journalists_ignore_denials: args.journalists_ignore_denials,
+        ignore_denials_share: args.ignore_denials_share,
         seed: args.seed,
     };
     match pilot::run(&options) {

@@ -26,6 +26,10 @@ pub struct Options {
     pub zone: Option<String>,
     /// The non-compliant variant: journalists enter after a denial.
     pub journalists_ignore_denials: bool,
+    /// A worse pilot version, for sweeps that compare versions: each journalist ignores its
+    /// denial with this probability (0 to 1), drawn from the run's `spec.seed` (from the
+    /// scenario) and the drone's index, so some flights of a sweep break the rules.
+    pub ignore_denials_share: f64,
     /// Seed of the hobbyists' random waypoints.
     pub seed: u64,
 }
@@ -92,16 +96,16 @@ pub fn run(options: &Options) -> Result<Report, StartError> {
         None if zones.is_empty() => return Err(StartError::NoZone),
         None => 0,
     };
-    let (parks, wind) = match &options.scenario {
+    let (parks, wind, run_seed) = match &options.scenario {
         Some(file) => {
             let path = file.display().to_string();
             let text = std::fs::read_to_string(file)
                 .map_err(|error| StartError::ReadScenario { path: path.clone(), error })?;
             let run = sadesim_crds::document::parse_run(&text)
                 .map_err(|e| StartError::ParseScenario { path, error: e.to_string() })?;
-            (plan::parks(&run.spec, &frame), Some(plan::wind(&run.spec)))
+            (plan::parks(&run.spec, &frame), Some(plan::wind(&run.spec)), run.spec.seed.unwrap_or(0))
         }
-        None => (Vec::new(), None),
+        None => (Vec::new(), None, 0),
     };
 
     let drones: Vec<_> = fleet.drones.iter().filter(|d| !d.scripted).collect();
@@ -146,7 +150,11 @@ pub fn run(options: &Options) -> Result<Report, StartError> {
         count(Role::Recreational),
         zones[target].name,
         fleet.airspace_url,
-        if options.journalists_ignore_denials { "; journalists IGNORE denials" } else { "" }
+        match (options.journalists_ignore_denials, options.ignore_denials_share) {
+            (true, _) => "; journalists IGNORE denials".to_string(),
+            (false, share) if share > 0.0 => format!("; each journalist ignores its denial with probability {share}"),
+            _ => String::new(),
+        }
     );
     for (spec, task) in specs.iter().zip(&tasks) {
         if let Task::PublicSafety { hold, watch } = task {
@@ -163,6 +171,8 @@ pub fn run(options: &Options) -> Result<Report, StartError> {
         zones,
         target,
         journalists_ignore_denials: options.journalists_ignore_denials,
+        ignore_denials_share: options.ignore_denials_share,
+        run_seed,
         seed: options.seed,
         wind,
     };
@@ -209,7 +219,14 @@ mod tests {
     }
 
     fn options(fleet: PathBuf, zone: Option<&str>) -> Options {
-        Options { fleet, scenario: None, zone: zone.map(str::to_owned), journalists_ignore_denials: false, seed: 1 }
+        Options {
+            fleet,
+            scenario: None,
+            zone: zone.map(str::to_owned),
+            journalists_ignore_denials: false,
+            ignore_denials_share: 0.0,
+            seed: 1,
+        }
     }
 
     fn temp_dir(name: &str) -> PathBuf {
