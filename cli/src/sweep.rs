@@ -116,7 +116,7 @@ fn read(file: &Path) -> Result<String, SweepError> {
 }
 
 /// How to run a sweep locally.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct SweepOptions {
     /// The sweep's folder is `<out_root>/<sweep>/`.
     pub out_root: PathBuf,
@@ -129,6 +129,9 @@ pub struct SweepOptions {
     pub clock: Option<Clock>,
     /// The asset cache (see [`RunOptions::asset_cache`]).
     pub asset_cache: Option<String>,
+    /// Serve MAVLink endpoints in every run (see [`RunOptions::mavlink`]; off for sweeps of
+    /// scripted missions, which need no ports).
+    pub mavlink: bool,
 }
 
 /// What a sweep did.
@@ -207,7 +210,10 @@ pub fn run_sweep(
         .unwrap_or_else(|| loaded.sweep.spec.parallelism.unwrap_or(cores).min(cores))
         .clamp(1, pending.len().max(1) as u32);
     let drones = runs.iter().map(|r| r.run.spec.fleet.iter().map(|g| g.count).sum::<u32>()).max().unwrap_or(1);
-    let offsets = sadesim_planner::concurrent_offsets(drones, jobs).map_err(SweepError::Ports)?;
+    let offsets = match options.mavlink {
+        true => sadesim_planner::concurrent_offsets(drones, jobs).map_err(SweepError::Ports)?,
+        false => vec![0; jobs as usize],
+    };
 
     let bar = if options.progress { ProgressBar::new(runs.len() as u64) } else { ProgressBar::hidden() };
     bar.set_style(
@@ -241,6 +247,7 @@ pub fn run_sweep(
                         scenario: Some(loaded.pilot_folder_file.clone()),
                         scenario_document: Some(dir.join(SCENARIOS).join(format!("{}.yaml", r.name()))),
                         asset_cache: options.asset_cache.clone(),
+                        mavlink: options.mavlink,
                         ..RunOptions::default()
                     };
                     match run_local(&run, &run_options, stop.clone()) {

@@ -460,6 +460,9 @@ pub struct SweepArgs {
     /// Build each run's world in memory and store no bundle.
     #[arg(long)]
     pub no_asset_cache: bool,
+    /// Serve no MAVLink endpoints (sweeps of scripted missions only).
+    #[arg(long)]
+    pub no_mavlink: bool,
 }
 
 /// `sadesim sweep ...` subcommands.

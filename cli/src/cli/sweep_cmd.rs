@@ -48,6 +48,7 @@ pub(super) fn sweep(args: SweepArgs, out: &mut dyn Write) -> Result<Outcome, Cli
         progress: !args.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr()),
         clock: args.clock,
         asset_cache,
+        mavlink: !args.no_mavlink,
     };
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();

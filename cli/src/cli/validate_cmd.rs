@@ -3,6 +3,7 @@
 use std::io::Write;
 use std::path::PathBuf;
 
+use sadesim_crds::sweep::document::SWEEP_KIND;
 use sadesim_crds::{SimulationRun, parse_runs, validate};
 
 use super::scenario::read_scenario;
@@ -24,6 +25,10 @@ pub(super) fn validate_files(files: &[PathBuf], out: &mut dyn Write) -> Result<O
                 continue;
             }
         };
+        if sadesim_crds::sweep::document::first_kind(&text).as_deref() == Some(SWEEP_KIND) {
+            problems += usize::from(!validate_sweep(file, out)?);
+            continue;
+        }
         let docs = match parse_runs(&text) {
             Ok(docs) => docs,
             Err(e) => {
@@ -62,4 +67,35 @@ pub(super) fn validate_files(files: &[PathBuf], out: &mut dyn Write) -> Result<O
         }
     }
     Ok(if problems == 0 { Outcome::Success } else { Outcome::Problems })
+}
+
+/// A sweep file: every problem of the sweep and of each of its runs. Whether it is valid.
+fn validate_sweep(file: &std::path::Path, out: &mut dyn Write) -> Result<bool, CliError> {
+    use crate::sweep::SweepError;
+    let path = file.display().to_string();
+    match crate::sweep::load(file) {
+        Ok(loaded) => {
+            let name = loaded.sweep.metadata.name.clone().unwrap_or_default();
+            let e = &loaded.expansion;
+            let runs = count(e.runs.len(), "run");
+            writeln!(
+                out,
+                "ok: {path}: sweep {name} ({} x {} = {runs})",
+                count(e.cells.len(), "cell"),
+                count(loaded.sweep.spec.repetitions() as usize, "repetition")
+            )?;
+            Ok(true)
+        }
+        Err(SweepError::Invalid { errors, .. }) => {
+            writeln!(out, "error: {path}: {}", count(errors.0.len(), "problem"))?;
+            for e in &errors.0 {
+                writeln!(out, "  {e}")?;
+            }
+            Ok(false)
+        }
+        Err(e) => {
+            writeln!(out, "error: {e}")?;
+            Ok(false)
+        }
+    }
 }

@@ -153,5 +153,8 @@ fn overrides_set_every_run_and_name_themselves_when_refused() {
         "  overrides:\n    - {field: spec.physicsRateHz, value: 3}",
     );
     let p = problems(&s, &base);
-    assert!(p[0].starts_with("spec.overrides[0].value: spec.physicsRateHz = 3: spec.physicsRateHz: must be between 50"), "{p:?}");
+    assert!(
+        p[0].starts_with("spec.overrides[0].value: spec.physicsRateHz = 3: spec.physicsRateHz: must be between 50"),
+        "{p:?}"
+    );
 }
