@@ -139,7 +139,8 @@ pub fn pass_rate(report: &SweepReport) -> Option<String> {
             .collect();
         let mut d = String::new();
         for (px, c) in points.iter().filter(|(_, c)| c.rate.pass_rate.is_some()) {
-            let _ = write!(d, "{}{px:.1} {:.1}", if d.is_empty() { "M" } else { "L" }, y(c.rate.pass_rate.unwrap_or(0.0)));
+            let _ =
+                write!(d, "{}{px:.1} {:.1}", if d.is_empty() { "M" } else { "L" }, y(c.rate.pass_rate.unwrap_or(0.0)));
         }
         let _ = write!(
             out,
@@ -241,7 +242,15 @@ pub fn heat_map(report: &SweepReport) -> Option<String> {
                 r##"<rect class="heat" x="{left:.1}" y="{top:.1}" width="{CELL_W}" height="{CELL_H}" fill="{fill}" stroke="#ffffff" stroke-width="2"/>"##
             );
             let halo = r##"stroke="#ffffff" stroke-width="3" paint-order="stroke""##;
-            text(&mut out, left + CELL_W / 2.0, top + 25.0, 16.0, "middle", &format!(r#"font-weight="bold" {halo}"#), &big);
+            text(
+                &mut out,
+                left + CELL_W / 2.0,
+                top + 25.0,
+                16.0,
+                "middle",
+                &format!(r#"font-weight="bold" {halo}"#),
+                &big,
+            );
             text(&mut out, left + CELL_W / 2.0, top + 44.0, 12.0, "middle", halo, &format!("{passed}/{finished}"));
         }
     }

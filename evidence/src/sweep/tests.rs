@@ -4,9 +4,8 @@
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::outcome::summary::{DroneSummary, ErrorStats, GnssSummary, RunSummary};
 use sadesim_crds::outcome::verdict::{CriterionResult, RunVerdict};
-use sadesim_crds::sweep::{
-    Cell, Parameter, SimulationSweep, SimulationSweepSpec, SweepBase, SweepReportSpec, expand, run_name,
-};
+use sadesim_crds::sweep::expand::run_name;
+use sadesim_crds::sweep::{Cell, Parameter, SimulationSweep, SimulationSweepSpec, SweepBase, SweepReportSpec, expand};
 use serde_json::{Value, json};
 
 use super::model::{METRICS, metric_values};
@@ -78,7 +77,15 @@ fn summary(passed: bool, drones: &[(f64, f64)]) -> RunSummary {
 
 fn record(cell: u32, repetition: u32, summary: Option<RunSummary>) -> SweepRecord {
     let name = run_name("lake", cell, repetition);
-    SweepRecord { folder: format!("runs/{name}"), name, cell, repetition, seed: 7 + u64::from(repetition), summary, error: None }
+    SweepRecord {
+        folder: format!("runs/{name}"),
+        name,
+        cell,
+        repetition,
+        seed: 7 + u64::from(repetition),
+        summary,
+        error: None,
+    }
 }
 
 /// Every cell of a 10-repetition sweep with `passes[cell]` passing runs, the rest failing.
