@@ -121,7 +121,10 @@ pub fn wilson(successes: u32, n: u32, confidence: f64) -> (f64, f64) {
     let denominator = 1.0 + z2 / n_f;
     let centre = (p + z2 / (2.0 * n_f)) / denominator;
     let half = z / denominator * (p * (1.0 - p) / n_f + z2 / (4.0 * n_f * n_f)).sqrt();
-    ((centre - half).max(0.0), (centre + half).min(1.0))
+    // At 0/n and n/n the bounds are exactly 0 and 1 (centre ∓ half cancel but for rounding).
+    let low = if successes == 0 { 0.0 } else { (centre - half).max(0.0) };
+    let high = if successes >= n { 1.0 } else { (centre + half).min(1.0) };
+    (low, high)
 }
 
 /// The 2x2 table of Fisher's test: passes of the old and the new runs, with the
@@ -247,7 +250,7 @@ mod tests {
                 let (lo4, hi4) = wilson(4 * s, 4 * n, 0.95);
                 assert!(hi4 - lo4 < hi - lo, "{s}/{n}: four times the runs narrows the interval");
                 let (lo99, hi99) = wilson(s, n, 0.99);
-                assert!(lo99 <= lo + 1e-12 && hi99 >= hi - 1e-12, "{s}/{n}: more confidence widens it");
+                assert!(lo99 <= lo && hi99 >= hi, "{s}/{n}: more confidence widens it");
             }
         }
     }
