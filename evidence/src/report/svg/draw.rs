@@ -3,29 +3,13 @@
 
 use std::fmt::Write;
 
-/// Font of every text element.
-pub const FONT: &str = "DejaVu Sans";
 /// Fill of a zone (the paper's translucent pink), its outline and its label.
 pub(super) const ZONE_FILL: &str = "#ff4fa3";
 pub(super) const ZONE_STROKE: &str = "#b0125f";
 /// Violations: a marker where one started on the map, a band over its time on the timeline.
 pub(super) const VIOLATION_FILL: &str = "#ffd400";
 
-/// XML text and attribute escape.
-pub fn esc(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&#39;"),
-            c => out.push(c),
-        }
-    }
-    out
-}
+pub use crate::markup::{FONT, esc};
 
 /// `<text>` with a white halo so it stays readable over tracks.
 pub(super) fn text(out: &mut String, x: f64, y: f64, size: f64, anchor: &str, extra: &str, content: &str) {
