@@ -188,7 +188,8 @@ async fn operate(options: OperatorOptions) -> Result<(), OperatorError> {
         }
     };
 
-    let ctx = Arc::new(Context::new(client.clone(), options.settings.clone(), options.max_concurrent_runs, metrics.clone()));
+    let ctx =
+        Arc::new(Context::new(client.clone(), options.settings.clone(), options.max_concurrent_runs, metrics.clone()));
     log::info("reconciling SimulationRuns", &[("kueue", &options.settings.kueue.to_string())]);
     let mut controller = Controller::new(runs, watcher::Config::default())
         .owns(Api::<Job>::all(client.clone()), watcher::Config::default())
@@ -197,14 +198,13 @@ async fn operate(options: OperatorOptions) -> Result<(), OperatorError> {
         // Kueue's admission (or eviction) of a run's Workload wakes its reconcile.
         controller = controller.owns(Api::<Workload>::all(client.clone()), watcher::Config::default());
     }
-    let run_controller = controller
-        .graceful_shutdown_on(stop_or_lost())
-        .run(reconcile, error_policy, ctx)
-        .for_each(|result| async move {
+    let run_controller = controller.graceful_shutdown_on(stop_or_lost()).run(reconcile, error_policy, ctx).for_each(
+        |result| async move {
             if let Err(e) = result {
                 log::warn("controller", &[("error", &e.to_string())]);
             }
-        });
+        },
+    );
     let sweep_controller = async {
         if with_sweeps {
             super::sweep::run(client.clone(), metrics, stop_or_lost()).await;

@@ -200,8 +200,7 @@ fn a_sweep_whose_runs_all_ended_is_completed_with_per_cell_pass_rates_and_no_rep
 #[test]
 fn re_deciding_a_sweep_whose_runs_all_exist_creates_nothing() {
     let sweep = sweep();
-    let existing: Vec<SimulationRun> =
-        runs_of(&sweep).into_iter().map(|r| in_phase(r, Phase::Running, None)).collect();
+    let existing: Vec<SimulationRun> = runs_of(&sweep).into_iter().map(|r| in_phase(r, Phase::Running, None)).collect();
     let mut again = sweep.clone();
     again.status = Some(decide_now(&sweep, &existing).status);
     let d = decide_now(&again, &existing);
@@ -288,22 +287,24 @@ struct Cluster {
 }
 
 fn answer(cluster: &Cluster, sweep: &SimulationSweep, seen: &Seen) -> (u16, Value) {
-    match (&seen.method, seen.path.as_str()) {
-        (&Method::GET, RUNS) => {
-            let items: Vec<Value> = cluster.runs.iter().map(|r| serde_json::to_value(r).unwrap()).collect();
-            (200, json!({"apiVersion": "v1", "kind": "SimulationRunList", "metadata": {}, "items": items}))
+    let (method, path) = (&seen.method, seen.path.as_str());
+    if method == Method::GET && path == RUNS {
+        let items: Vec<Value> = cluster.runs.iter().map(|r| serde_json::to_value(r).unwrap()).collect();
+        (200, json!({"apiVersion": "v1", "kind": "SimulationRunList", "metadata": {}, "items": items}))
+    } else if method == Method::POST && path == RUNS {
+        let name = seen.body["metadata"]["name"].as_str().unwrap();
+        if cluster.exists.contains(name) {
+            let status = json!({"kind": "Status", "apiVersion": "v1", "status": "Failure", "code": 409, "reason": "AlreadyExists", "message": "exists"});
+            (409, status)
+        } else {
+            (201, seen.body.clone())
         }
-        (&Method::POST, RUNS) if cluster.exists.contains(seen.body["metadata"]["name"].as_str().unwrap()) => (
-            409,
-            json!({"kind": "Status", "apiVersion": "v1", "status": "Failure", "code": 409, "reason": "AlreadyExists", "message": "exists"}),
-        ),
-        (&Method::POST, RUNS) => (201, seen.body.clone()),
-        (&Method::PATCH, SWEEP_STATUS) => {
-            let mut sweep = serde_json::to_value(sweep).unwrap();
-            sweep["status"] = seen.body["status"].clone();
-            (200, sweep)
-        }
-        _ => panic!("unexpected request {} {}", seen.method, seen.path),
+    } else if method == Method::PATCH && path == SWEEP_STATUS {
+        let mut sweep = serde_json::to_value(sweep).unwrap();
+        sweep["status"] = seen.body["status"].clone();
+        (200, sweep)
+    } else {
+        panic!("unexpected request {method} {path}")
     }
 }
 
@@ -354,8 +355,7 @@ async fn reconcile_once(cluster: Cluster, sweep: SimulationSweep) -> Vec<Seen> {
     drop(ctx);
     // Every request was answered: the server ends when the client is gone.
     tokio::time::timeout(Duration::from_secs(1), server).await.expect("mock server ended").unwrap();
-    let seen = seen.lock().unwrap().clone();
-    seen
+    seen.lock().unwrap().clone()
 }
 
 fn percent_decode(s: &str) -> String {
@@ -391,7 +391,10 @@ fn assert_status_write(s: &Seen) -> SimulationSweepStatus {
     assert_eq!(s.content_type, "application/apply-patch+yaml");
     assert_eq!(s.query.get("fieldManager").map(String::as_str), Some(MANAGER));
     assert_eq!(s.query.get("force").map(String::as_str), Some("true"));
-    assert_eq!((s.body["apiVersion"].as_str(), s.body["kind"].as_str()), (Some("sadesim.io/v1alpha1"), Some("SimulationSweep")));
+    assert_eq!(
+        (s.body["apiVersion"].as_str(), s.body["kind"].as_str()),
+        (Some("sadesim.io/v1alpha1"), Some("SimulationSweep"))
+    );
     assert!(s.body.get("spec").is_none(), "the status write never touches the spec");
     serde_json::from_value(s.body["status"].clone()).unwrap()
 }
@@ -445,8 +448,11 @@ async fn as_mocked_runs_end_the_reconcile_creates_the_next_ones() {
         in_phase(runs[3].clone(), Phase::Running, None),
     ];
     let seen = reconcile_once(Cluster { runs: existing, ..Default::default() }, sweep).await;
-    let created: Vec<&str> =
-        seen.iter().filter(|s| s.method == Method::POST).map(|s| s.body["metadata"]["name"].as_str().unwrap()).collect();
+    let created: Vec<&str> = seen
+        .iter()
+        .filter(|s| s.method == Method::POST)
+        .map(|s| s.body["metadata"]["name"].as_str().unwrap())
+        .collect();
     assert_eq!(created, ["wind-c2-r0"]);
     let status = assert_status_write(seen.last().unwrap());
     assert_eq!(counts(&status), (SweepPhase::Running, 5, 4, 1, 1, 0));
