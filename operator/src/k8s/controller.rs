@@ -1,7 +1,8 @@
 //! The operator (`sadesim operator`): watches SimulationRuns and the Jobs and Pods they
 //! own, and reconciles each run: read -> decide (pure, [`lifecycle`]) -> server-side apply
 //! the children (one field manager) -> archive logs -> write status on the status
-//! subresource. See docs/architecture.md, "Operator internals".
+//! subresource. Beside it, under the same leader election, runs the SimulationSweep
+//! controller ([`crate::k8s::sweep`]). See docs/architecture.md, "Operator internals".
 //!
 //! Modules: [`lifecycle`] (the phase machine), [`queue`] (admission without Kueue),
 //! [`observe`] and [`progress`] (what the children and the coordinator say), [`planning`]
@@ -32,7 +33,7 @@ use k8s_openapi::api::core::v1::Pod;
 use kube::api::{Api, ListParams};
 use kube::runtime::{Controller, watcher};
 use kube::{Client, Config};
-use sadesim_crds::SimulationRun;
+use sadesim_crds::{SimulationRun, SimulationSweep};
 
 use super::children::Workload;
 use tokio::sync::watch;
@@ -156,8 +157,9 @@ async fn operate(options: OperatorOptions) -> Result<(), OperatorError> {
             }
         }
     }
-    let lost = leadership.clone();
-    let stop_or_lost = {
+    // Each controller stops on SIGTERM/SIGINT or when leadership is lost.
+    let stop_or_lost = || {
+        let lost = leadership.clone();
         let stop = stop_rx.clone();
         async move {
             match lost {
@@ -172,7 +174,22 @@ async fn operate(options: OperatorOptions) -> Result<(), OperatorError> {
         }
     };
 
-    let ctx = Arc::new(Context::new(client.clone(), options.settings.clone(), options.max_concurrent_runs, metrics));
+    // Sweeps are reconciled when their CRD is installed (an operator upgraded before its
+    // CRDs still reconciles runs).
+    let sweeps: Api<SimulationSweep> = Api::all(client.clone());
+    let with_sweeps = match sweeps.list(&ListParams::default().limit(1)).await {
+        Ok(_) => true,
+        Err(e) => {
+            log::warn(
+                "not reconciling SimulationSweeps: cannot list them (install the SimulationSweep CRD: `sadesim crd | kubectl apply -f -`, and the chart's RBAC)",
+                &[("error", &e.to_string())],
+            );
+            false
+        }
+    };
+
+    let ctx =
+        Arc::new(Context::new(client.clone(), options.settings.clone(), options.max_concurrent_runs, metrics.clone()));
     log::info("reconciling SimulationRuns", &[("kueue", &options.settings.kueue.to_string())]);
     let mut controller = Controller::new(runs, watcher::Config::default())
         .owns(Api::<Job>::all(client.clone()), watcher::Config::default())
@@ -181,15 +198,19 @@ async fn operate(options: OperatorOptions) -> Result<(), OperatorError> {
         // Kueue's admission (or eviction) of a run's Workload wakes its reconcile.
         controller = controller.owns(Api::<Workload>::all(client.clone()), watcher::Config::default());
     }
-    controller
-        .graceful_shutdown_on(stop_or_lost)
-        .run(reconcile, error_policy, ctx)
-        .for_each(|result| async move {
+    let run_controller = controller.graceful_shutdown_on(stop_or_lost()).run(reconcile, error_policy, ctx).for_each(
+        |result| async move {
             if let Err(e) = result {
                 log::warn("controller", &[("error", &e.to_string())]);
             }
-        })
-        .await;
+        },
+    );
+    let sweep_controller = async {
+        if with_sweeps {
+            super::sweep::run(client.clone(), metrics, stop_or_lost()).await;
+        }
+    };
+    futures_util::future::join(run_controller, sweep_controller).await;
     if leadership.is_some_and(|l| !*l.borrow()) {
         return Err(OperatorError::LostLeadership);
     }
