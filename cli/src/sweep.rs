@@ -239,7 +239,7 @@ pub fn run_sweep(
                     let r = &runs[i];
                     let mut run = r.run.clone();
                     if options.clock.is_some() {
-                        run.spec.clock = options.clock;
+                        run.spec.clock = options.clock.clone();
                     }
                     let run_options = RunOptions {
                         run_dir: Some(dir.join(r.name())),

@@ -65,15 +65,21 @@ pub(super) fn sweep(args: SweepArgs, out: &mut dyn Write) -> Result<Outcome, Cli
     out.flush()?;
     let outcome = run_sweep(&loaded, &options, stop).map_err(|e| CliError::Failed(e.to_string()))?;
     let r = &outcome.report;
+    let t = &r.totals;
     writeln!(
         out,
         "  {} flown now, {} kept from before; {} of {} finished, {} passed",
-        outcome.ran, outcome.skipped, r.finished, r.runs, r.passed
+        outcome.ran, outcome.skipped, t.rate.finished, t.expected, t.rate.passed
     )?;
+    let level = (r.confidence * 100.0).round();
     for cell in &r.cells {
-        let rate = cell.pass_rate.map_or("-".to_string(), |p| format!("{:5.1} %", 100.0 * p));
-        let ci = cell.interval.map_or(String::new(), |(lo, hi)| format!("  [{:.2}, {:.2}]", lo, hi));
-        writeln!(out, "  {:<40} {}/{} passed {rate}{ci}", cell.label, cell.passed, cell.finished)?;
+        let c = &cell.rate;
+        let rate = c.pass_rate.map_or("    -".to_string(), |p| format!("{:5.1} %", 100.0 * p));
+        writeln!(
+            out,
+            "  {:<32} {:>3}/{:<3} passed {rate}  ({level} % CI {:.2}..{:.2})",
+            cell.label, c.passed, c.finished, c.ci_low, c.ci_high
+        )?;
     }
     for (run, why) in &outcome.errors {
         writeln!(out, "  run {run} failed: {why}")?;
@@ -83,7 +89,7 @@ pub(super) fn sweep(args: SweepArgs, out: &mut dyn Write) -> Result<Outcome, Cli
         writeln!(out, "  interrupted: rerun the same command to fly the rest")?;
         return Ok(Outcome::Interrupted);
     }
-    Ok(if outcome.errors.is_empty() && r.finished == r.runs { Outcome::Success } else { Outcome::Problems })
+    Ok(if outcome.errors.is_empty() && t.rate.finished == t.expected { Outcome::Success } else { Outcome::Problems })
 }
 
 /// A sweep's report from its folder or its `sweep.json`.
