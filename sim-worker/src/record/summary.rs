@@ -120,4 +120,40 @@ mod tests {
         assert_eq!((w.windows, w.mean_mps, w.max_mps), (2, 7.5, 10.0));
         assert_eq!(summary.per_drone[1].wind, None, "a run without wind tallies none");
     }
+
+    #[test]
+    fn flight_time_landing_error_and_energy_are_tallied_per_drone() {
+        let mut summary =
+            RunSummary { per_drone: vec![DroneSummary::default(), DroneSummary::default()], ..Default::default() };
+        let mut tracks = vec![DroneTrack::new([10.0, 20.0]), DroneTrack::new([0.0, 0.0])];
+        // Drone 0: on the ground, 2 windows airborne (0.5 s each), lands 3 m east and 4 m
+        // north of home. Drone 1 stays on the ground. Both draw 100 mAh a window at 15 V.
+        let snap = |index: u32, p: [f64; 3], on_ground: bool, k: u32| {
+            let mut s = sadesim_engine::fixtures::over(index, p, 0.0);
+            s.on_ground = on_ground;
+            s.detail.battery_consumed_mah = 100.0 * f64::from(k);
+            s.detail.battery_voltage_v = 15.0;
+            s
+        };
+        let landed = Event { time_s: 2.0, drone: Some(0), kind: EventKind::Landed };
+        let windows = [
+            ([10.0, 20.0, 0.0], true, vec![]),
+            ([10.0, 20.0, 5.0], false, vec![]),
+            ([13.0, 24.0, 5.0], false, vec![]),
+            ([13.0, 24.0, 0.0], true, vec![landed]),
+        ];
+        for (k, (p, on_ground, events)) in windows.into_iter().enumerate() {
+            let k = k as u32;
+            let drones = [snap(0, p, on_ground, k), snap(1, [0.0; 3], true, k)];
+            observe_window(&mut summary, 0.5, &drones, &events, &mut tracks);
+        }
+        let [d0, d1] = &summary.per_drone[..] else { unreachable!() };
+        assert_eq!((d0.flight_time_s, d0.landing_error_m), (Some(1.0), Some(5.0)));
+        assert!(d0.landed);
+        assert_eq!((d1.flight_time_s, d1.landing_error_m), (None, None), "never flew");
+        // 3 windows after the first, 0.1 Ah each at 15 V.
+        for d in [d0, d1] {
+            assert!((d.energy_wh.unwrap() - 4.5).abs() < 1e-9, "{:?}", d.energy_wh);
+        }
+    }
 }
