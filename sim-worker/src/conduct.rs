@@ -351,7 +351,10 @@ mod tests {
             // Charge drawn times a 4-cell LiPo's voltage (3.3 V to 4.2 V a cell), x500: 5000 mAh.
             let drawn_ah = (1.0 - d.final_battery_remaining) * 5.0;
             let energy_wh = d.energy_wh.expect("drawn");
-            assert!(energy_wh > drawn_ah * 4.0 * 3.3 && energy_wh < drawn_ah * 4.0 * 4.2, "{energy_wh} Wh, {drawn_ah} Ah");
+            assert!(
+                energy_wh > drawn_ah * 4.0 * 3.3 && energy_wh < drawn_ah * 4.0 * 4.2,
+                "{energy_wh} Wh, {drawn_ah} Ah"
+            );
         }
         assert_eq!(through.closest_zone_m, Some(0.0), "flew through the zone without a lease");
         let beside_m = beside.closest_zone_m.expect("flew past the zone");

@@ -709,6 +709,6 @@ impl Log {
 
 mod altitude;
 mod position_error;
-mod zone_distance;
 #[cfg(test)]
 mod tests;
+mod zone_distance;
