@@ -55,7 +55,7 @@ pub struct Recorder {
     /// timeline; written for runs with the ranging receiver (a constellation) only.
     gnss_csv: Option<std::io::BufWriter<std::fs::File>>,
     /// Per drone: what the summary carries from one window to the next.
-    tracks: Vec<super::summary::DroneTrack>,
+    drone_tracks: Vec<super::summary::DroneTrack>,
     /// When the last window folded into the summary ended, simulated seconds.
     last_window_end_s: f64,
     /// `recording.mcap` (unless `spec.recording.mcap` is false) and `ulog/*.ulg` (unless
@@ -116,7 +116,7 @@ impl Recorder {
                 }
                 false => None,
             },
-            tracks: plan
+            drone_tracks: plan
                 .drones
                 .iter()
                 .map(|d| super::summary::DroneTrack::new([d.home.local.east_m, d.home.local.north_m]))
@@ -235,7 +235,7 @@ impl RunObserver for Recorder {
         if !final_window {
             let window_s = time_s - self.last_window_end_s;
             self.last_window_end_s = time_s;
-            super::summary::observe_window(&mut self.summary, window_s, drones, events, &mut self.tracks);
+            super::summary::observe_window(&mut self.summary, window_s, drones, events, &mut self.drone_tracks);
         } else {
             self.summary.events += events.len() as u64;
         }
