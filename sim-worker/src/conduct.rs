@@ -347,7 +347,7 @@ mod tests {
             assert!((flight_s - (landing - takeoff)).abs() < 1.0, "{flight_s} s airborne, {takeoff}..{landing}");
             assert!(flight_s > 60.0 * 2.0 / 8.0, "at least the 120 m out and back at 8 m/s: {flight_s} s");
             let error_m = d.landing_error_m.expect("landed");
-            assert!(error_m < 1.5, "return to launch lands at home: {error_m} m off");
+            assert!(error_m < 5.0, "return to launch lands at home, within its GNSS error: {error_m} m off");
             // Charge drawn times a 4-cell LiPo's voltage (3.3 V to 4.2 V a cell), x500: 5000 mAh.
             let drawn_ah = (1.0 - d.final_battery_remaining) * 5.0;
             let energy_wh = d.energy_wh.expect("drawn");
