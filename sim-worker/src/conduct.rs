@@ -140,6 +140,7 @@ pub fn conduct(
         Err(e) => return Err(ConductError::Coordinator(e)),
     };
     write_airspace(airspace, out_dir).map_err(ConductError::Record)?;
+    recorder.set_closest_zones(&airspace.closest_zones_m());
     recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
     if let Some(cpu) = cpu {
         recorder.set_shard_cpu(cpu);
@@ -155,18 +156,19 @@ fn write_airspace(airspace: &Airspace, out_dir: &Path) -> std::io::Result<()> {
 
 /// Closes the files of a run a shard failure ended, up to its last complete window:
 /// `airspace.json`, the recordings (`recording.mcap` with its summary, the ULogs flushed)
-/// and `summary.json` with `outcome.reason` as `endReason` (no verdict: the criteria were
-/// not judged on a whole run).
+/// and `summary.json` with `outcome.reason` as `endReason` and the closest zone approaches
+/// up to then (no verdict: the criteria were not judged on a whole run).
 ///
 /// # Errors
 /// The first file that could not be written (the others are still tried).
 fn close_failed_run(
     airspace: &Airspace,
-    recorder: Recorder,
+    mut recorder: Recorder,
     outcome: &RunOutcome,
     out_dir: &Path,
 ) -> std::io::Result<RunSummary> {
     let written = write_airspace(airspace, out_dir);
+    recorder.set_closest_zones(&airspace.closest_zones_m());
     let summary = recorder.finish(outcome)?;
     written.map(|()| summary)
 }
@@ -210,6 +212,7 @@ mod tests {
     use std::time::Duration;
 
     use crate::record::test_dir::TempDir;
+    use sadesim_engine::events::EventKind;
     use sadesim_engine::fixtures::{plan_of, run_with_groups, world_of};
 
     #[test]
@@ -240,5 +243,123 @@ mod tests {
         // The MCAP was finished: summary section and closing magic, every pose in it.
         let poses = crate::record::mcap_file::finished_pose_count(&dir.0);
         assert_eq!(poses, 2 * 50, "100 Hz x 0.5 s x 2 drones");
+    }
+
+    /// Two x500s fly 60 m north at 10 m AGL and return to launch: `through` from the home
+    /// area's centre across the zone `tfr` (20 m square, 20 m to 40 m north of it, no
+    /// lease), `beside` 30 m east of it, so 20 m from the zone's east edge.
+    fn out_and_back_past_a_zone() -> sadesim_crds::plan::RunPlan {
+        use sadesim_crds::fixtures::{HOMES, RunBuilder};
+        use sadesim_crds::fleet::{HomePlacement, LatLon, Mission, MissionItem};
+        use sadesim_crds::geo::{Enu, LocalFrame};
+        use sadesim_crds::run::{Clock, ClockMode};
+        let run = RunBuilder::test().with(|r| {
+            let frame = LocalFrame::new(r.spec.origin.geo());
+            let (e0, n0) = frame.to_plane(HOMES.latitude_deg, HOMES.longitude_deg);
+            let at = |de: f64, dn: f64| {
+                let g = frame.to_geodetic(Enu::new(e0 + de, n0 + dn, 0.0));
+                LatLon { latitude_deg: g.latitude_deg, longitude_deg: g.longitude_deg }
+            };
+            r.spec.duration = "150s".parse().unwrap();
+            r.spec.clock = Some(Clock { mode: ClockMode::AsFastAsPossible, factor: None });
+            let template = r.spec.fleet[0].clone();
+            r.spec.fleet = [("through", 0.0), ("beside", 30.0)]
+                .map(|(name, de)| {
+                    let to = at(de, 60.0);
+                    let items = vec![
+                        MissionItem::Takeoff { altitude_agl_m: 10.0 },
+                        MissionItem::Waypoint {
+                            latitude_deg: to.latitude_deg,
+                            longitude_deg: to.longitude_deg,
+                            altitude_agl_m: 10.0,
+                            hold_s: None,
+                        },
+                        MissionItem::ReturnToLaunch {},
+                    ];
+                    sadesim_crds::fleet::FleetGroup {
+                        name: name.into(),
+                        homes: HomePlacement::Explicit(vec![at(de, 0.0)]),
+                        mission: Some(Mission { items, speed_mps: Some(8.0) }),
+                        ..template.clone()
+                    }
+                })
+                .into();
+            r.spec.zones.push(sadesim_engine::fixtures::rect_zone(
+                "tfr",
+                (e0 - 10.0, e0 + 10.0),
+                (n0 + 20.0, n0 + 40.0),
+                0.0,
+                150.0,
+            ));
+        });
+        plan_of(run.build())
+    }
+
+    /// The takeoff and landing times of every drone, from the run's events.
+    #[derive(Default)]
+    struct FlightTimes {
+        takeoffs: Vec<(u32, f64)>,
+        landings: Vec<(u32, f64)>,
+    }
+
+    impl RunObserver for FlightTimes {
+        fn on_window(&mut self, _: f64, _: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
+            for e in events {
+                match (&e.kind, e.drone) {
+                    (EventKind::Takeoff, Some(d)) => self.takeoffs.push((d, e.time_s)),
+                    (EventKind::Landed, Some(d)) => self.landings.push((d, e.time_s)),
+                    _ => {}
+                }
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_flight_out_and_back_past_a_zone_has_its_flight_time_landing_error_zone_distance_and_energy() {
+        let dir = TempDir::new("conduct-out-and-back");
+        let plan = out_and_back_past_a_zone();
+        let world = std::sync::Arc::new(world_of(&plan));
+        let surroundings = sadesim_engine::shard::Surroundings::new(&plan, world.clone(), None);
+        let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
+        let mut threads = Vec::new();
+        for shard in &plan.shards {
+            let (link, handle) = crate::transport::spawn_thread(&plan, shard.index, &surroundings, None).unwrap();
+            links.push(Box::new(link));
+            threads.push(handle);
+        }
+        let mut airspace = Airspace::new(&plan, &|_| None);
+        let mut watchers = Watchers { cameras: None, live: None };
+        let mut times = FlightTimes::default();
+        let stop = AtomicBool::new(false);
+        let summary =
+            conduct(&plan, &world, links, &mut airspace, &mut watchers, &dir.0, &stop, &mut times, || None).unwrap();
+        for t in threads {
+            t.join().unwrap();
+        }
+        let [through, beside] = &summary.per_drone[..] else { panic!("two drones: {:?}", summary.per_drone) };
+        for d in [through, beside] {
+            assert!(d.took_off && d.landed && !d.crashed, "{d:?}");
+            // Airborne from takeoff to touchdown, give or take the windows around them.
+            let takeoff = times.takeoffs.iter().find(|t| t.0 == d.index).expect("takeoff").1;
+            let landing = times.landings.iter().rev().find(|t| t.0 == d.index).expect("landing").1;
+            let flight_s = d.flight_time_s.expect("flew");
+            assert!((flight_s - (landing - takeoff)).abs() < 1.0, "{flight_s} s airborne, {takeoff}..{landing}");
+            assert!(flight_s > 60.0 * 2.0 / 8.0, "at least the 120 m out and back at 8 m/s: {flight_s} s");
+            let error_m = d.landing_error_m.expect("landed");
+            assert!(error_m < 5.0, "return to launch lands at home, within its GNSS error: {error_m} m off");
+            // Charge drawn times a 4-cell LiPo's voltage (3.3 V to 4.2 V a cell), x500: 5000 mAh.
+            let drawn_ah = (1.0 - d.final_battery_remaining) * 5.0;
+            let energy_wh = d.energy_wh.expect("drawn");
+            assert!(
+                energy_wh > drawn_ah * 4.0 * 3.3 && energy_wh < drawn_ah * 4.0 * 4.2,
+                "{energy_wh} Wh, {drawn_ah} Ah"
+            );
+        }
+        assert_eq!(through.closest_zone_m, Some(0.0), "flew through the zone without a lease");
+        let beside_m = beside.closest_zone_m.expect("flew past the zone");
+        assert!((beside_m - 20.0).abs() < 1.5, "20 m east of the zone's edge: {beside_m} m");
+        let written: RunSummary = serde_json::from_slice(&std::fs::read(dir.0.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(written.per_drone, summary.per_drone);
     }
 }

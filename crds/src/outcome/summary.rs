@@ -29,6 +29,27 @@ pub struct DroneSummary {
     /// flew).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub wind: Option<WindSummary>,
+    /// Simulated seconds airborne: the sum of the sync windows at whose end the drone was
+    /// neither on the ground nor crashed (absent when it never was).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub flight_time_s: Option<f64>,
+    /// Horizontal distance, m (local ENU), from where the drone last landed (a `landed`
+    /// event, not a crash; its position at the end of that window) to its home (absent
+    /// when it never landed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub landing_error_m: Option<f64>,
+    /// The closest horizontal approach, m, of the drone while airborne to a zone it held
+    /// no valid lease for, counting a zone only while it was active and the drone was
+    /// between its floor and ceiling; 0 when it was inside one (the compliance monitor's
+    /// `unauthorizedEntry`). Absent in runs without zones, and for a drone that never
+    /// came within such a zone's altitude band while airborne.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub closest_zone_m: Option<f64>,
+    /// Battery energy drawn over the run, Wh: the charge drawn in each sync window times
+    /// the terminal voltage at its end, summed from the second window on (absent when
+    /// the drone was seen in fewer than two windows).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy_wh: Option<f64>,
 }
 
 /// The horizontal wind at a drone (mean wind, urban field and gusts: what its airframe

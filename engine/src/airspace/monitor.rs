@@ -30,6 +30,8 @@
 //! - **Altitude minimum**: a *cruising* drone strictly below its group's `altitude.minAglM`
 //!   at the window samples (cruising: from its first climb to `minAglM` until the ground or
 //!   `land`/`returnToLaunch` mode; the `altitude` module defines it precisely).
+//! - **Closest zone**: per drone, the closest horizontal approach to a zone it held no
+//!   lease for, while airborne and within the zone's altitude band (`zone_distance`).
 //! - **Separation** (only when the scenario has a `minSeparation` criterion): two airborne
 //!   drones closer than the smallest such distance in 3-D at a window sample.
 //!
@@ -84,6 +86,7 @@ impl Monitor {
                     above_limit: None,
                     cruising: false,
                     below_minimum: None,
+                    closest_zone_m: None,
                 }
             })
             .collect();
@@ -153,6 +156,9 @@ impl Monitor {
             let airborne = !snap.on_ground && !snap.crashed && !self.drones[i].crashed;
             for z in 0..self.zones.len() {
                 self.watch_zone(i, z, &prev, &now, airborne, lease);
+            }
+            if airborne {
+                self.watch_zone_distance(i, &now, lease);
             }
             self.watch_altitude(i, &now, airborne, snap.mode);
             self.watch_position_error(i, &now, snap, airborne);
@@ -260,6 +266,10 @@ impl Monitor {
             return;
         }
         let constraints = lease(drone, name, entry.time_s);
+        if constraints.is_none() {
+            // Inside without a lease, if only between two samples.
+            drones[i].closest_zone_m = Some(0.0);
+        }
         stay.presence = Some(log.enter(drone, name, &entry, constraints.is_some()));
         log.judge_inside(stay, drone, &drones[i].name, name, &entry, constraints);
         match exit {
@@ -478,6 +488,8 @@ struct DroneState {
     cruising: bool,
     /// Open `belowAltitudeMinimum` violation.
     below_minimum: Option<usize>,
+    /// Closest horizontal approach to a zone without a lease, metres (`zone_distance`).
+    closest_zone_m: Option<f64>,
 }
 
 /// One drone and one zone: the open stay and zone violations, as indices in the report.
@@ -699,3 +711,4 @@ mod altitude;
 mod position_error;
 #[cfg(test)]
 mod tests;
+mod zone_distance;

@@ -153,6 +153,12 @@ impl Airspace {
         criteria::evaluate(plan, self.monitor.report(), &state.authority.requests, end_s)
     }
 
+    /// Per drone, the closest horizontal approach to a zone it held no lease for, metres
+    /// (the monitor's [`Monitor::closest_zones_m`]), for `summary.json`.
+    pub fn closest_zones_m(&self) -> Vec<Option<f64>> {
+        self.monitor.closest_zones_m()
+    }
+
     /// The records for `airspace.json`.
     pub fn record(&self) -> AirspaceRecord {
         let state = self.state();

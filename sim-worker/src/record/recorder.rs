@@ -54,7 +54,10 @@ pub struct Recorder {
     /// `gnss.csv`: each drone's receiver in flight once a second, for the report's GNSS
     /// timeline; written for runs with the ranging receiver (a constellation) only.
     gnss_csv: Option<std::io::BufWriter<std::fs::File>>,
-    last_positions: Vec<Option<[f64; 2]>>,
+    /// Per drone: what the summary carries from one window to the next.
+    drone_tracks: Vec<super::summary::DroneTrack>,
+    /// When the last window folded into the summary ended, simulated seconds.
+    last_window_end_s: f64,
     /// `recording.mcap` (unless `spec.recording.mcap` is false) and `ulog/*.ulg` (unless
     /// `spec.recording.ulog` is false); `None` when both are off.
     streams: Option<StreamWriter>,
@@ -113,7 +116,12 @@ impl Recorder {
                 }
                 false => None,
             },
-            last_positions: vec![None; plan.drones.len()],
+            drone_tracks: plan
+                .drones
+                .iter()
+                .map(|d| super::summary::DroneTrack::new([d.home.local.east_m, d.home.local.north_m]))
+                .collect(),
+            last_window_end_s: 0.0,
             images: Vec::new(),
             plan: plan.clone(),
         })
@@ -132,6 +140,14 @@ impl Recorder {
     /// Frames and late frames per onboard camera, written into `summary.json`.
     pub fn set_camera_tallies(&mut self, tallies: Vec<sadesim_crds::outcome::summary::CameraTally>) {
         self.summary.cameras = tallies;
+    }
+
+    /// Per drone (index order), the closest horizontal approach to a zone it held no lease
+    /// for (the compliance monitor's), written into `summary.json` (`closestZoneM`).
+    pub fn set_closest_zones(&mut self, closest_m: &[Option<f64>]) {
+        for (d, closest) in self.summary.per_drone.iter_mut().zip(closest_m) {
+            d.closest_zone_m = *closest;
+        }
     }
 
     /// The verdict on the scenario's criteria, written into `summary.json` by [`Recorder::finish`].
@@ -217,7 +233,9 @@ impl RunObserver for Recorder {
             }
         }
         if !final_window {
-            super::summary::observe_window(&mut self.summary, drones, events, &mut self.last_positions);
+            let window_s = time_s - self.last_window_end_s;
+            self.last_window_end_s = time_s;
+            super::summary::observe_window(&mut self.summary, window_s, drones, events, &mut self.drone_tracks);
         } else {
             self.summary.events += events.len() as u64;
         }

@@ -683,3 +683,54 @@ fn the_worst_airborne_estimate_error_is_kept_per_drone_when_a_criterion_needs_it
     plain.window(1.0, &[estimated(0, [0.0, 0.0, 20.0], 7.5, false)]);
     assert!(plain.report().worst_position_errors.is_empty());
 }
+
+#[test]
+fn the_closest_approach_to_a_zone_without_a_lease_is_kept_per_drone() {
+    // Drone 0 passes 30 m west of the zone, drone 1 through it, drone 2 through it with a
+    // lease, drone 3 over it above its 150 m ceiling, drone 4 clips its north-west corner
+    // between two samples, drone 5 stays on the ground inside it.
+    let mut h = harness(6, |_| {}).with(grant(2, 0.0, 100.0));
+    let mut on_ground = at(5, 50.0, 50.0, 0.0);
+    on_ground.on_ground = true;
+    for (k, north) in [-40.0, 20.0, 50.0, 80.0, 140.0].into_iter().enumerate() {
+        let t = f64::from(k as u32);
+        let corner = if k == 0 { at(4, -5.0, 90.0, 50.0) } else { at(4, 10.0, 105.0, 50.0) };
+        h.window(
+            t,
+            &[
+                at(0, -30.0, north, 50.0),
+                at(1, 60.0, north, 50.0),
+                at(2, 60.0, north, 50.0),
+                at(3, 60.0, north, 200.0),
+                corner,
+                on_ground.clone(),
+            ],
+        );
+    }
+    let closest = h.monitor.closest_zones_m();
+    assert!(close(closest[0].unwrap(), 30.0), "abeam the west edge: {closest:?}");
+    assert_eq!(closest[1], Some(0.0), "inside without a lease");
+    assert_eq!(closest[2], None, "leased");
+    assert_eq!(closest[3], None, "above the ceiling");
+    assert_eq!(closest[4], Some(0.0), "inside between two samples: {closest:?}");
+    assert_eq!(closest[5], None, "never airborne");
+    // Approaching a corner diagonally: the distance is to the nearest vertex.
+    let mut h = harness(1, |_| {});
+    h.window(0.0, &[at(0, -40.0, -40.0, 50.0)]);
+    h.window(1.0, &[at(0, -3.0, -4.0, 50.0)]);
+    h.window(2.0, &[at(0, -40.0, -40.0, 50.0)]);
+    assert!(close(h.monitor.closest_zones_m()[0].unwrap(), 5.0));
+}
+
+#[test]
+fn the_closest_approach_counts_a_zone_only_while_it_is_active_and_without_zones_is_absent() {
+    let mut h = harness(1, |r| r.spec.zones[0].active_from = Some("10s".parse().unwrap()));
+    h.window(1.0, &[at(0, 50.0, 50.0, 50.0)]);
+    assert_eq!(h.monitor.closest_zones_m(), [None], "not active yet");
+    h.window(11.0, &[at(0, 120.0, 50.0, 50.0)]);
+    assert!(close(h.monitor.closest_zones_m()[0].unwrap(), 20.0), "20 m east of the zone");
+    let plan = plan_of(run_with_groups(&[("alpha", 1)]).build());
+    let mut monitor = Monitor::new(&plan, volumes(&plan));
+    monitor.observe(1.0, &[at(0, 50.0, 50.0, 50.0)], &[], &|_, _, _| None);
+    assert_eq!(monitor.closest_zones_m(), [None]);
+}
