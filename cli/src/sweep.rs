@@ -191,7 +191,7 @@ pub fn run_sweep(
     let mut skipped = 0;
     for (i, r) in runs.iter().enumerate() {
         let document = dir.join(SCENARIOS).join(format!("{}.yaml", r.name()));
-        let yaml = serde_yaml::to_string(&r.run).expect("a run always serializes");
+        let yaml = run_yaml(&r.run);
         std::fs::write(&document, yaml).map_err(write_err(&document))?;
         let run_dir = dir.join(r.name());
         if complete_run(&run_dir).is_some() {
@@ -358,4 +358,11 @@ pub fn rebuild_report(dir: &Path) -> Result<SweepReport, SweepError> {
 /// Whether `dir` is a sweep's folder.
 pub fn is_sweep_folder(dir: &Path) -> bool {
     dir.join(DEFINITION).is_file()
+}
+
+/// A run as a YAML document `sadesim run` reads back (through JSON: serde_yaml would write
+/// enum variants as YAML tags, which scenario files do not use).
+pub fn run_yaml(run: &sadesim_crds::SimulationRun) -> String {
+    let value = serde_json::to_value(run).expect("a run always serializes");
+    serde_yaml::to_string(&value).expect("JSON values always serialize")
 }

@@ -12,4 +12,5 @@ mod chicago;
 mod flight;
 mod pilot;
 mod run;
+mod sweep;
 mod urban_gnss;

@@ -30,7 +30,7 @@ pub(super) fn sweep(args: SweepArgs, out: &mut dyn Write) -> Result<Outcome, Cli
             if i > 0 {
                 writeln!(out, "---")?;
             }
-            out.write_all(serde_yaml::to_string(&r.run).expect("a run always serializes").as_bytes())?;
+            out.write_all(crate::sweep::run_yaml(&r.run).as_bytes())?;
         }
         return Ok(Outcome::Success);
     }

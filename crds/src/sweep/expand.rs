@@ -238,9 +238,8 @@ pub fn expand(sweep: &SimulationSweep, base: &SimulationRunSpec) -> Result<Expan
                     );
                 }
             }
-            let checked = to_run(1, doc)
-                .map_err(document_problems)
-                .and_then(|run| validate(&run).map(|()| run).map_err(|e| e.0));
+            let checked =
+                to_run(1, doc).map_err(document_problems).and_then(|run| validate(&run).map(|()| run).map_err(|e| e.0));
             match checked {
                 Ok(run) => runs.push(SweepRun { cell: cell.index, repetition, run }),
                 Err(errors) => {
