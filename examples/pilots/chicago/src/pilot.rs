@@ -15,7 +15,7 @@ use crate::plan::{self, Member, Task};
 use crate::zones::{self, ZonesError};
 
 /// What to fly and how (validated command-line arguments).
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Options {
     /// The fleet file (`SADESIM_FLEET`).
     pub fleet: PathBuf,
