@@ -80,7 +80,7 @@ fn the_report_is_what_the_runs_summaries_say_and_the_pass_rate_falls_with_the_wi
         assert!((cell["ciLow"].as_f64().unwrap() - lo).abs() < 1e-9, "{cell} vs {lo}");
         assert!((cell["ciHigh"].as_f64().unwrap() - hi).abs() < 1e-9, "{cell} vs {hi}");
         flight_times.sort_by(f64::total_cmp);
-        let median = flight_times[(flight_times.len() + 1) / 2 - 1];
+        let median = flight_times[flight_times.len().div_ceil(2) - 1]; // nearest rank
         let stats = cell["metrics"].as_array().unwrap().iter().find(|m| m["metric"] == "flightTimeS").unwrap();
         assert_eq!(stats["n"], flight_times.len(), "{stats}");
         assert!((stats["median"].as_f64().unwrap() - median).abs() < 1e-9, "{stats} vs {median}");

@@ -25,6 +25,7 @@ fn sweep(repetitions: u32, report: Option<SweepReportSpec>) -> (SimulationSweep,
     };
     let spec = SimulationSweepSpec {
         base: SweepBase { spec: Some(Box::new(base.clone())), file: None },
+        overrides: vec![],
         parameters: vec![
             parameter("altitude", "spec.origin.altitudeMslM", vec![json!(181), json!(200), json!(220)]),
             parameter("group", "spec.fleet[0].name", vec![json!("alpha"), json!("beta")]),
