@@ -15,7 +15,10 @@ use super::*;
 /// A sweep of the fixture run over the origin's altitude (181, 200, 220 m) and the group's
 /// name (alpha, beta): six cells, `repetitions` runs each.
 fn sweep(repetitions: u32, report: Option<SweepReportSpec>) -> (SimulationSweep, Vec<Cell>) {
-    let base = RunBuilder::test().build().spec;
+    let base = RunBuilder::test()
+        .with(|r| r.spec.criteria = serde_json::from_value(json!([{"noCrashes": {}}])).expect("a criterion"))
+        .build()
+        .spec;
     let parameter = |name: &str, field: &str, values: Vec<Value>| Parameter {
         name: name.into(),
         field: field.into(),
