@@ -197,9 +197,10 @@ pub enum SweepPhase {
     Pending,
     /// Runs being created and followed.
     Running,
-    /// Every run ended and the report is written (whatever the runs' verdicts).
+    /// Every run ended (whatever the runs' verdicts). The condition `Reported` says whether
+    /// the report is archived (`status.report`), not yet (retried) or cannot be (no archive).
     Completed,
-    /// The sweep is invalid or its report could not be written.
+    /// The sweep is invalid: it runs nothing.
     Failed,
 }
 

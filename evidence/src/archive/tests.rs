@@ -338,3 +338,20 @@ fn manifests_with_unsafe_or_unknown_content_are_refused() {
         assert!(err.contains(expected), "{err}");
     }
 }
+
+#[test]
+fn put_file_writes_one_object_outside_any_run_folder_and_refuses_unsafe_paths() {
+    let root = temp("put-file");
+    let archive = Archive::open(&file_url(&root)).unwrap();
+    let url = archive.put_file("team-a/wind/sweep.json", b"{}\n".to_vec()).unwrap();
+    assert_eq!(url, format!("file://{}/team-a/wind/sweep.json", root.display()));
+    assert_eq!(std::fs::read(root.join("team-a/wind/sweep.json")).unwrap(), b"{}\n");
+    assert!(!root.join("team-a/wind").join(MANIFEST_FILE).exists(), "no manifest is written");
+    // Written again: replaced.
+    archive.put_file("team-a/wind/sweep.json", b"[]".to_vec()).unwrap();
+    assert_eq!(std::fs::read(root.join("team-a/wind/sweep.json")).unwrap(), b"[]");
+    for bad in ["", "/abs", "../up", "a//b"] {
+        let err = archive.put_file(bad, Vec::new()).unwrap_err();
+        assert!(matches!(err, ArchiveError::BadName { field: "path", .. }), "{bad:?}: {err}");
+    }
+}

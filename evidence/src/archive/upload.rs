@@ -1,6 +1,6 @@
 //! Uploads: a local run folder to `<archive>/<namespace>/<run>/<uid>/` (multipart for large
-//! files, manifest last), and files added to an uploaded run (the end of a run is
-//! `crate::finish`).
+//! files, manifest last), files added to an uploaded run (the end of a run is
+//! `crate::finish`), and single files written outside run folders (a sweep's report).
 
 use std::io::Read;
 use std::path::Path as FsPath;
@@ -144,6 +144,28 @@ impl Archive {
                 source: Box::new(source),
             })?;
         Ok(manifest)
+    }
+
+    /// Writes `bytes` as the object `path` (relative to the archive URL, e.g.
+    /// `team-a/wind/sweep.json`), replacing any object there; returns the object's URL. For
+    /// files outside a run folder (a sweep's report): no manifest is written or changed.
+    ///
+    /// # Errors
+    /// [`ArchiveError::BadName`] for a `path` that is not a relative object path;
+    /// [`ArchiveError::Upload`] naming the object when the write fails after the store's
+    /// retries.
+    pub fn put_file(&self, path: &str, bytes: Vec<u8>) -> Result<String, ArchiveError> {
+        check_relative_path(path).map_err(|reason| ArchiveError::BadName {
+            field: "path",
+            value: path.into(),
+            expected: format!("expected a relative object path: {reason}"),
+        })?;
+        let url = self.url_of(path);
+        let location = child_path(&self.prefix, path);
+        self.runtime
+            .block_on(self.store.put(&location, PutPayload::from(bytes)))
+            .map_err(|source| ArchiveError::Upload { file: path.into(), url: url.clone(), source: Box::new(source) })?;
+        Ok(url)
     }
 
     /// Uploads one file, hashing what it sends: the manifest describes the bytes uploaded.

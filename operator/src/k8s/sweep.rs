@@ -1,15 +1,17 @@
 //! The SimulationSweep controller: watches SimulationSweeps and the SimulationRuns they
 //! own, and reconciles each sweep: read its runs (by label) -> decide (pure,
-//! [`lifecycle`]) -> create the next runs up to the sweep's parallelism -> write status on
-//! the status subresource. It runs beside the SimulationRun controller
+//! [`lifecycle`]) -> create the next runs up to the sweep's parallelism -> once every run
+//! ended, archive the sweep's report ([`report`]) -> write status on the status
+//! subresource. It runs beside the SimulationRun controller
 //! ([`crate::k8s::controller`]), under the same leader election; the runs it creates are
 //! then reconciled by that controller like any other.
 //!
-//! Modules: [`lifecycle`] (what to create, the status), [`reconcile`] (the I/O shell and
-//! the report hook).
+//! Modules: [`lifecycle`] (what to create, the status), [`reconcile`] (the I/O shell),
+//! [`report`] (`sweep.json` and `sweep.html` beside the runs' archives).
 
 pub mod lifecycle;
 pub mod reconcile;
+pub mod report;
 
 #[cfg(test)]
 mod tests;

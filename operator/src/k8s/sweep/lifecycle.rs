@@ -167,11 +167,24 @@ pub fn decide(
     SweepDecision { create, status, report_due }
 }
 
-/// Records the sweep's report at `url` (written by the report hook): `status.report` and
-/// the condition `Reported`.
+/// Records the sweep's report at `url` (the folder [`super::report::write`] wrote):
+/// `status.report` and the condition `Reported=True`.
 pub fn reported(status: &mut SimulationSweepStatus, url: &str, now: Timestamp, generation: Option<i64>) {
     status.report = Some(url.into());
     set_condition(&mut status.conditions, ct::REPORTED, true, "Archived", &format!("report at {url}"), now, generation);
+}
+
+/// Records that the sweep's report was not written, and why: the condition
+/// `Reported=False` with `reason` (`NoArchive`, `ArchiveFailed`) and `message`;
+/// `status.report` stays unset.
+pub fn not_reported(
+    status: &mut SimulationSweepStatus,
+    reason: &str,
+    message: &str,
+    now: Timestamp,
+    generation: Option<i64>,
+) {
+    set_condition(&mut status.conditions, ct::REPORTED, false, reason, message, now, generation);
 }
 
 /// The sweep as controlling owner of its runs: deleting the sweep deletes them (the garbage

@@ -1,7 +1,7 @@
 //! The thin I/O shell around [`lifecycle::decide`]: read (the sweep's runs, by label),
-//! decide (pure), then act in a fixed order — create the next runs, the report hook once
-//! every run ended, the status on the status subresource. Each step is one kind of API call;
-//! the order is what the tests assert.
+//! decide (pure), then act in a fixed order — create the next runs, write the report once
+//! every run ended ([`super::report`], on a blocking thread), the status on the status
+//! subresource. Each step is one kind of API call; the order is what the tests assert.
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -14,7 +14,7 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::sweep::{Expansion, SWEEP_LABEL, SimulationSweep, SimulationSweepStatus, SweepPhase};
 use serde_json::json;
 
-use super::lifecycle;
+use super::{lifecycle, report};
 use crate::k8s::controller::log;
 use crate::k8s::controller::metrics::Metrics;
 use crate::k8s::controller::reconcile::MANAGER;
@@ -22,6 +22,9 @@ use crate::k8s::controller::reconcile::MANAGER;
 /// How often a running sweep is looked at without any change to its runs (a safety net:
 /// every change of a run it owns wakes it at once).
 const RUNNING_RECHECK: Duration = Duration::from_secs(300);
+
+/// How soon a report that could not be written is tried again.
+const REPORT_RETRY: Duration = Duration::from_secs(60);
 
 /// Why a sweep's reconcile failed (it is retried with backoff).
 #[derive(Debug, thiserror::Error)]
@@ -101,12 +104,24 @@ pub async fn reconcile(sweep: Arc<SimulationSweep>, ctx: Arc<Context>) -> Result
             Err(e) => return Err(kube_err(format!("create run {ns}/{run_name} of sweep {name}"))(e)),
         }
     }
-    // 2. The report, once every run ended.
+    // 2. The report, once every run ended and until it is written.
+    let mut retry_report = false;
     if d.report_due
         && let Ok(expansion) = &expansion
-        && let Some(url) = write_report(&sweep, expansion, &existing)
     {
-        lifecycle::reported(&mut d.status, &url, now, sweep.metadata.generation);
+        let generation = sweep.metadata.generation;
+        match write_report(&sweep, expansion, &existing).await {
+            Ok(Some(url)) => {
+                lifecycle::reported(&mut d.status, &url, now, generation);
+                log::info("reported", &[("sweep", &format!("{ns}/{name}")), ("report", &url)]);
+            }
+            Ok(None) => lifecycle::not_reported(&mut d.status, "NoArchive", report::NO_ARCHIVE, now, generation),
+            Err(message) => {
+                lifecycle::not_reported(&mut d.status, "ArchiveFailed", &message, now, generation);
+                log::warn("sweep report failed", &[("sweep", &format!("{ns}/{name}")), ("error", &message)]);
+                retry_report = true;
+            }
+        }
     }
     // 3. Status, on the status subresource, only when it changed.
     let previous = sweep.status.clone().unwrap_or_default();
@@ -119,19 +134,30 @@ pub async fn reconcile(sweep: Arc<SimulationSweep>, ctx: Arc<Context>) -> Result
         }
     }
     Ok(match d.status.phase {
+        _ if retry_report => Action::requeue(REPORT_RETRY),
         Some(SweepPhase::Running) => Action::requeue(RUNNING_RECHECK),
         _ => Action::await_change(),
     })
 }
 
-/// The sweep report hook, called once every run of the sweep ended and while
-/// `status.report` is unset; returns where the report was archived.
+/// Writes the sweep's report ([`report::write`]) on a blocking thread: the archive drives
+/// its own runtime, which cannot start on the reconcile's. Called once every run of the
+/// sweep ended and while `status.report` is unset.
 ///
-/// Writes nothing yet and returns `None`: `status.report` stays unset and the condition
-/// `Reported` absent. The report (`sweep.json`, `sweep.html`) is built by
-/// `sadesim_evidence::sweep` from `runs`' verdicts and archives.
-fn write_report(_sweep: &SimulationSweep, _expansion: &Expansion, _runs: &[SimulationRun]) -> Option<String> {
-    None
+/// Returns where the report was archived, `None` when the base run has no archive.
+///
+/// # Errors
+/// Why the report could not be written (the reconcile tries again after
+/// [`REPORT_RETRY`]).
+async fn write_report(
+    sweep: &SimulationSweep,
+    expansion: &Expansion,
+    runs: &[SimulationRun],
+) -> Result<Option<String>, String> {
+    let (sweep, expansion, runs) = (sweep.clone(), expansion.clone(), runs.to_vec());
+    tokio::task::spawn_blocking(move || report::write(&sweep, &expansion, &runs))
+        .await
+        .map_err(|e| format!("the sweep report writer stopped: {e}"))?
 }
 
 /// Writes `status` on the sweep's status subresource (server-side apply, the operator's

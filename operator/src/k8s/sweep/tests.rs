@@ -11,7 +11,12 @@ use k8s_openapi::apimachinery::pkg::apis::meta::v1::{Condition, Time};
 use k8s_openapi::jiff::Timestamp;
 use kube::Client;
 use kube::client::Body;
+use sadesim_crds::criteria::Criterion;
 use sadesim_crds::fixtures::RunBuilder;
+use sadesim_crds::outcome::summary::RunSummary;
+use sadesim_crds::outcome::verdict::{CriterionResult, RunVerdict};
+use sadesim_crds::run::Archive;
+use sadesim_crds::status::ArchiveStatus;
 use sadesim_crds::status::{SimulationRunStatus, Verdict};
 use sadesim_crds::sweep::condition_types as ct;
 use sadesim_crds::sweep::{
@@ -24,6 +29,7 @@ use tower_test::mock;
 
 use super::lifecycle::{SweepDecision, decide, expansion_of};
 use super::reconcile::{Context, reconcile};
+use super::report;
 use crate::k8s::controller::metrics::Metrics;
 use crate::k8s::controller::reconcile::MANAGER;
 
@@ -35,11 +41,14 @@ fn t0() -> Timestamp {
     Timestamp::from_second(1_800_000_000).unwrap()
 }
 
-/// Sweep `wind` in `team-a`: the fixture run with 1, 2 and 3 drones (three cells), two
+/// Sweep `wind` in `team-a`: the fixture run (criterion `noCrashes`) with 1, 2 and 3 drones (three cells), two
 /// repetitions each: six runs, default parallelism (4).
 fn sweep() -> SimulationSweep {
+    let mut base = RunBuilder::test().build().spec;
+    base.criteria = vec![Criterion::NoCrashes {}];
     let spec = SimulationSweepSpec {
-        base: SweepBase { spec: Some(Box::new(RunBuilder::test().build().spec)), file: None },
+        base: SweepBase { spec: Some(Box::new(base)), file: None },
+        overrides: Vec::new(),
         parameters: vec![Parameter {
             name: "drones".into(),
             field: "spec.fleet[0].count".into(),
@@ -266,6 +275,112 @@ fn an_invalid_sweep_fails_with_every_problem_named_and_no_runs() {
     }
 }
 
+// ---- the report --------------------------------------------------------------------
+
+/// A fresh, empty temporary folder for one test.
+fn tempdir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("sadesim-sweep-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A finished run's `summary.json`, judged `passed`.
+fn summary_of(run: &str, passed: bool) -> RunSummary {
+    let criterion = CriterionResult {
+        path: "spec.criteria[0]".into(),
+        criterion: "noCrashes".into(),
+        passed,
+        summary: if passed { "no drone crashed".into() } else { "1 drone crashed".into() },
+        failures: vec![],
+    };
+    RunSummary {
+        run: run.into(),
+        verdict: Some(RunVerdict { passed, criteria: vec![criterion] }),
+        ..Default::default()
+    }
+}
+
+/// Archives `run` under `archive` as the coordinator would (`<ns>/<run>/<uid>/` with a
+/// manifest), with `summary` as its `summary.json` when given; returns the run, `Succeeded`
+/// or `Failed` as `summary` says, its `status.archive.url` pointing at the folder.
+fn archived(archive: &std::path::Path, run: SimulationRun, summary: Option<&RunSummary>) -> SimulationRun {
+    let name = run.metadata.name.clone().unwrap();
+    let dir = archive.join(NS).join(&name).join("uid-1");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("events.jsonl"), "{}\n").unwrap();
+    if let Some(summary) = summary {
+        std::fs::write(dir.join("summary.json"), serde_json::to_vec(summary).unwrap()).unwrap();
+    }
+    sadesim_evidence::archive::write_manifest(&dir, NS, &name, "uid-1").unwrap();
+    let passed = summary.and_then(|s| s.verdict.as_ref()).is_some_and(|v| v.passed);
+    let mut run = in_phase(run, if passed { Phase::Succeeded } else { Phase::Failed }, Some(passed));
+    run.status.as_mut().unwrap().archive =
+        Some(ArchiveStatus { url: format!("file://{}", dir.display()), files: None, bytes: None });
+    run
+}
+
+#[test]
+fn the_report_of_an_ended_sweep_is_archived_beside_its_runs_from_their_summaries() {
+    let root = tempdir("report");
+    let mut sweep = sweep();
+    let base_url = format!("file://{}", root.display());
+    sweep.spec.base.spec.as_mut().unwrap().archive = Some(Archive { url: base_url.clone() });
+    let runs = runs_of(&sweep);
+    // c0-r0 passed, c0-r1 failed, c1-r0 archived without a summary, the rest ended
+    // without an archive (aborted before the upload).
+    let existing = vec![
+        archived(&root, runs[0].clone(), Some(&summary_of("wind-c0-r0", true))),
+        archived(&root, runs[1].clone(), Some(&summary_of("wind-c0-r1", false))),
+        archived(&root, runs[2].clone(), None),
+        in_phase(runs[3].clone(), Phase::Aborted, None),
+        in_phase(runs[4].clone(), Phase::Aborted, None),
+        in_phase(runs[5].clone(), Phase::Aborted, None),
+    ];
+    let expansion = expansion_of(&sweep).unwrap();
+
+    let url = report::write(&sweep, &expansion, &existing).unwrap().expect("the base run has an archive");
+    assert_eq!(url, format!("{base_url}/{NS}/wind"));
+    let folder = root.join(NS).join("wind");
+    let written = sadesim_evidence::sweep::read(&folder).unwrap();
+    assert_eq!((written.totals.expected, written.totals.rate.finished, written.totals.rate.passed), (6, 2, 1));
+    let cells: Vec<(u32, u32)> = written.cells.iter().map(|c| (c.rate.finished, c.rate.passed)).collect();
+    assert_eq!(cells, [(2, 1), (0, 0), (0, 0)]);
+    let html = std::fs::read_to_string(folder.join(sadesim_evidence::sweep::SWEEP_HTML)).unwrap();
+    assert!(html.contains("wind"), "the page names the sweep");
+
+    // Each run's record says where it is and why it has no summary.
+    let records = report::records(&expansion, &existing, report::read_summary);
+    assert_eq!(records[0].folder, existing[0].status.as_ref().unwrap().archive.as_ref().unwrap().url);
+    assert_eq!(records[0].summary, Some(summary_of("wind-c0-r0", true)));
+    assert_eq!(records[0].error, None);
+    let error = records[2].error.as_deref().unwrap();
+    assert!(error.contains("lists no summary.json"), "{error}");
+    assert_eq!((records[3].folder.as_str(), records[3].error.as_deref()), ("", Some("not archived")));
+}
+
+#[test]
+fn a_sweep_whose_base_run_has_no_archive_writes_no_report() {
+    let sweep = sweep();
+    assert!(sweep.spec.base.spec.as_ref().unwrap().archive.is_none());
+    let existing: Vec<SimulationRun> =
+        runs_of(&sweep).into_iter().map(|r| in_phase(r, Phase::Succeeded, Some(true))).collect();
+    assert_eq!(report::write(&sweep, &expansion_of(&sweep).unwrap(), &existing), Ok(None));
+}
+
+#[test]
+fn a_report_that_cannot_be_written_is_an_error_naming_the_archive() {
+    let root = tempdir("report-unwritable");
+    // The archive "folder" is a file: nothing can be written under it.
+    std::fs::write(root.join("not-a-folder"), "").unwrap();
+    let mut sweep = sweep();
+    let base_url = format!("file://{}/not-a-folder", root.display());
+    sweep.spec.base.spec.as_mut().unwrap().archive = Some(Archive { url: base_url.clone() });
+    let existing: Vec<SimulationRun> = runs_of(&sweep).into_iter().map(|r| in_phase(r, Phase::Aborted, None)).collect();
+    let error = report::write(&sweep, &expansion_of(&sweep).unwrap(), &existing).unwrap_err();
+    assert!(error.contains(&format!("{base_url}/{NS}/wind/sweep.json")), "{error}");
+}
+
 // ---- reconcile against a mock API server --------------------------------------------
 
 /// One request as the fake API server saw it.
@@ -468,4 +583,42 @@ async fn reconciling_an_invalid_sweep_lists_and_creates_nothing_and_fails_it() {
     let status = assert_status_write(&seen[0]);
     assert_eq!(status.phase, Some(SweepPhase::Failed));
     assert!(condition(&status, ct::VALID).unwrap().message.starts_with("spec.base.file: not supported on Kubernetes"));
+}
+
+#[tokio::test]
+async fn reconciling_an_ended_sweep_without_an_archive_says_so_in_the_reported_condition() {
+    let sweep = sweep();
+    let runs: Vec<SimulationRun> =
+        runs_of(&sweep).into_iter().map(|r| in_phase(r, Phase::Succeeded, Some(true))).collect();
+    let seen = reconcile_once(Cluster { runs, ..Default::default() }, sweep).await;
+    assert_eq!(seen.len(), 2, "the list and the status: {:?}", paths(&seen));
+    let status = assert_status_write(&seen[1]);
+    assert_eq!(status.phase, Some(SweepPhase::Completed));
+    assert_eq!(status.report, None);
+    let reported = condition(&status, ct::REPORTED).unwrap();
+    assert_eq!((reported.status.as_str(), reported.reason.as_str()), ("False", "NoArchive"));
+    assert_eq!(reported.message, report::NO_ARCHIVE);
+}
+
+#[tokio::test]
+async fn reconciling_an_ended_sweep_archives_its_report_and_records_it() {
+    let root = tempdir("reconcile-report");
+    let mut sweep = sweep();
+    sweep.spec.base.spec.as_mut().unwrap().archive = Some(Archive { url: format!("file://{}", root.display()) });
+    let runs: Vec<SimulationRun> = runs_of(&sweep)
+        .into_iter()
+        .map(|r| {
+            let name = r.metadata.name.clone().unwrap();
+            archived(&root, r, Some(&summary_of(&name, true)))
+        })
+        .collect();
+    // Inside the reconcile's runtime: the archive's own runtime runs on a blocking thread.
+    let seen = reconcile_once(Cluster { runs, ..Default::default() }, sweep).await;
+    let status = assert_status_write(seen.last().unwrap());
+    let url = format!("file://{}/{NS}/wind", root.display());
+    assert_eq!(status.report.as_deref(), Some(url.as_str()));
+    let reported = condition(&status, ct::REPORTED).unwrap();
+    assert_eq!((reported.status.as_str(), reported.reason.as_str()), ("True", "Archived"));
+    let written = sadesim_evidence::sweep::read(&root.join(NS).join("wind")).unwrap();
+    assert_eq!((written.totals.rate.finished, written.totals.rate.passed), (6, 6));
 }
