@@ -63,6 +63,10 @@ def test_a_small_sweep_runs_end_to_end(kubectl, operator, namespace):
     assert [c["label"] for c in status["cells"]] == ["speed=6", "speed=8"], status["cells"]
     assert sum(c["passed"] for c in status["cells"]) == passed, status["cells"]
     assert passed == 2, [r["status"] for r in runs]
+    # The report, beside the runs' archives.
+    assert status.get("report") == f"s3://{BUCKET}/{namespace}/qs-speed", status
+    reported = next(c for c in status["conditions"] if c["type"] == "Reported")
+    assert reported["status"] == "True", reported
 
     # GitOps: the same document again creates nothing and changes nothing.
     generation = sweep["metadata"]["generation"]

@@ -15,7 +15,8 @@ use sadesim_evidence::archive::Archive;
 use sadesim_evidence::sweep::{SWEEP_HTML, SWEEP_JSON, SweepRecord, build, html};
 
 /// Why a sweep has no report (the condition `Reported=False`, reason `NoArchive`).
-pub const NO_ARCHIVE: &str = "spec.base.spec.archive is not set: the sweep report is archived beside the runs";
+pub const NO_ARCHIVE: &str =
+    "spec.base.spec.archive is not set and no run was archived: the sweep report is archived beside the runs";
 
 /// The file of a run's folder the report reads.
 const SUMMARY_FILE: &str = "summary.json";
@@ -32,7 +33,7 @@ const SUMMARY_FILE: &str = "summary.json";
 /// The sweep has no namespace, the archive cannot be opened, or a file cannot be written:
 /// a message naming the URL. Nothing is recorded; the caller tries again later.
 pub fn write(sweep: &SimulationSweep, expansion: &Expansion, runs: &[SimulationRun]) -> Result<Option<String>, String> {
-    let Some(base) = sweep.spec.base.spec.as_ref().and_then(|spec| spec.archive.as_ref()) else {
+    let Some(root) = archive_root(sweep, runs) else {
         return Ok(None);
     };
     let name = sweep.name_any();
@@ -41,11 +42,26 @@ pub fn write(sweep: &SimulationSweep, expansion: &Expansion, runs: &[SimulationR
     let report = build(sweep, &expansion.cells, &records);
     let mut json = serde_json::to_vec_pretty(&report).expect("a report always serializes");
     json.push(b'\n');
-    let archive = Archive::open(&base.url).map_err(|e| e.to_string())?;
+    let archive = Archive::open(&root).map_err(|e| e.to_string())?;
     let folder = format!("{ns}/{name}");
     archive.put_file(&format!("{folder}/{SWEEP_JSON}"), json).map_err(|e| e.to_string())?;
     archive.put_file(&format!("{folder}/{SWEEP_HTML}"), html::page(&report).into_bytes()).map_err(|e| e.to_string())?;
     Ok(Some(format!("{}/{folder}", archive.url())))
+}
+
+/// The archive the sweep's report goes to: the base run's `spec.archive.url`, else the
+/// archive the operator gave its runs (the operator's default archive URL): a run's
+/// `status.archive.url` is `<archive>/<namespace>/<run>/<uid>`. `None` when neither is
+/// known.
+pub fn archive_root(sweep: &SimulationSweep, runs: &[SimulationRun]) -> Option<String> {
+    if let Some(archive) = sweep.spec.base.spec.as_ref().and_then(|spec| spec.archive.as_ref()) {
+        return Some(archive.url.clone());
+    }
+    runs.iter().filter_map(|r| r.status.as_ref()?.archive.as_ref()).find_map(|a| {
+        let mut parts = a.url.trim_end_matches('/').rsplitn(4, '/');
+        let (_uid, _run, _ns) = (parts.next()?, parts.next()?, parts.next()?);
+        parts.next().filter(|root| root.contains("://") && !root.ends_with(':')).map(String::from)
+    })
 }
 
 /// One record per run of `expansion`, in its order, matched to `runs` by name: `folder` is

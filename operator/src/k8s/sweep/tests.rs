@@ -622,3 +622,21 @@ async fn reconciling_an_ended_sweep_archives_its_report_and_records_it() {
     let written = sadesim_evidence::sweep::read(&root.join(NS).join("wind")).unwrap();
     assert_eq!((written.totals.rate.finished, written.totals.rate.passed), (6, 6));
 }
+
+#[test]
+fn the_report_goes_to_the_runs_archive_when_the_base_names_none() {
+    use sadesim_crds::status::{ArchiveStatus, SimulationRunStatus};
+    let sweep = sweep();
+    assert!(sweep.spec.base.spec.as_ref().unwrap().archive.is_none());
+    let mut runs = runs_of(&sweep);
+    assert_eq!(report::archive_root(&sweep, &runs), None, "nothing archived yet");
+    runs[1].status = Some(SimulationRunStatus {
+        archive: Some(ArchiveStatus {
+            url: "s3://bucket/prefix/team-a/lake-c0-r1/3f2a/".into(),
+            files: None,
+            bytes: None,
+        }),
+        ..Default::default()
+    });
+    assert_eq!(report::archive_root(&sweep, &runs).as_deref(), Some("s3://bucket/prefix"));
+}
