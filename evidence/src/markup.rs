@@ -1,6 +1,9 @@
-//! What every page and plot of this crate writes its text with: the font and XML escaping.
+//! What every page and plot of this crate writes its text with: the font, XML escaping and
+//! the HTML table cells of the reports.
 //! Kept outside the `report` feature so the sweep report, which needs no rasteriser, can
 //! use it too.
+
+use std::fmt::Write;
 
 /// Font of every text element.
 pub const FONT: &str = "DejaVu Sans";
@@ -19,4 +22,23 @@ pub fn esc(s: &str) -> String {
         }
     }
     out
+}
+
+/// A table cell of text.
+pub fn cell(out: &mut String, content: &str) {
+    let _ = write!(out, "<td>{}</td>", esc(content));
+}
+
+/// A table cell of a number (right-aligned by the pages' `td.num`).
+pub fn num(out: &mut String, content: &str) {
+    let _ = write!(out, r#"<td class="num">{}</td>"#, esc(content));
+}
+
+/// A table's header row.
+pub fn header(out: &mut String, names: &[&str]) {
+    out.push_str("<tr>");
+    for n in names {
+        let _ = write!(out, "<th>{}</th>", esc(n));
+    }
+    out.push_str("</tr>");
 }

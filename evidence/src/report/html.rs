@@ -10,6 +10,7 @@ use std::fmt::Write;
 use super::data::RunData;
 use super::model::{self, GroupStyle, ZoneShape, ft, m_ft, time_cell};
 use super::svg::esc;
+use crate::markup::{cell, header, num};
 
 const CSS: &str = r#"
 body { font-family: "DejaVu Sans", "Helvetica Neue", Arial, sans-serif; margin: 0 auto; max-width: 1640px; padding: 0 20px 40px; color: #222; }
@@ -29,22 +30,6 @@ figure { margin: 10px 0 20px; } figure svg { max-width: 100%; height: auto; bord
 figcaption { color: #444; font-size: 14px; margin-top: 4px; max-width: 1200px; }
 ul.failures { margin: 4px 0 0 18px; padding: 0; }
 "#;
-
-fn cell(out: &mut String, content: &str) {
-    let _ = write!(out, "<td>{}</td>", esc(content));
-}
-
-fn num(out: &mut String, content: &str) {
-    let _ = write!(out, r#"<td class="num">{}</td>"#, esc(content));
-}
-
-fn header(out: &mut String, names: &[&str]) {
-    out.push_str("<tr>");
-    for n in names {
-        let _ = write!(out, "<th>{}</th>", esc(n));
-    }
-    out.push_str("</tr>");
-}
 
 fn swatch(styles: &[GroupStyle], group: &str) -> String {
     let colour = model::style_of(styles, group).map_or("#888888", |s| s.colour);

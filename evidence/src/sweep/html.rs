@@ -9,7 +9,7 @@ use sadesim_crds::sweep::space::show;
 
 use super::model::{CellReport, METRICS, Rate, SweepReport, metric_label};
 use super::svg::{self, number};
-use crate::markup::esc;
+use crate::markup::{cell, esc, header, num};
 
 const CSS: &str = r#"
 body { font-family: "DejaVu Sans", "Helvetica Neue", Arial, sans-serif; margin: 0 auto; max-width: 1640px; padding: 0 20px 40px; color: #222; }
@@ -25,22 +25,6 @@ figure { margin: 10px 0 20px; } figure svg { max-width: 100%; height: auto; bord
 figcaption { color: #444; font-size: 14px; margin-top: 4px; max-width: 1200px; }
 ul.reasons { margin: 0 0 0 18px; padding: 0; }
 "#;
-
-fn cell(out: &mut String, content: &str) {
-    let _ = write!(out, "<td>{}</td>", esc(content));
-}
-
-fn num(out: &mut String, content: &str) {
-    let _ = write!(out, r#"<td class="num">{}</td>"#, esc(content));
-}
-
-fn header(out: &mut String, names: &[&str]) {
-    out.push_str("<tr>");
-    for n in names {
-        let _ = write!(out, "<th>{}</th>", esc(n));
-    }
-    out.push_str("</tr>");
-}
 
 /// The inline form of a plot (no `xmlns`: implied inside HTML, and the page stays free of
 /// URLs).

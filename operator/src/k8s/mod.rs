@@ -4,5 +4,7 @@
 
 pub mod children;
 pub mod controller;
+#[cfg(test)]
+mod fake_api;
 pub mod manifests;
 pub mod sweep;

@@ -31,28 +31,13 @@ use super::metrics::Metrics;
 use super::planning::{WorldFiles, fixture};
 use super::reconcile::{Context, MANAGER, reconcile};
 use crate::k8s::children::{ClusterSettings, KUEUE_QUEUE_LABEL, ROLE_LABEL, RUN_LABEL};
+use crate::k8s::fake_api::Seen;
 
 mod archiving;
 mod kueue;
 
 const NS: &str = "team-a";
 const RUNS: &str = "/apis/sadesim.io/v1alpha1/namespaces/team-a/simulationruns";
-
-/// One request as the fake API server saw it.
-#[derive(Clone, Debug)]
-struct Seen {
-    method: Method,
-    path: String,
-    query: BTreeMap<String, String>,
-    content_type: String,
-    body: Value,
-}
-
-impl Seen {
-    fn is(&self, method: Method, path: &str) -> bool {
-        self.method == method && self.path == path
-    }
-}
 
 /// What the fake API server holds.
 #[derive(Clone, Default)]
@@ -154,31 +139,7 @@ async fn reconcile_each(
         let cluster = cluster.clone();
         tokio::spawn(async move {
             while let Some((request, send)) = handle.next_request().await {
-                let (parts, body) = request.into_parts();
-                let bytes = body.collect_bytes().await.unwrap();
-                let query = parts
-                    .uri
-                    .query()
-                    .unwrap_or_default()
-                    .split('&')
-                    .filter(|kv| !kv.is_empty())
-                    .map(|kv| {
-                        let (k, v) = kv.split_once('=').unwrap_or((kv, ""));
-                        (k.to_string(), percent_decode(v))
-                    })
-                    .collect();
-                let content_type = parts
-                    .headers
-                    .get(http::header::CONTENT_TYPE)
-                    .map(|v| v.to_str().unwrap().to_string())
-                    .unwrap_or_default();
-                let s = Seen {
-                    method: parts.method.clone(),
-                    path: parts.uri.path().to_string(),
-                    query,
-                    content_type,
-                    body: serde_json::from_slice(&bytes).unwrap_or(Value::Null),
-                };
+                let s = Seen::read(request).await;
                 let (code, body) = answer(&cluster, &s);
                 seen.lock().unwrap().push(s);
                 send.send_response(Response::builder().status(code).body(Body::from(body)).unwrap());
@@ -204,23 +165,6 @@ async fn reconcile_each(
     tokio::time::timeout(Duration::from_secs(1), server).await.expect("mock server ended").unwrap();
     let seen = seen.lock().unwrap().clone();
     (seen, metrics)
-}
-
-fn percent_decode(s: &str) -> String {
-    let bytes = s.as_bytes();
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i < bytes.len() {
-        if bytes[i] == b'%' && i + 2 < bytes.len() {
-            let hex = std::str::from_utf8(&bytes[i + 1..i + 3]).unwrap();
-            out.push(u8::from_str_radix(hex, 16).unwrap());
-            i += 3;
-        } else {
-            out.push(if bytes[i] == b'+' { b' ' } else { bytes[i] });
-            i += 1;
-        }
-    }
-    String::from_utf8(out).unwrap()
 }
 
 fn t0() -> Timestamp {

@@ -2,7 +2,7 @@
 //! the reconcile against kube's `tower_test` mock API server, asserting each request
 //! (method, path, query, content type, body) in order.
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -32,6 +32,7 @@ use super::reconcile::{Context, reconcile};
 use super::report;
 use crate::k8s::controller::metrics::Metrics;
 use crate::k8s::controller::reconcile::MANAGER;
+use crate::k8s::fake_api::Seen;
 
 const NS: &str = "team-a";
 const RUNS: &str = "/apis/sadesim.io/v1alpha1/namespaces/team-a/simulationruns";
@@ -383,16 +384,6 @@ fn a_report_that_cannot_be_written_is_an_error_naming_the_archive() {
 
 // ---- reconcile against a mock API server --------------------------------------------
 
-/// One request as the fake API server saw it.
-#[derive(Clone, Debug)]
-struct Seen {
-    method: Method,
-    path: String,
-    query: BTreeMap<String, String>,
-    content_type: String,
-    body: Value,
-}
-
 /// What the fake API server holds.
 #[derive(Clone, Default)]
 struct Cluster {
@@ -431,28 +422,7 @@ async fn reconcile_once(cluster: Cluster, sweep: SimulationSweep) -> Vec<Seen> {
         let (seen, sweep) = (seen.clone(), sweep.clone());
         tokio::spawn(async move {
             while let Some((request, send)) = handle.next_request().await {
-                let (parts, body) = request.into_parts();
-                let bytes = body.collect_bytes().await.unwrap();
-                let query = parts
-                    .uri
-                    .query()
-                    .unwrap_or_default()
-                    .split('&')
-                    .filter_map(|kv| kv.split_once('='))
-                    .map(|(k, v)| (k.to_string(), percent_decode(v)))
-                    .collect();
-                let content_type = parts
-                    .headers
-                    .get(http::header::CONTENT_TYPE)
-                    .map(|v| v.to_str().unwrap().to_string())
-                    .unwrap_or_default();
-                let s = Seen {
-                    method: parts.method.clone(),
-                    path: parts.uri.path().to_string(),
-                    query,
-                    content_type,
-                    body: serde_json::from_slice(&bytes).unwrap_or(Value::Null),
-                };
+                let s = Seen::read(request).await;
                 let (code, body) = answer(&cluster, &sweep, &s);
                 seen.lock().unwrap().push(s);
                 let body = Body::from(serde_json::to_vec(&body).unwrap());
@@ -471,22 +441,6 @@ async fn reconcile_once(cluster: Cluster, sweep: SimulationSweep) -> Vec<Seen> {
     // Every request was answered: the server ends when the client is gone.
     tokio::time::timeout(Duration::from_secs(1), server).await.expect("mock server ended").unwrap();
     seen.lock().unwrap().clone()
-}
-
-fn percent_decode(s: &str) -> String {
-    let mut out = Vec::new();
-    let mut bytes = s.bytes();
-    while let Some(b) = bytes.next() {
-        match b {
-            b'%' => {
-                let hex: String = bytes.by_ref().take(2).map(char::from).collect();
-                out.push(u8::from_str_radix(&hex, 16).unwrap());
-            }
-            b'+' => out.push(b' '),
-            b => out.push(b),
-        }
-    }
-    String::from_utf8(out).unwrap()
 }
 
 fn paths(seen: &[Seen]) -> Vec<String> {
