@@ -1,5 +1,6 @@
-"""The SimulationRun CRD against Kubernetes' own schemas (kubernetes-validate) and the
-example scenarios against the CRD's OpenAPI schema (what the API server checks on apply)."""
+"""The CRDs (`sadesim crd`: SimulationRun, then SimulationSweep) against Kubernetes' own
+schemas (kubernetes-validate), and the example scenarios and sweeps against their CRD's
+OpenAPI schema (what the API server checks on apply)."""
 import copy
 import subprocess
 
@@ -10,6 +11,15 @@ from openapi_schema_validator import OAS30Validator
 
 def crd_text(sadesim) -> str:
     return subprocess.run([sadesim, "crd"], check=True, capture_output=True, text=True).stdout
+
+
+def crds(sadesim) -> dict:
+    """{kind: CRD} of every CRD `sadesim crd` prints."""
+    return {c["spec"]["names"]["kind"]: c for c in yaml.safe_load_all(crd_text(sadesim)) if c}
+
+
+def test_crd_prints_both_crds(sadesim):
+    assert sorted(crds(sadesim)) == ["SimulationRun", "SimulationSweep"]
 
 
 def kubernetes_validate(venv_bin, text):
@@ -26,7 +36,7 @@ def test_crd_passes_kubernetes_validate_strict(sadesim, venv_bin):
 
 def test_kubernetes_validate_rejects_a_broken_crd(sadesim, venv_bin):
     # Guards the check above: the tool does fail on a CRD with an unknown field.
-    crd = yaml.safe_load(crd_text(sadesim))
+    crd = crds(sadesim)["SimulationSweep"]
     crd["spec"]["versions"][0]["colour"] = "red"
     result = kubernetes_validate(venv_bin, yaml.safe_dump(crd))
     assert result.returncode != 0
@@ -34,9 +44,22 @@ def test_kubernetes_validate_rejects_a_broken_crd(sadesim, venv_bin):
 
 @pytest.fixture(scope="module")
 def validator(sadesim):
-    crd = yaml.safe_load(crd_text(sadesim))
-    schema = crd["spec"]["versions"][0]["schema"]["openAPIV3Schema"]
+    schema = crds(sadesim)["SimulationRun"]["spec"]["versions"][0]["schema"]["openAPIV3Schema"]
     return OAS30Validator(schema)
+
+
+def test_example_sweeps_conform_to_the_sweep_crd_schema(repo, sadesim):
+    schema = crds(sadesim)["SimulationSweep"]["spec"]["versions"][0]["schema"]["openAPIV3Schema"]
+    validator = OAS30Validator(schema)
+    paths = sorted(repo.glob("examples/sweeps/*.yaml")) + sorted(repo.glob("tests/engine/sweeps/*.yaml"))
+    assert len(paths) >= 4
+    for path in paths:
+        doc = yaml.safe_load(path.read_text())
+        errors = [f"{'.'.join(map(str, e.path))}: {e.message}" for e in validator.iter_errors(doc)]
+        assert errors == [], f"{path.name}: {errors}"
+    broken = yaml.safe_load(paths[0].read_text())
+    broken["spec"]["parameters"][0]["range"] = {"from": "zero"}
+    assert list(validator.iter_errors(broken)), "the schema refuses a range of strings"
 
 
 def scenario_docs(repo):
@@ -76,7 +99,7 @@ def transition_rules(sadesim):
     """Every CEL rule of spec and its direct fields that compares with `oldSelf`, as
     (field or None for spec itself, rule), evaluated the way the API server does on update:
     a field's rule only when the field exists in both old and new objects."""
-    crd = yaml.safe_load(crd_text(sadesim))
+    crd = crds(sadesim)["SimulationRun"]
     spec = crd["spec"]["versions"][0]["schema"]["openAPIV3Schema"]["properties"]["spec"]
     rules = [(None, r["rule"]) for r in spec.get("x-kubernetes-validations", []) if "oldSelf" in r["rule"]]
     for name, prop in spec["properties"].items():
@@ -109,7 +132,7 @@ def test_spec_is_immutable_after_creation_except_abort(sadesim, repo):
     `abort` is refused a change, and optional fields cannot be added or removed."""
     rules = transition_rules(sadesim)
     fields = {f for f, _ in rules if f}
-    spec_props = set(yaml.safe_load(crd_text(sadesim))["spec"]["versions"][0]["schema"]["openAPIV3Schema"]["properties"]["spec"]["properties"])
+    spec_props = set(crds(sadesim)["SimulationRun"]["spec"]["versions"][0]["schema"]["openAPIV3Schema"]["properties"]["spec"]["properties"])
     assert fields == spec_props - {"abort"}, "every field but abort has a transition rule"
     old = yaml.safe_load((repo / "examples" / "chicago-museum.yaml").read_text())["spec"]
     assert update_allowed(rules, old, copy.deepcopy(old)) == []
@@ -134,7 +157,7 @@ def test_spec_is_immutable_after_creation_except_abort(sadesim, repo):
 def all_rules(sadesim):
     """Every CEL rule of the CRD that does not compare with `oldSelf`, as (path, rule):
     `.spec.fleet[]` is the rule of each item of `spec.fleet`."""
-    crd = yaml.safe_load(crd_text(sadesim))
+    crd = crds(sadesim)["SimulationRun"]
     found = []
 
     def walk(schema, path):
