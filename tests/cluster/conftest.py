@@ -90,7 +90,7 @@ def operator(kubectl, helm, crd, object_store):
     to s3://sadesim-runs on the cluster's object store. Its log is printed when a test fails
     (see pytest_runtest_makereport)."""
     tag = required_env("SADESIM_CLUSTER_IMAGE_TAG")
-    subprocess.run([
+    installed = subprocess.run([
         helm, f"--kubeconfig={kubectl.kubeconfig}", "upgrade", "--install", "sadesim", str(REPO / "charts/sadesim"),
         "-n", SYSTEM_NS, "--create-namespace", "--wait", "--timeout", "180s",
         "--set", f"image.tag={tag}", "--set", f"workerImage.tag={tag}", "--set", f"cameraImage.tag={tag}",
@@ -102,7 +102,11 @@ def operator(kubectl, helm, crd, object_store):
         "--set", "objectStore.env.AWS_REGION=us-east-1",
         "--set", f"objectStore.env.AWS_ENDPOINT_URL={object_store}",
         "--set-string", "objectStore.env.AWS_ALLOW_HTTP=true",
-    ], check=True, capture_output=True, text=True, timeout=300)
+    ], capture_output=True, text=True, timeout=300)
+    if installed.returncode != 0:
+        # A pod that never starts is most often the node's doing (disk pressure taints it).
+        taints = [(n["metadata"]["name"], n["spec"].get("taints")) for n in kubectl.json("nodes")["items"]]
+        pytest.fail(f"helm upgrade --install failed:\n{installed.stdout}\n{installed.stderr}\nnode taints: {taints}")
     OPERATOR_INSTALLED.append(True)
     yield SYSTEM_NS
     subprocess.run([helm, f"--kubeconfig={kubectl.kubeconfig}", "uninstall", "sadesim", "-n", SYSTEM_NS, "--wait"],
