@@ -24,6 +24,7 @@ use crate::ground_stations::{GroundStations, MIN_PASSPHRASE_CHARS, Signing};
 use crate::run::{ClockMode, SimulationRun, SimulationRunSpec};
 
 use problems::Problems;
+pub(crate) use problems::is_dns_label;
 pub use problems::{FieldError, ValidationErrors, duration_s};
 pub use schema::schema_problems;
 

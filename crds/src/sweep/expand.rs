@@ -13,7 +13,7 @@ use super::{
 };
 use crate::document::{API_VERSION, KIND, to_run};
 use crate::run::{SimulationRun, SimulationRunSpec};
-use crate::validate::{FieldError, ValidationErrors, validate};
+use crate::validate::{FieldError, ValidationErrors, is_dns_label, validate};
 
 /// Most problems reported for one sweep (a bad base repeats in every run).
 const MAX_PROBLEMS: usize = 50;
@@ -340,12 +340,4 @@ fn document_problems(e: crate::document::DocumentError) -> Vec<FieldError> {
         DocumentError::Fields { problems, .. } => problems.0,
         other => vec![FieldError { path: "spec.base".into(), message: other.to_string() }],
     }
-}
-
-fn is_dns_label(s: &str, max: usize) -> bool {
-    !s.is_empty()
-        && s.len() <= max
-        && s.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
-        && !s.starts_with('-')
-        && !s.ends_with('-')
 }

@@ -91,12 +91,7 @@ impl Problems {
 
     /// RFC 1123 label: lowercase alphanumerics and '-', starting and ending alphanumeric.
     pub(super) fn dns_label(&mut self, path: impl Into<String>, value: &str, max_len: usize) {
-        let ok = !value.is_empty()
-            && value.len() <= max_len
-            && value.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
-            && !value.starts_with('-')
-            && !value.ends_with('-');
-        if !ok {
+        if !is_dns_label(value, max_len) {
             self.add(
                 path,
                 format!(
@@ -105,6 +100,16 @@ impl Problems {
             );
         }
     }
+}
+
+/// Whether `value` is a DNS label (RFC 1123: lowercase letters, digits and inner '-') of at
+/// most `max_len` characters.
+pub(crate) fn is_dns_label(value: &str, max_len: usize) -> bool {
+    !value.is_empty()
+        && value.len() <= max_len
+        && value.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
+        && !value.starts_with('-')
+        && !value.ends_with('-')
 }
 
 /// Simulated seconds of a (possibly negative) Go duration.
