@@ -1,0 +1,317 @@
+// Drives the web console (`sadesim console`) in Debian's Chromium through playwright-core,
+// as a person would: clicks on the map, types into the forms, imports and exports files,
+// launches a run and follows it. tests/interop/test_console.py checks what it reports.
+//
+//   node tests/browser/console.mjs CONFIG.json
+//
+// CONFIG.json: {"url": "http://127.0.0.1:PORT/", "outDir": "...", "scenario": NAME, ...}
+// with NAME one of
+//   "zone"      draw a zone, give it a ceiling, add a group, break and fix fields, export
+//   "roundtrip" import each of `files` through the file input and export it
+//   "launch"    import `file`, launch it, follow it to its end, report, replay, archive, verify
+//   "fps"       import `file`, measure the frame rate while panning the map for `seconds`
+// Prints one JSON object: {"result": {...}, "external": [URLs the page asked for off this
+// machine: each was refused], "errors": [console errors and page errors]}.
+import { chromium } from '../../.tools/npm/node_modules/playwright-core/index.mjs';
+import { readFileSync } from 'node:fs';
+import { join } from 'node:path';
+
+const config = JSON.parse(readFileSync(process.argv[2], 'utf8'));
+const LOCAL = new Set(['127.0.0.1', 'localhost', '[::1]', '::1']);
+const external = [];
+const errors = [];
+const shots = [];
+let result = {};
+
+const browser = await chromium.launch({
+  executablePath: process.env.CHROMIUM || '/usr/bin/chromium',
+  args: ['--no-sandbox', '--disable-gpu', '--disable-background-networking', '--use-angle=swiftshader', '--enable-unsafe-swiftshader'],
+});
+const context = await browser.newContext({ viewport: { width: 1360, height: 840 }, acceptDownloads: true });
+await context.route('**/*', (route) => {
+  const u = new URL(route.request().url());
+  if (u.protocol === 'blob:' || u.protocol === 'data:' || LOCAL.has(u.hostname)) return route.continue();
+  external.push(u.href);
+  return route.abort();
+});
+function watchPage(p) {
+  p.on('console', (m) => { if (m.type() === 'error') errors.push(`console error: ${m.text()} (${p.url()})`); });
+  p.on('pageerror', (e) => errors.push(`pageerror: ${e.message} (${p.url()})`));
+}
+context.on('page', watchPage);
+const page = await context.newPage();
+
+const base = config.url.replace(/\/$/, '');
+const sleep = (ms) => page.waitForTimeout(ms);
+
+async function shot(name, target = page) {
+  const path = join(config.outDir, `${name}.png`);
+  await target.screenshot({ path });
+  shots.push(path);
+  return path;
+}
+
+/** Waits until the console has loaded and the plan map has drawn its city. */
+async function openPlan() {
+  await page.goto(`${base}/#/plan`);
+  await page.waitForFunction(() => window.sadesimConsole && window.sadesimConsole.ready && window.sadesimConsole.mapReady && window.sadesimConsole.worldLoads > 0, null, { timeout: 60000 });
+  await waitIdle();
+}
+
+/** No validation and no city load pending. */
+async function waitIdle() {
+  await sleep(700);
+  await page.waitForFunction(() => !document.body.dataset.validating && document.querySelector('.map-spinner').hidden, null, { timeout: 90000 });
+}
+
+/** The client pixel of a relative point of the map (0..1 across, 0..1 down). */
+async function mapPoint(fx, fy) {
+  const box = await page.locator('#plan-map').boundingBox();
+  return { x: box.x + box.width * fx, y: box.y + box.height * fy };
+}
+
+async function latLonAt(p) {
+  return page.evaluate(({ x, y }) => {
+    const r = document.getElementById('plan-map').getBoundingClientRect();
+    const ll = window.sadesimConsole.map().unproject([x - r.left, y - r.top]);
+    return { lat: ll.lat, lon: ll.lng };
+  }, p);
+}
+
+/** The text of the `.field-error` right after the control `data-field=path`, or null. */
+function errorAfter(path) {
+  return page.evaluate((p) => {
+    const el = document.querySelector(`[data-field="${CSS.escape(p)}"]`);
+    if (!el) return { missing: true };
+    const next = el.nextElementSibling;
+    return next && next.classList.contains('field-error') ? next.textContent : null;
+  }, path);
+}
+
+async function waitErrorAfter(path, present, timeout = 15000) {
+  await page.waitForFunction(({ p, want }) => {
+    const el = document.querySelector(`[data-field="${CSS.escape(p)}"]`);
+    if (!el) return false;
+    const next = el.nextElementSibling;
+    const has = !!(next && next.classList.contains('field-error'));
+    return has === want && !document.body.dataset.validating;
+  }, { p: path, want: present }, { timeout, polling: 100 });
+  return errorAfter(path);
+}
+
+async function field(path) {
+  const loc = page.locator(`[data-field="${path}"]`);
+  await loc.scrollIntoViewIfNeeded();
+  return loc;
+}
+
+async function importFile(file) {
+  const before = await page.evaluate(() => window.sadesimConsole.validations);
+  await page.setInputFiles('#import-file', file);
+  await page.waitForFunction(() => /loaded|not loaded/.test(document.querySelector('.flash').textContent), null, { timeout: 30000 });
+  const flash = await page.locator('.flash').textContent();
+  if (!flash.startsWith('loaded')) throw new Error(`import of ${file} failed: ${flash}`);
+  await page.waitForFunction((b) => window.sadesimConsole.validations > b, before, { timeout: 30000 });
+  await waitIdle();
+  return flash;
+}
+
+async function exportTo(name) {
+  const [download] = await Promise.all([page.waitForEvent('download', { timeout: 30000 }), page.click('#export')]);
+  const path = join(config.outDir, name);
+  await download.saveAs(path);
+  return { path, suggested: download.suggestedFilename() };
+}
+
+// ---------------------------------------------------------------- scenarios
+
+async function zone() {
+  await openPlan();
+  const startZones = await page.evaluate(() => (window.sadesimConsole.doc().spec.zones || []).length);
+  // Draw a zone: four corners clicked on the map, then Finish.
+  await page.click('#draw-zone');
+  const corners = [[0.62, 0.22], [0.8, 0.22], [0.8, 0.42], [0.62, 0.42]];
+  const clicked = [];
+  for (const [fx, fy] of corners) {
+    const p = await mapPoint(fx, fy);
+    await page.mouse.click(p.x, p.y);
+    clicked.push(await latLonAt(p));
+    await sleep(150);
+  }
+  const drafted = await page.evaluate(() => window.sadesimConsole.mapData('draft'));
+  await page.click('#finish-zone');
+  const zi = startZones;
+  const zp = `spec.zones[${zi}]`;
+  await page.waitForSelector(`[data-field="${zp}.ceiling.heightM"]`, { state: 'visible' });
+  // Its ceiling, typed in its form.
+  await (await field(`${zp}.ceiling.heightM`)).fill('90');
+  // A group: Add group, then its home clicked on the map.
+  await page.click('#add-group');
+  const home = await mapPoint(0.3, 0.7);
+  await page.mouse.click(home.x, home.y);
+  const homeLatLon = await latLonAt(home);
+  const gi = await page.evaluate(() => window.sadesimConsole.doc().spec.fleet.length - 1);
+  const gp = `spec.fleet[${gi}]`;
+  await page.waitForSelector(`[data-field="${gp}.count"]`, { state: 'visible' });
+  await waitIdle();
+  const errorsBefore = await page.evaluate(() => window.sadesimConsole.errors());
+  // A bad count: its message appears right after the count, then goes when fixed.
+  await (await field(`${gp}.count`)).fill('0');
+  const countError = await waitErrorAfter(`${gp}.count`, true);
+  await shot('plan-count-error');
+  await (await field(`${gp}.count`)).fill('3');
+  const countFixed = await waitErrorAfter(`${gp}.count`, false);
+  // A floor above the ceiling: the message is on the zone's ceiling, then goes.
+  await page.click('.tabs button[data-tab="zones"]');
+  await (await field(`${zp}.floor.reference`)).selectOption('agl');
+  await (await field(`${zp}.floor.heightM`)).fill('120');
+  const ceilingError = await waitErrorAfter(`${zp}.ceiling`, true);
+  const zoneHighlighted = await page.evaluate((i) => window.sadesimConsole.mapData('zones').features.some((f) => f.properties.index === i && f.properties.error), zi);
+  await shot('plan-zone-error');
+  await (await field(`${zp}.floor.heightM`)).fill('10');
+  const ceilingFixed = await waitErrorAfter(`${zp}.ceiling`, false);
+  await waitIdle();
+  const errorsAfter = await page.evaluate(() => window.sadesimConsole.errors());
+  const status = await page.locator('.status-line').textContent();
+  await shot('plan-zone');
+  // Export: the download and the YAML tab.
+  const exported = await exportTo('drawn.yaml');
+  await page.click('.tabs button[data-tab="yaml"]');
+  await page.waitForFunction(() => !/exporting/.test(document.getElementById('yaml-text').textContent));
+  const yamlTab = await page.locator('#yaml-text').textContent();
+  const doc = await page.evaluate(() => window.sadesimConsole.doc());
+  result = {
+    clicked, drafted: drafted.features.length, homeLatLon, zoneIndex: zi, groupIndex: gi, errorsBefore,
+    countError, countFixed, ceilingError, ceilingFixed, zoneHighlighted, errorsAfter, status,
+    exported, yamlTab, zone: doc.spec.zones[zi], group: doc.spec.fleet[gi],
+  };
+}
+
+async function roundtrip() {
+  await openPlan();
+  const out = [];
+  for (const file of config.files) {
+    const flash = await importFile(file);
+    const name = await page.evaluate(() => window.sadesimConsole.doc().metadata.name);
+    const problems = await page.locator('.status-line').getAttribute('data-problems');
+    const exported = await exportTo(`roundtrip-${out.length}.yaml`);
+    out.push({ file, flash, name, problems: Number(problems), ...exported });
+  }
+  await shot('plan-imported');
+  result = { files: out };
+}
+
+async function launch() {
+  await openPlan();
+  await importFile(config.file);
+  const doc = await page.evaluate(() => window.sadesimConsole.doc());
+  await page.click('#launch');
+  await page.waitForURL(/#\/runs\/.+/, { timeout: 60000 });
+  const runHash = new URL(page.url()).hash;
+  // The runs list follows the run to its end.
+  await page.click('a.nav-link[data-route="runs"]');
+  const row = page.locator(`.runs-table tbody tr[data-name="${doc.metadata.name}"]`).first();
+  await row.waitFor({ timeout: 60000 });
+  const phases = new Set();
+  const deadline = Date.now() + config.timeoutMs;
+  for (;;) {
+    const ph = await row.getAttribute('data-phase');
+    phases.add(ph);
+    if (ph === 'Succeeded' || ph === 'Failed') break;
+    if (Date.now() > deadline) throw new Error(`the run did not end: phases ${[...phases]}`);
+    await sleep(250);
+  }
+  await page.waitForFunction((n) => {
+    const r = document.querySelector(`.runs-table tbody tr[data-name="${n}"] td.verdict`);
+    return r && r.textContent.trim() !== '–';
+  }, doc.metadata.name, { timeout: 30000 });
+  const verdict = (await row.locator('td.verdict').textContent()).trim();
+  const listPhase = await row.getAttribute('data-phase');
+  await shot('runs');
+  // Its page: criteria, events, links to the report, the replay and the archive entry.
+  await row.locator('a').click();
+  await page.waitForSelector('#open-report', { timeout: 60000 });
+  await page.waitForFunction(() => document.querySelectorAll('.events tr').length > 0, null, { timeout: 30000 });
+  const criteria = await page.locator('ul.criteria li').evaluateAll((ls) => ls.map((l) => ({ state: l.dataset.state, text: l.textContent })));
+  const events = await page.locator('.events tr').count();
+  await shot('run');
+  const [report] = await Promise.all([context.waitForEvent('page'), page.click('#open-report')]);
+  await report.waitForLoadState('load');
+  const reportHtml = await report.content();
+  const reportTitle = await report.title();
+  await report.close();
+  const [replay] = await Promise.all([context.waitForEvent('page'), page.click('#open-replay')]);
+  await replay.waitForLoadState('load');
+  await replay.waitForSelector('canvas', { timeout: 60000 });
+  await replay.waitForFunction(() => window.sadesimView && window.sadesimView.ready, null, { timeout: 60000 }).catch(() => {});
+  const replayState = await replay.evaluate(() => ({
+    canvases: document.querySelectorAll('canvas').length,
+    ready: !!(window.sadesimView && window.sadesimView.ready),
+    frames: window.sadesimView ? window.sadesimView.frames : null,
+  }));
+  await replay.close();
+  // The archive lists it; its entry verifies.
+  await page.click('a.nav-link[data-route="archive"]');
+  const arow = page.locator(`.archive-table tbody tr[data-scenario="${doc.metadata.name}"]`).first();
+  await arow.waitFor({ timeout: 30000 });
+  const archiveRow = await arow.locator('td').allTextContents();
+  await arow.locator('a').click();
+  await page.waitForSelector('#verify');
+  const files = await page.locator('table.files tr').evaluateAll((rs) => rs.map((r) => ({ path: r.querySelector('a').textContent, highlighted: r.classList.contains('highlight') })));
+  await page.waitForFunction(() => document.querySelectorAll('.archive-events tr').length > 1, null, { timeout: 30000 });
+  const archiveEvents = await page.locator('.archive-events tbody tr').count();
+  await page.click('#verify');
+  await page.waitForFunction(() => document.querySelector('.verify-result').dataset.ok !== undefined, null, { timeout: 60000 });
+  const verify = { ok: await page.locator('.verify-result').getAttribute('data-ok'), text: await page.locator('.verify-result').textContent() };
+  await shot('archive-entry');
+  result = {
+    name: doc.metadata.name, runHash, phases: [...phases], listPhase, verdict, criteria, events, reportTitle,
+    reportHasName: reportHtml.includes(doc.metadata.name), reportLength: reportHtml.length, replayState,
+    archiveRow, files, archiveEvents, verify,
+  };
+}
+
+async function fps() {
+  await openPlan();
+  await importFile(config.file);
+  await page.waitForFunction((n) => window.sadesimConsole.worldLoads >= n, 2, { timeout: 90000 });
+  await waitIdle();
+  const buildings = await page.evaluate(() => (window.sadesimConsole.mapData('buildings') || { features: [] }).features.length);
+  await shot('plan-chicago');
+  const c = await mapPoint(0.5, 0.5);
+  await page.evaluate(() => {
+    window.__frames = 0;
+    window.__renders = 0;
+    window.__counting = true;
+    const tick = () => { if (!window.__counting) return; window.__frames++; requestAnimationFrame(tick); };
+    requestAnimationFrame(tick);
+    window.sadesimConsole.map().on('render', () => { if (window.__counting) window.__renders++; });
+  });
+  const t0 = Date.now();
+  await page.mouse.move(c.x, c.y);
+  await page.mouse.down();
+  let k = 0;
+  while (Date.now() - t0 < config.seconds * 1000) {
+    const a = (k++ / 20) * Math.PI;
+    await page.mouse.move(c.x + 220 * Math.sin(a), c.y + 120 * Math.sin(2 * a), { steps: 2 });
+  }
+  await page.mouse.up();
+  const measured = await page.evaluate(() => { window.__counting = false; return { frames: window.__frames, renders: window.__renders }; });
+  const seconds = (Date.now() - t0) / 1000;
+  result = {
+    seconds, frames: measured.frames, renders: measured.renders, fps: measured.frames / seconds,
+    mapRendersPerS: measured.renders / seconds, moves: k, buildings,
+    drones: await page.evaluate(() => window.sadesimConsole.doc().spec.fleet.reduce((s, g) => s + g.count, 0)),
+  };
+}
+
+let failure = null;
+try {
+  await ({ zone, roundtrip, launch, fps })[config.scenario]();
+} catch (e) {
+  failure = String(e && e.stack ? e.stack : e);
+  try { await shot('failure'); } catch { /* the page is gone */ }
+} finally {
+  await browser.close();
+}
+console.log(JSON.stringify({ result, external, errors, shots, failure }));
