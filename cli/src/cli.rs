@@ -4,6 +4,7 @@
 mod archive_cmd;
 mod args;
 mod assets_cmd;
+mod console_cmd;
 mod dem_cmd;
 mod gnss_cmd;
 mod osm_cmd;
@@ -140,6 +141,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             Ok(Outcome::Success)
         }
         Command::View { run, listen, rate } => view_cmd::view(&run, listen, rate, out),
+        Command::Console(args) => console_cmd::console(args, out),
         Command::Manifests { files, namespace, kueue } => {
             let settings = sadesim_operator::k8s::children::ClusterSettings { kueue, ..Default::default() };
             for (i, file) in files.iter().enumerate() {

@@ -24,7 +24,7 @@ const toThree = (e, n, u) => new THREE.Vector3(e, u, -n);
 const api = { ready: false, time: 0, frames: 0, mode: null };
 window.sadesimView = api;
 
-const scene = await (await fetch('/scene.json')).json();
+const scene = await (await fetch('scene.json')).json();
 api.mode = scene.mode;
 $('run').textContent = `${scene.namespace}/${scene.run} — ${scene.mode === 'live' ? 'live' : 'replay'}`;
 
@@ -50,7 +50,7 @@ window.addEventListener('resize', () => {
 
 // --- the city from the asset bundle --------------------------------------------------
 if (scene.worldModel) {
-  new GLTFLoader().load('/world.glb', (gltf) => {
+  new GLTFLoader().load('world.glb', (gltf) => {
     gltf.scene.traverse((o) => {
       if (!o.isMesh) return;
       const ground = o.name.includes('ground') || (o.parent && o.parent.name.includes('ground'));
@@ -288,7 +288,7 @@ function render() {
 // --- live: Server-Sent Events from the renderer ---------------------------------------
 async function live() {
   const events = [];
-  const source = new EventSource('/live');
+  const source = new EventSource('live');
   source.addEventListener('frame', (m) => applyFrame(JSON.parse(m.data)));
   source.addEventListener('event', (m) => {
     const ev = JSON.parse(m.data);
@@ -307,7 +307,7 @@ async function live() {
 
 // --- replay: the whole recording, a timeline to play, pause and scrub -----------------------
 async function replay() {
-  const rec = await (await fetch('/replay.json')).json();
+  const rec = await (await fetch('replay.json')).json();
   $('timeline').style.display = 'flex';
   const scrub = $('scrub');
   scrub.max = rec.endS;

@@ -58,6 +58,34 @@ pub fn file_path(file: &str) -> PathBuf {
     PathBuf::from(file.strip_prefix("file://").unwrap_or(file))
 }
 
+/// Makes `world.osm.file`, `world.terrain.dem.file`, `environment.gnss.constellation.file`
+/// and `environment.wind.urban.case.dir` absolute against `base`, the scenario file's folder
+/// (as a user expects of a path written in a scenario kept beside its data), so the plan
+/// names the file wherever its roles run. Object-store URLs and absolute paths are kept.
+pub fn resolve_paths(run: &mut sadesim_crds::SimulationRun, base: &std::path::Path) {
+    let world = run.spec.world.as_mut();
+    let (osm, dem) = match world {
+        Some(w) => (w.osm.as_mut().map(|o| &mut o.file), w.terrain.as_mut().map(|t| &mut t.dem.file)),
+        None => (None, None),
+    };
+    let environment = run.spec.environment.as_mut();
+    let (gnss, wind) = match environment {
+        Some(e) => (e.gnss.as_mut(), e.wind.as_mut()),
+        None => (None, None),
+    };
+    let orbits = gnss.and_then(|g| g.constellation.as_mut()).and_then(|c| c.file.as_mut());
+    let case = wind.and_then(|w| w.urban.as_mut()).and_then(|u| u.case.as_mut()).map(|c| &mut c.dir);
+    for file in
+        osm.into_iter().chain(dem).chain(orbits).chain(case).filter(|f| !sadesim_evidence::archive::is_object_store(f))
+    {
+        let path = file_path(file);
+        if path.is_relative() {
+            let absolute = std::path::absolute(base.join(&path)).unwrap_or_else(|_| base.join(&path));
+            *file = absolute.display().to_string();
+        }
+    }
+}
+
 /// The files the run's world names, as `(field, file)` pairs in the order they are read:
 /// the extract of `source: osm`, then the DEM.
 pub fn world_files(spec: &SimulationRunSpec) -> Vec<(&'static str, String)> {

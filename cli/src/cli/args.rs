@@ -204,6 +204,11 @@ pub enum Command {
         #[arg(long, default_value_t = 20.0)]
         rate: f64,
     },
+    /// The web console: plan a run on a map, launch it, watch it, browse the archive.
+    ///
+    /// Locally (default) it flies runs on this machine into --runs; with --cluster it
+    /// creates SimulationRuns with the user's own Kubernetes identity. Serves until Ctrl-C.
+    Console(super::console_cmd::ConsoleArgs),
     /// Print the Kubernetes objects the operator would create for each run in FILE (YAML,
     /// one document per object), for review in GitOps pull requests.
     Manifests {

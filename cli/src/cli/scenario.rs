@@ -60,34 +60,13 @@ pub(super) fn report_problems(
     Ok(())
 }
 
-/// Makes `world.osm.file`, `world.terrain.dem.file`, `environment.gnss.constellation.file`
-/// and `environment.wind.urban.case.dir` absolute against the scenario file's folder (as a user expects of
-/// a path written in a scenario kept beside its data), so the plan names the file wherever
-/// its roles run. Stdin scenarios resolve against the working directory.
+/// Makes the scenario's file paths absolute against the scenario file's folder
+/// ([`sadesim_sources::world::resolve_paths`]). Stdin scenarios resolve against the working
+/// directory.
 fn resolve_paths(run: &mut SimulationRun, scenario: &Path) {
     let base = match scenario.as_os_str() == "-" {
         true => std::env::current_dir().unwrap_or_default(),
         false => scenario.parent().map(Path::to_path_buf).unwrap_or_default(),
     };
-    let world = run.spec.world.as_mut();
-    let (osm, dem) = match world {
-        Some(w) => (w.osm.as_mut().map(|o| &mut o.file), w.terrain.as_mut().map(|t| &mut t.dem.file)),
-        None => (None, None),
-    };
-    let environment = run.spec.environment.as_mut();
-    let (gnss, wind) = match environment {
-        Some(e) => (e.gnss.as_mut(), e.wind.as_mut()),
-        None => (None, None),
-    };
-    let orbits = gnss.and_then(|g| g.constellation.as_mut()).and_then(|c| c.file.as_mut());
-    let case = wind.and_then(|w| w.urban.as_mut()).and_then(|u| u.case.as_mut()).map(|c| &mut c.dir);
-    for file in
-        osm.into_iter().chain(dem).chain(orbits).chain(case).filter(|f| !sadesim_evidence::archive::is_object_store(f))
-    {
-        let path = sadesim_sources::world::file_path(file);
-        if path.is_relative() {
-            let absolute = std::path::absolute(base.join(&path)).unwrap_or_else(|_| base.join(&path));
-            *file = absolute.display().to_string();
-        }
-    }
+    sadesim_sources::world::resolve_paths(run, &base);
 }

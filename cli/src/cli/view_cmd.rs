@@ -4,19 +4,11 @@
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::Path;
-use std::sync::Arc;
 
-use sadesim_crds::outcome::run_folder;
-use sadesim_crds::plan::RunPlan;
 use sadesim_evidence::archive::{Archive, is_object_store};
-use sadesim_world::World;
-use sim_worker::view::{self, Content, Source};
+use sim_worker::view;
 
 use super::{CliError, Outcome};
-
-/// The files a replay reads.
-const MCAP: &str = "recording.mcap";
-const WORLD_STATS: &str = "world.json";
 
 /// Serves the replay of the run at `location` on `listen` until the process is stopped
 /// (Ctrl-C). `ready` is called with the page's URL once it is served (the CLI prints it).
@@ -27,40 +19,17 @@ const WORLD_STATS: &str = "world.json";
 /// verify, a damaged recording, a bad `--rate`, or an address that cannot be bound.
 pub fn view(location: &str, listen: SocketAddr, rate_hz: f64, out: &mut dyn Write) -> Result<Outcome, CliError> {
     let failed = |what: String| CliError::Failed(format!("view {location}: {what}"));
-    if !view::server::has_three() {
-        return Err(failed(view::server::NO_THREE.into()));
-    }
     let read = RunFiles::open(location)?;
-    let plan: RunPlan = serde_json::from_slice(&read.file(run_folder::PLAN)?)
-        .map_err(|e| failed(format!("{}: not a run plan: {e}", run_folder::PLAN)))?;
-    let mcap = read.file(MCAP).map_err(|e| {
-        failed(format!("{e} (the run needs recording.mcap for its poses: spec.recording.mcap must not be false)"))
-    })?;
-    let events = String::from_utf8(read.file(run_folder::EVENTS)?)
-        .map_err(|e| failed(format!("{}: not UTF-8: {e}", run_folder::EVENTS)))?;
-    let names: Vec<String> = plan.drones.iter().map(|d| d.name.clone()).collect();
-    let replay = view::replay::replay(&mcap, &events, &names, rate_hz).map_err(|e| failed(e.to_string()))?;
-    // The run's own world only: the bundle of its key, or rebuilt from its files, and
-    // checked against the statistics the run wrote (another city's buildings would lie).
-    let recorded: Option<serde_json::Value> =
-        read.file(WORLD_STATS).ok().and_then(|bytes| serde_json::from_slice(&bytes).ok());
-    let world: Option<World> = sadesim_sources::assets::find_world(&plan)
-        .filter(|w| recorded.as_ref().is_some_and(|r| serde_json::to_value(w.stats()).ok().as_ref() == Some(r)));
-    if world.is_none() {
+    let replay =
+        sadesim_console::replay::replay(&|name| read.file(name).map_err(|e| e.to_string()), rate_hz).map_err(failed)?;
+    if replay.flat_ground {
         writeln!(
             out,
             "note: the run's world (asset bundle {}) was not found: drawing flat ground",
-            plan.asset_cache_key
+            replay.plan.asset_cache_key
         )?;
     }
-    let glb = world.as_ref().map(|w| Arc::new(sadesim_sources::gltf::world_glb(w, plan.spec.origin.geo())));
-    let scene = view::scene::scene(&plan, world.as_ref(), "replay", glb.is_some());
-    let content = Content {
-        scene_json: Arc::new(serde_json::to_vec(&scene).expect("a scene is JSON")),
-        world_glb: glb,
-        source: Source::Replay(Arc::new(serde_json::to_vec(&replay).expect("a replay is JSON"))),
-        frames: None,
-    };
+    let (plan, content) = (&replay.plan, replay.content.clone());
     let server = view::server::start(listen, content).map_err(|e| failed(format!("cannot listen on {listen}: {e}")))?;
     writeln!(
         out,
@@ -68,8 +37,8 @@ pub fn view(location: &str, listen: SocketAddr, rate_hz: f64, out: &mut dyn Writ
         plan.run.namespace,
         plan.run.name,
         replay.end_s,
-        names.len(),
-        replay.frames.len(),
+        plan.drones.len(),
+        replay.frames,
         rate_hz,
         server.url()
     )?;

@@ -76,6 +76,25 @@ pub struct RunOptions {
     /// The document `SADESIM_SCENARIO` names, when it is not `scenario` (a sweep's run: its
     /// own expanded document, while the pilot starts in the sweep file's folder).
     pub scenario_document: Option<PathBuf>,
+    /// Told where the run writes and how it advances (`sadesim console` shows its runs
+    /// with it). In-process runs only: `processes` runs do not call it.
+    pub watch: Option<Arc<dyn RunWatch>>,
+}
+
+/// Someone following a run as it goes, beside the progress bar.
+pub trait RunWatch: Send + Sync {
+    /// The run folder exists and the run is about to start; `view` is the live view's URL
+    /// when `spec.rendering.enabled`.
+    fn started(&self, out_dir: &Path, view: Option<String>);
+    /// A window of simulated time was recorded: the time reached, the run's length and the
+    /// fleet's counts.
+    fn window(&self, time_s: f64, duration_s: f64, counts: FleetCounts);
+}
+
+impl std::fmt::Debug for dyn RunWatch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("RunWatch")
+    }
 }
 
 impl Default for RunOptions {
@@ -92,6 +111,7 @@ impl Default for RunOptions {
             run_dir: None,
             port_offset: 0,
             scenario_document: None,
+            watch: None,
         }
     }
 }
@@ -331,6 +351,8 @@ struct Progress<'a> {
     pilot_error: Option<PilotError>,
     /// The pilot exited and `onExit` is `endRun`.
     pilot_exited: bool,
+    /// [`RunOptions::watch`].
+    watch: Option<Arc<dyn RunWatch>>,
 }
 
 impl RunObserver for Progress<'_> {
@@ -345,6 +367,9 @@ impl RunObserver for Progress<'_> {
                 self.pilot_error = Some(e);
             }
             self.pilot_exited = pilot.poll();
+        }
+        if let Some(watch) = &self.watch {
+            watch.window(time_s, self.duration_s, sadesim_engine::protocol::fleet_counts(drones));
         }
         if !self.bar.is_hidden() {
             show_progress(
@@ -464,6 +489,9 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         let view = watchers.live.as_ref().map(|v| v.server.addr);
         write_fleet_file(&plan, &out_dir, airspace_addr, view, supervisor.as_mut())?;
     }
+    if let Some(watch) = &options.watch {
+        watch.started(&out_dir, watchers.live.as_ref().map(|v| v.server.url()));
+    }
     let bar = if options.progress { ProgressBar::new(1000) } else { ProgressBar::hidden() };
     bar.set_style(ProgressStyle::with_template("{bar:30.cyan/blue} {percent:>3}% {msg}").expect("a valid template"));
     bar.enable_steady_tick(Duration::from_millis(200));
@@ -485,7 +513,7 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         let surroundings = sadesim_engine::shard::Surroundings { world: world.clone(), sky, wind };
         let signing = signing.as_deref().map(SecretKey::from_passphrase);
         let routers = options.mavlink.then_some(signing);
-        let inputs = ShardInputs { surroundings, routers, watchers: &mut watchers };
+        let inputs = ShardInputs { surroundings, routers, watchers: &mut watchers, watch: options.watch.clone() };
         run_threads(&plan, inputs, &out_dir, &bar, &stop, supervisor.as_mut(), &mut airspace)
     };
     bar.finish_and_clear();
@@ -587,6 +615,8 @@ struct ShardInputs<'a> {
     routers: Option<Option<SecretKey>>,
     /// The onboard cameras and the live view (served until the runner is done).
     watchers: &'a mut Watchers,
+    /// [`RunOptions::watch`].
+    watch: Option<Arc<dyn RunWatch>>,
 }
 
 /// Every role in this process: one thread per shard, the MAVLink routers on their own
@@ -600,7 +630,7 @@ fn run_threads(
     pilot: Option<&mut Supervisor>,
     airspace: &mut Airspace,
 ) -> Result<RunSummary, RunError> {
-    let ShardInputs { surroundings, routers, watchers } = inputs;
+    let ShardInputs { surroundings, routers, watchers, watch } = inputs;
     let mut links: Vec<Box<dyn ShardLink>> = Vec::new();
     let mut threads = Vec::new();
     let mavlink_options = routers.is_some().then(MavlinkOptions::local);
@@ -621,6 +651,7 @@ fn run_threads(
         pilot,
         pilot_error: None,
         pilot_exited: false,
+        watch,
     };
     // Each shard thread's CPU time stepping its drones; a thread that panicked or lost the
     // coordinator before `Stop` has none (the run then failed).

@@ -87,7 +87,9 @@ pub fn start(bind: SocketAddr, content: Content) -> std::io::Result<ViewHandle> 
     crate::http_thread::start(bind, router(content), "view-http", Duration::ZERO)
 }
 
-fn router(content: Content) -> Router {
+/// The view's routes (the console mounts them under `/replay/<run>/`: the page asks for
+/// everything by relative URL).
+pub fn router(content: Content) -> Router {
     let cameras = content.frames.clone().map(super::frames::routes).unwrap_or_default();
     Router::new()
         .route("/", get(|| async { ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], INDEX_HTML) }))
