@@ -664,7 +664,7 @@ async function importText(text, name) {
     flash(`loaded ${name || 'the scenario'}`, 'ok');
     return true;
   } catch (e) {
-    flash(`not loaded: ${e.message}`, 'error');
+    flash(`not loaded ${name || 'the scenario'}: ${e.message}`, 'error');
     return false;
   }
 }
@@ -758,16 +758,18 @@ function createMap() {
   map.addControl(new maplibregl.NavigationControl({ visualizePitch: true }), 'top-right');
   map.addControl(new maplibregl.ScaleControl({ unit: 'metric' }), 'bottom-left');
   map.on('load', () => {
-    const src = (id) => map.addSource(id, { type: 'geojson', data: EMPTY });
+    // The city's sources are the big ones (tens of thousands of footprints): tiles built to
+    // zoom 15 only, a thin buffer, drawn without antialiasing (an outline pass per polygon).
+    const src = (id) => map.addSource(id, /buildings|parks/.test(id) ? { type: 'geojson', data: EMPTY, maxzoom: 15, buffer: 16, tolerance: 0.5 } : { type: 'geojson', data: EMPTY });
     for (const id of ['world-square', 'parks', 'buildings', 'open-areas', 'zones', 'home-discs', 'missions', 'waypoints', 'homes', 'draft']) src(id);
     map.addLayer({ id: 'world-square', type: 'line', source: 'world-square', paint: { 'line-color': '#888', 'line-width': 1.5, 'line-dasharray': [4, 3] } });
-    map.addLayer({ id: 'parks', type: 'fill', source: 'parks', paint: { 'fill-color': '#b7dca8', 'fill-opacity': 0.9 } });
+    map.addLayer({ id: 'parks', type: 'fill', source: 'parks', paint: { 'fill-color': '#b7dca8', 'fill-antialias': false } });
     map.addLayer({ id: 'open-areas', type: 'fill', source: 'open-areas', paint: { 'fill-color': '#9fd38d', 'fill-opacity': 0.35, 'fill-outline-color': '#4d8b3c' } });
     map.addLayer({
       id: 'buildings', type: 'fill', source: 'buildings',
       paint: {
         'fill-color': ['interpolate', ['linear'], ['coalesce', ['get', 'heightM'], 10], 0, '#d6d3cc', 30, '#b3afa6', 100, '#8a8579', 300, '#5d584e'],
-        'fill-opacity': 0.9,
+        'fill-antialias': false,
       },
     });
     map.addLayer({

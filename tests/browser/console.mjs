@@ -108,7 +108,8 @@ async function field(path) {
 async function importFile(file) {
   const before = await page.evaluate(() => window.sadesimConsole.validations);
   await page.setInputFiles('#import-file', file);
-  await page.waitForFunction(() => /loaded|not loaded/.test(document.querySelector('.flash').textContent), null, { timeout: 30000 });
+  const base = file.split('/').pop();
+  await page.waitForFunction((b) => document.querySelector('.flash').textContent.includes(b), base, { timeout: 30000 });
   const flash = await page.locator('.flash').textContent();
   if (!flash.startsWith('loaded')) throw new Error(`import of ${file} failed: ${flash}`);
   await page.waitForFunction((b) => window.sadesimConsole.validations > b, before, { timeout: 30000 });
@@ -139,6 +140,11 @@ async function zone() {
     await sleep(150);
   }
   const drafted = await page.evaluate(() => window.sadesimConsole.mapData('draft'));
+  const metresPerPixel = await page.evaluate(() => {
+    const m = window.sadesimConsole.map();
+    const c = m.getCenter();
+    return (40075016.686 * Math.cos((c.lat * Math.PI) / 180)) / (512 * 2 ** m.getZoom());
+  });
   await page.click('#finish-zone');
   const zi = startZones;
   const zp = `spec.zones[${zi}]`;
@@ -147,7 +153,7 @@ async function zone() {
   await (await field(`${zp}.ceiling.heightM`)).fill('90');
   // A group: Add group, then its home clicked on the map.
   await page.click('#add-group');
-  const home = await mapPoint(0.3, 0.7);
+  const home = await mapPoint(0.2, 0.3);
   await page.mouse.click(home.x, home.y);
   const homeLatLon = await latLonAt(home);
   const gi = await page.evaluate(() => window.sadesimConsole.doc().spec.fleet.length - 1);
@@ -181,7 +187,7 @@ async function zone() {
   const yamlTab = await page.locator('#yaml-text').textContent();
   const doc = await page.evaluate(() => window.sadesimConsole.doc());
   result = {
-    clicked, drafted: drafted.features.length, homeLatLon, zoneIndex: zi, groupIndex: gi, errorsBefore,
+    clicked, metresPerPixel, drafted: drafted.features.length, homeLatLon, zoneIndex: zi, groupIndex: gi, errorsBefore,
     countError, countFixed, ceilingError, ceilingFixed, zoneHighlighted, errorsAfter, status,
     exported, yamlTab, zone: doc.spec.zones[zi], group: doc.spec.fleet[gi],
   };
@@ -278,6 +284,7 @@ async function fps() {
   await waitIdle();
   const buildings = await page.evaluate(() => (window.sadesimConsole.mapData('buildings') || { features: [] }).features.length);
   await shot('plan-chicago');
+  for (const layer of config.hideLayers || []) await page.evaluate((l) => window.sadesimConsole.map().setLayoutProperty(l, 'visibility', 'none'), layer);
   const c = await mapPoint(0.5, 0.5);
   await page.evaluate(() => {
     window.__frames = 0;
