@@ -4,12 +4,15 @@
 //
 //   node tests/browser/console.mjs CONFIG.json
 //
-// CONFIG.json: {"url": "http://127.0.0.1:PORT/", "outDir": "...", "scenario": NAME, ...}
+// CONFIG.json: {"url": "http://127.0.0.1:PORT/", "outDir": "...", "scenario": NAME,
+// "allowHttpErrors": [401, ...] (HTTP errors the scenario expects: not reported), ...}
 // with NAME one of
 //   "zone"      draw a zone, give it a ceiling, add a group, break and fix fields, export
 //   "roundtrip" import each of `files` through the file input and export it
 //   "launch"    import `file`, launch it, follow it to its end, report, replay, archive, verify
 //   "fps"       import `file`, measure the frame rate while panning the map for `seconds`
+//   "auth"      the cluster backend's API mocked in the page (token, 401, a refused launch);
+//               `file` is pasted into the plan
 // Prints one JSON object: {"result": {...}, "external": [URLs the page asked for off this
 // machine: each was refused], "errors": [console errors and page errors]}.
 import { chromium } from '../../.tools/npm/node_modules/playwright-core/index.mjs';
@@ -35,7 +38,13 @@ await context.route('**/*', (route) => {
   return route.abort();
 });
 function watchPage(p) {
-  p.on('console', (m) => { if (m.type() === 'error') errors.push(`console error: ${m.text()} (${p.url()})`); });
+  p.on('console', (m) => {
+    if (m.type() !== 'error') return;
+    // Chromium logs every 4xx answer; a scenario that expects some says which.
+    const status = /Failed to load resource: the server responded with a status of (\d+)/.exec(m.text());
+    if (status && (config.allowHttpErrors || []).includes(Number(status[1]))) return;
+    errors.push(`console error: ${m.text()} (${p.url()})`);
+  });
   p.on('pageerror', (e) => errors.push(`pageerror: ${e.message} (${p.url()})`));
 }
 context.on('page', watchPage);
@@ -176,6 +185,18 @@ async function zone() {
   await shot('plan-zone-error');
   await (await field(`${zp}.floor.heightM`)).fill('10');
   const ceilingFixed = await waitErrorAfter(`${zp}.ceiling`, false);
+  // A triangle: two clicks and a double-click on its third corner close it.
+  await page.click('#draw-zone');
+  for (const [fx, fy] of [[0.42, 0.12], [0.54, 0.12]]) {
+    const p = await mapPoint(fx, fy);
+    await page.mouse.click(p.x, p.y);
+    await sleep(150);
+  }
+  const third = await mapPoint(0.48, 0.3);
+  await page.mouse.dblclick(third.x, third.y);
+  await page.waitForFunction((n) => (window.sadesimConsole.doc().spec.zones || []).length === n, zi + 2, { timeout: 10000 });
+  const triangle = await page.evaluate((i) => window.sadesimConsole.doc().spec.zones[i], zi + 1);
+  const modeAfterTriangle = await page.evaluate(() => window.sadesimConsole.mode);
   await waitIdle();
   const errorsAfter = await page.evaluate(() => window.sadesimConsole.errors());
   const status = await page.locator('.status-line').textContent();
@@ -189,7 +210,7 @@ async function zone() {
   result = {
     clicked, metresPerPixel, drafted: drafted.features.length, homeLatLon, zoneIndex: zi, groupIndex: gi, errorsBefore,
     countError, countFixed, ceilingError, ceilingFixed, zoneHighlighted, errorsAfter, status,
-    exported, yamlTab, zone: doc.spec.zones[zi], group: doc.spec.fleet[gi],
+    exported, yamlTab, triangle, modeAfterTriangle, zone: doc.spec.zones[zi], group: doc.spec.fleet[gi],
   };
 }
 
@@ -312,9 +333,61 @@ async function fps() {
   };
 }
 
+/** The cluster backend's side of the page, its API answered here: a console that needs the
+ * user's token, refuses without it, and a Kubernetes API server that refuses the launch. */
+async function auth() {
+  const seen = { watch: [], launch: null, validate: [] };
+  const json = (route, status, body) => route.fulfill({ status, contentType: 'application/json', body: JSON.stringify(body) });
+  await page.route('**/api/info', (route) => json(route, 200, { backend: 'cluster', version: '0.1.0', namespaces: ['team-a', 'team-b'], needsToken: true, archive: 's3://bucket/runs' }));
+  await page.route('**/api/runs/watch', (route) => {
+    const a = route.request().headers().authorization || null;
+    seen.watch.push(a);
+    if (a !== 'Bearer tok-123') return json(route, 401, { error: 'Unauthorized' });
+    const run = { id: 'team-a/mocked-run', name: 'mocked-run', namespace: 'team-a', phase: 'Running', progress: 0.25, simTimeS: 45, durationS: 180, realTimeFactor: 1.0, queuePosition: null, verdict: null, message: null, startedAt: new Date().toISOString(), drones: 4, archiveId: null };
+    return route.fulfill({ status: 200, contentType: 'text/event-stream', body: `: hello\n\nevent: runs\ndata: ${JSON.stringify({ runs: [run] })}\n\n` });
+  });
+  await page.route('**/api/runs', (route) => {
+    if (route.request().method() !== 'POST') return route.fallback();
+    seen.launch = { authorization: route.request().headers().authorization || null, body: route.request().postDataJSON() };
+    return json(route, 403, { error: 'simulationruns.sadesim.io is forbidden: User "alice" cannot create resource "simulationruns" in API group "sadesim.io" in the namespace "team-b"' });
+  });
+  await page.route('**/api/scenario/validate', (route) => { seen.validate.push(route.request().headers().authorization || null); return route.fallback(); });
+
+  await page.goto(`${base}/#/runs`);
+  await page.waitForSelector('.login-banner:not([hidden])', { timeout: 20000 });
+  const banner = await page.locator('.login-banner').textContent();
+  const tokenBoxShown = await page.locator('.token-box').isVisible();
+  await page.fill('#token', 'tok-123');
+  await page.click('.token-box button[type=submit]');
+  await page.waitForSelector('.runs-table tbody tr[data-name="mocked-run"]', { timeout: 20000 });
+  const listed = await page.locator('.runs-table tbody tr').first().locator('td').allTextContents();
+  const stored = await page.evaluate(() => sessionStorage.getItem('sadesim-console-token'));
+  const bannerAfter = await page.locator('.login-banner').isVisible();
+  // Plan: a scenario pasted, a namespace and a queue chosen, launched: refused.
+  await page.click('a.nav-link[data-route="plan"]');
+  await page.waitForFunction(() => window.sadesimConsole && window.sadesimConsole.mapReady, null, { timeout: 60000 });
+  await page.click('#paste-open');
+  await page.fill('#paste-text', readFileSync(config.file, 'utf8'));
+  await page.click('#paste-load');
+  await page.waitForFunction(() => document.querySelector('.flash').textContent.includes('pasted'), null, { timeout: 20000 });
+  const namespaces = await page.locator('#launch-namespace option').allTextContents();
+  await page.selectOption('#launch-namespace', 'team-b');
+  await page.fill('#launch-queue', 'q1');
+  await waitIdle();
+  await page.click('#launch');
+  await page.waitForSelector('.api-refusal:not([hidden])', { timeout: 20000 });
+  const refusal = await page.locator('.api-refusal').textContent();
+  await shot('plan-refused');
+  result = {
+    banner, tokenBoxShown, listed, stored, bannerAfter, namespaces, refusal, hash: new URL(page.url()).hash,
+    watch: seen.watch, launch: seen.launch && { authorization: seen.launch.authorization, namespace: seen.launch.body.namespace, queue: seen.launch.body.queue, name: seen.launch.body.document.metadata.name },
+    validateAuth: [...new Set(seen.validate)],
+  };
+}
+
 let failure = null;
 try {
-  await ({ zone, roundtrip, launch, fps })[config.scenario]();
+  await ({ zone, roundtrip, launch, fps, auth })[config.scenario]();
 } catch (e) {
   failure = String(e && e.stack ? e.stack : e);
   try { await shot('failure'); } catch { /* the page is gone */ }

@@ -135,7 +135,9 @@ def test_a_zone_and_a_group_drawn_on_the_map_validate_live_and_export(console, s
     assert r["ceilingError"] and "floor must be below ceiling" in r["ceilingError"], r["ceilingError"]
     assert r["zoneHighlighted"]
     assert r["ceilingFixed"] is None
-    assert r["errorsAfter"] == [] and r["status"].startswith("valid"), r["status"]
+    # A zone closed by a double-click on its last corner: that corner once, drawing over.
+    assert len(r["triangle"]["polygon"]) == 3 and r["modeAfterTriangle"] is None, r["triangle"]
+    assert r["errorsAfter"] == [] and r["status"].startswith("valid"), (r["status"], r["errorsAfter"])
     # The export: downloaded as <name>.yaml, shown in the YAML tab, valid for the CLI.
     exported = pathlib.Path(r["exported"]["path"])
     assert r["exported"]["suggested"] == "quickstart.yaml"
@@ -150,6 +152,7 @@ def test_a_zone_and_a_group_drawn_on_the_map_validate_live_and_export(console, s
     assert drawn[0]["ceiling"] == {"heightM": 90, "reference": "agl"}
     assert drawn[0]["floor"] == {"heightM": 10, "reference": "agl"}
     assert any(g["name"] == r["group"]["name"] and g["count"] == 3 for g in doc["spec"]["fleet"])
+    assert [len(z["polygon"]) for z in doc["spec"]["zones"]] == [4, 4, 3]
     keep_for_docs("plan-zone-error")
 
 
@@ -188,6 +191,21 @@ def test_the_quickstart_launched_from_the_page_runs_reports_replays_and_verifies
     assert r["archiveEvents"] > 10
     assert r["verify"]["ok"] == "true" and r["verify"]["text"].startswith("ok"), r["verify"]
     keep_for_docs("runs", "run", "archive-entry")
+
+
+def test_on_a_cluster_the_page_sends_the_users_token_and_shows_the_api_servers_refusal(console, tmp_path):
+    """The cluster backend's answers are played by the browser driver (no cluster here): the
+    console needs the user's token, the runs stream refuses without it, and the Kubernetes API
+    server refuses the launch."""
+    r = drive(console, tmp_path, "auth", file=str(REPO / "examples" / "quickstart.yaml"), allowHttpErrors=[401, 403])
+    assert r["tokenBoxShown"] and "Log in with your token" in r["banner"]
+    assert r["watch"][0] is None and r["watch"][-1] == "Bearer tok-123", r["watch"]
+    assert r["stored"] == "tok-123" and not r["bannerAfter"]
+    assert r["listed"][:3] == ["mocked-run", "team-a", "Running"] and r["listed"][3] == "25 %", r["listed"]
+    assert r["namespaces"] == ["team-a", "team-b"]
+    assert r["validateAuth"] == ["Bearer tok-123"]
+    assert r["launch"] == {"authorization": "Bearer tok-123", "namespace": "team-b", "queue": "q1", "name": "quickstart"}
+    assert 'User "alice" cannot create resource' in r["refusal"] and r["hash"] == "#/plan", r
 
 
 def test_the_plan_map_pans_the_chicago_example(console, tmp_path):
