@@ -8,12 +8,24 @@ export function token() {
   try { return sessionStorage.getItem(TOKEN_KEY) || ''; } catch { return ''; }
 }
 
+/** The token also rides in the `sadesim_token` cookie (this site only), for what the browser
+ * fetches by itself: links to the report, the replay, archive files, camera images. */
+function setCookie(t) {
+  const secure = location.protocol === 'https:' ? '; Secure' : '';
+  document.cookie = t
+    ? `sadesim_token=${encodeURIComponent(t)}; Path=/; SameSite=Strict${secure}`
+    : `sadesim_token=; Path=/; Max-Age=0; SameSite=Strict${secure}`;
+}
+
 export function setToken(t) {
   try {
     if (t) sessionStorage.setItem(TOKEN_KEY, t);
     else sessionStorage.removeItem(TOKEN_KEY);
   } catch { /* storage refused: the token lasts for this page only */ }
+  setCookie(t);
 }
+
+if (token()) setCookie(token());
 
 export function onUnauthorized(fn) { listeners.unauthorized.push(fn); }
 
@@ -137,8 +149,7 @@ export function watch(path, onEvent, onState = () => {}) {
   return () => { stopped = true; ctl.abort(); };
 }
 
-/** Page-visible URL of an archive file (for links: the token cannot ride on a link, so the
- * backend serves these to anyone who may read the archive; see docs/console.md). */
+/** The URL of an archive file (links carry the token in the cookie). */
 export function archiveFileUrl(id, path) {
   return `/api/archive/${encodeURIComponent(id)}/files/${path.split('/').map(encodeURIComponent).join('/')}`;
 }

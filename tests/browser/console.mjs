@@ -362,6 +362,7 @@ async function auth() {
   await page.waitForSelector('.runs-table tbody tr[data-name="mocked-run"]', { timeout: 20000 });
   const listed = await page.locator('.runs-table tbody tr').first().locator('td').allTextContents();
   const stored = await page.evaluate(() => sessionStorage.getItem('sadesim-console-token'));
+  const cookie = (await context.cookies()).find((c) => c.name === 'sadesim_token');
   const bannerAfter = await page.locator('.login-banner').isVisible();
   // Plan: a scenario pasted, a namespace and a queue chosen, launched: refused.
   await page.click('a.nav-link[data-route="plan"]');
@@ -379,7 +380,7 @@ async function auth() {
   const refusal = await page.locator('.api-refusal').textContent();
   await shot('plan-refused');
   result = {
-    banner, tokenBoxShown, listed, stored, bannerAfter, namespaces, refusal, hash: new URL(page.url()).hash,
+    banner, tokenBoxShown, listed, stored, cookie: cookie ? { value: cookie.value, sameSite: cookie.sameSite, path: cookie.path } : null, bannerAfter, namespaces, refusal, hash: new URL(page.url()).hash,
     watch: seen.watch, launch: seen.launch && { authorization: seen.launch.authorization, namespace: seen.launch.body.namespace, queue: seen.launch.body.queue, name: seen.launch.body.document.metadata.name },
     validateAuth: [...new Set(seen.validate)],
   };

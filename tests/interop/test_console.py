@@ -201,6 +201,8 @@ def test_on_a_cluster_the_page_sends_the_users_token_and_shows_the_api_servers_r
     assert r["tokenBoxShown"] and "Log in with your token" in r["banner"]
     assert r["watch"][0] is None and r["watch"][-1] == "Bearer tok-123", r["watch"]
     assert r["stored"] == "tok-123" and not r["bannerAfter"]
+    # The cookie carries it for links (report, replay, files): this site only.
+    assert r["cookie"] == {"value": "tok-123", "sameSite": "Strict", "path": "/"}, r["cookie"]
     assert r["listed"][:3] == ["mocked-run", "team-a", "Running"] and r["listed"][3] == "25 %", r["listed"]
     assert r["namespaces"] == ["team-a", "team-b"]
     assert r["validateAuth"] == ["Bearer tok-123"]
