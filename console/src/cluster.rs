@@ -40,7 +40,8 @@ pub struct ClusterBackend {
     base: Config,
     /// Each request must carry the user's token.
     user_tokens: bool,
-    /// The namespaces the page offers and lists.
+    /// The namespaces the page offers, and lists when the request names none. Any other
+    /// may be asked for: the API server's RBAC decides, not the console.
     namespaces: Vec<String>,
 }
 
@@ -122,23 +123,21 @@ impl ClusterBackend {
         Client::try_from(config).map_err(|e| ApiError::new(StatusCode::BAD_GATEWAY, format!("Kubernetes client: {e}")))
     }
 
-    fn check_namespace(&self, namespace: &str) -> Result<(), ApiError> {
-        match self.namespaces.iter().any(|n| n == namespace) {
-            true => Ok(()),
-            false => Err(ApiError::new(
-                StatusCode::BAD_REQUEST,
-                format!("namespace {namespace:?}: this console offers {:?} (`--namespace`)", self.namespaces),
-            )),
+    /// The namespaces a list covers: the one asked for, else those offered.
+    fn scope(&self, namespace: Option<String>) -> Vec<String> {
+        match namespace.filter(|n| !n.is_empty()) {
+            Some(n) => vec![n],
+            None => self.namespaces.clone(),
         }
     }
 
     /// The runs of every offered namespace the user can list. A refusal in every
     /// namespace is returned as the API server's error.
-    pub async fn list(&self, token: Option<String>) -> Result<Vec<RunView>, ApiError> {
+    pub async fn list(&self, token: Option<String>, namespace: Option<String>) -> Result<Vec<RunView>, ApiError> {
         let client = self.client(token)?;
         let mut views = Vec::new();
         let mut refused = None;
-        for ns in &self.namespaces {
+        for ns in &self.scope(namespace) {
             match Api::<SimulationRun>::namespaced(client.clone(), ns).list(&ListParams::default()).await {
                 Ok(list) => views.extend(list.items.iter().map(view)),
                 Err(e) => refused = Some(kube_error(e)),
@@ -162,8 +161,7 @@ impl ClusterBackend {
         namespace: Option<String>,
         queue: Option<String>,
     ) -> Result<RunView, ApiError> {
-        let namespace = namespace.unwrap_or_else(|| self.namespaces[0].clone());
-        self.check_namespace(&namespace)?;
+        let namespace = namespace.filter(|n| !n.is_empty()).unwrap_or_else(|| self.namespaces[0].clone());
         run.metadata.namespace = Some(namespace.clone());
         if let Some(q) = queue.filter(|q| !q.is_empty()) {
             run.spec.queue = Some(q);
@@ -177,7 +175,6 @@ impl ClusterBackend {
 
     async fn get(&self, client: &Client, id: &str) -> Result<SimulationRun, ApiError> {
         let (ns, name) = split_id(id)?;
-        self.check_namespace(ns)?;
         Api::<SimulationRun>::namespaced(client.clone(), ns).get(name).await.map_err(kube_error)
     }
 
@@ -232,13 +229,53 @@ impl ClusterBackend {
                 detail: Some(v.failures.join("; ")).filter(|f| !f.is_empty()),
             }],
         };
-        RunDetail { run: view(run), conditions, events, criteria, view_url: None, cameras: Vec::new() }
+        let id = format!("{ns}.{name}");
+        let live = status.endpoints.as_ref().and_then(|e| e.renderer.as_ref()).is_some()
+            && !matches!(
+                status.phase.as_ref().and_then(|p| serde_json::to_value(p).ok()).as_ref().and_then(Value::as_str),
+                Some("Succeeded" | "Failed" | "Aborted")
+            );
+        let view_url = live.then(|| format!("/api/runs/{id}/view/"));
+        RunDetail { run: view(run), conditions, events, criteria, view_url, cameras: Vec::new() }
+    }
+
+    /// A GET of the run's live view (`status.endpoints.renderer`) through the API server's
+    /// service proxy, as the user: the response streams through (the view's events).
+    pub async fn live_view(
+        &self,
+        token: Option<String>,
+        id: &str,
+        rest: &str,
+    ) -> Result<axum::response::Response, ApiError> {
+        let client = self.client(token)?;
+        let run = self.get(&client, id).await?;
+        let renderer = run.status.and_then(|s| s.endpoints).and_then(|e| e.renderer).ok_or_else(|| {
+            ApiError::new(StatusCode::NOT_FOUND, format!("run {id} has no live view (spec.rendering.enabled)"))
+        })?;
+        // `http://<service>.<namespace>.svc:<port>`.
+        let authority = renderer.trim_start_matches("http://").trim_end_matches('/');
+        let (host, port) = authority.rsplit_once(':').unwrap_or((authority, "80"));
+        let service = host.split('.').next().unwrap_or_default();
+        let ns = run.metadata.namespace.unwrap_or_default();
+        let uri = format!("/api/v1/namespaces/{ns}/services/{service}:{port}/proxy/{rest}");
+        let request = http::Request::get(uri)
+            .body(kube::client::Body::empty())
+            .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, e.to_string()))?;
+        let response = client.send(request).await.map_err(kube_error)?;
+        let (parts, body) = response.into_parts();
+        let mut out = axum::response::Response::new(axum::body::Body::new(body));
+        *out.status_mut() = parts.status;
+        for name in [http::header::CONTENT_TYPE, http::header::CACHE_CONTROL] {
+            if let Some(v) = parts.headers.get(&name) {
+                out.headers_mut().insert(name, v.clone());
+            }
+        }
+        Ok(out)
     }
 
     /// Sets `spec.abort` (the run stops: pilot, shards, then the archive is written).
     pub async fn stop(&self, token: Option<String>, id: &str) -> Result<RunView, ApiError> {
         let (ns, name) = split_id(id)?;
-        self.check_namespace(ns)?;
         let patched = Api::<SimulationRun>::namespaced(self.client(token)?, ns)
             .patch(name, &PatchParams::default(), &Patch::Merge(json!({"spec": {"abort": true}})))
             .await
@@ -248,12 +285,17 @@ impl ClusterBackend {
 
     /// The runs list as a stream: a watch per namespace (the API server pushes changes),
     /// the whole list sent at each one.
-    pub async fn watch(&self, token: Option<String>) -> Result<crate::server_stream::EventStream, ApiError> {
+    pub async fn watch(
+        &self,
+        token: Option<String>,
+        namespace: Option<String>,
+    ) -> Result<crate::server_stream::EventStream, ApiError> {
         let client = self.client(token)?;
+        let scope = self.scope(namespace);
         // The first list answers refusals at once, as an HTTP error rather than a stream.
-        self.list_check(&client).await?;
+        list_check(&client, &scope).await?;
         let apis: Vec<Api<SimulationRun>> =
-            self.namespaces.iter().map(|ns| Api::<SimulationRun>::namespaced(client.clone(), ns)).collect();
+            scope.iter().map(|ns| Api::<SimulationRun>::namespaced(client.clone(), ns)).collect();
         Ok(Box::pin(async_stream(move |tx| async move {
             let streams = apis.into_iter().map(|api| watcher(api, watcher::Config::default()).boxed());
             let mut merged = futures_util::stream::select_all(streams);
@@ -288,16 +330,6 @@ impl ClusterBackend {
         })))
     }
 
-    async fn list_check(&self, client: &Client) -> Result<(), ApiError> {
-        for ns in &self.namespaces {
-            Api::<SimulationRun>::namespaced(client.clone(), ns)
-                .list(&ListParams::default().limit(1))
-                .await
-                .map_err(kube_error)?;
-        }
-        Ok(())
-    }
-
     /// One run's page as a stream: a watch on that object, the page sent at each change.
     pub async fn watch_one(
         &self,
@@ -325,10 +357,14 @@ impl ClusterBackend {
     }
 
     /// The archived runs among those the user can list.
-    pub async fn archive_list(&self, token: Option<String>) -> Result<Vec<ArchiveEntry>, ApiError> {
+    pub async fn archive_list(
+        &self,
+        token: Option<String>,
+        namespace: Option<String>,
+    ) -> Result<Vec<ArchiveEntry>, ApiError> {
         let client = self.client(token)?;
         let mut entries = Vec::new();
-        for ns in &self.namespaces {
+        for ns in &self.scope(namespace) {
             let list = Api::<SimulationRun>::namespaced(client.clone(), ns)
                 .list(&ListParams::default())
                 .await
@@ -362,6 +398,17 @@ impl ClusterBackend {
     }
 }
 
+/// Answers a refusal to list in any of `scope` as the API server's error.
+async fn list_check(client: &Client, scope: &[String]) -> Result<(), ApiError> {
+    for ns in scope {
+        Api::<SimulationRun>::namespaced(client.clone(), ns)
+            .list(&ListParams::default().limit(1))
+            .await
+            .map_err(kube_error)?;
+    }
+    Ok(())
+}
+
 /// The runs list's row of a SimulationRun.
 fn view(run: &SimulationRun) -> RunView {
     let status = run.status.clone().unwrap_or_default();
@@ -370,7 +417,7 @@ fn view(run: &SimulationRun) -> RunView {
     let duration_s = run.spec.duration_s();
     let sim = status.sim_time_s.unwrap_or(0.0);
     let phase = status.phase.and_then(|p| serde_json::to_value(p).ok().and_then(|v| v.as_str().map(String::from)));
-    let over = matches!(phase.as_deref(), Some("Succeeded" | "Failed"));
+    let over = matches!(phase.as_deref(), Some("Succeeded" | "Failed" | "Aborted"));
     RunView {
         id: format!("{ns}.{name}"),
         name: name.clone(),

@@ -125,6 +125,9 @@ impl LiveRun {
         let end = summary.as_ref().and_then(|v| v.get("endReason")).and_then(Value::as_str).map(String::from);
         (s.phase, s.message) = match (&outcome, passed) {
             (Err(e), _) => ("Failed", Some(e.clone())),
+            (Ok(()), _) if end.as_deref() == Some("interrupted") => {
+                ("Aborted", Some("stopped before its end; its evidence is in the archive".into()))
+            }
             (Ok(()), Some(true)) => ("Succeeded", end.map(|e| format!("ended: {e}"))),
             (Ok(()), Some(false)) => ("Failed", Some("criteria failed".into())),
             (Ok(()), None) => ("Failed", Some("the run wrote no verdict".into())),
@@ -207,7 +210,7 @@ impl LiveRun {
 }
 
 fn is_over(phase: &str) -> bool {
-    matches!(phase, "Succeeded" | "Failed")
+    matches!(phase, "Succeeded" | "Failed" | "Aborted")
 }
 
 pub(crate) fn verdict_word(passed: bool) -> String {

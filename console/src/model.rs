@@ -12,7 +12,7 @@ pub struct RunView {
     pub name: String,
     pub namespace: String,
     /// The SimulationRun phases: Pending, Queued, GeneratingAssets, Starting, Running,
-    /// Archiving, Succeeded, Failed.
+    /// Archiving, Succeeded, Failed, Aborted.
     pub phase: String,
     /// Simulated time reached over the run's length, 0..1.
     pub progress: Option<f64>,

@@ -22,7 +22,7 @@ use std::time::Duration;
 
 use axum::Router;
 use axum::body::Body;
-use axum::extract::{Path, Request, State};
+use axum::extract::{Path, Query, Request, State};
 use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::sse::{Event as SseEvent, KeepAlive, Sse};
 use axum::response::{IntoResponse, Redirect, Response};
@@ -128,11 +128,29 @@ async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> 
         .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, format!("the request's work failed: {e}")))
 }
 
-/// The user's bearer token, if the request carries one.
+/// The cookie the page sets with the user's token, for what the browser fetches by itself
+/// (the report, downloads, the replay and live view frames) where it sends no header.
+pub const TOKEN_COOKIE: &str = "sadesim_token";
+
+/// The user's bearer token: the `Authorization: Bearer` header, else the
+/// [`TOKEN_COOKIE`].
 pub fn bearer(headers: &HeaderMap) -> Option<String> {
-    let value = headers.get(header::AUTHORIZATION)?.to_str().ok()?;
-    let token = value.strip_prefix("Bearer ").or_else(|| value.strip_prefix("bearer "))?.trim();
-    (!token.is_empty()).then(|| token.to_string())
+    let from_header = headers
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.strip_prefix("Bearer ").or_else(|| v.strip_prefix("bearer ")))
+        .map(str::trim);
+    let from_cookie = || {
+        headers
+            .get_all(header::COOKIE)
+            .iter()
+            .filter_map(|v| v.to_str().ok())
+            .flat_map(|v| v.split(';'))
+            .filter_map(|kv| kv.trim().split_once('='))
+            .find(|(k, _)| *k == TOKEN_COOKIE)
+            .map(|(_, v)| v.trim())
+    };
+    from_header.or_else(from_cookie).filter(|t| !t.is_empty()).map(String::from)
 }
 
 /// The console's routes.
@@ -152,6 +170,7 @@ pub fn router(console: Console) -> Router {
         .route("/api/runs/{id}", get(run))
         .route("/api/runs/{id}/watch", get(watch_run))
         .route("/api/runs/{id}/stop", post(stop))
+        .route("/api/runs/{id}/view/{*rest}", get(live_view))
         .route("/api/archive", get(archive_list))
         .route("/api/archive/{id}", get(archive_entry))
         .route("/api/archive/{id}/files/{*path}", get(archive_file))
@@ -287,10 +306,16 @@ async fn world(State(c): State<Console>, axum::Json(body): axum::Json<DocumentBo
     Ok(([(header::CONTENT_TYPE, "application/json")], serde_json::to_vec(&*layers).expect("JSON")).into_response())
 }
 
-async fn runs(State(c): State<Console>, headers: HeaderMap) -> ApiResult {
+/// `?namespace=` of the list endpoints (cluster only).
+#[derive(Deserialize, Default)]
+struct Scope {
+    namespace: Option<String>,
+}
+
+async fn runs(State(c): State<Console>, headers: HeaderMap, Query(scope): Query<Scope>) -> ApiResult {
     let runs = match &c.backend {
         Backend::Local(l) => l.list(),
-        Backend::Cluster(k) => k.list(bearer(&headers)).await?,
+        Backend::Cluster(k) => k.list(bearer(&headers), scope.namespace).await?,
     };
     Ok(axum::Json(json!({"runs": runs})).into_response())
 }
@@ -389,13 +414,13 @@ where
     stream::unfold(rx, |mut rx| async move { rx.recv().await.map(|e| (Ok(e), rx)) })
 }
 
-async fn watch_runs(State(c): State<Console>, headers: HeaderMap) -> ApiResult {
+async fn watch_runs(State(c): State<Console>, headers: HeaderMap, Query(scope): Query<Scope>) -> ApiResult {
     match &c.backend {
         Backend::Local(l) => {
             let l2 = l.clone();
             Ok(sse(local_stream(l.changes(), "runs", move || Some(json!({"runs": l2.list()}).to_string()))))
         }
-        Backend::Cluster(k) => Ok(sse(k.watch(bearer(&headers)).await?)),
+        Backend::Cluster(k) => Ok(sse(k.watch(bearer(&headers), scope.namespace).await?)),
     }
 }
 
@@ -418,13 +443,13 @@ async fn archive_of(c: &Console, headers: &HeaderMap, id: &str) -> Result<(Archi
     }
 }
 
-async fn archive_list(State(c): State<Console>, headers: HeaderMap) -> ApiResult {
+async fn archive_list(State(c): State<Console>, headers: HeaderMap, Query(scope): Query<Scope>) -> ApiResult {
     let entries = match &c.backend {
         Backend::Local(l) => {
             let browser = ArchiveBrowser::new(&l.runs_root.display().to_string());
             blocking(move || browser.list()).await??
         }
-        Backend::Cluster(k) => k.archive_list(bearer(&headers)).await?,
+        Backend::Cluster(k) => k.archive_list(bearer(&headers), scope.namespace).await?,
     };
     Ok(axum::Json(json!({"runs": entries})).into_response())
 }
@@ -459,6 +484,21 @@ async fn archive_verify(State(c): State<Console>, headers: HeaderMap, Path(id): 
     Ok(axum::Json(verification).into_response())
 }
 
+/// `/api/runs/<id>/view/...` on a cluster: the run's live view through the API server's
+/// service proxy, with the user's identity (`services/proxy` in the run's namespace).
+async fn live_view(
+    State(c): State<Console>,
+    headers: HeaderMap,
+    Path((id, rest)): Path<(String, String)>,
+) -> ApiResult {
+    match &c.backend {
+        Backend::Local(_) => {
+            Err(ApiError::new(StatusCode::NOT_FOUND, "local runs serve their live view themselves (viewUrl)"))
+        }
+        Backend::Cluster(k) => k.live_view(bearer(&headers), &id, &rest).await,
+    }
+}
+
 /// `/replay/<id>/...`: the live view's routes on the archived run, built once per run.
 async fn replay(State(c): State<Console>, headers: HeaderMap, request: Request) -> ApiResult {
     let path = request.uri().path().to_string();
@@ -486,4 +526,29 @@ async fn replay(State(c): State<Console>, headers: HeaderMap, request: Request) 
         .body(Body::empty())
         .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, e.to_string()))?;
     Ok(view.oneshot(request).await.unwrap_or_else(|never| match never {}))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn headers(pairs: &[(header::HeaderName, &str)]) -> HeaderMap {
+        let mut h = HeaderMap::new();
+        for (k, v) in pairs {
+            h.append(k.clone(), v.parse().unwrap());
+        }
+        h
+    }
+
+    #[test]
+    fn the_token_comes_from_the_header_else_the_cookie() {
+        assert_eq!(bearer(&headers(&[(header::AUTHORIZATION, "Bearer abc")])).as_deref(), Some("abc"));
+        let cookie = headers(&[(header::COOKIE, "theme=dark; sadesim_token=xyz; other=1")]);
+        assert_eq!(bearer(&cookie).as_deref(), Some("xyz"));
+        let both = headers(&[(header::AUTHORIZATION, "Bearer abc"), (header::COOKIE, "sadesim_token=xyz")]);
+        assert_eq!(bearer(&both).as_deref(), Some("abc"));
+        assert_eq!(bearer(&headers(&[(header::AUTHORIZATION, "Basic abc")])), None);
+        assert_eq!(bearer(&headers(&[(header::AUTHORIZATION, "Bearer  ")])), None);
+        assert_eq!(bearer(&HeaderMap::new()), None);
+    }
 }

@@ -94,7 +94,7 @@ def operator(kubectl, helm, crd, object_store):
         helm, f"--kubeconfig={kubectl.kubeconfig}", "upgrade", "--install", "sadesim", str(REPO / "charts/sadesim"),
         "-n", SYSTEM_NS, "--create-namespace", "--wait", "--timeout", "180s",
         "--set", f"image.tag={tag}", "--set", f"workerImage.tag={tag}", "--set", f"cameraImage.tag={tag}",
-        "--set", f"openfoamImage.tag={tag}",
+        "--set", f"openfoamImage.tag={tag}", "--set", "console.enabled=true",
         "--set", f"defaultArchiveUrl=s3://{BUCKET}",
         "--set", "objectStore.create=true", "--set", f"objectStore.secretName={OBJECT_STORE_SECRET}",
         "--set", "objectStore.env.AWS_ACCESS_KEY_ID=sadesim",

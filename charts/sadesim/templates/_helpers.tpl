@@ -46,3 +46,16 @@ app.kubernetes.io/component: operator
 {{- define "sadesim.cameraImage" -}}
 {{- printf "%s:%s" .Values.cameraImage.repository (default .Chart.AppVersion .Values.cameraImage.tag) -}}
 {{- end -}}
+
+{{- define "sadesim.consoleSelectorLabels" -}}
+app.kubernetes.io/name: {{ .Chart.Name }}
+app.kubernetes.io/instance: {{ .Release.Name }}
+app.kubernetes.io/component: console
+{{- end -}}
+
+{{- define "sadesim.consoleLabels" -}}
+{{ include "sadesim.consoleSelectorLabels" . }}
+app.kubernetes.io/version: {{ .Chart.AppVersion | quote }}
+app.kubernetes.io/managed-by: {{ .Release.Service }}
+helm.sh/chart: {{ printf "%s-%s" .Chart.Name .Chart.Version | replace "+" "_" }}
+{{- end -}}

@@ -20,7 +20,7 @@ use crate::runner::{RunOptions, RunWatch, run_local};
 #[derive(Debug, Clone, clap::Args)]
 pub struct ConsoleArgs {
     /// Address to serve the console on (port 0 picks a free one).
-    #[arg(long, default_value = "127.0.0.1:8480")]
+    #[arg(long, default_value = "127.0.0.1:8400")]
     pub listen: SocketAddr,
     /// Local backend: the folder runs are flown into (`<runs>/<run>/<UTC time>/`, as
     /// `sadesim run`), which is also the archive the console browses.
