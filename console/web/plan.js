@@ -223,7 +223,7 @@ function optional(path, label, make, body) {
     setPath(S.doc, path, box.checked ? make() : undefined);
     changed(path, { structure: true });
   });
-  return h('div.optional', h('div.row.check', box, h('label', { for: box.id }, label)), present ? body() : null);
+  return h('div.optional', { 'data-field': path }, h('div.row.check', box, h('label', { for: box.id }, label)), present ? body() : null);
 }
 
 function generalTab() {
@@ -476,7 +476,7 @@ function environmentTab() {
       }
       changed(`${p}.${key}`, { structure: true });
     });
-    return h('div.optional', h('div.row.check', box, h('label', { for: box.id }, label)), present ? body() : null);
+    return h('div.optional', { 'data-field': `${p}.${key}` }, h('div.row.check', box, h('label', { for: box.id }, label)), present ? body() : null);
   };
   return h('div',
     optEnv('wind', 'Wind', () => ({ speedMps: 5, directionFromDeg: 270 }), () => F.group(`${p}.wind`, 'Wind',

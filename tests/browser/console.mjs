@@ -11,6 +11,7 @@
 //   "roundtrip" import each of `files` through the file input and export it
 //   "launch"    import `file`, launch it, follow it to its end, report, replay, archive, verify
 //   "fps"       import `file`, measure the frame rate while panning the map for `seconds`
+//   "stop"      import `file`, switch its clock to realtime, launch, stop it while it flies
 //   "auth"      the cluster backend's API mocked in the page (token, 401, a refused launch);
 //               `file` is pasted into the plan
 // Prints one JSON object: {"result": {...}, "external": [URLs the page asked for off this
@@ -386,9 +387,29 @@ async function auth() {
   };
 }
 
+async function stop() {
+  await openPlan();
+  await importFile(config.file);
+  // In real time, so that it is still flying when stopped.
+  await (await field('spec.clock.mode')).selectOption('realtime');
+  await waitIdle();
+  await page.click('#launch');
+  await page.waitForURL(/#\/runs\/.+/, { timeout: 60000 });
+  const head = page.locator('.run-head');
+  await page.waitForFunction(() => /Running/.test(document.querySelector('.run-head .badge')?.textContent || ''), null, { timeout: 120000 });
+  const before = await head.locator('.badge').first().textContent();
+  await page.click('#stop-run');
+  await page.waitForFunction(() => /Aborted|Succeeded|Failed/.test(document.querySelector('.run-head .badge')?.textContent || ''), null, { timeout: 120000 });
+  const after = await head.locator('.badge').first().textContent();
+  await page.waitForSelector('#open-archive', { timeout: 60000 });
+  const message = await page.locator('.run-message').textContent().catch(() => null);
+  const stopShown = await page.locator('#stop-run').count();
+  result = { before, after, message, stopShown, clock: (await page.evaluate(() => window.sadesimConsole.doc().spec.clock)) };
+}
+
 let failure = null;
 try {
-  await ({ zone, roundtrip, launch, fps, auth })[config.scenario]();
+  await ({ zone, roundtrip, launch, fps, auth, stop })[config.scenario]();
 } catch (e) {
   failure = String(e && e.stack ? e.stack : e);
   try { await shot('failure'); } catch { /* the page is gone */ }

@@ -193,6 +193,13 @@ def test_the_quickstart_launched_from_the_page_runs_reports_replays_and_verifies
     keep_for_docs("runs", "run", "archive-entry")
 
 
+def test_a_run_stopped_from_its_page_ends_aborted_with_its_evidence(console, tmp_path):
+    r = drive(console, tmp_path, "stop", file=str(REPO / "examples" / "quickstart.yaml"))
+    assert r["clock"] == {"mode": "realtime"}
+    assert r["before"] == "Running" and r["after"] == "Aborted", r
+    assert r["stopShown"] == 0, "the Stop button stays on an ended run"
+
+
 def test_on_a_cluster_the_page_sends_the_users_token_and_shows_the_api_servers_refusal(console, tmp_path):
     """The cluster backend's answers are played by the browser driver (no cluster here): the
     console needs the user's token, the runs stream refuses without it, and the Kubernetes API
