@@ -92,7 +92,8 @@ export function list(path, label, opts = {}) {
 /** A list of strings, one a line (a command and its arguments). */
 export function lines(path, label, opts = {}) {
   const v = getPath(ctx.doc(), path);
-  const el = h('textarea', { 'data-field': path, rows: opts.rows || 3, placeholder: opts.placeholder || '', spellcheck: 'false' });
+  const n = Array.isArray(v) ? v.length : 0;
+  const el = h('textarea', { 'data-field': path, rows: Math.min(10, Math.max(opts.rows || 3, n)), placeholder: opts.placeholder || '', spellcheck: 'false' });
   el.value = Array.isArray(v) ? v.join('\n') : '';
   el.addEventListener('input', () => {
     const items = el.value.split('\n').filter((s, i, a) => s !== '' || i < a.length - 1);
