@@ -11,7 +11,8 @@
 //   "roundtrip" import each of `files` through the file input and export it
 //   "launch"    import `file`, launch it, follow it to its end, report, replay, archive, verify
 //   "fps"       import `file`, measure the frame rate while panning the map for `seconds`
-//   "stop"      import `file`, switch its clock to realtime, launch, stop it while it flies
+//   "stop"      import `file`, switch its clock to realtime and its live view on, launch,
+//               watch the live view in the run's page, stop the run while it flies
 //   "auth"      the cluster backend's API mocked in the page (token, 401, a refused launch);
 //               `file` is pasted into the plan
 // Prints one JSON object: {"result": {...}, "external": [URLs the page asked for off this
@@ -392,19 +393,30 @@ async function stop() {
   await importFile(config.file);
   // In real time, so that it is still flying when stopped.
   await (await field('spec.clock.mode')).selectOption('realtime');
+  // With the live 3D view.
+  await (await field('spec.rendering.enabled')).check();
   await waitIdle();
   await page.click('#launch');
   await page.waitForURL(/#\/runs\/.+/, { timeout: 60000 });
   const head = page.locator('.run-head');
   await page.waitForFunction(() => /Running/.test(document.querySelector('.run-head .badge')?.textContent || ''), null, { timeout: 120000 });
   const before = await head.locator('.badge').first().textContent();
+  // The live view, embedded: its page draws (its own canvas, its own stream).
+  await page.waitForSelector('iframe.live-view', { timeout: 60000 });
+  const viewUrl = await page.locator('iframe.live-view').getAttribute('src');
+  const frame = page.frameLocator('iframe.live-view');
+  await frame.locator('canvas').first().waitFor({ timeout: 60000 });
+  const view = page.frames().find((f) => f.url().startsWith(viewUrl.replace(/\/$/, '')));
+  await view.waitForFunction(() => window.sadesimView && window.sadesimView.ready && window.sadesimView.frames > 5 && window.sadesimView.time > 0, null, { timeout: 60000 });
+  const liveView = await view.evaluate(() => ({ ready: window.sadesimView.ready, frames: window.sadesimView.frames, time: window.sadesimView.time }));
+  await shot('run-live');
   await page.click('#stop-run');
   await page.waitForFunction(() => /Aborted|Succeeded|Failed/.test(document.querySelector('.run-head .badge')?.textContent || ''), null, { timeout: 120000 });
   const after = await head.locator('.badge').first().textContent();
   await page.waitForSelector('#open-archive', { timeout: 60000 });
   const message = await page.locator('.run-message').textContent().catch(() => null);
   const stopShown = await page.locator('#stop-run').count();
-  result = { before, after, message, stopShown, clock: (await page.evaluate(() => window.sadesimConsole.doc().spec.clock)) };
+  result = { before, after, message, stopShown, viewUrl, liveView, viewGone: await page.locator('iframe.live-view').count(), rendering: (await page.evaluate(() => window.sadesimConsole.doc().spec.rendering)), clock: (await page.evaluate(() => window.sadesimConsole.doc().spec.clock)) };
 }
 
 let failure = null;

@@ -8,7 +8,9 @@ SwiftShader, the local backend flying runs into a temporary folder.
   `sadesim validate` and holds the zone as drawn.
 - Import then export of every example is byte-identical to the file.
 - The quickstart launched from the page: the runs list follows it to `Succeeded`/`passed`,
-  its report and 3D replay open, the archive lists it and verifies it.
+  its report and 3D replay open, the archive lists it and verifies it. In real time with its
+  live 3D view: the view plays in the run's page, and Stop ends the run `Aborted`.
+- The cluster side (token, 401, the API server's refusal), answered by the driver.
 - The plan map's frame rate while panning the 32-drone Chicago example (a measurement: see
   docs/console.md).
 
@@ -190,14 +192,19 @@ def test_the_quickstart_launched_from_the_page_runs_reports_replays_and_verifies
     assert any(p.startswith("ulog/") and h for p, h in paths.items()), paths
     assert r["archiveEvents"] > 10
     assert r["verify"]["ok"] == "true" and r["verify"]["text"].startswith("ok"), r["verify"]
-    keep_for_docs("runs", "run", "archive-entry")
+    keep_for_docs("run", "archive-entry")
 
 
-def test_a_run_stopped_from_its_page_ends_aborted_with_its_evidence(console, tmp_path):
+def test_a_run_with_its_live_view_stopped_from_its_page_ends_aborted(console, tmp_path):
     r = drive(console, tmp_path, "stop", file=str(REPO / "examples" / "quickstart.yaml"))
-    assert r["clock"] == {"mode": "realtime"}
+    assert r["clock"] == {"mode": "realtime"} and r["rendering"] == {"enabled": True}
+    # The live view embedded in the run's page drew the run as it flew.
+    assert r["viewUrl"].startswith("http://127.0.0.1:"), r["viewUrl"]
+    assert r["liveView"]["ready"] and r["liveView"]["frames"] > 5 and r["liveView"]["time"] > 0, r["liveView"]
     assert r["before"] == "Running" and r["after"] == "Aborted", r
     assert r["stopShown"] == 0, "the Stop button stays on an ended run"
+    assert r["viewGone"] == 0, "the live view stays on an ended run"
+    keep_for_docs("run-live")
 
 
 def test_on_a_cluster_the_page_sends_the_users_token_and_shows_the_api_servers_refusal(console, tmp_path):
