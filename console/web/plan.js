@@ -558,7 +558,7 @@ function criterionCard(c, j) {
 
 function yamlTab() {
   return h('div.yaml-tab',
-    h('div.actions', btn('Download', () => exportYaml(true), 'small'), h('span.muted', S.original !== null ? ' exported from the imported text: unchanged parts keep their comments and layout' : '')),
+    h('div.actions', btn('Download', () => exportYaml(true), 'small'), h('span.muted', S.original !== null ? ' imported: exported exactly as the file was until you change it; after a change, written from the fields (its comments are lost)' : '')),
     el.yamlPre = h('pre#yaml-text', S.yaml === null ? 'exporting…' : S.yaml));
 }
 
