@@ -15,7 +15,8 @@
 //! - [`archive`]: listing, files and verification of archived runs;
 //! - [`replay`]: a recorded run's 3D replay (shared with `sadesim view`);
 //! - [`model`]: what the API answers;
-//! - [`time`]: RFC 3339 and run-folder stamps.
+//! - [`time`]: RFC 3339 and run-folder stamps;
+//! - [`server_stream`]: the stream type of the watch endpoints.
 
 pub mod archive;
 pub mod cluster;
