@@ -178,6 +178,18 @@ async function zone() {
   await shot('plan-count-error');
   await (await field(`${gp}.count`)).fill('3');
   const countFixed = await waitErrorAfter(`${gp}.count`, false);
+  // Its route: Add waypoints on the map, two clicks, Esc.
+  await page.locator(`#group-${gi} button`, { hasText: 'Add waypoints on the map' }).click();
+  const waypointsClicked = [];
+  for (const [fx, fy] of [[0.3, 0.2], [0.4, 0.55]]) {
+    const p = await mapPoint(fx, fy);
+    await page.mouse.click(p.x, p.y);
+    waypointsClicked.push(await latLonAt(p));
+    await sleep(150);
+  }
+  await page.keyboard.press('Escape');
+  const mission = await page.evaluate((i) => window.sadesimConsole.doc().spec.fleet[i].mission, gi);
+  const routeDrawn = await page.evaluate((i) => (window.sadesimConsole.mapData('missions').features.find((f) => f.properties.index === i) || { geometry: { coordinates: [] } }).geometry.coordinates.length, gi);
   // A floor above the ceiling: the message is on the zone's ceiling, then goes.
   await page.click('.tabs button[data-tab="zones"]');
   await (await field(`${zp}.floor.reference`)).selectOption('agl');
@@ -200,6 +212,14 @@ async function zone() {
   const triangle = await page.evaluate((i) => window.sadesimConsole.doc().spec.zones[i], zi + 1);
   const modeAfterTriangle = await page.evaluate(() => window.sadesimConsole.mode);
   await waitIdle();
+  // The origin, picked on the map: the city is built again around it.
+  const loadsBefore = await page.evaluate(() => window.sadesimConsole.worldLoads);
+  await page.click('#pick-origin');
+  const o = await mapPoint(0.5, 0.62);
+  await page.mouse.click(o.x, o.y);
+  const originClicked = await latLonAt(o);
+  await page.waitForFunction((n) => window.sadesimConsole.worldLoads > n, loadsBefore, { timeout: 60000 });
+  await waitIdle();
   const errorsAfter = await page.evaluate(() => window.sadesimConsole.errors());
   const status = await page.locator('.status-line').textContent();
   await shot('plan-zone');
@@ -212,7 +232,7 @@ async function zone() {
   result = {
     clicked, metresPerPixel, drafted: drafted.features.length, homeLatLon, zoneIndex: zi, groupIndex: gi, errorsBefore,
     countError, countFixed, ceilingError, ceilingFixed, zoneHighlighted, errorsAfter, status,
-    exported, yamlTab, triangle, modeAfterTriangle, zone: doc.spec.zones[zi], group: doc.spec.fleet[gi],
+    exported, yamlTab, triangle, waypointsClicked, mission, routeDrawn, originClicked, origin: doc.spec.origin, modeAfterTriangle, zone: doc.spec.zones[zi], group: doc.spec.fleet[gi],
   };
 }
 

@@ -3,7 +3,7 @@ Chromium driven by npm playwright-core (tests/browser/console.mjs), MapLibre's W
 SwiftShader, the local backend flying runs into a temporary folder.
 
 - Plan: a zone drawn by clicking its corners on the map and given a ceiling in its form, a
-  fleet group placed by a click; a bad count and a floor above the ceiling are reported next
+  fleet group placed by a click and its route by two more, the origin picked; a bad count and a floor above the ceiling are reported next
   to their inputs and the messages go when fixed; the exported YAML validates with
   `sadesim validate` and holds the zone as drawn.
 - Import then export of every example is byte-identical to the file.
@@ -130,6 +130,14 @@ def test_a_zone_and_a_group_drawn_on_the_map_validate_live_and_export(console, s
     centre = r["group"]["homes"]["randomInArea"]["center"]
     assert close(centre, r["homeLatLon"], r["metresPerPixel"]), (centre, r["homeLatLon"])
     assert r["errorsBefore"] == []
+    # Its route: two waypoints clicked, before the final hover and return.
+    items = r["mission"]["items"]
+    assert [next(iter(i)) for i in items] == ["takeoff", "waypoint", "waypoint", "loiter", "returnToLaunch"], items
+    for item, clicked in zip(items[1:3], r["waypointsClicked"]):
+        assert close(item["waypoint"], clicked, r["metresPerPixel"]) and item["waypoint"]["altitudeAglM"] == 30, item
+    assert r["routeDrawn"] == 4, "home, two waypoints, home"
+    # The origin picked on the map (its altitude kept).
+    assert close(r["origin"], r["originClicked"], r["metresPerPixel"]) and r["origin"]["altitudeMslM"] == 181, r["origin"]
     # A count of 0: the validator's message right after the count's input, gone when fixed.
     assert r["countError"] and "between 1 and 10000" in r["countError"], r["countError"]
     assert r["countFixed"] is None
@@ -155,6 +163,7 @@ def test_a_zone_and_a_group_drawn_on_the_map_validate_live_and_export(console, s
     assert drawn[0]["floor"] == {"heightM": 10, "reference": "agl"}
     assert any(g["name"] == r["group"]["name"] and g["count"] == 3 for g in doc["spec"]["fleet"])
     assert [len(z["polygon"]) for z in doc["spec"]["zones"]] == [4, 4, 3]
+    assert doc["spec"]["origin"] == r["origin"]
     keep_for_docs("plan-zone-error")
 
 
