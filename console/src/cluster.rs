@@ -398,6 +398,19 @@ impl ClusterBackend {
     }
 }
 
+/// `<archive>/<namespace>/<run>/<uid>/` -> the archive's root and the run's entry id in it.
+fn split_archive_url(url: &str) -> Option<(String, String)> {
+    let parts: Vec<&str> = url.trim_end_matches('/').rsplitn(4, '/').collect();
+    match parts.as_slice() {
+        [uid, run, ns, root]
+            if root.contains("://") && !root.ends_with(':') && ![uid, run, ns].iter().any(|s| s.is_empty()) =>
+        {
+            Some((root.to_string(), format!("{ns}.{run}.{uid}")))
+        }
+        _ => None,
+    }
+}
+
 /// Answers a refusal to list in any of `scope` as the API server's error.
 async fn list_check(client: &Client, scope: &[String]) -> Result<(), ApiError> {
     for ns in scope {
@@ -454,4 +467,68 @@ fn archive_entry(run: &SimulationRun) -> Option<ArchiveEntry> {
         duration_s: status.sim_time_s,
         complete: archive.files.is_some(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sadesim_crds::status::{ArchiveStatus, KueueStatus, Phase, SimulationRunStatus, Verdict};
+
+    fn run(status: Option<SimulationRunStatus>) -> SimulationRun {
+        let mut r = sadesim_crds::fixtures::RunBuilder::test().build();
+        r.metadata.name = Some("chicago".into());
+        r.metadata.namespace = Some("team-a".into());
+        r.status = status;
+        r
+    }
+
+    #[test]
+    fn a_new_run_is_pending_with_its_spec_s_drones() {
+        let v = view(&run(None));
+        assert_eq!((v.id.as_str(), v.phase.as_str()), ("team-a.chicago", "Pending"));
+        assert_eq!(v.drones, run(None).spec.total_drones());
+        assert_eq!(v.progress, Some(0.0));
+        assert_eq!((v.verdict, v.archive_id, v.queue_position), (None, None, None));
+    }
+
+    #[test]
+    fn status_fields_reach_the_row() {
+        let status = SimulationRunStatus {
+            phase: Some(Phase::Queued),
+            kueue: Some(KueueStatus { position_in_local_queue: Some(3), ..Default::default() }),
+            ..Default::default()
+        };
+        assert_eq!(view(&run(Some(status))).queue_position, Some(3));
+        let done = SimulationRunStatus {
+            phase: Some(Phase::Failed),
+            sim_time_s: Some(12.0),
+            drones: Some(7),
+            verdict: Some(Verdict {
+                passed: false,
+                failures: vec!["noCrashes".into()],
+                unauthorized_entries: None,
+                crashes: Some(1),
+            }),
+            archive: Some(ArchiveStatus { url: "s3://b/team-a/chicago/u1/".into(), files: Some(20), bytes: None }),
+            ..Default::default()
+        };
+        let v = view(&run(Some(done)));
+        assert_eq!((v.phase.as_str(), v.progress, v.drones), ("Failed", Some(1.0), 7));
+        assert_eq!(v.verdict.as_deref(), Some("failed"));
+        assert_eq!(v.archive_id.as_deref(), Some("team-a.chicago"));
+    }
+
+    #[test]
+    fn an_archive_url_splits_into_its_root_and_the_run_s_folder() {
+        assert_eq!(
+            split_archive_url("s3://runs/prefix/team-a/chicago/0f3a-11/"),
+            Some(("s3://runs/prefix".into(), "team-a.chicago.0f3a-11".into()))
+        );
+        assert_eq!(
+            split_archive_url("s3://runs/team-a/chicago/u"),
+            Some(("s3://runs".into(), "team-a.chicago.u".into()))
+        );
+        assert_eq!(split_archive_url("s3://team-a/chicago/u"), None);
+        assert_eq!(split_archive_url("chicago/u"), None);
+    }
 }

@@ -313,6 +313,7 @@ impl LocalBackend {
             .name(format!("console-run-{}", live.name))
             .spawn(move || {
                 let outcome = launcher.fly(&run, &scenario, &pilot_dir, &dir, thread_live.clone(), stop);
+                let _ = std::fs::remove_file(&scenario);
                 thread_live.finished(outcome);
             })
             .map_err(|e| format!("cannot start the run's thread: {e}"))?;
@@ -328,5 +329,133 @@ impl LocalBackend {
         while runs.iter().any(|r| !r.is_over()) && Instant::now() < deadline {
             std::thread::sleep(Duration::from_millis(100));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Flies nothing: follows `script` and writes the summary a real run would.
+    struct Scripted {
+        passed: Option<bool>,
+        until_stopped: bool,
+        fail: Option<&'static str>,
+    }
+
+    impl Launcher for Scripted {
+        fn fly(
+            &self,
+            _run: &SimulationRun,
+            scenario: &Path,
+            _pilot_dir: &Path,
+            run_dir: &Path,
+            live: Arc<LiveRun>,
+            stop: Arc<AtomicBool>,
+        ) -> Result<(), String> {
+            assert!(scenario.is_file(), "the run's own document is written for its pilot");
+            std::fs::create_dir_all(run_dir).unwrap();
+            live.started(Some("http://127.0.0.1:8490/".into()));
+            let mut t = 0.0;
+            while self.until_stopped && !stop.load(Ordering::SeqCst) {
+                t += 0.5;
+                live.window(t, FleetCounts { airborne: 1, on_ground: 0, crashed: 0 });
+                std::thread::sleep(Duration::from_millis(5));
+            }
+            if let Some(e) = self.fail {
+                return Err(e.into());
+            }
+            let end = if self.until_stopped { "interrupted" } else { "duration" };
+            let verdict = self.passed.map(|p| serde_json::json!({"passed": p, "criteria": []}));
+            let summary = serde_json::json!({"simTimeS": 40.0, "endReason": end, "verdict": verdict});
+            std::fs::write(run_dir.join(run_folder::SUMMARY), summary.to_string()).unwrap();
+            Ok(())
+        }
+    }
+
+    fn backend(launcher: Scripted) -> (LocalBackend, PathBuf) {
+        let root = std::env::temp_dir().join(format!("console-local-{}-{}", std::process::id(), rand_suffix()));
+        (LocalBackend::new(root.clone(), root.clone(), Arc::new(launcher)), root)
+    }
+
+    fn rand_suffix() -> u64 {
+        use std::sync::atomic::AtomicU64;
+        static N: AtomicU64 = AtomicU64::new(0);
+        N.fetch_add(1, Ordering::SeqCst)
+    }
+
+    fn wait_over(run: &LiveRun) -> RunView {
+        for _ in 0..500 {
+            if run.is_over() {
+                return run.view();
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        panic!("the run never ended: {:?}", run.view());
+    }
+
+    fn quickstart() -> SimulationRun {
+        sadesim_crds::fixtures::RunBuilder::test().build()
+    }
+
+    #[test]
+    fn a_run_goes_from_assets_to_its_verdict() {
+        let (b, root) = backend(Scripted { passed: Some(true), until_stopped: false, fail: None });
+        let mut changes = b.changes();
+        let live = b.launch(quickstart(), "kind: SimulationRun\n").unwrap();
+        assert!(live.dir.starts_with(&root));
+        let v = wait_over(&live);
+        assert_eq!((v.phase.as_str(), v.verdict.as_deref(), v.sim_time_s), ("Succeeded", Some("passed"), 40.0));
+        assert_eq!(v.archive_id.as_deref(), Some(v.id.as_str()));
+        assert!(changes.has_changed().unwrap(), "watchers were woken");
+        assert_eq!(b.list().len(), 1);
+        assert!(b.get(&v.id).is_some() && b.get("other.20260101T000000Z").is_none());
+        let _ = changes.borrow_and_update();
+        std::fs::remove_dir_all(root).ok();
+    }
+
+    #[test]
+    fn failed_criteria_a_runner_error_and_no_verdict_fail_the_run() {
+        for (launcher, message) in [
+            (Scripted { passed: Some(false), until_stopped: false, fail: None }, "criteria failed"),
+            (Scripted { passed: None, until_stopped: false, fail: Some("shard 0 failed") }, "shard 0 failed"),
+            (Scripted { passed: None, until_stopped: false, fail: None }, "the run wrote no verdict"),
+        ] {
+            let (b, root) = backend(launcher);
+            let v = wait_over(&b.launch(quickstart(), "").unwrap());
+            assert_eq!(v.phase, "Failed");
+            assert_eq!(v.message.as_deref(), Some(message));
+            std::fs::remove_dir_all(root).ok();
+        }
+    }
+
+    #[test]
+    fn a_stopped_run_ends_aborted_and_its_live_view_goes() {
+        let (b, root) = backend(Scripted { passed: Some(true), until_stopped: true, fail: None });
+        let live = b.launch(quickstart(), "").unwrap();
+        while live.view().sim_time_s < 1.0 {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let flying = live.detail();
+        assert_eq!(flying.run.phase, "Running");
+        assert_eq!(flying.view_url.as_deref(), Some("http://127.0.0.1:8490/"));
+        assert!(flying.run.progress.unwrap() > 0.0);
+        live.stop();
+        let v = wait_over(&live);
+        assert_eq!(v.phase, "Aborted");
+        assert_eq!(live.detail().view_url, None);
+        std::fs::remove_dir_all(root).ok();
+    }
+
+    #[test]
+    fn two_runs_of_one_scenario_in_one_second_get_their_own_folders() {
+        let (b, root) = backend(Scripted { passed: Some(true), until_stopped: false, fail: None });
+        let a = b.launch(quickstart(), "").unwrap();
+        let c = b.launch(quickstart(), "").unwrap();
+        assert_ne!(a.id, c.id);
+        assert_ne!(a.dir, c.dir);
+        wait_over(&a);
+        wait_over(&c);
+        std::fs::remove_dir_all(root).ok();
     }
 }

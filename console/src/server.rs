@@ -499,6 +499,9 @@ async fn live_view(
     }
 }
 
+/// Replays kept in memory at once.
+const MAX_REPLAYS: usize = 4;
+
 /// `/replay/<id>/...`: the live view's routes on the archived run, built once per run.
 async fn replay(State(c): State<Console>, headers: HeaderMap, request: Request) -> ApiResult {
     let path = request.uri().path().to_string();
@@ -516,7 +519,12 @@ async fn replay(State(c): State<Console>, headers: HeaderMap, request: Request) 
             .await?
             .map_err(|e| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, format!("replay of {id}: {e}")))?;
             let view = sim_worker::view::server::router(built.content);
-            c.replays.lock().expect("replays").insert(id.clone(), view.clone());
+            let mut replays = c.replays.lock().expect("replays");
+            // A replay holds its whole recording in memory: keep the last few opened.
+            if replays.len() >= MAX_REPLAYS {
+                replays.clear();
+            }
+            replays.insert(id.clone(), view.clone());
             view
         }
     };
