@@ -176,6 +176,10 @@ async function zone() {
   await (await field(`${gp}.count`)).fill('0');
   const countError = await waitErrorAfter(`${gp}.count`, true);
   await shot('plan-count-error');
+  // Launching it is refused, with the same problem at the same place.
+  await page.click('#launch');
+  await page.waitForFunction(() => /not launched/.test(document.querySelector('.flash').textContent), null, { timeout: 30000 });
+  const launchRefused = { flash: await page.locator('.flash').textContent(), hash: new URL(page.url()).hash, countError: await errorAfter(`${gp}.count`) };
   await (await field(`${gp}.count`)).fill('3');
   const countFixed = await waitErrorAfter(`${gp}.count`, false);
   // Its route: Add waypoints on the map, two clicks, Esc.
@@ -230,7 +234,7 @@ async function zone() {
   const yamlTab = await page.locator('#yaml-text').textContent();
   const doc = await page.evaluate(() => window.sadesimConsole.doc());
   result = {
-    clicked, metresPerPixel, drafted: drafted.features.length, homeLatLon, zoneIndex: zi, groupIndex: gi, errorsBefore,
+    clicked, metresPerPixel, launchRefused, drafted: drafted.features.length, homeLatLon, zoneIndex: zi, groupIndex: gi, errorsBefore,
     countError, countFixed, ceilingError, ceilingFixed, zoneHighlighted, errorsAfter, status,
     exported, yamlTab, triangle, waypointsClicked, mission, routeDrawn, originClicked, origin: doc.spec.origin, modeAfterTriangle, zone: doc.spec.zones[zi], group: doc.spec.fleet[gi],
   };

@@ -117,7 +117,7 @@ def close(position, clicked, metres_per_pixel):
 
 
 def test_a_zone_and_a_group_drawn_on_the_map_validate_live_and_export(console, sadesim, tmp_path):
-    r = drive(console, tmp_path, "zone")
+    r = drive(console, tmp_path, "zone", allowHttpErrors=[422])
     # The corners clicked are the zone's polygon (within a pixel: the browser rounds the
     # mouse's position), with the ceiling typed in its form.
     assert r["drafted"] >= 4, r["drafted"]
@@ -141,6 +141,9 @@ def test_a_zone_and_a_group_drawn_on_the_map_validate_live_and_export(console, s
     # A count of 0: the validator's message right after the count's input, gone when fixed.
     assert r["countError"] and "between 1 and 10000" in r["countError"], r["countError"]
     assert r["countFixed"] is None
+    # Launched meanwhile: refused (422), the page stays on the plan with the problem in place.
+    assert r["launchRefused"]["flash"].startswith("not launched") and r["launchRefused"]["hash"] == "#/plan", r["launchRefused"]
+    assert "between 1 and 10000" in r["launchRefused"]["countError"], r["launchRefused"]
     # A floor above the ceiling: the message after the zone's ceiling, the zone red on the map.
     assert r["ceilingError"] and "floor must be below ceiling" in r["ceilingError"], r["ceilingError"]
     assert r["zoneHighlighted"]
