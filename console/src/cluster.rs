@@ -385,16 +385,13 @@ impl ClusterBackend {
             .and_then(|s| s.archive)
             .map(|a| a.url)
             .ok_or_else(|| ApiError::new(StatusCode::NOT_FOUND, format!("run {id} has no archive yet")))?;
-        // `<archive>/<namespace>/<run>/<uid>/`: the archive's root and the run's folder.
-        let trimmed = url.trim_end_matches('/');
-        let parts: Vec<&str> = trimmed.rsplitn(4, '/').collect();
-        match parts.as_slice() {
-            [uid, run, ns, root] => Ok((ArchiveBrowser::new(root), format!("{ns}.{run}.{uid}"))),
-            _ => Err(ApiError::new(
+        let (root, folder) = split_archive_url(&url).ok_or_else(|| {
+            ApiError::new(
                 StatusCode::BAD_GATEWAY,
                 format!("run {id}: archive URL {url} is not <archive>/<namespace>/<run>/<uid>"),
-            )),
-        }
+            )
+        })?;
+        Ok((ArchiveBrowser::new(&root), folder))
     }
 }
 
