@@ -66,12 +66,13 @@ export function runPage(container, id) {
       h('section.card', h('h2', 'Criteria'), critList),
       h('section.card', h('h2', 'Conditions'), h('table.data.conditions', h('thead', h('tr', ['Type', 'Status', 'Reason', 'Message'].map((c) => h('th', c)))), condBody))),
     viewBox, camBox,
-    h('section.card', h('h2', 'Events'), events)));
+    h('section.card', h('h2', 'Events ', h('span.muted.small', 'newest last')), events)));
 
   let detail = null;
   let viewUrl = null;
   let camKey = '';
   let eventCount = 0;
+  let eventSig = '';
   stopBtn.addEventListener('click', async () => {
     stopBtn.disabled = true;
     try { await post(`/api/runs/${encodeURIComponent(id)}/stop`, {}); } catch (e) { errBox.hidden = false; errBox.textContent = `stop failed: ${e.message}`; stopBtn.disabled = false; }
@@ -107,7 +108,11 @@ export function runPage(container, id) {
       h(`span.badge.${c.state === 'passed' ? 'ok' : c.state === 'failed' ? 'bad' : 'muted'}`, c.state),
       ' ', h('strong', c.name), c.detail ? h('div.small.muted', c.detail) : null)) : h('li.muted', 'no criteria'));
     const evs = detail.events || [];
-    if (evs.length !== eventCount) {
+    // The backend sends the newest events (a sliding window): redraw when the newest changed.
+    const last = evs[evs.length - 1];
+    const sig = `${evs.length}|${last ? `${last.timeS}|${last.kind}|${last.drone}|${last.text}` : ''}`;
+    if (sig !== eventSig) {
+      eventSig = sig;
       const atBottom = events.scrollHeight - events.scrollTop - events.clientHeight < 30;
       fill(events, h('table.data.events-table', h('tbody', evs.map((e) => h(`tr.ev-${e.kind}`,
         h('td.num', typeof e.timeS === 'number' ? e.timeS.toFixed(2) : ''), h('td', e.kind), h('td', e.drone ?? ''), h('td', e.text || ''))))));
