@@ -16,7 +16,7 @@ use sadesim_crds::SimulationRun;
 use sadesim_crds::outcome::run_folder;
 use sadesim_crds::outcome::summary::FleetCounts;
 
-use crate::model::{Condition, RunDetail, RunView, criteria_states};
+use crate::model::{CameraStream, Condition, RunDetail, RunView, camera_streams, criteria_states};
 use crate::time::{rfc3339, utc_stamp};
 
 /// Flies a run with the local runner. Implemented by the `sadesim` binary (its runner is
@@ -80,15 +80,24 @@ struct LiveState {
     last_notified: Option<Instant>,
     /// From the run's `plan.json`, once it started.
     drone_names: Vec<String>,
+    /// The onboard cameras' streams, while the live view serves them.
+    cameras: Vec<CameraStream>,
 }
 
 impl LiveRun {
     /// The run folder exists and the run starts.
     pub fn started(&self, view_url: Option<String>) {
+        let plan: Option<Value> =
+            std::fs::read(self.dir.join(run_folder::PLAN)).ok().and_then(|b| serde_json::from_slice(&b).ok());
         let names = crate::archive::drone_names(&self.dir.join(run_folder::PLAN));
+        let cameras = match (&plan, &view_url) {
+            (Some(plan), Some(view)) => camera_streams(plan, view),
+            _ => Vec::new(),
+        };
         let mut s = self.state.lock().expect("state lock");
         s.phase = "Running";
         s.drone_names = names;
+        s.cameras = cameras;
         s.view_url = view_url;
         s.flying_since = Some(Instant::now());
         drop(s);
@@ -116,6 +125,7 @@ impl LiveRun {
             std::fs::read(self.dir.join(run_folder::SUMMARY)).ok().and_then(|b| serde_json::from_slice(&b).ok());
         let mut s = self.state.lock().expect("state lock");
         s.view_url = None;
+        s.cameras.clear();
         s.flown_s = s.flying_since.map(|t| t.elapsed().as_secs_f64());
         s.verdict = summary.as_ref().and_then(|v| v.get("verdict")).cloned();
         if let Some(t) = summary.as_ref().and_then(|v| v.get("simTimeS")).and_then(Value::as_f64) {
@@ -198,9 +208,9 @@ impl LiveRun {
         let criteria = criteria_states(&self.criteria, s.verdict.as_ref());
         let view_url = s.view_url.clone();
         let names = s.drone_names.clone();
+        let cameras = s.cameras.clone();
         drop(s);
         let events = crate::archive::tail_events(&self.dir.join(run_folder::EVENTS), &names);
-        let cameras = Vec::new();
         RunDetail { run, conditions, events, criteria, view_url, cameras }
     }
 
@@ -303,6 +313,7 @@ impl LocalBackend {
                 counts: FleetCounts::default(),
                 last_notified: None,
                 drone_names: Vec::new(),
+                cameras: Vec::new(),
             }),
         });
         runs.push(live.clone());

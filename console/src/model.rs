@@ -155,6 +155,33 @@ pub fn criteria_states(spec_criteria: &[Value], verdict: Option<&Value>) -> Vec<
     }
 }
 
+/// The MJPEG stream of every onboard camera of a run (`plan.json`: each drone's group's
+/// `cameras`), served by its live view at `view` (`http://host:port/`).
+pub fn camera_streams(plan: &Value, view: &str) -> Vec<CameraStream> {
+    let groups = plan.pointer("/spec/fleet").and_then(Value::as_array).cloned().unwrap_or_default();
+    let drones = plan.get("drones").and_then(Value::as_array).cloned().unwrap_or_default();
+    let base = view.trim_end_matches('/');
+    drones
+        .iter()
+        .flat_map(|d| {
+            let drone = d.get("name").and_then(Value::as_str).unwrap_or_default().to_string();
+            let group = d.get("group").and_then(Value::as_str).unwrap_or_default();
+            let cameras = groups
+                .iter()
+                .find(|g| g.get("name").and_then(Value::as_str) == Some(group))
+                .and_then(|g| g.get("cameras"))
+                .and_then(Value::as_array)
+                .cloned()
+                .unwrap_or_default();
+            cameras.into_iter().filter_map(move |c| {
+                let camera = c.get("name")?.as_str()?.to_string();
+                let url = format!("{base}/cameras/{drone}/{camera}/stream.mjpg");
+                Some(CameraStream { drone: drone.clone(), camera, url })
+            })
+        })
+        .collect()
+}
+
 /// One `events.jsonl` line for the page: its time, kind, drone name and other fields.
 pub fn event_line(line: &str, drone_names: &[String]) -> Option<EventLine> {
     let Value::Object(mut fields) = serde_json::from_str::<Value>(line).ok()? else { return None };
@@ -189,6 +216,18 @@ mod tests {
         let judged = criteria_states(&spec, Some(&verdict));
         assert_eq!(judged.iter().map(|c| c.state.as_str()).collect::<Vec<_>>(), ["passed", "failed"]);
         assert_eq!(judged[1].detail.as_deref(), Some("1 crash"));
+    }
+
+    #[test]
+    fn every_drone_of_a_group_with_cameras_has_their_streams() {
+        let plan = json!({
+            "spec": {"fleet": [{"name": "scouts", "cameras": [{"name": "down"}, {"name": "front"}]}, {"name": "carriers"}]},
+            "drones": [{"name": "scouts-0", "group": "scouts"}, {"name": "carriers-0", "group": "carriers"}],
+        });
+        let streams = camera_streams(&plan, "http://127.0.0.1:8490/");
+        assert_eq!(streams.len(), 2);
+        assert_eq!(streams[1].url, "http://127.0.0.1:8490/cameras/scouts-0/front/stream.mjpg");
+        assert!(streams.iter().all(|s| s.drone == "scouts-0"));
     }
 
     #[test]

@@ -211,3 +211,29 @@ def test_bad_requests_are_refused_naming_what_is_wrong(console):
     assert status == 404
     status, body = console.call("GET", "/api/archive/a.b", spec_path="/api/archive/{id}")
     assert status == 404
+
+
+def test_a_flying_run_s_page_has_its_live_view_and_camera_streams(console):
+    document = yaml.safe_load(quickstart_text())
+    document["metadata"]["name"] = "watched"
+    document["spec"]["duration"] = "60s"
+    document["spec"]["clock"] = {"mode": "realtime"}
+    document["spec"]["rendering"] = {"enabled": True}
+    document["spec"]["fleet"][0]["cameras"] = [{"name": "down", "widthPx": 160, "heightPx": 120,
+                                                "horizontalFovDeg": 90, "rateHz": 2, "mount": {"pitchDeg": 90}}]
+    status, body = console.call("POST", "/api/runs", {"document": document})
+    assert status == 201, body
+    run = body["run"]
+    flying = console.first_event(f"/api/runs/{run['id']}/watch", until=lambda d: d["run"]["simTimeS"] > 2)
+    conforms("/api/runs/{id}", "get", 200, flying)
+    assert flying["viewUrl"], flying
+    page = urllib.request.urlopen(flying["viewUrl"], timeout=30).read().decode()
+    assert "app.js" in page
+    drones = {c["drone"] for c in flying["cameras"]}
+    assert drones == {f"scouts-{i}" for i in range(document["spec"]["fleet"][0]["count"])}, flying["cameras"]
+    latest = flying["cameras"][0]["url"].replace("stream.mjpg", "latest.jpg")
+    frame = urllib.request.urlopen(latest, timeout=30).read()
+    assert frame[:3] == b"\xff\xd8\xff", "a JPEG frame"
+    console.call("POST", f"/api/runs/{run['id']}/stop", {}, spec_path="/api/runs/{id}/stop")
+    ended = console.first_event(f"/api/runs/{run['id']}/watch", until=lambda d: d["run"]["phase"] == "Aborted")
+    assert ended["viewUrl"] is None and ended["cameras"] == []
