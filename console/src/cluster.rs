@@ -221,9 +221,26 @@ impl ClusterBackend {
             .unwrap_or_default();
         let spec_criteria: Vec<Value> =
             serde_json::to_value(&run.spec.criteria).ok().and_then(|v| v.as_array().cloned()).unwrap_or_default();
-        let criteria = match &status.verdict {
-            None => criteria_states(&spec_criteria, None),
-            Some(v) => vec![CriterionState {
+        // Each criterion's judgement is in the archived summary.json; the status holds the
+        // run's verdict only.
+        let archived = match (&status.verdict, &status.archive) {
+            (Some(_), Some(a)) => match split_archive_url(&a.url) {
+                Some((root, folder)) => tokio::task::spawn_blocking(move || {
+                    let bytes =
+                        ArchiveBrowser::new(&root).file(&folder, sadesim_crds::outcome::run_folder::SUMMARY).ok()?;
+                    serde_json::from_slice::<Value>(&bytes).ok()?.get("verdict").cloned()
+                })
+                .await
+                .ok()
+                .flatten(),
+                None => None,
+            },
+            _ => None,
+        };
+        let criteria = match (&status.verdict, archived) {
+            (_, Some(verdict)) => criteria_states(&spec_criteria, Some(&verdict)),
+            (None, None) => criteria_states(&spec_criteria, None),
+            (Some(v), None) => vec![CriterionState {
                 name: format!("all {} criteria", spec_criteria.len()),
                 state: if v.passed { "passed" } else { "failed" }.into(),
                 detail: Some(v.failures.join("; ")).filter(|f| !f.is_empty()),

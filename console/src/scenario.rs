@@ -95,11 +95,24 @@ fn as_json(text: &str) -> Result<Value, NotAScenario> {
 /// (comments are not kept).
 pub fn to_yaml(document: &Value, original: Option<&str>) -> String {
     if let Some(original) = original
-        && as_json(original).is_ok_and(|o| &o == document)
+        && as_json(original).is_ok_and(|o| same(&o, document))
     {
         return original.to_string();
     }
     serde_yaml::to_string(document).expect("JSON values are YAML")
+}
+
+/// Whether two documents hold the same values, numbers compared by value: a browser sends
+/// the YAML's `3.0` back as `3` (JavaScript has one number type).
+fn same(a: &Value, b: &Value) -> bool {
+    match (a, b) {
+        (Value::Number(x), Value::Number(y)) => x == y || x.as_f64() == y.as_f64(),
+        (Value::Array(x), Value::Array(y)) => x.len() == y.len() && x.iter().zip(y).all(|(x, y)| same(x, y)),
+        (Value::Object(x), Value::Object(y)) => {
+            x.len() == y.len() && x.iter().all(|(k, v)| y.get(k).is_some_and(|w| same(v, w)))
+        }
+        _ => a == b,
+    }
 }
 
 /// The map layers of a world, WGS84: buildings (`heightM`), parks, the world's square and
@@ -147,6 +160,15 @@ mod tests {
         let yaml = to_yaml(&edited, Some(QUICKSTART));
         assert_ne!(yaml, QUICKSTART);
         assert_eq!(as_json(&yaml).unwrap(), edited);
+    }
+
+    #[test]
+    fn a_float_sent_back_as_an_integer_is_the_same_document() {
+        let original = "a: 3.0\nb: [1.5, 2]\n";
+        let from_browser = json!({"a": 3, "b": [1.5, 2.0]});
+        assert_eq!(to_yaml(&from_browser, Some(original)), original);
+        assert_ne!(to_yaml(&json!({"a": 3.5, "b": [1.5, 2.0]}), Some(original)), original);
+        assert_ne!(to_yaml(&json!({"a": 3, "b": [1.5, 2.0], "c": null}), Some(original)), original);
     }
 
     #[test]

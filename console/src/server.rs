@@ -273,10 +273,17 @@ async fn to_yaml(axum::Json(body): axum::Json<DocumentBody>) -> ApiResult {
 
 async fn world(State(c): State<Console>, axum::Json(body): axum::Json<DocumentBody>) -> ApiResult {
     let (run, errors) = scenario::check(&body.document).map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, e.0))?;
-    let world_errors: Vec<Problem> =
-        errors.into_iter().filter(|p| ["spec.origin", "spec.world"].iter().any(|f| p.field.starts_with(f))).collect();
-    let Some(mut run) = run.filter(|_| world_errors.is_empty()) else {
-        return Err(ApiError::invalid(world_errors));
+    // The world is drawn while other parts of the document are still wrong; a document
+    // that does not even parse (`run` is None) says why.
+    let world_errors: Vec<Problem> = errors
+        .iter()
+        .filter(|p| ["spec.origin", "spec.world"].iter().any(|f| p.field.starts_with(f)))
+        .cloned()
+        .collect();
+    let mut run = match run {
+        Some(run) if world_errors.is_empty() => run,
+        Some(_) => return Err(ApiError::invalid(world_errors)),
+        None => return Err(ApiError::invalid(errors)),
     };
     sadesim_sources::world::resolve_paths(&mut run, &c.scenario_dir());
     let cache = c.worlds.clone();
@@ -284,7 +291,7 @@ async fn world(State(c): State<Console>, axum::Json(body): axum::Json<DocumentBo
         let unprocessable = |m: String| ApiError::new(StatusCode::UNPROCESSABLE_ENTITY, m);
         let data = sadesim_sources::world::read_data(&run.spec).map_err(|e| unprocessable(e.to_string()))?;
         // The cache key covers everything the world is made of, origin included.
-        let key = sadesim_planner::asset_key(&run, &data).map_err(|e| unprocessable(e.to_string()))?;
+        let key = sadesim_planner::world_key(&run, &data);
         if let Some((k, layers)) = cache.lock().expect("world cache").as_ref()
             && *k == key
         {

@@ -114,6 +114,13 @@ pub fn asset_key(run: &SimulationRun, data: &WorldData) -> Result<String, PlanEr
     Ok(key_of(run, data))
 }
 
+/// [`asset_key`] without validating the whole run: for a run whose `spec.origin` and
+/// `spec.world` validate while other parts may not yet (the console draws the world of a
+/// scenario being edited).
+pub fn world_key(run: &SimulationRun, data: &WorldData) -> String {
+    key_of(run, data)
+}
+
 fn key_of(run: &SimulationRun, data: &WorldData) -> String {
     let digests = [data.osm.as_ref().map(|c| c.source_sha256.as_str()), data.dem.as_ref().map(|d| d.source_sha256())];
     asset_cache_key(&WorldInputs::from_spec(&run.spec, &[]), digests, &run.spec.zones)

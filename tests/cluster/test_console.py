@@ -112,3 +112,27 @@ def test_the_api_server_s_refusals_reach_the_user_unchanged(kubectl, console, na
         assert status == 401, body
     finally:
         kubectl.run("delete", "namespace", other, "--wait=false", check=False)
+
+
+def test_a_finished_run_s_criteria_and_archive_are_read_as_the_user(kubectl, console, namespace):
+    token = user_with_rights_in(kubectl, namespace, "carol")
+    run = quickstart()
+    run["metadata"]["name"] = "archived"
+    status, body = call(console, "POST", "/api/runs", {"document": run, "namespace": namespace}, token)
+    assert status == 201, body
+    rid = f"{namespace}.archived"
+    wait_for("the run succeeds", 300,
+             lambda: call(console, "GET", f"/api/runs/{rid}", token=token)[1]["run"]["phase"] in ("Succeeded", "Failed"), every=3)
+    status, detail = call(console, "GET", f"/api/runs/{rid}", token=token)
+    assert detail["run"]["phase"] == "Succeeded" and detail["run"]["verdict"] == "passed", detail["run"]
+    # Each criterion as judged, from the run's summary.json in the object store.
+    assert [(c["name"], c["state"]) for c in detail["criteria"]] == [
+        ("spec.criteria[0]: noCrashes", "passed"), ("spec.criteria[1]: altitudeLimitsRespected", "passed")], detail["criteria"]
+    status, archive = call(console, "GET", f"/api/archive?namespace={namespace}", token=token)
+    assert status == 200 and [e["id"] for e in archive["runs"]] == [rid], archive
+    assert archive["runs"][0]["complete"] and archive["runs"][0]["verdict"] == "passed"
+    status, verified = call(console, "POST", f"/api/archive/{rid}/verify", {}, token)
+    assert status == 200 and verified["ok"] and verified["checked"] > 10, verified
+    # The archive of a run is read only for a user who may get the run.
+    status, body = call(console, "POST", f"/api/archive/{rid}/verify", {})
+    assert status == 401, body

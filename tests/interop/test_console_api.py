@@ -134,6 +134,10 @@ def test_the_world_layers_cover_the_origin(console):
     for f in world["buildings"]["features"][:200]:
         for lon, lat in f["geometry"]["coordinates"][0]:
             assert west - 1e-6 <= lon <= east + 1e-6 and south - 1e-6 <= lat <= north + 1e-6
+    # Problems elsewhere do not hide the world being edited.
+    document["spec"]["fleet"][0]["airframe"] = "no-such-airframe"
+    status, again = console.call("POST", "/api/world", {"document": document})
+    assert status == 200 and again["bounds"] == world["bounds"]
     document["spec"]["origin"]["latitude"] = 95
     status, body = console.call("POST", "/api/world", {"document": document})
     assert status == 422 and any(e["field"] == "spec.origin.latitude" for e in body["errors"]), body
