@@ -27,6 +27,27 @@ export function setToken(t) {
 
 if (token()) setCookie(token());
 
+const NAMESPACE_KEY = 'sadesim-console-namespace';
+
+/** The namespace the page works in (cluster backend): runs are listed, archived and
+ * launched there. Empty: the console's offered namespaces. */
+export function namespace() {
+  try { return sessionStorage.getItem(NAMESPACE_KEY) || ''; } catch { return ''; }
+}
+
+export function setNamespace(n) {
+  try {
+    if (n) sessionStorage.setItem(NAMESPACE_KEY, n);
+    else sessionStorage.removeItem(NAMESPACE_KEY);
+  } catch { /* storage refused: the namespace lasts for this page only */ }
+}
+
+/** `path` limited to the page's namespace, when one is chosen. */
+export function scoped(path) {
+  const n = namespace();
+  return n ? `${path}${path.includes('?') ? '&' : '?'}namespace=${encodeURIComponent(n)}` : path;
+}
+
 export function onUnauthorized(fn) { listeners.unauthorized.push(fn); }
 
 function headers(extra) {

@@ -2,7 +2,7 @@
 // files, report, replay, events, and a check of the files against the manifest).
 
 import { h, fill, fmtDate, fmtDuration, fmtBytes, verdictBadge } from './util.js';
-import { get, post, call, archiveFileUrl } from './api.js';
+import { get, post, call, archiveFileUrl, scoped } from './api.js';
 
 function entryHref(id) { return `#/archive/${encodeURIComponent(id)}`; }
 
@@ -15,7 +15,7 @@ export function archivePage(container) {
   let alive = true;
   const load = async () => {
     try {
-      const r = await get('/api/archive');
+      const r = await get(scoped('/api/archive'));
       if (!alive) return;
       const runs = (r && r.runs) || [];
       runs.sort((a, b) => String(b.date).localeCompare(String(a.date)));

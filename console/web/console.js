@@ -2,7 +2,7 @@
 // the runs, #/archive reads the archived ones. Nothing is fetched from the internet.
 
 import { h, fill } from './util.js';
-import { get, token, setToken, onUnauthorized } from './api.js';
+import { get, token, setToken, onUnauthorized, namespace, setNamespace } from './api.js';
 import { mountPlan, showPlan, hidePlan, setInfo } from './plan.js';
 import { runsPage, runPage } from './runs.js';
 import { archivePage, archiveEntryPage } from './archive.js';
@@ -21,6 +21,13 @@ const tokenBox = h('form.token-box', { hidden: true, onsubmit: (e) => { e.preven
   h('button.small.secondary#logout', { type: 'button', onclick: () => { setToken(''); showTokenState(); } }, 'Log out'));
 const loginBanner = h('div.login-banner', { hidden: true, role: 'alert' }, 'Log in with your token: the cluster refused this request without it (401).');
 const backendBadge = h('span.backend');
+// The namespace the page works in (cluster): any may be typed, the offered ones are listed.
+const namespaceList = h('datalist#namespaces');
+const namespaceInput = h('input#namespace', {
+  type: 'text', list: 'namespaces', placeholder: 'namespace', size: 14, spellcheck: 'false', title: 'the namespace runs are listed in and launched into',
+  onchange: () => { setNamespace(namespaceInput.value.trim()); route(); },
+});
+const namespaceBox = h('label.namespace-box', { hidden: true }, 'namespace ', namespaceInput, namespaceList);
 
 document.getElementById('nav').append(
   h('a.brand', { href: '#/plan' }, 'sadesim ', h('span', 'console')),
@@ -29,6 +36,7 @@ document.getElementById('nav').append(
   h('a.nav-link', { href: '#/archive', dataset: { route: 'archive' } }, 'Archive'),
   h('span.spacer'),
   backendBadge,
+  namespaceBox,
   tokenBox);
 document.getElementById('banner').append(loginBanner);
 
@@ -56,6 +64,11 @@ async function loadInfo() {
   fill(backendBadge, `${i.backend}${i.version ? ` · ${i.version}` : ''}`);
   backendBadge.title = i.archive ? `archive: ${i.archive}` : '';
   tokenBox.hidden = !i.needsToken;
+  const offered = i.namespaces || [];
+  namespaceBox.hidden = i.backend !== 'cluster';
+  fill(namespaceList, offered.map((n) => h('option', { value: n })));
+  if (i.backend === 'cluster' && !namespace() && offered.length) setNamespace(offered[0]);
+  namespaceInput.value = namespace();
   showTokenState();
   setInfo(i);
 }

@@ -3,7 +3,7 @@
 // to the control whose `data-field` is its path.
 
 import { h, fill, getPath, setPath, clone, debounce, parsePath, joinPath, GROUP_COLOURS } from './util.js';
-import { call, post, ApiError } from './api.js';
+import { call, post, ApiError, namespace } from './api.js';
 import * as F from './forms.js';
 import {
   defaultDocument, MISSION_KINDS, CRITERION_KINDS, AIRFRAMES, ROLES, kindOf, newMissionItem, newCriterion,
@@ -96,10 +96,8 @@ export function mountPlan(container, info) {
       h('button', { type: 'button', class: 'secondary', onclick: () => { el.pasteBox.hidden = true; } }, 'Cancel')));
 
   el.exportLink = h('a#export-link', { hidden: true, download: 'scenario.yaml' }, 'download');
-  el.namespace = h('select#launch-namespace');
   el.queue = h('input#launch-queue', { type: 'text', placeholder: 'queue (optional)', size: 14, spellcheck: 'false' });
   el.launchBox = h('div.launch',
-    el.namespaceRow = h('label.inline', { hidden: true }, 'namespace ', el.namespace),
     el.queueRow = h('label.inline', { hidden: true }, ' ', el.queue),
     el.launch = h('button#launch.primary', { type: 'button', onclick: launch }, 'Launch'));
   setInfo(info);
@@ -168,16 +166,8 @@ export function mountPlan(container, info) {
 
 export function setInfo(info) {
   S.info = info;
-  if (!el.namespace) return;
-  const cluster = info && info.backend === 'cluster';
-  const nss = (info && info.namespaces) || null;
-  el.namespaceRow.hidden = !nss;
-  el.queueRow.hidden = !cluster;
-  if (nss) {
-    const cur = el.namespace.value;
-    fill(el.namespace, nss.map((n) => h('option', { value: n }, n)));
-    if (nss.includes(cur)) el.namespace.value = cur;
-  }
+  if (!el.queueRow) return;
+  el.queueRow.hidden = !(info && info.backend === 'cluster');
 }
 
 /** The page became visible: create the map the first time (it needs its size). */
@@ -703,7 +693,7 @@ async function launch() {
   el.refusal.hidden = true;
   flash(null);
   const body = { document: S.doc };
-  if (S.info && S.info.namespaces) body.namespace = el.namespace.value;
+  if (S.info && S.info.backend === 'cluster' && namespace()) body.namespace = namespace();
   if (S.info && S.info.backend === 'cluster' && el.queue.value.trim()) body.queue = el.queue.value.trim();
   el.launch.disabled = true;
   try {

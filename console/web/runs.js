@@ -2,7 +2,7 @@
 // conditions, events, criteria, the live view, cameras, stop, and its evidence once archived).
 
 import { h, fill, fmtAge, fmtDuration, phaseBadge, verdictBadge, progressBar, isFinished } from './util.js';
-import { get, post, watch, archiveFileUrl } from './api.js';
+import { get, post, watch, archiveFileUrl, scoped } from './api.js';
 
 function runHref(id) { return `#/runs/${encodeURIComponent(id)}`; }
 
@@ -41,7 +41,7 @@ export function runsPage(container) {
       h('td.num', r.drones ?? '–'))));
   };
   render();
-  const stop = watch('/api/runs/watch', (name, data) => {
+  const stop = watch(scoped('/api/runs/watch'), (name, data) => {
     if (name === 'runs' && data && Array.isArray(data.runs)) { runs = data.runs; render(); }
   }, (s, d) => setConn(conn, s, d));
   const ageTimer = setInterval(render, 10000);

@@ -15,6 +15,8 @@
 //               watch the live view in the run's page, stop the run while it flies
 //   "auth"      the cluster backend's API mocked in the page (token, 401, a refused launch);
 //               `file` is pasted into the plan
+//   "cluster"   a real cluster's console (`allowHosts`: its host): log in with `token`, launch
+//               `file` into `namespace`, then into `forbidden` and show the refusal
 // Prints one JSON object: {"result": {...}, "external": [URLs the page asked for off this
 // machine: each was refused], "errors": [console errors and page errors]}.
 import { chromium } from '../../.tools/npm/node_modules/playwright-core/index.mjs';
@@ -22,7 +24,8 @@ import { readFileSync } from 'node:fs';
 import { join } from 'node:path';
 
 const config = JSON.parse(readFileSync(process.argv[2], 'utf8'));
-const LOCAL = new Set(['127.0.0.1', 'localhost', '[::1]', '::1']);
+// This machine, and the hosts a scenario names (the cluster's console pod).
+const LOCAL = new Set(['127.0.0.1', 'localhost', '[::1]', '::1', ...(config.allowHosts || [])]);
 const external = [];
 const errors = [];
 const shots = [];
@@ -365,7 +368,7 @@ async function auth() {
   const seen = { watch: [], launch: null, validate: [] };
   const json = (route, status, body) => route.fulfill({ status, contentType: 'application/json', body: JSON.stringify(body) });
   await page.route('**/api/info', (route) => json(route, 200, { backend: 'cluster', version: '0.1.0', namespaces: ['team-a', 'team-b'], needsToken: true, archive: 's3://bucket/runs' }));
-  await page.route('**/api/runs/watch', (route) => {
+  await page.route('**/api/runs/watch*', (route) => {
     const a = route.request().headers().authorization || null;
     seen.watch.push(a);
     if (a !== 'Bearer tok-123') return json(route, 401, { error: 'Unauthorized' });
@@ -397,8 +400,9 @@ async function auth() {
   await page.fill('#paste-text', readFileSync(config.file, 'utf8'));
   await page.click('#paste-load');
   await page.waitForFunction(() => document.querySelector('.flash').textContent.includes('pasted'), null, { timeout: 20000 });
-  const namespaces = await page.locator('#launch-namespace option').allTextContents();
-  await page.selectOption('#launch-namespace', 'team-b');
+  const namespaces = await page.locator('#namespaces option').evaluateAll((os) => os.map((o) => o.value));
+  await page.fill('#namespace', 'team-b');
+  await page.dispatchEvent('#namespace', 'change');
   await page.fill('#launch-queue', 'q1');
   await waitIdle();
   await page.click('#launch');
@@ -410,6 +414,37 @@ async function auth() {
     watch: seen.watch, launch: seen.launch && { authorization: seen.launch.authorization, namespace: seen.launch.body.namespace, queue: seen.launch.body.queue, name: seen.launch.body.document.metadata.name },
     validateAuth: [...new Set(seen.validate)],
   };
+}
+
+/** A real cluster's console (tests/cluster/test_console.py): log in with `token`, launch
+ * `file` into `namespace` (allowed), then into `forbidden` (the API server refuses). */
+async function cluster() {
+  await page.goto(`${base}/#/plan`);
+  await page.waitForSelector('.token-box:not([hidden])', { timeout: 20000 });
+  await page.fill('#token', config.token);
+  await page.click('.token-box button[type=submit]');
+  await page.fill('#namespace', config.namespace);
+  await page.dispatchEvent('#namespace', 'change');
+  await page.waitForFunction(() => window.sadesimConsole && window.sadesimConsole.mapReady, null, { timeout: 90000 });
+  await page.click('#paste-open');
+  await page.fill('#paste-text', readFileSync(config.file, 'utf8'));
+  await page.click('#paste-load');
+  await page.waitForFunction(() => document.querySelector('.flash').textContent.includes('pasted'), null, { timeout: 20000 });
+  await waitIdle();
+  await page.click('#launch');
+  await page.waitForURL(/#\/runs\/.+/, { timeout: 60000 });
+  const launched = decodeURIComponent(new URL(page.url()).hash);
+  await page.waitForSelector('.run-head', { timeout: 60000 });
+  await shot('cluster-run');
+  await page.fill('#namespace', config.forbidden);
+  await page.dispatchEvent('#namespace', 'change');
+  await page.click('a.nav-link[data-route="plan"]');
+  await waitIdle();
+  await page.click('#launch');
+  await page.waitForSelector('.api-refusal:not([hidden])', { timeout: 20000 });
+  const refusal = await page.locator('.api-refusal').textContent();
+  await shot('cluster-refused');
+  result = { launched, refusal };
 }
 
 async function stop() {
@@ -445,7 +480,7 @@ async function stop() {
 
 let failure = null;
 try {
-  await ({ zone, roundtrip, launch, fps, auth, stop })[config.scenario]();
+  await ({ zone, roundtrip, launch, fps, auth, stop, cluster })[config.scenario]();
 } catch (e) {
   failure = String(e && e.stack ? e.stack : e);
   try { await shot('failure'); } catch { /* the page is gone */ }

@@ -4,12 +4,13 @@ there that kubectl sees, watches it and stops it; the same token in a namespace 
 has no rights, or no token at all, gets the API server's refusal, passed through as it is.
 The console's own ServiceAccount is bound to no role."""
 import json
+import subprocess
 import urllib.error
 import urllib.request
 
 import pytest
 
-from conftest import SYSTEM_NS, quickstart
+from conftest import REPO, SYSTEM_NS, quickstart
 from kube import wait_for
 
 
@@ -136,3 +137,24 @@ def test_a_finished_run_s_criteria_and_archive_are_read_as_the_user(kubectl, con
     # The archive of a run is read only for a user who may get the run.
     status, body = call(console, "POST", f"/api/archive/{rid}/verify", {})
     assert status == 401, body
+
+
+def test_in_the_page_a_launch_reaches_kubectl_and_a_refusal_reaches_the_user(kubectl, console, namespace, tmp_path):
+    """As a person: the token pasted into the page, the quickstart launched into the user's
+    namespace (kubectl sees the SimulationRun), then into one where the user has no rights:
+    the page shows the API server's refusal."""
+    token = user_with_rights_in(kubectl, namespace, "dave")
+    forbidden = f"{namespace}-x"
+    config = tmp_path / "cluster.json"
+    config.write_text(json.dumps({
+        "url": console + "/", "outDir": str(tmp_path), "scenario": "cluster", "allowHosts": [console.split("//")[1].split(":")[0]],
+        "token": token, "namespace": namespace, "forbidden": forbidden, "file": str(REPO / "examples/quickstart.yaml"),
+        "allowHttpErrors": [401, 403]}))
+    done = subprocess.run(["node", str(REPO / "tests/browser/console.mjs"), str(config)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, f"the browser driver failed:\n{done.stdout[-3000:]}\n{done.stderr[-3000:]}"
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report["failure"] is None and report["errors"] == [] and report["external"] == [], report
+    assert report["result"]["launched"] == f"#/runs/{namespace}.quickstart", report["result"]
+    assert kubectl.json("simulationrun", "quickstart", "-n", namespace)["metadata"]["name"] == "quickstart"
+    refusal = report["result"]["refusal"]
+    assert "forbidden" in refusal and f"system:serviceaccount:{namespace}:dave" in refusal and forbidden in refusal, refusal
