@@ -9,8 +9,10 @@
 //!   cfg `sadesim_maplibre`, and `sadesim console` refuses to start with a "not supported"
 //!   error naming what to install.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::PathBuf;
+
+#[path = "../sim-worker/build_npm.rs"]
+mod npm;
 
 /// The map library's files served under `/vendor/maplibre/`: (served name, path in the
 /// npm package).
@@ -46,13 +48,9 @@ fn main() {
     }
     table.push_str("];\n");
 
-    let wanted = pinned_version(&web.join("package.json"));
-    let maplibre = wanted.as_deref().and_then(|wanted| {
-        [web.join("node_modules/maplibre-gl"), out.join("web/node_modules/maplibre-gl")]
-            .into_iter()
-            .find(|dir| installed_version(dir).as_deref() == Some(wanted))
-            .or_else(|| npm_ci(&web, &out.join("web"), wanted))
-    });
+    println!("cargo::rerun-if-changed=../sim-worker/build_npm.rs");
+    let wanted = npm::pinned_version(&web.join("package.json"), "maplibre-gl");
+    let maplibre = wanted.as_deref().and_then(|wanted| npm::find_or_install(&web, &out, "maplibre-gl", wanted));
     table.push_str("/// Files of npm `maplibre-gl` served under `/vendor/maplibre/`: (name, bytes).\n");
     table.push_str("pub static MAPLIBRE_FILES: &[(&str, &[u8])] = &[\n");
     match maplibre {
@@ -74,33 +72,4 @@ fn main() {
         wanted.unwrap_or_default()
     ));
     std::fs::write(out.join("console_files.rs"), table).expect("OUT_DIR is writable");
-}
-
-/// `dependencies["maplibre-gl"]` of `web/package.json` (an exact version).
-fn pinned_version(package_json: &Path) -> Option<String> {
-    let text = std::fs::read_to_string(package_json).ok()?;
-    let after = text.split("\"maplibre-gl\"").nth(1)?;
-    Some(after.split('"').nth(1)?.to_string())
-}
-
-/// `version` of an installed npm package folder.
-fn installed_version(dir: &Path) -> Option<String> {
-    let text = std::fs::read_to_string(dir.join("package.json")).ok()?;
-    let after = text.split("\"version\"").nth(1)?;
-    Some(after.split('"').nth(1)?.to_string())
-}
-
-/// `npm ci` of `web`'s lock file into `into`; the package folder when it worked.
-fn npm_ci(web: &Path, into: &Path, wanted: &str) -> Option<PathBuf> {
-    std::fs::create_dir_all(into).ok()?;
-    for file in ["package.json", "package-lock.json"] {
-        std::fs::copy(web.join(file), into.join(file)).ok()?;
-    }
-    let status = Command::new("npm")
-        .args(["ci", "--silent", "--no-audit", "--no-fund", "--ignore-scripts"])
-        .current_dir(into)
-        .status()
-        .ok()?;
-    let dir = into.join("node_modules/maplibre-gl");
-    (status.success() && installed_version(&dir).as_deref() == Some(wanted)).then_some(dir)
 }

@@ -12,8 +12,10 @@
 //! `sadesim_three`: `rendering.enabled` is then refused with a "not supported: this build
 //! has no three.js" error naming what to install, never a page that cannot draw.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::PathBuf;
+
+#[path = "build_npm.rs"]
+mod npm;
 
 /// The files the page imports: (path under `/vendor/three/`, path in the npm package).
 const FILES: &[(&str, &str)] = &[
@@ -34,11 +36,9 @@ fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     let web = manifest.join("web");
-    let wanted = pinned_version(&web.join("package.json"));
-    let three = [web.join("node_modules/three"), out.join("web/node_modules/three")]
-        .into_iter()
-        .find(|dir| installed_version(dir).as_deref() == Some(wanted.as_str()))
-        .or_else(|| npm_ci(&web, &out.join("web"), &wanted));
+    println!("cargo::rerun-if-changed=build_npm.rs");
+    let wanted = npm::pinned_version(&web.join("package.json"), "three").expect("web/package.json pins three");
+    let three = npm::find_or_install(&web, &out, "three", &wanted);
     let mut table = String::from("/// Files of npm `three` served under `/vendor/three/`: (path, bytes).\n");
     table.push_str("pub static THREE_FILES: &[(&str, &[u8])] = &[\n");
     match three {
@@ -57,33 +57,4 @@ fn main() {
     table.push_str("];\n");
     table.push_str(&format!("/// The npm `three` version embedded.\npub const THREE_VERSION: &str = {wanted:?};\n"));
     std::fs::write(out.join("three_files.rs"), table).expect("OUT_DIR is writable");
-}
-
-/// `dependencies.three` of `web/package.json` (an exact version).
-fn pinned_version(package_json: &Path) -> String {
-    let text = std::fs::read_to_string(package_json).expect("sim-worker/web/package.json exists");
-    let after = text.split("\"three\"").nth(1).expect("web/package.json depends on three");
-    after.split('"').nth(1).expect("three's version is a string").to_string()
-}
-
-/// The `version` of an installed npm package folder.
-fn installed_version(dir: &Path) -> Option<String> {
-    let text = std::fs::read_to_string(dir.join("package.json")).ok()?;
-    let after = text.split("\"version\"").nth(1)?;
-    Some(after.split('"').nth(1)?.to_string())
-}
-
-/// `npm ci` of `web`'s lock file into `into`; the package folder when it worked.
-fn npm_ci(web: &Path, into: &Path, wanted: &str) -> Option<PathBuf> {
-    std::fs::create_dir_all(into).ok()?;
-    for file in ["package.json", "package-lock.json"] {
-        std::fs::copy(web.join(file), into.join(file)).ok()?;
-    }
-    let status = Command::new("npm")
-        .args(["ci", "--silent", "--no-audit", "--no-fund", "--ignore-scripts"])
-        .current_dir(into)
-        .status()
-        .ok()?;
-    let dir = into.join("node_modules/three");
-    (status.success() && installed_version(&dir).as_deref() == Some(wanted)).then_some(dir)
 }
