@@ -94,7 +94,7 @@ impl Launcher for RunnerLauncher {
     }
 }
 
-/// Serves the console until Ctrl-C (or SIGTERM in a pod).
+/// Serves the console until Ctrl-C (or SIGTERM, in a pod).
 ///
 /// # Errors
 /// A build without MapLibre, no cluster configuration, or an address that cannot be bound.
@@ -142,8 +142,8 @@ pub(super) fn console(args: ConsoleArgs, out: &mut dyn Write) -> Result<Outcome,
     out.flush()?;
     let (stopped, wait) = tokio::sync::oneshot::channel::<()>();
     let stopped = std::sync::Mutex::new(Some(stopped));
-    // Ctrl-C and SIGTERM (the pod's stop) end the console; see `view_cmd` for why the
-    // handler is installed explicitly.
+    // Ctrl-C ends the console (see `view_cmd` for why the handler is installed explicitly);
+    // in a pod, SIGTERM's default action ends it: the cluster console holds no state.
     ctrlc::set_handler(move || {
         if let Some(tx) = stopped.lock().ok().and_then(|mut s| s.take()) {
             let _ = tx.send(());
