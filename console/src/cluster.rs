@@ -28,7 +28,7 @@ use sadesim_crds::SimulationRun;
 
 use crate::archive::ArchiveBrowser;
 use crate::model::{
-    ArchiveEntry, Condition, CriterionState, EventLine, MAX_EVENTS, RunDetail, RunView, criteria_states,
+    ArchiveEntry, Condition, CriterionState, EventLine, MAX_EVENTS, RunDetail, RunView, camera_streams, criteria_states,
 };
 use crate::server::{ApiError, async_stream};
 
@@ -253,7 +253,12 @@ impl ClusterBackend {
                 Some("Succeeded" | "Failed" | "Aborted")
             );
         let view_url = live.then(|| format!("/api/runs/{id}/view/"));
-        RunDetail { run: view(run), conditions, events, criteria, view_url, cameras: Vec::new() }
+        // The renderer serves the cameras' frames beside the view, through the same proxy.
+        let cameras = match (&view_url, status.endpoints.as_ref().and_then(|e| e.cameras.as_ref())) {
+            (Some(view), Some(_)) => camera_streams(&planned_drones(run), view),
+            _ => Vec::new(),
+        };
+        RunDetail { run: view(run), conditions, events, criteria, view_url, cameras }
     }
 
     /// A GET of the run's live view (`status.endpoints.renderer`) through the API server's
@@ -425,6 +430,18 @@ fn split_archive_url(url: &str) -> Option<(String, String)> {
     }
 }
 
+/// What [`camera_streams`] reads of a plan, from the spec alone: the groups, and their
+/// drones named `<group>-<k>` as the planner names them.
+fn planned_drones(run: &SimulationRun) -> Value {
+    let drones: Vec<Value> = run
+        .spec
+        .fleet
+        .iter()
+        .flat_map(|g| (0..g.count).map(move |k| json!({"name": format!("{}-{k}", g.name), "group": g.name})))
+        .collect();
+    json!({"spec": {"fleet": run.spec.fleet}, "drones": drones})
+}
+
 /// Answers a refusal to list in any of `scope` as the API server's error.
 async fn list_check(client: &Client, scope: &[String]) -> Result<(), ApiError> {
     for ns in scope {
@@ -530,6 +547,17 @@ mod tests {
         assert_eq!((v.phase.as_str(), v.progress, v.drones), ("Failed", Some(1.0), 7));
         assert_eq!(v.verdict.as_deref(), Some("failed"));
         assert_eq!(v.archive_id.as_deref(), Some("team-a.chicago"));
+    }
+
+    #[test]
+    fn the_cameras_of_a_run_are_named_as_the_planner_names_its_drones() {
+        let built = run(None);
+        let plan = sadesim_planner::plan(&built).unwrap();
+        let names: Vec<&str> = plan.drones.iter().map(|d| d.name.as_str()).collect();
+        let ours = planned_drones(&built);
+        let listed: Vec<&str> =
+            ours["drones"].as_array().unwrap().iter().map(|d| d["name"].as_str().unwrap()).collect();
+        assert_eq!(listed, names);
     }
 
     #[test]

@@ -73,17 +73,6 @@ pub fn parse_runs(text: &str) -> Result<Vec<Result<SimulationRun, DocumentError>
     if text.len() > MAX_DOCUMENT_BYTES {
         return Err(DocumentError::TooLarge { bytes: text.len(), limit: MAX_DOCUMENT_BYTES });
     }
-    if !looks_like_json(text) {
-        let depth = yaml_nesting_estimate(text);
-        if depth > MAX_NESTING {
-            return Err(DocumentError::Syntax {
-                document: 1,
-                message: format!(
-                    "nesting is about {depth} levels deep, over the limit of {MAX_NESTING} (recursion limit)"
-                ),
-            });
-        }
-    }
     let values = if looks_like_json(text) { json_documents(text)? } else { yaml_documents(text)? };
     let mut out = Vec::new();
     for value in values {
@@ -188,8 +177,18 @@ pub(crate) fn json_documents(text: &str) -> Result<Vec<Result<Value, DocumentErr
     })
 }
 
+/// Every YAML document of `text` as JSON values. Deep nesting is refused before the YAML
+/// parser sees it (its time grows with the square of the depth: 200 000 brackets took
+/// minutes).
 pub(crate) fn yaml_documents(text: &str) -> Result<Vec<Result<Value, DocumentError>>, DocumentError> {
     use serde::Deserialize;
+    let depth = yaml_nesting_estimate(text);
+    if depth > MAX_NESTING {
+        return Err(DocumentError::Syntax {
+            document: 1,
+            message: format!("nesting is about {depth} levels deep, over the limit of {MAX_NESTING} (recursion limit)"),
+        });
+    }
     let mut out = Vec::new();
     for (i, doc) in serde_yaml::Deserializer::from_str(text).enumerate() {
         if i >= MAX_RUNS_PER_INPUT {

@@ -14,6 +14,9 @@ pub const SWEEP_KIND: &str = "SimulationSweep";
 /// The `kind` of the first document in `text` (`SimulationRun`, `SimulationSweep`, ...),
 /// for tools that take either; `None` when it cannot be read.
 pub fn first_kind(text: &str) -> Option<String> {
+    if text.len() > MAX_DOCUMENT_BYTES {
+        return None;
+    }
     let docs = if looks_like_json(text) { json_documents(text).ok()? } else { yaml_documents(text).ok()? };
     docs.into_iter().next()?.ok()?.get("kind").and_then(Value::as_str).map(String::from)
 }

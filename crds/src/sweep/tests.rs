@@ -158,3 +158,12 @@ fn overrides_set_every_run_and_name_themselves_when_refused() {
         "{p:?}"
     );
 }
+
+#[test]
+fn deeply_nested_sweep_files_are_refused_by_the_nesting_limit_not_parsed() {
+    // 200 000 brackets took the YAML parser minutes before the limit was checked first.
+    let deep = format!("kind: SimulationSweep\nspec: {}{}\n", "[".repeat(200_000), "]".repeat(200_000));
+    assert_eq!(document::first_kind(&deep), None);
+    let e = document::parse_sweep(&deep).unwrap_err().to_string();
+    assert!(e.contains("recursion limit"), "{e}");
+}
