@@ -28,7 +28,7 @@ use sadesim_crds::SimulationRun;
 
 use crate::archive::ArchiveBrowser;
 use crate::model::{
-    ArchiveEntry, Condition, CriterionState, EventLine, MAX_EVENTS, RunDetail, RunView, camera_streams, criteria_states,
+    ArchiveEntry, Condition, CriterionState, EventLine, MAX_EVENTS, RunDetail, RunView, criteria_states,
 };
 use crate::server::{ApiError, async_stream};
 
@@ -246,53 +246,30 @@ impl ClusterBackend {
                 detail: Some(v.failures.join("; ")).filter(|f| !f.is_empty()),
             }],
         };
-        let id = format!("{ns}.{name}");
-        let live = status.endpoints.as_ref().and_then(|e| e.renderer.as_ref()).is_some()
-            && !matches!(
-                status.phase.as_ref().and_then(|p| serde_json::to_value(p).ok()).as_ref().and_then(Value::as_str),
-                Some("Succeeded" | "Failed" | "Aborted")
-            );
-        let view_url = live.then(|| format!("/api/runs/{id}/view/"));
-        // The renderer serves the cameras' frames beside the view, through the same proxy.
-        let cameras = match (&view_url, status.endpoints.as_ref().and_then(|e| e.cameras.as_ref())) {
-            (Some(view), Some(_)) => camera_streams(&planned_drones(run), view),
-            _ => Vec::new(),
-        };
+        // A cluster run's live view and cameras are not proxied by the console (yet): the
+        // page says how to reach them (`kubectl port-forward`), rather than a broken frame.
+        let (view_url, cameras) = (None, Vec::new());
         RunDetail { run: view(run), conditions, events, criteria, view_url, cameras }
     }
 
-    /// A GET of the run's live view (`status.endpoints.renderer`) through the API server's
-    /// service proxy, as the user: the response streams through (the view's events).
+    /// A cluster run's live view through the console: not supported yet (501, saying how to
+    /// reach it with kubectl).
     pub async fn live_view(
         &self,
         token: Option<String>,
         id: &str,
-        rest: &str,
+        _rest: &str,
     ) -> Result<axum::response::Response, ApiError> {
         let client = self.client(token)?;
         let run = self.get(&client, id).await?;
-        let renderer = run.status.and_then(|s| s.endpoints).and_then(|e| e.renderer).ok_or_else(|| {
-            ApiError::new(StatusCode::NOT_FOUND, format!("run {id} has no live view (spec.rendering.enabled)"))
-        })?;
-        // `http://<service>.<namespace>.svc:<port>`.
-        let authority = renderer.trim_start_matches("http://").trim_end_matches('/');
-        let (host, port) = authority.rsplit_once(':').unwrap_or((authority, "80"));
-        let service = host.split('.').next().unwrap_or_default();
+        let name = run.metadata.name.unwrap_or_default();
         let ns = run.metadata.namespace.unwrap_or_default();
-        let uri = format!("/api/v1/namespaces/{ns}/services/{service}:{port}/proxy/{rest}");
-        let request = http::Request::get(uri)
-            .body(kube::client::Body::empty())
-            .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, e.to_string()))?;
-        let response = client.send(request).await.map_err(kube_error)?;
-        let (parts, body) = response.into_parts();
-        let mut out = axum::response::Response::new(axum::body::Body::new(body));
-        *out.status_mut() = parts.status;
-        for name in [http::header::CONTENT_TYPE, http::header::CACHE_CONTROL] {
-            if let Some(v) = parts.headers.get(&name) {
-                out.headers_mut().insert(name, v.clone());
-            }
-        }
-        Ok(out)
+        Err(ApiError::new(
+            StatusCode::NOT_IMPLEMENTED,
+            format!(
+                "not supported: the console does not proxy a cluster run's live view yet; reach it with `kubectl -n {ns} port-forward svc/{name}-renderer 8490` and http://127.0.0.1:8490/"
+            ),
+        ))
     }
 
     /// Sets `spec.abort` (the run stops: pilot, shards, then the archive is written).
@@ -430,18 +407,6 @@ fn split_archive_url(url: &str) -> Option<(String, String)> {
     }
 }
 
-/// What [`camera_streams`] reads of a plan, from the spec alone: the groups, and their
-/// drones named `<group>-<k>` as the planner names them.
-fn planned_drones(run: &SimulationRun) -> Value {
-    let drones: Vec<Value> = run
-        .spec
-        .fleet
-        .iter()
-        .flat_map(|g| (0..g.count).map(move |k| json!({"name": format!("{}-{k}", g.name), "group": g.name})))
-        .collect();
-    json!({"spec": {"fleet": run.spec.fleet}, "drones": drones})
-}
-
 /// Answers a refusal to list in any of `scope` as the API server's error.
 async fn list_check(client: &Client, scope: &[String]) -> Result<(), ApiError> {
     for ns in scope {
@@ -547,17 +512,6 @@ mod tests {
         assert_eq!((v.phase.as_str(), v.progress, v.drones), ("Failed", Some(1.0), 7));
         assert_eq!(v.verdict.as_deref(), Some("failed"));
         assert_eq!(v.archive_id.as_deref(), Some("team-a.chicago"));
-    }
-
-    #[test]
-    fn the_cameras_of_a_run_are_named_as_the_planner_names_its_drones() {
-        let built = run(None);
-        let plan = sadesim_planner::plan(&built).unwrap();
-        let names: Vec<&str> = plan.drones.iter().map(|d| d.name.as_str()).collect();
-        let ours = planned_drones(&built);
-        let listed: Vec<&str> =
-            ours["drones"].as_array().unwrap().iter().map(|d| d["name"].as_str().unwrap()).collect();
-        assert_eq!(listed, names);
     }
 
     #[test]

@@ -491,8 +491,8 @@ async fn archive_verify(State(c): State<Console>, headers: HeaderMap, Path(id): 
     Ok(axum::Json(verification).into_response())
 }
 
-/// `/api/runs/<id>/view/...` on a cluster: the run's live view through the API server's
-/// service proxy, with the user's identity (`services/proxy` in the run's namespace).
+/// `/api/runs/<id>/view/...`: a cluster run's live view, not proxied yet (501 saying how to
+/// reach it); local runs serve theirs themselves (`viewUrl`).
 async fn live_view(
     State(c): State<Console>,
     headers: HeaderMap,
