@@ -170,6 +170,10 @@ pub fn router(console: Console) -> Router {
         .route("/api/runs/{id}", get(run))
         .route("/api/runs/{id}/watch", get(watch_run))
         .route("/api/runs/{id}/stop", post(stop))
+        .route(
+            "/api/runs/{id}/view/",
+            get(|state, headers, Path(id): Path<String>| live_view(state, headers, Path((id, String::new())))),
+        )
         .route("/api/runs/{id}/view/{*rest}", get(live_view))
         .route("/api/archive", get(archive_list))
         .route("/api/archive/{id}", get(archive_entry))

@@ -211,6 +211,9 @@ def test_bad_requests_are_refused_naming_what_is_wrong(console):
     assert status == 400 and "namespace" in body["error"]
     status, body = console.call("GET", "/api/runs/nope.20260101T000000Z", spec_path="/api/runs/{id}")
     assert status == 404
+    # A local run serves its own live view (viewUrl); the console's view route is for clusters.
+    status, body = console.call("GET", "/api/runs/nope.20260101T000000Z/view/", spec_path="/api/runs/{id}/view/{path}")
+    assert status == 404 and "local runs serve their live view" in body["error"], body
     status, body = console.call("GET", "/api/archive/..", spec_path="/api/archive/{id}")
     assert status == 404
     status, body = console.call("GET", "/api/archive/a.b", spec_path="/api/archive/{id}")
