@@ -235,11 +235,9 @@ fn walk(dir: &Path, rel: &Path, out: &mut Vec<FileEntry>) {
     }
 }
 
-/// The drones' names from a `plan.json` (empty when it cannot be read).
-pub fn drone_names(plan: &Path) -> Vec<String> {
-    let plan: Option<Value> = std::fs::read(plan).ok().and_then(|b| serde_json::from_slice(&b).ok());
-    plan.as_ref()
-        .and_then(|p| p.get("drones"))
+/// The drones' names in a run plan (`plan.json` as JSON; empty when it has none).
+pub fn drone_names(plan: &Value) -> Vec<String> {
+    plan.get("drones")
         .and_then(Value::as_array)
         .map(|ds| ds.iter().map(|d| d.get("name").and_then(Value::as_str).unwrap_or_default().to_string()).collect())
         .unwrap_or_default()

@@ -426,7 +426,7 @@ fn view(run: &SimulationRun) -> RunView {
     let duration_s = run.spec.duration_s();
     let sim = status.sim_time_s.unwrap_or(0.0);
     let phase = status.phase.and_then(|p| serde_json::to_value(p).ok().and_then(|v| v.as_str().map(String::from)));
-    let over = matches!(phase.as_deref(), Some("Succeeded" | "Failed" | "Aborted"));
+    let over = phase.as_deref().is_some_and(crate::local::is_over);
     RunView {
         id: format!("{ns}.{name}"),
         name: name.clone(),

@@ -89,7 +89,7 @@ impl LiveRun {
     pub fn started(&self, view_url: Option<String>) {
         let plan: Option<Value> =
             std::fs::read(self.dir.join(run_folder::PLAN)).ok().and_then(|b| serde_json::from_slice(&b).ok());
-        let names = crate::archive::drone_names(&self.dir.join(run_folder::PLAN));
+        let names = plan.as_ref().map(crate::archive::drone_names).unwrap_or_default();
         let cameras = match (&plan, &view_url) {
             (Some(plan), Some(view)) => camera_streams(plan, view),
             _ => Vec::new(),
@@ -219,7 +219,8 @@ impl LiveRun {
     }
 }
 
-fn is_over(phase: &str) -> bool {
+/// Whether a run in `phase` has ended (the SimulationRun's final phases).
+pub(crate) fn is_over(phase: &str) -> bool {
     matches!(phase, "Succeeded" | "Failed" | "Aborted")
 }
 
