@@ -35,15 +35,30 @@ echo "==> Python interop tests"
 cube_log="$(mktemp)"
 .venv/bin/python -m pytest -q -p no:cacheprovider tests/interop/test_openfoam_cube.py >"$cube_log" 2>&1 &
 cube_pid=$!
-trap 'kill "$cube_pid" 2>/dev/null || true' EXIT
+# The short soak (tests/soak/soak.py, docs/performance.md "Soak"): 3 real-time minutes of
+# 8 scripted drones with a ground station, failing if memory, file descriptors or threads
+# grow. It needs little CPU, so it runs beside the interop tests too, in a network namespace
+# of its own (its MAVLink and API ports are the defaults the interop tests use).
+soak_dir="$(mktemp -d)"
+unshare --net -- sh -c 'ip link set lo up && exec "$@"' soak \
+  .venv/bin/python tests/soak/soak.py --sadesim target/debug/sadesim --minutes 3 --drones 8 \
+  --interval 2 --out "$soak_dir" >"$soak_dir/soak.log" 2>&1 &
+soak_pid=$!
+trap 'kill "$cube_pid" "$soak_pid" 2>/dev/null || true' EXIT
 .venv/bin/python -m pytest -q tests/interop --ignore=tests/interop/test_openfoam_cube.py
 echo "==> Python interop tests: the OpenFOAM reference cube (tests/interop/test_openfoam_cube.py)"
 cube_status=0
 wait "$cube_pid" || cube_status=$?
-trap - EXIT
 cat "$cube_log"
 rm -f "$cube_log"
 [ "$cube_status" -eq 0 ] || { echo "the OpenFOAM reference cube failed (exit $cube_status)"; exit 1; }
+echo "==> the short soak (tests/soak/soak.py)"
+soak_status=0
+wait "$soak_pid" || soak_status=$?
+cat "$soak_dir/soak.log"
+rm -rf "$soak_dir"
+trap - EXIT
+[ "$soak_status" -eq 0 ] || { echo "the short soak failed (exit $soak_status)"; exit 1; }
 
 echo "==> the real-cluster lane (tests/cluster/lane.sh)"
 bash tests/cluster/lane.sh
