@@ -29,6 +29,13 @@ use crate::mavlink::telemetry::{self, VehicleIdentity, VehicleView, ned_to_enu};
 
 /// Our component: the autopilot (MAV_COMP_ID_AUTOPILOT1).
 pub const COMPONENT_ID: u8 = 1;
+/// Replies a session keeps between two polls; more are dropped (counted in
+/// [`SessionStats::dropped_replies`]). Ten parameter lists: what no peer needs at once, but
+/// what a flood of PARAM_REQUEST_LIST would otherwise multiply without bound.
+pub const MAX_PENDING_REPLIES: usize = 1024;
+
+mod flood;
+pub use flood::{BURST as INBOUND_BURST, InboundBudget, PER_S as INBOUND_PER_S};
 
 /// What a session may ask of the drone's autopilot.
 pub trait Vehicle {
@@ -46,6 +53,10 @@ pub struct SessionStats {
     pub commands: u64,
     pub unsupported_commands: u64,
     pub ignored: u64,
+    /// Frames dropped unread: their peer was over its budget (`flood`).
+    pub refused_flood: u64,
+    /// Replies dropped because [`MAX_PENDING_REPLIES`] were waiting.
+    pub dropped_replies: u64,
 }
 
 /// The MAVLink face of one drone.
@@ -60,6 +71,10 @@ pub struct Session {
     raw: Vec<Outgoing>,
     /// (current, count) last reported in MISSION_CURRENT, to report changes at once.
     reported_mission: Option<(usize, usize)>,
+    /// What each peer may send (`flood`).
+    budget: InboundBudget,
+    /// Run events the session raised (a flood), for the drone to take.
+    events: Vec<EventKind>,
     pub stats: SessionStats,
 }
 
@@ -74,18 +89,47 @@ impl Session {
             outbox: Vec::new(),
             raw: Vec::new(),
             reported_mission: None,
+            budget: InboundBudget::default(),
+            events: Vec::new(),
             stats: SessionStats::default(),
             id,
         }
     }
 
-    /// Handles one frame from a peer.
+    /// Handles one frame from a peer, within its peer's budget (`flood`: over it, the
+    /// frame is dropped unread and the flood reported); the replies waiting stay within
+    /// [`MAX_PENDING_REPLIES`].
     pub fn handle(&mut self, frame: &Frame, view: &VehicleView, vehicle: &mut dyn Vehicle) {
         let from = (frame.header.system_id as u8, frame.header.component_id);
         if u32::from(self.id.system_id) == frame.header.system_id {
             self.stats.ignored += 1; // our own echo (a router looping back)
             return;
         }
+        let (accepted, report) = self.budget.take(from, view.time_s);
+        if let Some(report) = report {
+            // First in the queue, so the replies' limit never cuts it.
+            self.status_text(MavSeverity::MAV_SEVERITY_WARNING, &report.status_text);
+            self.outbox.rotate_right(1);
+            self.events.push(report.event);
+        }
+        if !accepted {
+            self.stats.refused_flood += 1;
+            return;
+        }
+        self.handle_frame(frame, from, view, vehicle);
+        for queue in [self.outbox.len(), self.raw.len()] {
+            self.stats.dropped_replies += queue.saturating_sub(MAX_PENDING_REPLIES) as u64;
+        }
+        self.outbox.truncate(MAX_PENDING_REPLIES);
+        self.raw.truncate(MAX_PENDING_REPLIES);
+    }
+
+    /// The run events the session raised since the last call (a flood's reports).
+    pub fn take_events(&mut self) -> Vec<EventKind> {
+        std::mem::take(&mut self.events)
+    }
+
+    fn handle_frame(&mut self, frame: &Frame, from: (u8, u8), view: &VehicleView, vehicle: &mut dyn Vehicle) {
         let msg = match &frame.message {
             Decoded::Message(m) => m,
             Decoded::UnknownCommand { command, target_system, target_component } => {

@@ -234,6 +234,8 @@ impl DroneSim {
             for f in queues.inbound.drain(..) {
                 session.handle(&f, &view, &mut vehicle);
             }
+            // A flood's reports (`mavlink::session`).
+            self.events.extend(session.take_events());
         }
         self.mavlink_collect(time_s, &mut queues.outbound);
     }

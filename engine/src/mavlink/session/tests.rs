@@ -447,4 +447,5 @@ fn reposition_with_an_unset_position_changes_only_the_altitude() {
     assert!((altitude_rel_home_m - 40.0).abs() < 1e-6);
 }
 
+mod flood;
 mod presets;
