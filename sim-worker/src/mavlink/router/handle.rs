@@ -9,6 +9,7 @@ use std::thread::JoinHandle;
 
 use super::config::{POLL, RouterConfig, RouterError, RouterStats, bind_error, check_drones};
 use super::gcs_signing::GcsSigning;
+use super::refusal_log::RefusalLog;
 use super::routing_table::{Counters, PeerTable, Shared, lock};
 use super::sockets::{accept_tcp, drone_side, gcs_udp_side};
 
@@ -68,7 +69,10 @@ pub fn start(config: RouterConfig) -> Result<RouterHandle, RouterError> {
         tcp_threads: Mutex::new(Vec::new()),
         next_tcp_id: AtomicU64::new(0),
         counters: Arc::default(),
-        signing: config.signing.map(|key| GcsSigning::new(key, config.segment)),
+        signing: config.signing.map(GcsSigning::new),
+        refusals: Mutex::new(RefusalLog::new(config.segment)),
+        #[cfg(test)]
+        logged: Mutex::default(),
     });
     let mut handle = RouterHandle {
         gcs_udp: shared.gcs_udp.local_addr()?,

@@ -23,6 +23,12 @@
 //!   has none, and nowhere (counted) for a system id outside the segment. Each GCS also
 //!   receives the other GCS clients' frames, so two ground stations see each other, as
 //!   with mavlink-router.
+//! - **Garbage** from a ground station (bytes that start no MAVLink 2 frame, frames with a
+//!   bad checksum) is dropped, counted ([`RouterStats::garbage_bytes`],
+//!   [`RouterStats::bad_checksum`]) and logged on stderr: the first from an address at once,
+//!   naming the address, the offending byte and its offset, and why it starts no frame;
+//!   then a sum every 10 s. Good frames before and after it still go through, and the
+//!   other ground stations are not affected.
 //!
 //! Frames are forwarded byte for byte, never re-encoded: sequence numbers, signatures and
 //! extension fields survive, and a frame costs one checksum check and a copy.
@@ -33,7 +39,7 @@
 //! - A ground station's frame is taken only when signed with the key, with a timestamp after
 //!   the last one of its stream (link id, system id, component id); others are dropped,
 //!   counted ([`RouterStats::refused_unsigned`] and the next two) and logged on stderr, the
-//!   first per source address at once, then a sum every 10 s. A UDP sender becomes a client
+//!   first per source address at once, then a sum every 10 s (as for garbage). A UDP sender becomes a client
 //!   only with a frame that passes.
 //! - Drone frames are signed on their way to the ground stations (flag set, CRC recomputed,
 //!   link id [`ROUTER_LINK_ID`], timestamps from the wall clock, strictly increasing).
@@ -64,12 +70,13 @@
 //! # Layout
 //! `config` (what a router serves, its limits, errors and counters), `handle` (start and
 //! stop), `routing_table` (the state the threads share and how a frame is routed),
-//! `gcs_signing` (signing state and the log of refusals), `sockets` (the threads), `tests`
-//! (against real sockets on loopback).
+//! `gcs_signing` (signing state), `refusal_log` (the bounded log of what was dropped from
+//! ground stations), `sockets` (the threads), `tests` (against real sockets on loopback).
 
 mod config;
 mod gcs_signing;
 mod handle;
+mod refusal_log;
 mod routing_table;
 mod sockets;
 

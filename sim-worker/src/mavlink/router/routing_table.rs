@@ -15,6 +15,7 @@ use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavM
 
 use super::config::{MAX_UDP_GCS, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone};
 use super::gcs_signing::{GcsSigning, SETUP_SIGNING_ID};
+use super::refusal_log::{Dropped, RefusalLog, describe_bad_bytes};
 use sadesim_engine::mavlink::frame::{
     DatagramFrames, Decoded, Frame, FrameParser, FrameRef, ParseStats, encode, target_system,
 };
@@ -110,6 +111,11 @@ pub(super) struct Shared {
     pub(super) counters: Arc<Counters>,
     /// MAVLink 2 signing on the GCS side, when configured.
     pub(super) signing: Option<GcsSigning>,
+    /// What was dropped from ground stations, for the log (signing refusals, garbage).
+    pub(super) refusals: Mutex<RefusalLog>,
+    /// The lines logged (tests read them; the router writes them to stderr).
+    #[cfg(test)]
+    pub(super) logged: Mutex<Vec<String>>,
 }
 
 impl Shared {
@@ -117,16 +123,25 @@ impl Shared {
         self.stop.load(Ordering::Relaxed)
     }
 
-    /// Parses one datagram (or one TCP read) and counts what the parser threw away.
-    pub(super) fn parse(&self, parser: &mut FrameParser, bytes: &[u8]) -> Vec<Frame> {
+    /// Parses one datagram (or one TCP read) and counts what the parser threw away; returns
+    /// the frames and what was thrown away.
+    pub(super) fn parse(&self, parser: &mut FrameParser, bytes: &[u8]) -> (Vec<Frame>, ParseStats) {
         let before = parser.stats;
         let frames = parser.push(bytes);
-        self.count_skipped(&ParseStats {
+        let skipped = ParseStats {
             bad_checksum: parser.stats.bad_checksum - before.bad_checksum,
             skipped_bytes: parser.stats.skipped_bytes - before.skipped_bytes,
             ..ParseStats::default()
-        });
-        frames
+        };
+        self.count_skipped(&skipped);
+        (frames, skipped)
+    }
+
+    /// Writes a line to the router's log (stderr).
+    fn log(&self, line: String) {
+        eprintln!("{line}");
+        #[cfg(test)]
+        lock(&self.logged).push(line);
     }
 
     /// Counts what a parse threw away: frames with a bad checksum, bytes of garbage.
@@ -135,12 +150,31 @@ impl Shared {
         add(&self.counters.garbage_bytes, stats.skipped_bytes);
     }
 
-    /// Parses bytes from the ground station at `source`. With signing, only the frames that
-    /// pass the signature and replay checks are returned; the others (and MAVLink 1 frames)
-    /// are counted and logged.
-    pub(super) fn parse_gcs(&self, parser: &mut FrameParser, bytes: &[u8], source: SocketAddr) -> Vec<Frame> {
+    /// Parses bytes from the ground station at `source` (`what`: "datagram" or "TCP read",
+    /// for the log). Bytes that are not MAVLink and frames with a bad checksum are counted
+    /// and logged (the first from an address at once, naming the offending byte). With
+    /// signing, only the frames that pass the signature and replay checks are returned; the
+    /// others (and MAVLink 1 frames) are counted and logged.
+    pub(super) fn parse_gcs(
+        &self,
+        parser: &mut FrameParser,
+        bytes: &[u8],
+        source: SocketAddr,
+        what: &str,
+    ) -> Vec<Frame> {
         let mavlink1_before = parser.stats.mavlink1_frames;
-        let mut frames = self.parse(parser, bytes);
+        let (mut frames, skipped) = self.parse(parser, bytes);
+        if skipped.skipped_bytes > 0 || skipped.bad_checksum > 0 {
+            let now = Instant::now();
+            let mut log = lock(&self.refusals);
+            // A bad checksum first: the bytes of a corrupted frame also count as garbage.
+            let garbage = [(Dropped::BadChecksum, skipped.bad_checksum), (Dropped::NotMavlink, skipped.skipped_bytes)];
+            for (why, n) in garbage.into_iter().filter(|(_, n)| *n > 0) {
+                if let Some(line) = log.refused(source, why, n, now, || describe_bad_bytes(bytes, what)) {
+                    self.log(line);
+                }
+            }
+        }
         let Some(signing) = &self.signing else { return frames };
         let mut refused: Vec<Refusal> =
             (mavlink1_before..parser.stats.mavlink1_frames).map(|_| Refusal::Mavlink1).collect();
@@ -157,7 +191,7 @@ impl Shared {
             return frames;
         }
         let now = Instant::now();
-        let mut log = lock(&signing.refusals);
+        let mut log = lock(&self.refusals);
         for why in refused {
             let counter = match why {
                 Refusal::Unsigned | Refusal::Mavlink1 => &self.counters.refused_unsigned,
@@ -165,20 +199,18 @@ impl Shared {
                 Refusal::OldTimestamp => &self.counters.refused_old_timestamp,
             };
             add(counter, 1);
-            if let Some(line) = log.refused(source, why, now) {
-                eprintln!("{line}");
+            if let Some(line) = log.refused(source, Dropped::Signing(why), 1, now, String::new) {
+                self.log(line);
             }
         }
         frames
     }
 
-    /// Logs the sums of refused frames that are due (with signing; called often by the GCS
-    /// UDP thread).
+    /// Logs the sums of refusals that are due (called often by the GCS UDP thread).
     pub(super) fn report_refusals(&self) {
-        if let Some(signing) = &self.signing {
-            for line in lock(&signing.refusals).due(Instant::now()) {
-                eprintln!("{line}");
-            }
+        let lines = lock(&self.refusals).due(Instant::now());
+        for line in lines {
+            self.log(line);
         }
     }
 

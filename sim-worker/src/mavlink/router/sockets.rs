@@ -127,7 +127,7 @@ pub(super) fn gcs_udp_side(shared: &Shared) {
         match shared.gcs_udp.recv_from(&mut buf) {
             Ok((n, from)) => {
                 parser.reset();
-                let frames = shared.parse_gcs(&mut parser, &buf[..n], from);
+                let frames = shared.parse_gcs(&mut parser, &buf[..n], from, "datagram");
                 // Only a sender of at least one valid frame (with signing: validly signed)
                 // becomes a client, so a port scan or stray traffic does not subscribe to
                 // the telemetry.
@@ -209,7 +209,7 @@ pub(super) fn tcp_reader(shared: &Shared, mut stream: TcpStream, peer: SocketAdd
         match stream.read(&mut buf) {
             Ok(0) => break,
             Ok(n) => {
-                let frames = shared.parse_gcs(&mut parser, &buf[..n], peer);
+                let frames = shared.parse_gcs(&mut parser, &buf[..n], peer, "TCP read");
                 shared.route_gcs_frames(&frames, GcsOrigin::Tcp(id));
             }
             Err(e) if is_timeout(&e) => {}

@@ -282,6 +282,70 @@ fn garbage_and_bad_checksums_from_a_gcs_are_dropped_and_routing_goes_on() {
     assert!(stats.bad_checksum >= 2, "{stats:?}");
     assert!(stats.garbage_bytes > 0, "{stats:?}");
     assert!(drones[0].commands().is_empty() && drones[2].commands().is_empty());
+    // Logged once per address, naming the address and what was wrong; the rest is summed.
+    let logged = router.shared.as_ref().unwrap().logged.lock().unwrap().clone();
+    let udp_addr = udp.local_addr().unwrap().to_string();
+    let about = |who: &str| logged.iter().filter(|l| l.contains(&format!("from {who}"))).cloned().collect::<Vec<_>>();
+    let udp_lines = about(&udp_addr);
+    assert_eq!(udp_lines.len(), 1, "{logged:?}");
+    assert!(
+        udp_lines[0].contains(&format!(
+            "dropped 1 frame(s) from {udp_addr}: at byte 0 of a {}-byte datagram, a MAVLink 2 frame (message id 76, \
+             {} bytes) whose checksum does not match; further refusals from {udp_addr} are summed up every 10 s",
+            bad.len(),
+            bad.len()
+        )),
+        "{udp_lines:?}"
+    );
+    let tcp_addr = tcp.local_addr().unwrap().to_string();
+    let tcp_lines = about(&tcp_addr);
+    assert_eq!(tcp_lines.len(), 1, "{logged:?}");
+    assert!(tcp_lines[0].contains(&format!("from {tcp_addr}")) && tcp_lines[0].contains("TCP read"), "{tcp_lines:?}");
+}
+
+/// A ground station that sends nothing but garbage, as fast as it can: every byte is
+/// counted, one line names it, and a well-behaved ground station beside it is served.
+#[test]
+fn a_gcs_spewing_garbage_is_logged_once_and_the_others_are_served() {
+    let (drones, router) = fleet(2);
+    let hostile = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let noise: Vec<u8> = (0..1000u32).map(|i| (i * 7 % 251) as u8 | 1).filter(|b| *b != 0xFD && *b != 0xFE).collect();
+    let mut sent = 2000;
+    for _ in 0..sent {
+        hostile.send_to(&noise, router.gcs_udp()).unwrap();
+    }
+    wait_for("the garbage counted", || (router.stats().garbage_bytes > 0).then_some(()));
+    // The good ground station among more garbage (it resends, as UDP may lose a datagram
+    // when the socket's buffer is full of garbage: the kernel's drop, not the router's).
+    let gcs = udp_gcs(&router);
+    wait_for("the good command", || {
+        for _ in 0..50 {
+            hostile.send_to(&noise, router.gcs_udp()).unwrap();
+        }
+        sent += 50;
+        gcs.send_to(&frame(GCS_SYSID, &heartbeat(MavType::MAV_TYPE_GCS)), router.gcs_udp()).unwrap();
+        gcs.send_to(&frame(GCS_SYSID, &command(1, 5.0)), router.gcs_udp()).unwrap();
+        thread::sleep(Duration::from_millis(20));
+        (!drones[0].commands().is_empty()).then_some(())
+    });
+    assert!(drones[0].commands().iter().all(|&c| c == 5.0));
+    udp_until(&gcs, "telemetry of both drones", |f| sysids(f).is_superset(&BTreeSet::from([1, 2])));
+    let stats = router.stats();
+    assert!(stats.garbage_bytes > 0 && stats.garbage_bytes <= sent * noise.len() as u64, "{stats:?}");
+    assert_eq!(stats.gcs_udp_clients, 1, "garbage makes no client: {stats:?}");
+    let logged = router.shared.as_ref().unwrap().logged.lock().unwrap().clone();
+    let from = hostile.local_addr().unwrap().to_string();
+    assert_eq!(logged.len(), 1, "{logged:?}");
+    assert!(
+        logged[0].contains(&format!(
+            "dropped {} byte(s) from {from} that are not MAVLink: at byte 0 of a {}-byte datagram, byte 0x{:02x} is no \
+             MAVLink start marker",
+            noise.len(),
+            noise.len(),
+            noise[0]
+        )),
+        "{logged:?}"
+    );
 }
 
 #[test]
