@@ -174,11 +174,35 @@ pub fn read_message<T: Wire>(r: &mut impl Read, buf: &mut Vec<u8>) -> Result<Opt
     }
     buf.clear();
     buf.resize(n, 0);
-    r.read_exact(buf).map_err(|e| match e.kind() {
-        std::io::ErrorKind::UnexpectedEof => LinkError::Decode(format!("the stream ended inside a frame of {n} bytes")),
-        _ => LinkError::Io(e),
-    })?;
+    let mut got = 0;
+    while got < n {
+        match r.read(&mut buf[got..]) {
+            // A truncated frame: say how much of it came, so a peer that cuts its frames
+            // short (a bug, a proxy, a full disk on its side) is told from one that left.
+            Ok(0) => {
+                return Err(LinkError::Decode(format!(
+                    "the stream ended inside a frame of {n} bytes ({got} of them received{})",
+                    describe_kind(&buf[..got])
+                )));
+            }
+            Ok(k) => got += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(LinkError::Io(e)),
+        }
+    }
     T::decode(buf).map(Some).map_err(LinkError::Decode)
+}
+
+/// ", a window (`W`) frame" for the start of a frame's payload: what the frame was meant to
+/// carry, by its kind byte ([`wire`]'s table).
+fn describe_kind(received: &[u8]) -> String {
+    match received.first() {
+        Some(b'A') => ", an advance (`A`) frame".into(),
+        Some(b'W') => ", a window (`W`) frame".into(),
+        Some(b'J') => ", a JSON (`J`) frame".into(),
+        Some(other) => format!(", whose kind byte 0x{other:02x} is none of `A`, `W`, `J`"),
+        None => String::new(),
+    }
 }
 
 impl ShardLink for TcpLink {

@@ -50,7 +50,11 @@ fn a_stream_cut_inside_a_frame_or_a_frame_too_long_is_an_error_naming_it() {
     let err = read_message::<FromShard>(&mut Cursor::new(&bytes[..2]), &mut buf).unwrap_err().to_string();
     assert!(err.contains("the stream ended inside a frame's length (2 of 4 bytes)"), "{err}");
     let err = read_message::<FromShard>(&mut Cursor::new(&bytes[..bytes.len() - 1]), &mut buf).unwrap_err().to_string();
-    assert!(err.contains(&format!("the stream ended inside a frame of {} bytes", bytes.len() - 4)), "{err}");
+    let (n, got) = (bytes.len() - 4, bytes.len() - 5);
+    assert!(
+        err.contains(&format!("the stream ended inside a frame of {n} bytes ({got} of them received, a JSON")),
+        "{err}"
+    );
     let huge = (MAX_FRAME_BYTES as u32 + 1).to_le_bytes();
     let err = read_message::<FromShard>(&mut Cursor::new(huge), &mut buf).unwrap_err().to_string();
     assert!(err.contains("over the 67108864-byte limit"), "{err}");
