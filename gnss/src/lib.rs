@@ -33,6 +33,9 @@ pub mod signal;
 pub mod sky;
 pub mod synthetic;
 
+#[cfg(test)]
+mod fuzz_seeds;
+
 pub use dop::Dop;
 pub use orbits::{Constellation, OrbitError, Satellite, System};
 pub use receiver::{RangingReceiver, ReceiverEpoch, Solution};

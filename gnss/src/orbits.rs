@@ -139,14 +139,23 @@ impl Constellation {
             let first: String = lines.first().map_or("", |(_, l)| l).chars().take(60).collect();
             return Err(OrbitError::NotTle { first });
         }
-        let mut sets: Vec<(usize, Option<String>, &str, &str)> = Vec::new();
+        let mut sets: Vec<(usize, usize, Option<String>, &str, &str)> = Vec::new();
+        // The sgp4 crate reads a line's checksum digit as `byte - b'0'`, which overflows
+        // (a panic with overflow checks) when it is not a digit: refused here first.
+        let checksum_digit = |n: usize, line: &str| match line.as_bytes().get(68) {
+            Some(c) if !c.is_ascii_digit() => Err(OrbitError::Line {
+                line: n,
+                reason: format!("column 69 is the checksum, a digit 0-9; found {:?}", char::from(*c)),
+            }),
+            _ => Ok(()),
+        };
         let mut k = 0;
         while k < lines.len() {
             let (n, line) = lines[k];
             let name =
                 if line.starts_with("1 ") { None } else { Some(line.trim_start_matches("0 ").trim().to_string()) };
             let first = if name.is_some() { k + 1 } else { k };
-            let (Some(&(n1, l1)), Some(&(_, l2))) = (lines.get(first), lines.get(first + 1)) else {
+            let (Some(&(n1, l1)), Some(&(n2, l2))) = (lines.get(first), lines.get(first + 1)) else {
                 return Err(OrbitError::Line {
                     line: n,
                     reason: "an element set ends early: expected lines 1 and 2".into(),
@@ -158,12 +167,12 @@ impl Constellation {
                     reason: format!("expected a TLE line 1 (\"1 NNNNN...\"), found {l1:?}"),
                 });
             }
-            sets.push((n1, name, l1, l2));
+            sets.push((n1, n2, name, l1, l2));
             k = first + 2;
         }
-        let all_unnamed = sets.iter().all(|(_, name, _, _)| name.is_none());
+        let all_unnamed = sets.iter().all(|(_, _, name, _, _)| name.is_none());
         let mut satellites = Vec::new();
-        for (line, name, l1, l2) in &sets {
+        for (line, line2, name, l1, l2) in &sets {
             let system = match name.as_deref().map(System::of_name) {
                 Some(Some(system)) => system,
                 Some(None) => continue,
@@ -171,6 +180,8 @@ impl Constellation {
                 None if all_unnamed => System::Gps,
                 None => continue,
             };
+            checksum_digit(*line, l1)?;
+            checksum_digit(*line2, l2)?;
             let elements = sgp4::Elements::from_tle(name.clone(), l1.as_bytes(), l2.as_bytes())
                 .map_err(|e| OrbitError::Line { line: *line, reason: e.to_string() })?;
             let shown = name.clone().unwrap_or_else(|| format!("NORAD {}", elements.norad_id));
@@ -293,5 +304,16 @@ mod tests {
         // A TLE-looking file whose name line is followed by something else.
         let e = Constellation::from_tle(&format!("GPS X\nnot a line\n{SAMPLE}")).unwrap_err().to_string();
         assert!(e.starts_with("line 2: expected a TLE line 1"), "{e}");
+    }
+
+    #[test]
+    fn a_checksum_that_is_not_a_digit_is_refused() {
+        // Found by fuzz/fuzz_targets/orbits.rs: the sgp4 crate subtracts b'0' from the
+        // checksum column, which overflowed (a panic in a debug build) on `!` or a letter.
+        for bad in ['!', 'x', '+'] {
+            let tle = SAMPLE.replacen("0  9990", &format!("0  999{bad}"), 1);
+            let e = Constellation::from_tle(&tle).unwrap_err().to_string();
+            assert_eq!(e, format!("line 2: column 69 is the checksum, a digit 0-9; found {bad:?}"));
+        }
     }
 }

@@ -16,6 +16,9 @@ mod fleet_file;
 mod ports;
 mod resources;
 
+#[cfg(test)]
+mod fuzz_seeds;
+
 use sadesim_crds::fleet::{Area, FleetGroup, HomePlacement};
 use sadesim_crds::geo::{Enu, LocalFrame};
 use sadesim_crds::plan::{Home, PLAN_FORMAT_VERSION, PlannedDrone, PlannedShard, RouterSegment, RunPlan, RunRef};

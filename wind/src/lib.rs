@@ -28,6 +28,9 @@ pub mod request;
 pub mod rockle;
 pub mod solver;
 
+#[cfg(test)]
+mod fuzz_seeds;
+
 pub use field::{DEFAULT_SECTORS, DIAGNOSTIC_MODEL_VERSION, SectorBlend, SectorField, UrbanWindField};
 pub use grid::{GridSpec, WindGrid};
 

@@ -193,7 +193,8 @@ impl Token<'_> {
         match self {
             Token::Punct(c) => format!("`{}`", *c as char),
             Token::Word(w) => format!("`{}`", truncate(w)),
-            Token::Str(s) => format!("\"{}\"", truncate(s)),
+            // Debug: quotes, and line breaks escaped, so the error stays one line.
+            Token::Str(s) => format!("{:?}", truncate(s)),
             Token::Eof => "the end of the file".to_string(),
         }
     }
@@ -734,5 +735,15 @@ mod tests {
             "{err:?}"
         );
         assert!(err.to_string().contains("is this the cell centres C?"), "{err}");
+    }
+
+    #[test]
+    fn a_quoted_line_break_in_an_error_stays_on_one_line() {
+        // Found by fuzz/fuzz_targets/openfoam.rs: a string token was shown as written, and
+        // its line breaks broke the error over several lines.
+        let text = u("nonuniform List<vector> 1((1 0 \"a\nb\"));");
+        let err = parse_vector_field("U", &text).unwrap_err().to_string();
+        assert!(!err.contains('\n'), "{err}");
+        assert!(err.ends_with(r#"found "a\nb""#), "{err}");
     }
 }
