@@ -10,8 +10,9 @@
 //! A denial is a verdict and is answered 200. Requests the authority cannot decide get a
 //! 4xx with `{"error": "<code>", "message": "<what is wrong and what is expected>"}`;
 //! unknown routes and methods too (404, 405). Checks on `POST /zones/{id}/requests` run in
-//! this order: bearer token (401), `Content-Type` (415), body size (413), JSON (400), zone
-//! (404), drone (404), altitude band (422).
+//! this order: bearer token present and a credential of this run (401), `Content-Type`
+//! (415), body size (413), JSON (400, unknown fields at any depth included), zone (404),
+//! drone (404), altitude band (422).
 //!
 //! # Guarantees
 //! No request can stop the service: bodies are read up to [`MAX_BODY_BYTES`] and no further,
@@ -33,11 +34,11 @@ use axum::http::request::Parts;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
-use serde::Serialize;
 use serde::de::DeserializeOwned;
+use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
-use super::authority::{Authority, AuthorityError, EntryRequest};
+use super::authority::{Authority, AuthorityError};
 use super::{AirspaceState, SharedAirspace};
 use sadesim_engine::events::Event;
 
@@ -106,16 +107,51 @@ fn path_id(path: Result<Path<String>, PathRejection>) -> Result<String, ApiError
         .map_err(|e| ApiError::new(StatusCode::BAD_REQUEST, "invalid_path", format!("invalid path: {e}")))
 }
 
-/// The credential of an `Authorization: Bearer <token>` header.
+/// The credential of an `Authorization: Bearer <token>` header, known to be the credential
+/// of one of the run's groups (which group is the authority's business: a drone presenting
+/// another group's credential is a decided request, denied).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Bearer(pub String);
 
-impl<S: Send + Sync> FromRequestParts<S> for Bearer {
+impl FromRequestParts<SharedAirspace> for Bearer {
     type Rejection = ApiError;
 
-    async fn from_request_parts(parts: &mut Parts, _state: &S) -> Result<Self, ApiError> {
-        bearer(&parts.headers).map(Bearer)
+    async fn from_request_parts(parts: &mut Parts, state: &SharedAirspace) -> Result<Self, ApiError> {
+        let token = bearer(&parts.headers)?;
+        authenticate(&lock(state).authority, &token)?;
+        Ok(Bearer(token))
     }
+}
+
+/// 401 `invalid_token` unless `token` is the credential of one of the run's groups (RFC
+/// 6750 §3.1). An unknown token is refused before anything is decided or logged, so a
+/// client without a credential cannot write into the run's airspace log. Every credential
+/// is compared in full, so the answer's timing does not tell how much of a token matched.
+fn authenticate(authority: &Authority, token: &str) -> Result<(), ApiError> {
+    let mut known = false;
+    for credential in authority.requesters.iter().filter_map(|r| r.credential.as_deref()) {
+        known |= constant_time_eq(token.as_bytes(), credential.as_bytes());
+    }
+    if known {
+        Ok(())
+    } else {
+        Err(ApiError::new(
+            StatusCode::UNAUTHORIZED,
+            "invalid_token",
+            "the bearer token is not a credential of this run: send your drone group's credential \
+             (`credential` in the scenario; `SADESIM_CREDENTIAL_<GROUP>` in a pilot's environment)",
+        ))
+    }
+}
+
+/// Byte-wise equality whose running time depends only on the lengths.
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    let mut diff = u8::from(a.len() != b.len());
+    for i in 0..a.len().max(b.len()) {
+        let (x, y) = (a.get(i).copied().unwrap_or(0), b.get(i).copied().unwrap_or(0));
+        diff |= std::hint::black_box(x ^ y);
+    }
+    diff == 0
 }
 
 /// Reads the bearer token. Missing, empty or another scheme: 401 `missing_token` (a request
@@ -244,6 +280,34 @@ fn json_error(e: &serde_json::Error, path: Option<String>) -> ApiError {
     }
 }
 
+/// `POST /zones/{id}/requests`'s body as it travels: unknown fields are refused at every
+/// depth (`altitude` included), so a field the service would ignore is a 400 naming it,
+/// never silently dropped.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+struct EntryRequest {
+    drone: String,
+    operator: String,
+    altitude: AltitudeBand,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(rename_all = "camelCase", deny_unknown_fields)]
+struct AltitudeBand {
+    min_agl_m: f64,
+    max_agl_m: f64,
+}
+
+impl From<EntryRequest> for super::authority::EntryRequest {
+    fn from(r: EntryRequest) -> Self {
+        let altitude = sadesim_crds::outcome::compliance::AltitudeBand {
+            min_agl_m: r.altitude.min_agl_m,
+            max_agl_m: r.altitude.max_agl_m,
+        };
+        Self { drone: r.drone, operator: r.operator, altitude }
+    }
+}
+
 /// The state, even if a handler panicked while holding it (see the module's guarantees).
 fn lock(state: &SharedAirspace) -> MutexGuard<'_, AirspaceState> {
     state.lock().unwrap_or_else(PoisonError::into_inner)
@@ -360,6 +424,7 @@ async fn request_entry(
     if !state.authority.rules.iter().any(|r| r.zone == zone) {
         return Err(AuthorityError::UnknownZone(zone).into());
     }
+    let request = super::authority::EntryRequest::from(request);
     decide(&mut state, |authority, now_s| authority.request(&zone, &token.0, &request, now_s))
 }
 
@@ -412,7 +477,9 @@ pub struct EventsQuery {
 
 impl EventsQuery {
     /// Parses `since=N&limit=M` (both optional). Anything else is a 400 naming the
-    /// parameter.
+    /// parameter. A whole number too large for 64 bits is read as the largest one: `since`
+    /// beyond the end of the log is an empty page whatever its size, and `limit` is then
+    /// outside its range like any other large number.
     ///
     /// # Errors
     /// Unknown or repeated parameter, a value that is not a whole number, `limit` outside
@@ -430,16 +497,17 @@ impl EventsQuery {
             if slot.is_some() {
                 return Err(bad(format!("query parameter `{key}` is given twice")));
             }
-            let n: u64 = value
-                .parse()
-                .map_err(|_| bad(format!("query parameter `{key}` must be a whole number >= 0, got {value:?}")))?;
-            *slot = Some(n);
+            let whole = !value.is_empty() && value.bytes().all(|b| b.is_ascii_digit());
+            if !whole {
+                return Err(bad(format!("query parameter `{key}` must be a whole number >= 0, got {value:?}")));
+            }
+            *slot = Some((value.parse::<u64>().unwrap_or(u64::MAX), value));
         }
-        let limit = limit.unwrap_or(DEFAULT_EVENTS_LIMIT as u64);
+        let (limit, text) = limit.unwrap_or((DEFAULT_EVENTS_LIMIT as u64, ""));
         if limit == 0 || limit > MAX_EVENTS_LIMIT as u64 {
-            return Err(bad(format!("query parameter `limit` must be between 1 and {MAX_EVENTS_LIMIT}, got {limit}")));
+            return Err(bad(format!("query parameter `limit` must be between 1 and {MAX_EVENTS_LIMIT}, got {text}")));
         }
-        Ok(Self { since: since.unwrap_or(0), limit: limit as usize })
+        Ok(Self { since: since.map_or(0, |(n, _)| n), limit: limit as usize })
     }
 }
 

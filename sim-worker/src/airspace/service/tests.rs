@@ -233,7 +233,8 @@ fn each_verdict_over_http() {
 
 /// Two runs of the same scenario on one cluster, each with its team's Secret: a token valid
 /// in one run is worth nothing in the other, whichever pod presents it (the NetworkPolicy
-/// keeps other runs' pods out; this is the check behind it).
+/// keeps other runs' pods out; this is the check behind it): it is no credential there, so
+/// 401 `invalid_token`, and nothing is decided or logged.
 #[test]
 fn another_run_s_credential_is_refused() {
     let serve_with = |dps_token: &str| {
@@ -242,19 +243,74 @@ fn another_run_s_credential_is_refused() {
         let dps = run.spec.fleet.iter_mut().find(|g| g.operator == "chicago-dps").expect("the DPS group");
         dps.credential = Some(sadesim_crds::fleet::Credential::Value(token));
         let state = Arc::new(Mutex::new(AirspaceState::new(&plan_of(run), &|_| None)));
-        start(state, "127.0.0.1:0".parse().unwrap()).expect("the service starts")
+        (start(state.clone(), "127.0.0.1:0".parse().unwrap()).expect("the service starts"), state)
     };
-    let (team_a, team_b) = (serve_with("team-a-dps-token"), serve_with("team-b-dps-token"));
+    let ((team_a, state_a), (team_b, state_b)) = (serve_with("team-a-dps-token"), serve_with("team-b-dps-token"));
     let request = entry("public-safety-0", "chicago-dps", 107.0, 121.0);
-    let verdict = |service: &ServiceHandle, token: &str| {
-        let b = body(&client(service.addr).post_json(ZONE_PATH, Some(token), &request).unwrap());
-        (b["verdict"].as_str().unwrap().to_string(), b["reason"].as_str().map(str::to_string))
-    };
-    let refused = ("denied".to_string(), Some("insufficient_credentials".to_string()));
-    assert_eq!(verdict(&team_a, "team-b-dps-token"), refused, "run B's token in run A");
-    assert_eq!(verdict(&team_b, "team-a-dps-token"), refused, "run A's token in run B");
-    assert_eq!(verdict(&team_a, "team-a-dps-token").0, "granted");
-    assert_eq!(verdict(&team_b, "team-b-dps-token").0, "granted");
+    let post = |service: &ServiceHandle, token: &str| client(service.addr).post_json(ZONE_PATH, Some(token), &request);
+    assert_error(&post(&team_a, "team-b-dps-token").unwrap(), 401, "invalid_token", &["not a credential of this run"]);
+    assert_error(&post(&team_b, "team-a-dps-token").unwrap(), 401, "invalid_token", &["not a credential of this run"]);
+    assert!(state_a.lock().unwrap().history.is_empty() && state_b.lock().unwrap().history.is_empty());
+    assert_eq!(body(&post(&team_a, "team-a-dps-token").unwrap())["verdict"], "granted");
+    assert_eq!(body(&post(&team_b, "team-b-dps-token").unwrap())["verdict"], "granted");
+}
+
+/// A bearer token that is no group's credential is refused with 401 `invalid_token` on
+/// every route that needs one, before the zone, lease or body is looked at, and leaves no
+/// trace in the run's log; another group's credential is authenticated and decided (denied
+/// for an entry request, 403 for someone else's lease).
+#[test]
+fn a_token_of_no_group_is_refused_on_every_authenticated_route() {
+    let (service, state) = serve();
+    let mut c = client(service.addr);
+    let granted = c.post_json(ZONE_PATH, Some(DPS), &entry("public-safety-0", "chicago-dps", 107.0, 121.0)).unwrap();
+    assert_eq!(body(&granted)["lease"]["id"], "lease-1");
+    let logged = state.lock().unwrap().history.len();
+
+    let good = entry("public-safety-1", "chicago-dps", 107.0, 121.0);
+    for token in ["wrong", "dps-token-local-onl", "dps-token-local-onlyX", "DPS-TOKEN-LOCAL-ONLY"] {
+        let auth = format!("Bearer {token}");
+        let headers = [("Authorization", auth.as_str()), ("Content-Type", "application/json")];
+        for (method, path, body) in [
+            ("POST", ZONE_PATH, good.as_str()),
+            ("POST", "/zones/nowhere/requests", good.as_str()),
+            ("POST", ZONE_PATH, "not json"),
+            ("POST", "/leases/lease-1/renew", ""),
+            ("POST", "/leases/lease-9/renew", ""),
+            ("DELETE", "/leases/lease-1", ""),
+        ] {
+            let r = c.request(method, path, &headers, body.as_bytes()).unwrap();
+            assert_error(&r, 401, "invalid_token", &["not a credential of this run", "SADESIM_CREDENTIAL_"]);
+            assert_eq!(r.header("www-authenticate"), Some("Bearer"), "{method} {path}");
+        }
+    }
+    assert_eq!(state.lock().unwrap().history.len(), logged, "refused tokens leave no event");
+    assert!(state.lock().unwrap().authority.leases.leases[0].released_at_s.is_none(), "lease-1 still held");
+
+    // Another group's credential is a credential: decided, and refused for what it is.
+    let denied = body(&c.post_json(ZONE_PATH, Some(NEWS), &good).unwrap());
+    assert_eq!(
+        (denied["verdict"].as_str(), denied["reason"].as_str()),
+        (Some("denied"), Some("insufficient_credentials"))
+    );
+    assert_error(&c.with_token("POST", "/leases/lease-1/renew", NEWS).unwrap(), 403, "not_lease_holder", &["lease-1"]);
+}
+
+/// Unknown fields are refused at every depth of an entry request, `altitude` included,
+/// with the field's path: a field is never accepted and ignored.
+#[test]
+fn unknown_fields_inside_the_altitude_band_are_refused_by_name() {
+    let (service, state) = serve();
+    let mut c = client(service.addr);
+    let with_extra = r#"{"drone": "public-safety-0", "operator": "chicago-dps",
+        "altitude": {"minAglM": 107, "maxAglM": 121, "reference": "msl"}}"#;
+    assert_error(
+        &c.post_json(ZONE_PATH, Some(DPS), with_extra).unwrap(),
+        400,
+        "invalid_request",
+        &["field `altitude.reference`", "unknown field `reference`", "minAglM", "maxAglM"],
+    );
+    assert!(state.lock().unwrap().authority.requests.is_empty(), "nothing was decided");
 }
 
 #[test]
@@ -329,10 +385,17 @@ fn events_are_paged_by_sequence_number() {
     // Caught up, or ahead of the history: nothing, and `next` is where the history ends.
     assert_eq!(body(&c.get("/events?since=6").unwrap()), json!({"events": [], "next": 6}));
     assert_eq!(body(&c.get("/events?since=99").unwrap()), json!({"events": [], "next": 6}));
+    // Any whole number is a cursor, also beyond 64 bits (the spec sets no maximum).
+    for since in ["18446744073709551615", "18446744073709551616", "99999999999999999999999999999999"] {
+        assert_eq!(body(&c.get(&format!("/events?since={since}")).unwrap()), json!({"events": [], "next": 6}));
+    }
 
     for (query, words) in [
         ("limit=0", &["limit", "between 1 and 10000", "0"][..]),
         ("limit=10001", &["limit", "between 1 and 10000"]),
+        ("limit=18446744073709551616", &["limit", "between 1 and 10000", "18446744073709551616"]),
+        ("since=%2B1", &["since", "whole number"]),
+        ("since=1.0", &["since", "whole number"]),
         ("since=-1", &["since", "whole number", "-1"]),
         ("since=abc", &["since", "\"abc\""]),
         ("since=", &["since", "whole number"]),
@@ -574,4 +637,34 @@ fn the_openapi_file_documents_every_route() {
         let node = target.split('/').fold(&doc, |node, key| &node[key]);
         assert!(!node.is_null(), "{r} resolves");
     }
+}
+
+/// The spec states every limit the authority puts on an altitude band, as JSON Schema
+/// where JSON Schema can (each bound alone: `0 <= minAglM < 20000`, `0 < maxAglM <= 20000`)
+/// and in words where it cannot (`minAglM < maxAglM`, answered 422): a schema-valid band is
+/// refused only for the relation between its two bounds.
+#[test]
+fn the_spec_states_the_altitude_band_limits_the_authority_enforces() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/airspace-api.yaml");
+    let doc: serde_yaml::Value = serde_yaml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let band = &doc["components"]["schemas"]["AltitudeBand"];
+    let limit = |field: &str, key: &str| band["properties"][field][key].as_f64();
+    let max = sadesim_engine::airspace::authority::MAX_BAND_AGL_M;
+    assert_eq!(band["additionalProperties"].as_bool(), Some(false));
+    assert_eq!((limit("minAglM", "minimum"), limit("minAglM", "exclusiveMaximum")), (Some(0.0), Some(max)));
+    assert_eq!((limit("maxAglM", "exclusiveMinimum"), limit("maxAglM", "maximum")), (Some(0.0), Some(max)));
+    let relation = "`minAglM < maxAglM`";
+    assert!(band["description"].as_str().is_some_and(|d| d.contains(relation)), "{:?}", band["description"]);
+    let op = &doc["paths"]["/zones/{id}/requests"]["post"];
+    assert!(op["responses"]["422"]["description"].as_str().is_some_and(|d| d.contains("minAglM == maxAglM")));
+
+    // And the service answers exactly so at the edges.
+    let (service, _state) = serve();
+    let mut c = client(service.addr);
+    for (lo, hi, status) in [(0.0, 0.0, 422), (110.0, 110.0, 422), (121.0, 107.0, 422), (107.0, 121.0, 200)] {
+        let r = c.post_json(ZONE_PATH, Some(DPS), &entry("public-safety-0", "chicago-dps", lo, hi)).unwrap();
+        assert_eq!(r.status, status, "band {lo}-{hi}: {}", r.text());
+    }
+    let r = c.post_json(ZONE_PATH, Some(DPS), &entry("public-safety-0", "chicago-dps", 0.0, max)).unwrap();
+    assert_eq!(body(&r)["verdict"], "denied", "a band up to the limit is decided: {}", r.text());
 }
