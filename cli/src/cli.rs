@@ -45,6 +45,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
             processes,
             clock,
             no_pilot,
+            pilot_connect_timeout,
             no_mavlink,
             asset_cache,
             no_asset_cache,
@@ -66,6 +67,7 @@ pub fn execute(cli: Cli, out: &mut dyn Write) -> Result<Outcome, CliError> {
                 start_pilot: !no_pilot,
                 mavlink: !no_mavlink,
                 asset_cache,
+                pilot_connect_timeout_s: pilot_connect_timeout,
                 ..Default::default()
             };
             run_file(&file, options, clock, out)

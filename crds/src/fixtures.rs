@@ -92,6 +92,7 @@ impl RunBuilder {
             env: vec![],
             on_exit: None,
             resources: None,
+            connect_timeout_s: None,
         });
         self
     }

@@ -440,6 +440,24 @@ pub struct Pilot {
     /// Resources for the pilot container (Kubernetes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub resources: Option<PilotResources>,
+    /// Longest wall-clock wait, seconds, for the pilot to connect: simulated time holds at
+    /// the release (`pilotsReleased`) until the first MAVLink frame from the pilot reaches
+    /// any drone it flies, and a pilot silent this long ends the run as failed
+    /// (`pilotNotConnected`). Covers a pilot that builds, imports or pulls its image first.
+    /// 1..3600, default 300; `sadesim run --pilot-connect-timeout` overrides it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[schemars(range(min = 1, max = 3600))]
+    pub connect_timeout_s: Option<u32>,
+}
+
+impl Pilot {
+    /// Default of [`Pilot::connect_timeout_s`], seconds.
+    pub const DEFAULT_CONNECT_TIMEOUT_S: u32 = 300;
+
+    /// [`Pilot::connect_timeout_s`] or its default, seconds.
+    pub fn connect_timeout_s(&self) -> u32 {
+        self.connect_timeout_s.unwrap_or(Self::DEFAULT_CONNECT_TIMEOUT_S)
+    }
 }
 
 /// CPU and memory for the pilot container.

@@ -14,6 +14,9 @@ use crate::events::{Event, EventKind};
 use crate::pacing::{Pacer, WallClock};
 use crate::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION, ToShard};
 
+mod hold;
+pub use hold::{HOLD_HEARTBEAT, HOLD_POLL, PilotHold};
+
 /// A bidirectional connection to one shard.
 pub trait ShardLink: Send {
     /// # Errors
@@ -134,9 +137,16 @@ pub trait RunObserver {
     }
     /// The clock started at `started`: in a paced run (realtime, scaled), simulated time
     /// `t` is due at `started + t / factor` (see [`crate::pacing::Pacer::due_after`]).
-    /// Called once, before the first window.
+    /// Called before the first window, and again after a hold for the pilot, with the
+    /// start moved on by the wall time held.
     fn on_clock_started(&mut self, started: Instant) {
         let _ = started;
+    }
+    /// The run is holding at the release for the pilot to connect (see [`PilotHold`]), for
+    /// `waited` so far: called about every [`HOLD_POLL`], before [`RunObserver::stop_reason`]
+    /// is asked (e.g. to see whether the pilot process exited meanwhile).
+    fn on_hold(&mut self, waited: Duration) {
+        let _ = waited;
     }
 }
 
@@ -150,10 +160,14 @@ pub struct RunOutcome {
     pub wall_time: Duration,
     /// Sim time when pilots were released.
     pub released_at_s: Option<f64>,
+    /// Wall time the run held at the release until the pilot connected (`None`: no hold,
+    /// or the run ended while holding).
+    pub pilot_connect_wait: Option<Duration>,
 }
 
 /// Runs the lockstep loop until `duration`, `stop` or the observer ends it; `clock` paces
-/// it (realtime, scaled) and measures its wall time.
+/// it (realtime, scaled) and measures its wall time. With `hold`, simulated time stands at
+/// the release until the pilot connects (see [`PilotHold`]).
 ///
 /// # Errors
 /// [`CoordinatorError::RunFailed`] when a shard fails (the observer has then seen the
@@ -165,10 +179,16 @@ pub fn run(
     observer: &mut dyn RunObserver,
     stop: &AtomicBool,
     clock: &dyn WallClock,
+    hold: Option<&PilotHold>,
 ) -> Result<RunOutcome, CoordinatorError> {
-    let mut state = LoopState { step: 0, drones: Vec::with_capacity(plan.drones.len()), released_at_s: None };
+    let mut state = LoopState {
+        step: 0,
+        drones: Vec::with_capacity(plan.drones.len()),
+        released_at_s: None,
+        pilot_connect_wait: None,
+    };
     let started = clock.now();
-    let result = run_inner(plan, links, observer, stop, clock, &mut state);
+    let result = run_inner(plan, links, observer, stop, clock, hold, &mut state);
     for link in links.iter_mut() {
         let _ = link.send(&ToShard::Stop); // best effort: a dead shard needs no stop
     }
@@ -182,6 +202,7 @@ pub fn run(
                 sim_time_s,
                 wall_time: clock.now().saturating_duration_since(started),
                 released_at_s: state.released_at_s,
+                pilot_connect_wait: state.pilot_connect_wait,
             });
         }
         Err(e) => e,
@@ -200,6 +221,7 @@ pub fn run(
             sim_time_s,
             wall_time: clock.now().saturating_duration_since(started),
             released_at_s: state.released_at_s,
+            pilot_connect_wait: state.pilot_connect_wait,
         },
     };
     observer
@@ -241,6 +263,8 @@ struct LoopState {
     drones: Vec<DroneSnapshot>,
     /// Sim time when pilots were released.
     released_at_s: Option<f64>,
+    /// Wall time held at the release until the pilot connected.
+    pilot_connect_wait: Option<Duration>,
 }
 
 impl LoopState {
@@ -257,6 +281,7 @@ fn run_inner(
     observer: &mut dyn RunObserver,
     stop: &AtomicBool,
     clock: &dyn WallClock,
+    hold: Option<&PilotHold>,
     state: &mut LoopState,
 ) -> Result<EndReason, CoordinatorError> {
     for (i, link) in links.iter_mut().enumerate() {
@@ -271,7 +296,7 @@ fn run_inner(
     let total_steps = (plan.duration_s / dt_s).round() as u64;
     let window = u64::from(plan.sync_window_steps);
     let pacer = Pacer::new(&plan.spec.clock());
-    let started = clock.now();
+    let mut started = clock.now();
     observer.on_clock_started(started);
     let mut all_ready = false;
     // The window being received; swapped into `state.drones` once every shard answered.
@@ -329,6 +354,18 @@ fn run_inner(
         }
         if let Some(reason) = observer.stop_reason() {
             return Ok(reason);
+        }
+        // The observer has seen `pilotsReleased` (and started the pilot): hold here.
+        if release && let Some(h) = hold {
+            match hold::hold(h, links, observer, stop, clock)? {
+                hold::Held::Connected(waited) => {
+                    state.pilot_connect_wait = Some(waited);
+                    // A paced run goes on from here at its pace, without catching up.
+                    started += waited;
+                    observer.on_clock_started(started);
+                }
+                hold::Held::Ends(reason) => return Ok(reason),
+            }
         }
     }
 }

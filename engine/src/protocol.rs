@@ -8,7 +8,8 @@ use crate::events::{Event, FlightMode};
 
 /// Bumped on any incompatible change; peers refuse other versions. 4: binary frames on
 /// TCP instead of JSON lines (a peer of version 3 or older is refused at its first line).
-pub const PROTOCOL_VERSION: u32 = 4;
+/// 5: `Hold` and `Held`, the hold for the pilot at the release.
+pub const PROTOCOL_VERSION: u32 = 5;
 
 /// A drone's state at a window boundary (ground truth), for the merged snapshot, the
 /// recorder and everything that couples drones.
@@ -171,6 +172,12 @@ pub enum ToShard {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         leases: Option<Vec<[u32; 2]>>,
     },
+    /// Simulated time stays where it is (the coordinator holds the run at the release until
+    /// the pilot connects): read what the drones' MAVLink peers sent, keeping the frames for
+    /// the sessions at the next exchange, and with `heartbeat` send every drone's HEARTBEAT
+    /// at the held time, so that a pilot waiting for one finds its drones. Answered with
+    /// `Held`. Nothing is simulated: the run is the same whatever the wall time held.
+    Hold { heartbeat: bool },
     /// End of run: flush and exit.
     Stop,
 }
@@ -190,6 +197,9 @@ pub enum FromShard {
         drones: Vec<DroneSnapshot>,
         events: Vec<Event>,
     },
+    /// The answer to `Hold`: the drones (global indices, ascending) that have MAVLink frames
+    /// from a peer waiting for their sessions.
+    Held { shard: u32, heard: Vec<u32> },
     /// The shard stopped cleanly.
     Stopped { shard: u32 },
     /// The shard cannot go on.

@@ -25,9 +25,9 @@ use crate::cameras::Cameras;
 use crate::record::{Recorder, RunSummary};
 use crate::view::{Feed, LiveView, Publisher};
 use sadesim_engine::coordinator::{
-    self, CoordinatorError, ObserverError, RunFailure, RunObserver, RunOutcome, ShardLink,
+    self, CoordinatorError, ObserverError, PilotHold, RunFailure, RunObserver, RunOutcome, ShardLink,
 };
-use sadesim_engine::events::Event;
+use sadesim_engine::events::{EndReason, Event};
 use sadesim_engine::protocol::DroneSnapshot;
 
 /// What watches a run besides its recorder: its onboard cameras (`spec.fleet[].cameras`) and
@@ -91,7 +91,10 @@ pub enum ConductError {
 /// it likes; the cameras are finished into the recording). `caller` sees every window after the recorder
 /// (so the files hold a window before the caller acts on it, e.g. starts the pilot on
 /// `pilotsReleased`) and may end the run (`stop_reason`); `stop` ends it too (Ctrl-C,
-/// SIGTERM). Once every link is closed, `shard_cpu` gives the shards' CPU time when the
+/// SIGTERM). With `hold` (a pilot was started: [`PilotHold::for_plan`]) simulated time
+/// stands at the release until the pilot connects, and a run whose pilot never did ends
+/// `pilotNotConnected` with no verdict (its criteria would judge a run nobody flew). Once
+/// every link is closed, `shard_cpu` gives the shards' CPU time when the
 /// caller knows it (threads it joins), recorded in the summary.
 ///
 /// # Errors
@@ -106,6 +109,7 @@ pub fn conduct(
     out_dir: &Path,
     stop: &AtomicBool,
     caller: &mut dyn RunObserver,
+    hold: Option<&PilotHold>,
     shard_cpu: impl FnOnce() -> Option<Vec<f64>>,
 ) -> Result<RunSummary, ConductError> {
     let options = Cameras::recorder_options(watchers.cameras.as_ref());
@@ -122,6 +126,7 @@ pub fn conduct(
         &mut WithAirspace::new(airspace, &mut conducting),
         stop,
         &crate::transport::SystemClock,
+        hold,
     );
     if let Some(cameras) = conducting.cameras.take() {
         cameras.finish(&mut recorder);
@@ -141,7 +146,9 @@ pub fn conduct(
     };
     write_airspace(airspace, out_dir).map_err(ConductError::Record)?;
     recorder.set_closest_zones(&airspace.closest_zones_m());
-    recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
+    if !matches!(outcome.reason, EndReason::PilotNotConnected(_)) {
+        recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
+    }
     if let Some(cpu) = cpu {
         recorder.set_shard_cpu(cpu);
     }
@@ -204,6 +211,10 @@ impl RunObserver for Conducting<'_> {
         }
         self.caller.on_clock_started(started);
     }
+
+    fn on_hold(&mut self, waited: std::time::Duration) {
+        self.caller.on_hold(waited);
+    }
 }
 
 #[cfg(test)]
@@ -233,6 +244,7 @@ mod tests {
             sim_time_s: 0.5,
             wall_time: Duration::from_millis(100),
             released_at_s: None,
+            pilot_connect_wait: None,
         };
         let summary = close_failed_run(&airspace, recorder, &outcome, &dir.0).unwrap();
         assert_eq!(summary.end_reason, outcome.reason);
@@ -333,7 +345,7 @@ mod tests {
         let mut times = FlightTimes::default();
         let stop = AtomicBool::new(false);
         let summary =
-            conduct(&plan, &world, links, &mut airspace, &mut watchers, &dir.0, &stop, &mut times, || None).unwrap();
+            conduct(&plan, &world, links, &mut airspace, &mut watchers, &dir.0, &stop, &mut times, None, || None).unwrap();
         for t in threads {
             t.join().unwrap();
         }

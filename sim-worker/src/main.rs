@@ -103,6 +103,12 @@ enum Role {
         /// `recording.mcap` and the report is loaded from it instead of built.
         #[arg(long, env = "SADESIM_ASSETS_URL", value_name = "URL")]
         assets: Option<String>,
+        /// A pilot is started on the release (the pilot Job, `sadesim run --processes`):
+        /// simulated time holds at the release until MAVLink from it reaches a drone it
+        /// flies, for at most `spec.pilot.connectTimeoutS` of wall time, after which the run
+        /// ends `pilotNotConnected`. Without it simulated time runs on at once.
+        #[arg(long)]
+        hold_for_pilot: bool,
     },
     /// Build the run's world into the asset cache `<archive>/assets/<asset cache key>/world/`
     /// (world.bin, world.glb, buildings.geojson, world.json, manifest.json), or exit at once
@@ -234,6 +240,7 @@ fn main() -> ExitCode {
             finish_run,
             archive_url,
             assets,
+            hold_for_pilot,
         } => {
             let stop = Arc::new(AtomicBool::new(false));
             let flag = stop.clone();
@@ -263,7 +270,7 @@ fn main() -> ExitCode {
                 let positive = |s: f64| (s > 0.0).then(|| Duration::from_secs_f64(s));
                 let timeouts =
                     roles::coordinator::Timeouts { connect: positive(connect_timeout), shard: positive(shard_timeout) };
-                let ends = roles::coordinator::Ends { stop: &stop, timeouts, requests };
+                let ends = roles::coordinator::Ends { stop: &stop, timeouts, requests, hold_for_pilot };
                 roles::coordinator::run(&plan, &world, listen.as_str(), airspace, &out, ends, view_bind).map(|_| ())
             });
             // Whatever the run's end: the folder's files are evidence of a failed run too.

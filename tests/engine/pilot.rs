@@ -43,6 +43,7 @@ fn scenario(command: &[&str], duration: &str, clock: Clock) -> SimulationRun {
                 env: vec![EnvVar { name: "MY_VAR".into(), value: "from the scenario".into() }],
                 on_exit: None,
                 resources: None,
+                connect_timeout_s: None,
             });
         })
         .build()

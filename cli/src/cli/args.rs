@@ -154,6 +154,12 @@ pub enum Command {
         /// The run lasts until `duration` or Ctrl-C.
         #[arg(long)]
         no_pilot: bool,
+        /// Override `spec.pilot.connectTimeoutS`: simulated time holds at the release until
+        /// the pilot's first MAVLink frame reaches a drone it flies, for at most this many
+        /// seconds of wall time (1 to 3600; default 300); a pilot silent that long fails the
+        /// run (`pilotNotConnected`).
+        #[arg(long, value_name = "SECONDS", value_parser = clap::value_parser!(u32).range(1..=3600))]
+        pilot_connect_timeout: Option<u32>,
         /// Serve no MAVLink endpoints (scripted missions only; groups without a `mission`
         /// are then refused).
         #[arg(long)]

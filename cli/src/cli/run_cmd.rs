@@ -55,6 +55,22 @@ pub(super) fn run_file(
                 let log = report.out_dir.join(&p.log);
                 writeln!(out, "  pilot: {}; log: {}", p.describe(), log.display())?;
             }
+            // The hold at the release for the pilot (`pilotConnectWaitS`).
+            let not_connected = match (&s.end_reason, s.pilot_connect_wait_s) {
+                (EndReason::PilotNotConnected(why), _) => {
+                    writeln!(out, "  FAILED: {why}")?;
+                    true
+                }
+                (_, Some(waited)) => {
+                    let at = s.pilots_released_at_s.unwrap_or_default();
+                    writeln!(
+                        out,
+                        "  pilot connected after {waited:.1} s of wall time (simulated time held at {at:.2} s until then)"
+                    )?;
+                    false
+                }
+                _ => false,
+            };
             if let Some(assets) = &report.assets {
                 writeln!(out, "  world: {assets}")?;
             }
@@ -77,6 +93,7 @@ pub(super) fn run_file(
                 }
                 _ => false,
             };
+            let failed = failed || not_connected;
             if s.end_reason == EndReason::Interrupted {
                 return Ok(Outcome::Interrupted);
             }

@@ -12,7 +12,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::fleet::Credential;
 use sadesim_crds::plan::RunPlan;
-use sadesim_engine::coordinator::{CoordinatorError, ObserverError, RunObserver, ShardLink};
+use sadesim_engine::coordinator::{CoordinatorError, ObserverError, PilotHold, RunObserver, ShardLink};
 use sadesim_engine::events::{EndReason, Event, EventKind};
 use sadesim_engine::mavlink::signing::SecretKey;
 use sadesim_engine::protocol::{DroneSnapshot, FleetCounts};
@@ -79,6 +79,9 @@ pub struct RunOptions {
     /// Told where the run writes and how it advances (`sadesim console` shows its runs
     /// with it). In-process runs only: `processes` runs do not call it.
     pub watch: Option<Arc<dyn RunWatch>>,
+    /// Overrides `spec.pilot.connectTimeoutS` (`--pilot-connect-timeout`): the longest wall
+    /// time, seconds, simulated time holds at the release for the pilot to connect.
+    pub pilot_connect_timeout_s: Option<u32>,
 }
 
 /// Someone following a run as it goes, beside the progress bar.
@@ -112,6 +115,7 @@ impl Default for RunOptions {
             port_offset: 0,
             scenario_document: None,
             watch: None,
+            pilot_connect_timeout_s: None,
         }
     }
 }
@@ -386,6 +390,16 @@ impl RunObserver for Progress<'_> {
     fn stop_reason(&mut self) -> Option<EndReason> {
         pilot::end_reason(self.pilot_error.is_some(), self.pilot_exited)
     }
+
+    /// Held at the release for the pilot: whether it exited meanwhile, and the bar says so.
+    fn on_hold(&mut self, waited: Duration) {
+        if let Some(pilot) = self.pilot.as_deref_mut() {
+            self.pilot_exited = pilot.poll();
+        }
+        if !self.bar.is_hidden() {
+            self.bar.set_message(format!("waiting for the pilot to connect ({:.0} s)", waited.as_secs_f64()));
+        }
+    }
 }
 
 /// The progress bar's position and message: sim time, real-time factor, fleet counts.
@@ -411,6 +425,10 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
         RunError::NotSupported(format!("MAVLink ports moved up by {} would reach {top}", options.port_offset))
     })?;
     check_supported(&plan, options)?;
+    // Into the plan (plan.json), which the coordinator process of `--processes` reads too.
+    if let (Some(s), Some(pilot)) = (options.pilot_connect_timeout_s, plan.spec.pilot.as_mut()) {
+        pilot.connect_timeout_s = Some(s);
+    }
     // The routers' passphrase is resolved before anything is written, like the pilot's
     // credentials; only runs with MAVLink have routers.
     let signing = if options.mavlink { signing_passphrase(&plan)? } else { None };
@@ -657,7 +675,10 @@ fn run_threads(
     // coordinator before `Stop` has none (the run then failed).
     let shard_cpu = || threads.into_iter().map(|t| t.join().ok().flatten()).collect::<Option<Vec<f64>>>();
     let world = &surroundings.world;
-    let conducted = conduct(plan, world, links, airspace, watchers, out_dir, stop, &mut progress, shard_cpu);
+    // A pilot flying over MAVLink: simulated time waits at the release until it connects.
+    let hold = progress.pilot.is_some().then(|| routers.as_ref().and(PilotHold::for_plan(plan))).flatten();
+    let conducted =
+        conduct(plan, world, links, airspace, watchers, out_dir, stop, &mut progress, hold.as_ref(), shard_cpu);
     let summary = match conducted {
         Ok(summary) => summary,
         Err(ConductError::RunFailed { failure, closed }) => {

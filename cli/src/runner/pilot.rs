@@ -407,6 +407,7 @@ mod tests {
             env: vec![EnvVar { name: "MY_VAR".into(), value: "1".into() }],
             on_exit: None,
             resources: None,
+            connect_timeout_s: None,
         }
     }
 

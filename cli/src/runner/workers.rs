@@ -94,6 +94,8 @@ pub(super) fn run(
             .arg(airspace.to_string())
             .args(assets.iter().flat_map(|url| ["--assets", url]))
             .args(view.iter().flat_map(|addr| ["--view-bind".to_string(), addr.to_string()]))
+            // A pilot to wait for at the release (see `sim_worker::conduct`).
+            .args((pilot.is_some() && routers.is_some()).then_some("--hold-for-pilot"))
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(log_file(out_dir, "coordinator.log")?),

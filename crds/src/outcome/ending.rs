@@ -35,6 +35,10 @@ pub enum EndReason {
     /// A shard failed; the text says which and how (`shard 1 (10.77.0.3:40122) failed:
     /// connection closed`). Written `shardFailed: <text>`.
     ShardFailed(String),
+    /// The pilot sent no MAVLink to any drone it flies within `spec.pilot.connectTimeoutS`
+    /// of wall time while the run held at the release (the run then fails); the text says
+    /// so (`the pilot did not connect within 300 s: ...`). Written `pilotNotConnected: <text>`.
+    PilotNotConnected(String),
     /// A stop request with a reason of the requester's own (the `sadesim.io/stop`
     /// annotation set by hand, a stdin line), kept as given.
     Requested(String),
@@ -42,6 +46,9 @@ pub enum EndReason {
 
 /// The prefix of [`EndReason::ShardFailed`]'s string, machine-matchable.
 pub const SHARD_FAILED: &str = "shardFailed";
+
+/// The prefix of [`EndReason::PilotNotConnected`]'s string, machine-matchable.
+pub const PILOT_NOT_CONNECTED: &str = "pilotNotConnected";
 
 impl EndReason {
     /// The reasons without text, with their strings (what [`FromStr`] recognises).
@@ -57,9 +64,10 @@ impl EndReason {
         (EndReason::Evicted, "evicted"),
     ];
 
-    /// True when the run failed rather than ended as asked: a shard or the pilot failed.
+    /// True when the run failed rather than ended as asked: a shard or the pilot failed, or
+    /// the pilot never connected.
     pub fn is_failure(&self) -> bool {
-        matches!(self, EndReason::ShardFailed(_) | EndReason::PilotFailed)
+        matches!(self, EndReason::ShardFailed(_) | EndReason::PilotFailed | EndReason::PilotNotConnected(_))
     }
 }
 
@@ -67,6 +75,7 @@ impl fmt::Display for EndReason {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             EndReason::ShardFailed(what) => write!(f, "{SHARD_FAILED}: {what}"),
+            EndReason::PilotNotConnected(what) => write!(f, "{PILOT_NOT_CONNECTED}: {what}"),
             EndReason::Requested(reason) => f.write_str(reason),
             named => {
                 let name = Self::NAMED.iter().find(|(r, _)| r == named).map(|(_, s)| *s);
@@ -83,9 +92,11 @@ impl FromStr for EndReason {
         if let Some((reason, _)) = Self::NAMED.iter().find(|(_, name)| *name == s) {
             return Ok(reason.clone());
         }
-        Ok(match s.strip_prefix(SHARD_FAILED).and_then(|rest| rest.strip_prefix(": ")) {
-            Some(what) => EndReason::ShardFailed(what.to_string()),
-            None => EndReason::Requested(s.to_string()),
+        let text = |prefix: &str| s.strip_prefix(prefix).and_then(|rest| rest.strip_prefix(": ")).map(str::to_string);
+        Ok(match (text(SHARD_FAILED), text(PILOT_NOT_CONNECTED)) {
+            (Some(what), _) => EndReason::ShardFailed(what),
+            (_, Some(what)) => EndReason::PilotNotConnected(what),
+            _ => EndReason::Requested(s.to_string()),
         })
     }
 }
@@ -152,6 +163,16 @@ mod tests {
         assert_eq!(failed.to_string(), text);
         assert_eq!(EndReason::from(text), failed);
         assert_eq!(serde_json::from_str::<EndReason>(&format!("\"{text}\"")).unwrap(), failed);
+    }
+
+    #[test]
+    fn a_pilot_that_never_connected_keeps_its_text_and_is_a_failure() {
+        let text = "pilotNotConnected: the pilot did not connect within 5 s: no MAVLink reached any of its 2 drones";
+        let reason = EndReason::from(text);
+        assert_eq!(reason, EndReason::PilotNotConnected(text["pilotNotConnected: ".len()..].to_string()));
+        assert_eq!(reason.to_string(), text);
+        assert!(reason.is_failure());
+        assert_eq!(EndReason::from("pilotNotConnectedx"), EndReason::Requested("pilotNotConnectedx".into()));
     }
 
     #[test]

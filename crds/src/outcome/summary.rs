@@ -128,6 +128,13 @@ pub struct RunSummary {
     pub crashed: u32,
     pub events: u64,
     pub pilots_released_at_s: Option<f64>,
+    /// Wall-clock seconds simulated time held at the release until the pilot's first
+    /// MAVLink frame reached a drone it flies. Absent when the run did not hold (no pilot
+    /// started, no MAVLink, no drone without a mission) or ended while holding (the pilot
+    /// exited, Ctrl-C, or `endReason` `pilotNotConnected`: silent for
+    /// `spec.pilot.connectTimeoutS`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pilot_connect_wait_s: Option<f64>,
     pub per_drone: Vec<DroneSummary>,
     /// The scenario's criteria judged at the end (absent when the run did not get that far).
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -216,6 +216,9 @@ pub(super) fn check_pilot(spec: &SimulationRunSpec, p: &mut Problems) {
                 p.range_int("spec.pilot.resources.cpuMillis", r.cpu_millis.into(), 10, 64_000);
                 p.range_int("spec.pilot.resources.memoryMib", r.memory_mib.into(), 16, 262_144);
             }
+            if let Some(s) = pilot.connect_timeout_s {
+                p.range_int("spec.pilot.connectTimeoutS", s.into(), 1, 3600);
+            }
         }
     }
 }

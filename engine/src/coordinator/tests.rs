@@ -113,7 +113,7 @@ fn run_two(
     let (first, first_sent) = Scripted::new(0, usize::MAX, Then::Answer);
     let (second, _) = Scripted::new(1, windows, second);
     let mut links: Vec<Box<dyn ShardLink>> = vec![Box::new(first), Box::new(second)];
-    let result = run(&plan(), &mut links, observer, &AtomicBool::new(false), &VirtualClock::default());
+    let result = run(&plan(), &mut links, observer, &AtomicBool::new(false), &VirtualClock::default(), None);
     let sent = first_sent.lock().unwrap().clone();
     (result, sent)
 }

@@ -267,6 +267,13 @@ impl Session {
         out
     }
 
+    /// A HEARTBEAT of `view`, outside the streams' schedule: what a drone held at the
+    /// release sends while the run waits for its pilot (the schedule, on simulated time,
+    /// sends nothing while simulated time stands still).
+    pub fn heartbeat(&self, view: &VehicleView) -> Option<Outgoing> {
+        telemetry::build(0, view, &self.id).map(Outgoing::Message)
+    }
+
     /// [`Session::poll`] appending to `out`: the shard's per-drone queue, which keeps its
     /// allocation from window to window (this runs for every drone at every window end, so
     /// building a list per call and moving each message into the queue showed in profiles).

@@ -217,6 +217,14 @@ impl DroneSim {
         }
     }
 
+    /// The drone's HEARTBEAT at `time_s` into `outbound` (nothing without a session): sent
+    /// while the run holds at the release for the pilot ([`crate::protocol::ToShard::Hold`]).
+    pub fn mavlink_heartbeat(&self, time_s: f64, outbound: &mut Vec<Outgoing>) {
+        if let Some(session) = &self.session {
+            outbound.extend(session.heartbeat(&self.view(time_s)));
+        }
+    }
+
     /// An exchange: the session acts on what peers sent (`queues.inbound`, emptied) and
     /// builds its replies and the telemetry due into `queues.outbound`.
     pub fn mavlink_exchange(&mut self, time_s: f64, queues: &mut MavlinkQueues) {

@@ -243,8 +243,34 @@ impl Shard {
                     events,
                 })
             }
+            ToShard::Hold { heartbeat } => Some(self.hold(heartbeat, io)),
             ToShard::Stop => None,
         }
+    }
+
+    /// A hold at the release ([`ToShard::Hold`]): nothing is simulated. What the drones'
+    /// peers sent is read into the inbound queues, where the sessions find it at the next
+    /// exchange (as if it had arrived just before it); with `heartbeat` every drone's
+    /// HEARTBEAT at the held time leaves at once. Answers which drones have frames waiting.
+    fn hold(&mut self, heartbeat: bool, io: &mut impl MavlinkIo) -> FromShard {
+        if !self.mavlink.is_empty() {
+            io.receive(&mut self.mavlink);
+            if heartbeat {
+                let t = self.step as f64 * self.dt_s;
+                for (drone, queues) in self.drones.iter().zip(&mut self.mavlink) {
+                    drone.mavlink_heartbeat(t, &mut queues.outbound);
+                }
+            }
+            io.send(&mut self.mavlink, true);
+        }
+        let heard = self
+            .drones
+            .iter()
+            .zip(&self.mavlink)
+            .filter(|(_, q)| !q.inbound.is_empty())
+            .map(|(d, _)| d.plan.index)
+            .collect();
+        FromShard::Held { shard: self.index, heard }
     }
 
     /// The valid leases (`[drone, zone]`, global drone index), for the geofences.

@@ -179,6 +179,7 @@ impl Recorder {
         self.summary.wall_time_s = outcome.wall_time.as_secs_f64();
         self.summary.real_time_factor = outcome.sim_time_s / outcome.wall_time.as_secs_f64().max(1e-9);
         self.summary.pilots_released_at_s = outcome.released_at_s;
+        self.summary.pilot_connect_wait_s = outcome.pilot_connect_wait.map(|w| w.as_secs_f64());
         for (d, tally) in self.summary.per_drone.iter_mut().zip(&mut self.gnss) {
             d.gnss = tally.summary();
             // A drone that never flew met no wind.
@@ -270,6 +271,7 @@ mod tests {
             sim_time_s: 3.0,
             wall_time: Duration::from_secs(1),
             released_at_s: None,
+            pilot_connect_wait: None,
         };
         recorder.finish(&outcome).unwrap()
     }

@@ -28,7 +28,9 @@ use crate::airspace::runtime::Airspace;
 use crate::conduct::{ConductError, Watchers, conduct};
 use crate::record::RunSummary;
 use crate::transport::TcpLink;
-use sadesim_engine::coordinator::{CoordinatorError, LinkError, ObserverError, RunFailure, RunObserver, ShardLink};
+use sadesim_engine::coordinator::{
+    CoordinatorError, LinkError, ObserverError, PilotHold, RunFailure, RunObserver, ShardLink,
+};
 use sadesim_engine::events::{Event, EventKind};
 use sadesim_engine::protocol::{DroneSnapshot, FromShard, PROTOCOL_VERSION};
 
@@ -88,6 +90,9 @@ pub struct Ends<'a> {
     pub stop: &'a AtomicBool,
     pub timeouts: Timeouts,
     pub requests: StopRequest,
+    /// A pilot is started on the release: hold for it ([`PilotHold::for_plan`]), which ends
+    /// the run `pilotNotConnected` when it stays silent.
+    pub hold_for_pilot: bool,
 }
 
 /// The end of the coordinator pod (`--finish-run`), after [`run`] whatever its outcome:
@@ -141,7 +146,7 @@ pub fn run(
     ends: Ends<'_>,
     view_bind: Option<SocketAddr>,
 ) -> Result<RunSummary, RoleError> {
-    let Ends { stop, timeouts, requests } = ends;
+    let Ends { stop, timeouts, requests, hold_for_pilot } = ends;
     let result = (|| {
         // The onboard cameras render in the conductor's observer, and their frames are
         // served with the live stream (`/cameras`), which is up before the shards connect:
@@ -193,7 +198,27 @@ pub fn run(
         let links: Vec<Box<dyn ShardLink>> = links.into_iter().flatten().collect();
         let mut reporting = Reporting { next_report_s: 0.0, stop_request: requests };
         // The shards are processes elsewhere: their CPU time is not known here.
-        match conduct(plan, world, links, &mut airspace, &mut watchers, out_dir, stop, &mut reporting, || None) {
+        let hold = hold_for_pilot.then(|| PilotHold::for_plan(plan)).flatten();
+        if let Some(h) = &hold {
+            eprintln!(
+                "holding simulated time at the release until the pilot's MAVLink reaches one of its {} drones (at most {} s)",
+                h.drones.len(),
+                h.limit.as_secs()
+            );
+        }
+        let conducted = conduct(
+            plan,
+            world,
+            links,
+            &mut airspace,
+            &mut watchers,
+            out_dir,
+            stop,
+            &mut reporting,
+            hold.as_ref(),
+            || None,
+        );
+        match conducted {
             Ok(summary) => {
                 report(&Report::Finished { summary: summary.clone() });
                 Ok(summary)
@@ -351,9 +376,16 @@ mod tests {
         let started = Instant::now();
         let timeouts = Timeouts { connect, shard: None };
         let any = SocketAddr::from(([127, 0, 0, 1], 0));
-        let error =
-            run(&plan, &world, "127.0.0.1:0", any, &dir.0, Ends { stop, timeouts, requests: StopRequest::new() }, None)
-                .expect_err("no shard connects");
+        let error = run(
+            &plan,
+            &world,
+            "127.0.0.1:0",
+            any,
+            &dir.0,
+            Ends { stop, timeouts, requests: StopRequest::new(), hold_for_pilot: false },
+            None,
+        )
+        .expect_err("no shard connects");
         (error, started.elapsed())
     }
 

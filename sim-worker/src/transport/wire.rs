@@ -15,7 +15,7 @@
 //! |---|---|---|
 //! | `A` | `ToShard::Advance` | `until_step` u64, `release_pilots` u8, leases flag u8 (+ count u32, `[drone u32, zone u32]` each) |
 //! | `W` | `FromShard::Advanced` | `shard` u32, `step` u64, `ready` u8, drone count u32, the drones ([`put_drone`]), events: JSON byte count u32 + a JSON array (0: none) |
-//! | `J` | any other message (`Hello`, `Stopped`, `Failed`, `Stop`) | the message as JSON |
+//! | `J` | any other message (`Hello`, `Held`, `Stopped`, `Failed`, `Hold`, `Stop`) | the message as JSON |
 //!
 //! A flag byte is 0 (absent, false) or 1 (present, true); anything else is refused. Every
 //! decoding error names the byte offset in the payload and the field it was reading.
@@ -56,7 +56,7 @@ impl Wire for ToShard {
                     }
                 });
             }
-            ToShard::Stop => put_json(out, self),
+            ToShard::Hold { .. } | ToShard::Stop => put_json(out, self),
         }
     }
 

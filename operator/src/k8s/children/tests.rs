@@ -689,7 +689,10 @@ fn the_coordinator_pod_runs_the_coordinator_role_on_the_planned_ports() {
     assert_eq!(value("--airspace-bind"), Some(format!("0.0.0.0:{}", plan.services.airspace_http)));
     assert_eq!(value("--out").as_deref(), Some(super::pod::OUT_DIR));
     let flags: Vec<&str> = args.iter().filter(|a| a.starts_with("--")).map(String::as_str).collect();
-    assert_eq!(flags, ["--plan", "--listen", "--airspace-bind", "--out", "--control-file", "--finish-run"]);
+    assert_eq!(
+        flags,
+        ["--plan", "--listen", "--airspace-bind", "--out", "--control-file", "--hold-for-pilot", "--finish-run"]
+    );
 }
 
 /// The assets Job runs the `sim-worker assets` role, which writes its outcome (cache hit or

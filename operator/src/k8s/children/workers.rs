@@ -165,8 +165,13 @@ fn coordinator_args(ctx: &Context) -> Vec<String> {
         OUT_DIR,
         "--control-file",
         CONTROL_FILE,
-        "--finish-run",
     ]);
+    // The pilot Job starts on the release and may still pull its image: simulated time
+    // holds until its MAVLink arrives (`spec.pilot.connectTimeoutS`).
+    if ctx.plan.spec.pilot.is_some() {
+        args.push("--hold-for-pilot".into());
+    }
+    args.push("--finish-run".into());
     if ctx.plan.spec.rendering().enabled {
         args.extend(["--view-bind".into(), format!("0.0.0.0:{}", s.renderer_http)]);
     }

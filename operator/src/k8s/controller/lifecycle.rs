@@ -74,11 +74,21 @@ pub enum RunEnd {
     Deleted,
     /// Kueue evicted the run's Workload (preemption, deactivation, a time limit).
     Evicted,
+    /// The coordinator ended the run because the pilot sent no MAVLink within
+    /// `spec.pilot.connectTimeoutS` of the release (`endReason` `pilotNotConnected`).
+    PilotNotConnected,
 }
 
 impl RunEnd {
-    const ALL: [RunEnd; 6] =
-        [RunEnd::Finished, RunEnd::RoleFailed, RunEnd::InvalidSpec, RunEnd::Aborted, RunEnd::Deleted, RunEnd::Evicted];
+    const ALL: [RunEnd; 7] = [
+        RunEnd::Finished,
+        RunEnd::RoleFailed,
+        RunEnd::InvalidSpec,
+        RunEnd::Aborted,
+        RunEnd::Deleted,
+        RunEnd::Evicted,
+        RunEnd::PilotNotConnected,
+    ];
 
     /// The Running condition's reason (and the Event's, for a warning).
     pub fn reason(self) -> &'static str {
@@ -89,6 +99,7 @@ impl RunEnd {
             RunEnd::Aborted => "Aborted",
             RunEnd::Deleted => "Deleted",
             RunEnd::Evicted => "Evicted",
+            RunEnd::PilotNotConnected => "PilotNotConnected",
         }
     }
 
@@ -101,7 +112,7 @@ impl RunEnd {
     /// annotation's value); `None` when the coordinator ended the run itself.
     pub fn stop_reason(self) -> Option<EndReason> {
         match self {
-            RunEnd::Finished => None,
+            RunEnd::Finished | RunEnd::PilotNotConnected => None,
             RunEnd::RoleFailed => Some(EndReason::RoleFailed),
             RunEnd::InvalidSpec => Some(EndReason::InvalidSpec),
             RunEnd::Aborted => Some(EndReason::Aborted),
@@ -112,7 +123,7 @@ impl RunEnd {
 
     /// Ends that fail the run for a reason outside it, recorded as a Warning Event.
     fn warns(self) -> bool {
-        matches!(self, RunEnd::RoleFailed | RunEnd::InvalidSpec | RunEnd::Evicted)
+        matches!(self, RunEnd::RoleFailed | RunEnd::InvalidSpec | RunEnd::Evicted | RunEnd::PilotNotConnected)
     }
 }
 
@@ -637,6 +648,11 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
         d.status.sim_time_s = Some(finished.sim_time_s);
         d.status.real_time_factor = Some(round3(finished.real_time_factor));
         d.status.verdict = finished.verdict.clone();
+        // The run failed before anything flew: its reason, not a verdict, says why.
+        if let EndReason::PilotNotConnected(why) = &finished.end_reason {
+            end(d, input, RunEnd::PilotNotConnected, why.clone());
+            return;
+        }
         end(d, input, RunEnd::Finished, format!("the coordinator finished the run ({})", finished.end_reason));
         return;
     }
