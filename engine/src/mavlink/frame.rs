@@ -271,6 +271,14 @@ fn find<'a>(rest: &'a [u8], stats: &mut ParseStats) -> Found<'a> {
         stats.mavlink1_frames += 1;
         return Found::Skipped(len);
     }
+    if rest[0] == STX_V1
+        && rest.get(1).is_none_or(|&len| rest.len() < 1 + HEADER_LEN_V1 + usize::from(len) + CHECKSUM_LEN)
+    {
+        // A MAVLink 1 frame may start here but is not complete yet: skipping its marker
+        // would count a frame split across two TCP reads as garbage and look for frames
+        // inside it.
+        return Found::Incomplete;
+    }
     if rest[0] != STX_V2 {
         stats.skipped_bytes += 1;
         return Found::Skipped(1);
@@ -613,6 +621,22 @@ mod tests {
         assert!(p.push(&v1).is_empty());
         assert_eq!(p.stats.mavlink1_frames, 1);
         assert!(p.stats.skipped_bytes > 0);
+    }
+
+    #[test]
+    fn a_mavlink1_frame_split_across_reads_is_still_one_frame() {
+        // Found by fuzz/fuzz_targets/mavlink_frame.rs: the first piece of a MAVLink 1 frame
+        // was skipped as garbage, so a stream parsed in pieces lost frames a whole parse found.
+        let mut v1 = vec![STX_V1, 9, 0, 255, 190, 0, 0, 0, 0, 0, 6, 8, 0, 4, 3];
+        let crc = checksum(&v1[1..], MavMessage::extra_crc(0));
+        v1.extend(crc.to_le_bytes());
+        let stream = [v1, encode(header(2), &heartbeat())].concat();
+        for piece in 1..stream.len() {
+            let mut p = FrameParser::new();
+            let frames: Vec<Frame> = stream.chunks(piece).flat_map(|c| p.push(c)).collect();
+            assert_eq!(frames.len(), 1, "{piece}-byte pieces");
+            assert_eq!((p.stats.mavlink1_frames, p.stats.skipped_bytes), (1, 0), "{piece}-byte pieces");
+        }
     }
 
     #[test]

@@ -14,3 +14,6 @@ pub mod session;
 pub mod signing;
 pub mod streams;
 pub mod telemetry;
+
+#[cfg(test)]
+mod fuzz_seeds;
