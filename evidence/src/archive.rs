@@ -32,7 +32,11 @@ pub(crate) mod tests;
 pub use check::{Problem, VerifyReport, get, verify};
 pub use error::ArchiveError;
 pub use listing::{RunListing, list};
-pub use manifest::{MANIFEST_FILE, MANIFEST_FORMAT_VERSION, Manifest, ManifestFile, write_manifest};
+pub(crate) use manifest::read_incomplete;
+pub use manifest::{
+    FileState, INCOMPLETE_FILE, Incomplete, IncompleteFile, MANIFEST_FILE, MANIFEST_FORMAT_VERSION, Manifest,
+    ManifestFile, write_manifest,
+};
 pub use store::{Archive, read_object};
 pub use upload::{MULTIPART_THRESHOLD_BYTES, Uploaded};
 pub use url::is_object_store;

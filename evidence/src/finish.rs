@@ -6,7 +6,9 @@
 //! files on a laptop and on a cluster (DESIGN §8: nothing is lost).
 //!
 //! A report failure never costs the run its evidence: the message goes to
-//! `report-error.txt` in the folder and the manifest and upload still happen.
+//! `report-error.txt` in the folder and the manifest and upload still happen. A run whose
+//! recording stopped on a write error (`incomplete.json`: the disk filled) gets no report:
+//! what room there is goes to the manifest, which says what is incomplete.
 
 use std::path::Path;
 
@@ -49,7 +51,10 @@ pub fn finish_run(
     progress: bool,
     world: Option<&sadesim_world::World>,
 ) -> Finished {
-    let report_error = crate::report::write_report_in(run_dir, world).err();
+    let report_error = match crate::archive::read_incomplete(run_dir) {
+        Ok(Some(incomplete)) => Some(crate::report::ReportError::RecordingIncomplete { reason: incomplete.reason }),
+        _ => crate::report::write_report_in(run_dir, world).err(),
+    };
     if let Some(e) = &report_error {
         // Best effort: the folder may be unwritable, and the message is returned anyway.
         let _ = std::fs::write(run_dir.join(run_folder::REPORT_ERROR), format!("{e}\n"));
@@ -111,6 +116,54 @@ mod tests {
         assert!(verify(&uploaded.url).unwrap().passed());
         // The local folder is verifiable too.
         assert!(verify(run_dir.to_str().unwrap()).unwrap().passed());
+        std::fs::remove_dir_all(&root).unwrap();
+    }
+
+    /// A run whose recording stopped on a write error (`incomplete.json`): no report is
+    /// attempted, the manifest carries what is incomplete, and verify reports it file by
+    /// file, after the reason, rather than passing or failing on checksums.
+    #[test]
+    fn an_incomplete_recording_is_in_the_manifest_and_fails_verify_saying_so() {
+        use crate::archive::{FileState, INCOMPLETE_FILE, Incomplete, IncompleteFile, Problem};
+        let (root, run_dir) = unreportable_run("incomplete");
+        std::fs::write(run_dir.join("recording.mcap"), b"an MCAP cut short").unwrap();
+        let incomplete = Incomplete {
+            reason: "recording.mcap: No space left on device (os error 28)".into(),
+            files: vec![
+                IncompleteFile {
+                    path: "recording.mcap".into(),
+                    state: FileState::Truncated,
+                    detail: "it ends at 50.00 s of simulated time, where the recording stopped".into(),
+                },
+                IncompleteFile {
+                    path: run_folder::SUMMARY.into(),
+                    state: FileState::NotWritten,
+                    detail: "it could not be written (No space left on device (os error 28))".into(),
+                },
+            ],
+        };
+        std::fs::write(run_dir.join(INCOMPLETE_FILE), serde_json::to_vec(&incomplete).unwrap()).unwrap();
+
+        let done = finish_run(&run_dir, ADDRESS, None, false, None);
+
+        let error = done.report_error.expect("no report").to_string();
+        assert!(error.starts_with("not attempted: the recording is incomplete (recording.mcap: No space"), "{error}");
+        assert!(!run_dir.join(run_folder::REPORT).exists());
+        let manifest: crate::archive::Manifest =
+            serde_json::from_slice(&std::fs::read(run_dir.join(run_folder::MANIFEST)).unwrap()).unwrap();
+        assert_eq!(manifest.incomplete.as_ref(), Some(&incomplete));
+        let report = verify(run_dir.to_str().unwrap()).unwrap();
+        assert!(!report.passed());
+        assert_eq!(report.problems[0], Problem::Stopped { reason: incomplete.reason.clone() });
+        let lines: Vec<String> = report.problems.iter().map(ToString::to_string).collect();
+        assert_eq!(
+            lines[1..],
+            [
+                "recording.mcap: incomplete (truncated): it ends at 50.00 s of simulated time, where the recording stopped",
+                "summary.json: incomplete (notWritten): it could not be written (No space left on device (os error 28))",
+            ]
+        );
+        assert!(!lines.iter().any(|l| l.contains("sha256")), "the bytes match: {lines:?}");
         std::fs::remove_dir_all(&root).unwrap();
     }
 

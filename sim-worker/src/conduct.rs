@@ -112,6 +112,7 @@ pub fn conduct(
     hold: Option<&PilotHold>,
     shard_cpu: impl FnOnce() -> Option<Vec<f64>>,
 ) -> Result<RunSummary, ConductError> {
+    let started = Instant::now();
     let options = Cameras::recorder_options(watchers.cameras.as_ref());
     let mut recorder = Recorder::create(out_dir, plan, world, options).map_err(ConductError::Record)?;
     let mut conducting = Conducting {
@@ -142,9 +143,27 @@ pub fn conduct(
                 .map_err(|e| e.to_string());
             return Err(ConductError::RunFailed { failure, closed });
         }
+        // A file could not be written (the disk filled): the recording stops, its files
+        // are closed at their last whole record and `incomplete.json` says which are not
+        // whole (`crate::record::disk`).
+        Err(CoordinatorError::Observer(ObserverError::Record(e))) => {
+            let outcome = RunOutcome {
+                reason: EndReason::Requested(format!("recordingFailed: {e}")),
+                sim_time_s: recorder.recorded_until_s(),
+                wall_time: started.elapsed(),
+                released_at_s: None,
+                pilot_connect_wait: None,
+            };
+            let _ = close_failed_run(airspace, recorder, &outcome, out_dir);
+            return Err(ConductError::Record(e));
+        }
         Err(e) => return Err(ConductError::Coordinator(e)),
     };
-    write_airspace(airspace, out_dir).map_err(ConductError::Record)?;
+    // The room set aside for closing the files after a full disk is for this too.
+    recorder.release_reserve();
+    if let Err(e) = write_airspace(airspace, out_dir) {
+        recorder.not_written(AIRSPACE_FILE, &e);
+    }
     recorder.set_closest_zones(&airspace.closest_zones_m());
     if !matches!(outcome.reason, EndReason::PilotNotConnected(_)) {
         recorder.set_verdict(airspace.verdict(plan, outcome.sim_time_s));
@@ -174,10 +193,12 @@ fn close_failed_run(
     outcome: &RunOutcome,
     out_dir: &Path,
 ) -> std::io::Result<RunSummary> {
-    let written = write_airspace(airspace, out_dir);
+    recorder.release_reserve();
+    if let Err(e) = write_airspace(airspace, out_dir) {
+        recorder.not_written(AIRSPACE_FILE, &e);
+    }
     recorder.set_closest_zones(&airspace.closest_zones_m());
-    let summary = recorder.finish(outcome)?;
-    written.map(|()| summary)
+    recorder.finish(outcome)
 }
 
 /// The run's own observer: cameras, recorder and live stream, then the caller's.
@@ -345,7 +366,8 @@ mod tests {
         let mut times = FlightTimes::default();
         let stop = AtomicBool::new(false);
         let summary =
-            conduct(&plan, &world, links, &mut airspace, &mut watchers, &dir.0, &stop, &mut times, None, || None).unwrap();
+            conduct(&plan, &world, links, &mut airspace, &mut watchers, &dir.0, &stop, &mut times, None, || None)
+                .unwrap();
         for t in threads {
             t.join().unwrap();
         }

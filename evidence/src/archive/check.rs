@@ -13,7 +13,7 @@ use sha2::{Digest, Sha256};
 use super::manifest::hex;
 use super::store::FILES_IN_FLIGHT;
 use super::url::{check_relative_path, child_path};
-use super::{Archive, ArchiveError, MANIFEST_FILE, Manifest, ManifestFile};
+use super::{Archive, ArchiveError, FileState, MANIFEST_FILE, Manifest, ManifestFile};
 
 /// Something [`Archive::verify`] or [`Archive::get`] found wrong.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -26,6 +26,13 @@ pub enum Problem {
     Mismatch { path: String, expected_size: u64, actual_size: u64, expected_sha256: String, actual_sha256: String },
     /// In the archive, not in the manifest.
     Extra { path: String, size: u64 },
+    /// The manifest says the run's recording stopped on a write error (the disk filled) and
+    /// this file is not whole (`manifest.incomplete`): its bytes may match, the run is still
+    /// incomplete.
+    Unfinished { path: String, state: FileState, detail: String },
+    /// The manifest says the run's recording stopped on a write error: the error, naming
+    /// the file that could not be written (`manifest.incomplete.reason`).
+    Stopped { reason: String },
 }
 
 impl Problem {
@@ -33,7 +40,11 @@ impl Problem {
     pub fn path(&self) -> &str {
         match self {
             Self::Incomplete => MANIFEST_FILE,
-            Self::Missing { path, .. } | Self::Mismatch { path, .. } | Self::Extra { path, .. } => path,
+            Self::Missing { path, .. }
+            | Self::Mismatch { path, .. }
+            | Self::Extra { path, .. }
+            | Self::Unfinished { path, .. } => path,
+            Self::Stopped { .. } => super::INCOMPLETE_FILE,
         }
     }
 }
@@ -52,6 +63,10 @@ impl std::fmt::Display for Problem {
                 "{path}: sha256 mismatch: expected {expected_sha256}, actual {actual_sha256} (size expected {expected_size}, actual {actual_size} bytes)"
             ),
             Self::Extra { path, size } => write!(f, "{path}: not in the manifest ({size} bytes)"),
+            Self::Unfinished { path, state, detail } => write!(f, "{path}: incomplete ({state}): {detail}"),
+            Self::Stopped { reason } => {
+                write!(f, "the run's recording stopped on a write error: {reason} (the manifest's `incomplete`)")
+            }
         }
     }
 }
@@ -210,7 +225,16 @@ impl Archive {
         }
         let bytes_checked = checked.iter().map(|(n, _)| n).sum();
         problems.extend(checked.into_iter().filter_map(|(_, p)| p));
+        // A run whose recording stopped on a write error: said file by file, whatever the
+        // checksums say (they match what was written).
+        for f in manifest.incomplete.iter().flat_map(|i| &i.files) {
+            problems.push(Problem::Unfinished { path: f.path.clone(), state: f.state, detail: f.detail.clone() });
+        }
         problems.sort_by(|a, b| a.path().cmp(b.path()));
+        // Why the files listed after it are not whole, first.
+        if let Some(incomplete) = &manifest.incomplete {
+            problems.insert(0, Problem::Stopped { reason: incomplete.reason.clone() });
+        }
         Ok(VerifyReport { url, files_checked: present.len(), bytes_checked, problems, manifest: Some(manifest) })
     }
 

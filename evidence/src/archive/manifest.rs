@@ -38,6 +38,85 @@ pub struct Manifest {
     pub total_bytes: u64,
     /// Every file of the run but the manifest itself, sorted by path.
     pub files: Vec<ManifestFile>,
+    /// What the run could not write whole (from the folder's `incomplete.json`): present
+    /// only when the recording stopped on a write error (the disk filled). The files listed
+    /// in `files` match their checksums either way; this says which of them end early or
+    /// were not closed, and which were never written.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub incomplete: Option<Incomplete>,
+}
+
+/// `incomplete.json`: written into a run folder by the recorder when a file of the run
+/// could not be written (the disk filled, an I/O error), and copied into the manifest.
+pub const INCOMPLETE_FILE: &str = "incomplete.json";
+
+/// What a run whose recording stopped on a write error holds, file by file.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
+#[serde(rename_all = "camelCase")]
+pub struct Incomplete {
+    /// The error that stopped the recording, naming the file that could not be written
+    /// (e.g. `recording.mcap: No space left on device (os error 28)`).
+    pub reason: String,
+    /// The files that are not whole, sorted by path.
+    pub files: Vec<IncompleteFile>,
+}
+
+/// One file of an [`Incomplete`] run.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
+#[serde(rename_all = "camelCase")]
+pub struct IncompleteFile {
+    /// Relative to the run folder, `/`-separated.
+    pub path: String,
+    pub state: FileState,
+    /// What it holds and why, in words.
+    pub detail: String,
+}
+
+/// How a file of an [`Incomplete`] run falls short.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+#[serde(rename_all = "camelCase")]
+pub enum FileState {
+    /// Well-formed and closed (its readers open it normally), but it ends where the
+    /// recording stopped, before the run's end.
+    Truncated,
+    /// Its end could not be written: it stops mid-record (`recording.mcap` without its
+    /// summary and footer: readers need their recovery or streaming mode).
+    NotFinalised,
+    /// Not in the folder: it is written at the end of a run, and could not be.
+    NotWritten,
+}
+
+impl FileState {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Truncated => "truncated",
+            Self::NotFinalised => "notFinalised",
+            Self::NotWritten => "notWritten",
+        }
+    }
+}
+
+impl std::fmt::Display for FileState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// The folder's `incomplete.json`, if it has one.
+///
+/// # Errors
+/// [`ArchiveError::ReadLocal`] when it exists but cannot be read or is not an
+/// [`Incomplete`].
+pub(crate) fn read_incomplete(dir: &FsPath) -> Result<Option<Incomplete>, ArchiveError> {
+    let path = dir.join(INCOMPLETE_FILE);
+    let read_err = |source| ArchiveError::ReadLocal { path: path.display().to_string(), source };
+    let bytes = match std::fs::read(&path) {
+        Ok(bytes) => bytes,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(read_err(e)),
+    };
+    let incomplete = serde_json::from_slice(&bytes).map_err(|e| read_err(std::io::Error::other(e)))?;
+    Ok(Some(incomplete))
 }
 
 /// One file of a run.
@@ -64,6 +143,7 @@ impl Manifest {
             file_count: files.len(),
             total_bytes: files.iter().map(|f| f.size).sum(),
             files,
+            incomplete: None,
         }
     }
 
@@ -94,6 +174,9 @@ impl Manifest {
             if f.sha256.len() != 64 || !f.sha256.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b)) {
                 return Err(bad(format!("{at}.sha256 {:?}: expected 64 lowercase hex digits", f.sha256)));
             }
+        }
+        for (i, f) in manifest.incomplete.iter().flat_map(|i| &i.files).enumerate() {
+            check_relative_path(&f.path).map_err(|e| bad(format!("incomplete.files[{i}].path {:?}: {e}", f.path)))?;
         }
         Ok(manifest)
     }
@@ -194,11 +277,16 @@ pub fn write_manifest(dir: &FsPath, namespace: &str, run: &str, uid: &str) -> Re
             Ok(ManifestFile { path: f.rel, size, sha256 })
         })
         .collect::<Result<Vec<_>, ArchiveError>>()?;
-    let manifest = Manifest::new(namespace, run, uid, files);
+    let mut manifest = Manifest::new(namespace, run, uid, files);
+    manifest.incomplete = read_incomplete(dir)?;
     let path = dir.join(MANIFEST_FILE);
     let tmp = dir.join(format!(".{MANIFEST_FILE}.tmp"));
     let write_err = |source| ArchiveError::WriteLocal { path: path.display().to_string(), source };
-    std::fs::write(&tmp, manifest.to_json()).map_err(write_err)?;
+    if let Err(e) = std::fs::write(&tmp, manifest.to_json()) {
+        // A full disk leaves no half-written temporary file behind.
+        let _ = std::fs::remove_file(&tmp);
+        return Err(write_err(e));
+    }
     std::fs::rename(&tmp, &path).map_err(write_err)?;
     Ok(manifest)
 }

@@ -11,7 +11,7 @@ use object_store::path::Path as ObjectPath;
 use object_store::{ObjectStoreExt, PutPayload, WriteMultipart};
 use sha2::{Digest, Sha256};
 
-use super::manifest::{LocalFile, READ_CHUNK_BYTES, hex, scan_local};
+use super::manifest::{LocalFile, READ_CHUNK_BYTES, hex, read_incomplete, scan_local};
 use super::store::FILES_IN_FLIGHT;
 use super::url::{check_relative_path, check_run_names, child_path};
 use super::{Archive, ArchiveError, MANIFEST_FILE, Manifest, ManifestFile};
@@ -60,7 +60,8 @@ impl Archive {
             .try_collect::<Vec<ManifestFile>>();
         let entries = self.runtime.block_on(uploads);
         bar.finish_and_clear();
-        let manifest = Manifest::new(namespace, run, uid, entries?);
+        let mut manifest = Manifest::new(namespace, run, uid, entries?);
+        manifest.incomplete = read_incomplete(local_dir)?;
         let location = folder.clone().join(MANIFEST_FILE);
         self.runtime.block_on(self.store.put(&location, PutPayload::from(manifest.to_json()))).map_err(|source| {
             ArchiveError::Upload {

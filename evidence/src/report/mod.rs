@@ -119,6 +119,12 @@ pub enum ReportError {
     /// A plot could not be rasterised (a bug of the report's SVG, not of the run).
     #[error("{path}: {message}")]
     Render { path: String, message: String },
+    /// Not attempted: the run's recording stopped on a write error (the folder's
+    /// `incomplete.json` says which file); the space left goes to the manifest.
+    #[error(
+        "not attempted: the recording is incomplete ({reason}); once there is room, `sadesim report <run folder>` writes it"
+    )]
+    RecordingIncomplete { reason: String },
 }
 
 /// Builds the report of the run folder `run_dir` into the same folder: `report.html`,

@@ -160,6 +160,8 @@ struct CameraChannels {
 #[derive(Debug)]
 pub struct McapRecorder {
     out: Output,
+    /// The file (to cut back when its summary could not be written).
+    path: std::path::PathBuf,
     frame: LocalFrame,
     drones: Vec<DroneChannels>,
     tf: Channel,
@@ -224,7 +226,8 @@ impl McapRecorder {
                 ),
             ));
         }
-        let file = BufWriter::new(File::create(dir.join(MCAP_FILE))?);
+        let path = dir.join(MCAP_FILE);
+        let file = BufWriter::new(File::create(&path)?);
         let compression = match compression {
             Compression::Zstd => ChunkCompression::zstd(ZSTD_LEVEL)?,
             Compression::Lz4 => ChunkCompression::Lz4,
@@ -311,6 +314,7 @@ impl McapRecorder {
         out.writer.flush()?;
         Ok(Self {
             out,
+            path,
             frame: LocalFrame::new(plan.spec.origin.geo()),
             drones,
             tf,
@@ -420,6 +424,38 @@ impl McapRecorder {
         let file = self.out.writer.finish()?;
         file.into_inner().map_err(|e| e.into_error())?;
         Ok(())
+    }
+
+    /// [`Self::finish`] that also closes the file after a write error (the disk filled),
+    /// once there is room again (the run's [`super::disk::DiskReserve`] released): the file
+    /// is cut back to its last whole chunk, then the open chunk (also one whose write
+    /// failed) and the summary section are written. With no room for that chunk, it is
+    /// dropped and the summary written alone. `Ok(None)`: every message given is in the
+    /// file; `Ok(Some(what))`: closed, without `what`.
+    ///
+    /// # Errors
+    /// Not even the summary could be written: the file ends after its last whole chunk,
+    /// without summary and footer (MCAP readers read it in their recovery mode).
+    pub fn close(self) -> std::io::Result<Option<String>> {
+        let mut writer = self.out.writer.cut_back(super::disk::cut)?;
+        let mut dropped = None;
+        if writer.flush().is_err() {
+            dropped = Some(writer.discard_open_chunk());
+            writer = writer.cut_back(super::disk::cut)?;
+        }
+        let whole = writer.position();
+        match writer.finish() {
+            Ok(file) => {
+                file.into_inner().map_err(|e| e.into_error())?;
+            }
+            Err(e) => {
+                // No summary: the file ends after its last whole chunk, not mid-record.
+                let file = std::fs::OpenOptions::new().write(true).open(&self.path)?;
+                file.set_len(whole)?;
+                return Err(e);
+            }
+        }
+        Ok(dropped.map(|n| format!("the {n} messages of its last chunk, for which there was no room")))
     }
 }
 

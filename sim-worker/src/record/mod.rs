@@ -5,6 +5,7 @@
 
 mod camera_images;
 mod cost;
+pub mod disk;
 mod events;
 mod fixed;
 mod gnss_tally;

@@ -6,7 +6,11 @@ use sadesim_crds::geo::LocalFrame;
 use sadesim_crds::plan::RunPlan;
 use sadesim_world::World;
 
+use sadesim_evidence::archive::{FileState, INCOMPLETE_FILE, Incomplete, IncompleteFile};
+
 use super::cost::Lap;
+use super::disk::{Appender, DiskReserve};
+use super::trajectory::{TRAJECTORY_CSV, TRAJECTORY_GEOJSON};
 use super::{
     CameraImage, CameraStream, DroneSummary, EventLog, McapRecorder, RunSummary, Sampler, StreamWriter, TrajectoryCsv,
     TrajectoryGeoJson, UlogRecorder,
@@ -53,7 +57,9 @@ pub struct Recorder {
     gnss: Vec<super::gnss_tally::GnssTally>,
     /// `gnss.csv`: each drone's receiver in flight once a second, for the report's GNSS
     /// timeline; written for runs with the ranging receiver (a constellation) only.
-    gnss_csv: Option<std::io::BufWriter<std::fs::File>>,
+    gnss_csv: Option<Appender>,
+    /// One `gnss.csv` row, reused.
+    gnss_row: String,
     /// Per drone: what the summary carries from one window to the next.
     drone_tracks: Vec<super::summary::DroneTrack>,
     /// When the last window folded into the summary ended, simulated seconds.
@@ -63,15 +69,26 @@ pub struct Recorder {
     streams: Option<StreamWriter>,
     /// Camera frames for the next window ([`Recorder::queue_images`]).
     images: Vec<CameraImage>,
+    /// Room to close the files if the disk fills ([`super::disk`]), released at
+    /// [`Recorder::finish`].
+    reserve: Option<DiskReserve>,
+    /// The write error that stopped the recording (it names the file).
+    failure: Option<(std::io::ErrorKind, String)>,
+    /// The last window recorded whole, simulated seconds.
+    recorded_until_s: f64,
+    /// Files of the run that could not be written (`Recorder::not_written`).
+    not_written: Vec<IncompleteFile>,
 }
 
 impl Recorder {
     /// Creates the files in `dir` (which must exist); `world` is the run's (drawn in
-    /// `recording.mcap`).
+    /// `recording.mcap`). First it sets aside the room to close them if the disk fills
+    /// ([`super::disk::reserve_bytes`]).
     ///
     /// # Errors
-    /// When a file cannot be created.
+    /// When a file cannot be created, or the disk has not the room to set aside.
     pub fn create(dir: &Path, plan: &RunPlan, world: &World, options: RecorderOptions) -> std::io::Result<Self> {
+        let reserve = DiskReserve::create(dir, super::disk::reserve_bytes(plan.drones.len()))?;
         let summary = RunSummary {
             run: plan.run.name.clone(),
             drones: plan.drones.len() as u32,
@@ -98,8 +115,8 @@ impl Recorder {
             streams,
             dir: dir.to_path_buf(),
             frame: LocalFrame::new(plan.spec.origin.geo()),
-            events: EventLog::create(&dir.join(sadesim_crds::outcome::run_folder::EVENTS))?,
-            csv: TrajectoryCsv::create(&dir.join("trajectory.csv"))?,
+            events: EventLog::create(dir)?,
+            csv: TrajectoryCsv::create(dir)?,
             tracks: TrajectoryGeoJson::new(plan.drones.len()),
             rows: Sampler::new(options.trajectory_hz),
             track_points: Sampler::including_start(options.track_hz),
@@ -107,15 +124,13 @@ impl Recorder {
             gnss: vec![super::gnss_tally::GnssTally::default(); plan.drones.len()],
             gnss_csv: match plan.spec.environment().gnss.is_some_and(|g| g.constellation.is_some()) {
                 true => {
-                    use std::io::Write;
-                    let mut w = std::io::BufWriter::new(std::fs::File::create(
-                        dir.join(sadesim_crds::outcome::run_folder::GNSS),
-                    )?);
-                    writeln!(w, "time_s,drone,fix_type,satellites,hdop,fix_error_m,estimate_error_m")?;
+                    let mut w = Appender::create(dir, sadesim_crds::outcome::run_folder::GNSS)?;
+                    w.write_all(b"time_s,drone,fix_type,satellites,hdop,fix_error_m,estimate_error_m\n")?;
                     Some(w)
                 }
                 false => None,
             },
+            gnss_row: String::new(),
             drone_tracks: plan
                 .drones
                 .iter()
@@ -124,7 +139,36 @@ impl Recorder {
             last_window_end_s: 0.0,
             images: Vec::new(),
             plan: plan.clone(),
+            reserve: Some(reserve),
+            failure: None,
+            recorded_until_s: 0.0,
+            not_written: Vec::new(),
         })
+    }
+
+    /// The simulated time of the last window recorded whole (0 before the first).
+    pub fn recorded_until_s(&self) -> f64 {
+        self.recorded_until_s
+    }
+
+    /// Gives back the room set aside for closing the files (also done by
+    /// [`Recorder::finish`]): for the run's end-of-run files written before it.
+    pub fn release_reserve(&mut self) {
+        if let Some(reserve) = self.reserve.take() {
+            reserve.release();
+        }
+    }
+
+    /// A file of the run folder the caller could not write (`airspace.json`): it stops
+    /// the recording as a write error of the recorder's own does, and `incomplete.json`
+    /// lists it as not written.
+    pub fn not_written(&mut self, path: &str, error: &std::io::Error) {
+        self.failure.get_or_insert_with(|| (error.kind(), format!("{path}: {error}")));
+        self.not_written.push(IncompleteFile {
+            path: path.to_string(),
+            state: FileState::NotWritten,
+            detail: format!("it could not be written ({error})"),
+        });
     }
 
     pub fn summary(&self) -> &RunSummary {
@@ -161,19 +205,55 @@ impl Recorder {
         self.summary.shard_cpu_s = shard_cpu_s;
     }
 
-    /// Writes the end-of-run files and returns the summary.
+    /// Writes the end-of-run files and returns the summary. The room set aside is given
+    /// back first, so after a write error (the disk filled) it closes every file at its
+    /// last whole record and writes `summary.json`; then `incomplete.json` (which the
+    /// manifest copies) says which files end early, could not be closed or written.
     ///
     /// # Errors
-    /// I/O errors.
+    /// The write error that stopped the recording (also when the caller saw it already),
+    /// else the first file that could not be closed or written, naming it.
     pub fn finish(mut self, outcome: &RunOutcome) -> std::io::Result<RunSummary> {
+        self.release_reserve();
+        let mut incomplete = std::mem::take(&mut self.not_written);
+        let mut close_error = None;
         if let Some(streams) = self.streams.take() {
-            let spent = streams.finish()?;
+            let closed = streams.finish_stopped(self.failure.as_ref().map(|_| self.recorded_until_s));
             let cost = &mut self.summary.recording_cpu_s;
-            cost.mcap += spent.mcap;
-            cost.ulog += spent.ulog;
-            cost.other += spent.other;
+            cost.mcap += closed.cost.mcap;
+            cost.ulog += closed.cost.ulog;
+            cost.other += closed.cost.other;
+            if let Some((time_s, e)) = closed.failed {
+                // A failure in the last windows, which no write returned.
+                self.failure.get_or_insert((e.kind(), e.to_string()));
+                self.recorded_until_s = self.recorded_until_s.min(time_s);
+            }
+            close_error = closed.close_error;
+            incomplete.extend(closed.incomplete);
         }
-        self.tracks.write(&self.dir.join("trajectory.geojson"), &self.plan)?;
+        let stopped = self.failure.as_ref().map(|_| {
+            format!("it ends at {:.2} s of simulated time, where the recording stopped", self.recorded_until_s)
+        });
+        // The files written as the run went: cut back to their last whole line.
+        let mut appended = vec![(self.events.close(), sadesim_crds::outcome::run_folder::EVENTS)];
+        appended.push((self.csv.close(), TRAJECTORY_CSV));
+        if let Some(gnss) = self.gnss_csv.take() {
+            appended.push((gnss.close(), sadesim_crds::outcome::run_folder::GNSS));
+        }
+        for (closed, path) in appended {
+            let (state, detail) = match (closed, &stopped) {
+                (Ok(()), None) => continue,
+                (Ok(()), Some(stopped)) => {
+                    (FileState::Truncated, format!("{stopped}; it holds what was written before"))
+                }
+                (Err(e), _) => {
+                    let detail = format!("its last lines could not be written ({e}): it may end mid-line");
+                    close_error.get_or_insert(e);
+                    (FileState::NotFinalised, detail)
+                }
+            };
+            incomplete.push(IncompleteFile { path: path.into(), state, detail });
+        }
         self.summary.end_reason = outcome.reason.clone();
         self.summary.sim_time_s = outcome.sim_time_s;
         self.summary.wall_time_s = outcome.wall_time.as_secs_f64();
@@ -185,30 +265,77 @@ impl Recorder {
             // A drone that never flew met no wind.
             d.wind = d.wind.filter(|w| w.windows > 0);
         }
-        if let Some(mut csv) = self.gnss_csv.take() {
-            use std::io::Write;
-            csv.flush()?;
+        let geojson = self.tracks.write(&self.dir.join(TRAJECTORY_GEOJSON), &self.plan);
+        let summary = serde_json::to_vec_pretty(&self.summary)
+            .map_err(std::io::Error::other)
+            .and_then(|json| std::fs::write(self.dir.join(sadesim_crds::outcome::run_folder::SUMMARY), json));
+        for (written, path) in [(geojson, TRAJECTORY_GEOJSON), (summary, sadesim_crds::outcome::run_folder::SUMMARY)] {
+            if let Err(e) = written {
+                // No half-written JSON in the folder.
+                let _ = std::fs::remove_file(self.dir.join(path));
+                incomplete.push(IncompleteFile {
+                    path: path.into(),
+                    state: FileState::NotWritten,
+                    detail: format!("it could not be written ({e})"),
+                });
+                close_error.get_or_insert(super::disk::named(path, e));
+            }
         }
-        let json = serde_json::to_vec_pretty(&self.summary).map_err(std::io::Error::other)?;
-        std::fs::write(self.dir.join(sadesim_crds::outcome::run_folder::SUMMARY), json)?;
-        Ok(self.summary)
+        let reason = match (&self.failure, &close_error) {
+            (Some((_, reason)), _) => Some(reason.clone()),
+            (None, Some(e)) => Some(e.to_string()),
+            (None, None) => None,
+        };
+        if let Some(reason) = reason {
+            incomplete.sort_by(|a, b| a.path.cmp(&b.path));
+            let record = Incomplete { reason, files: incomplete };
+            let path = self.dir.join(INCOMPLETE_FILE);
+            let json = serde_json::to_vec_pretty(&record).map_err(std::io::Error::other)?;
+            if let Err(e) = std::fs::write(&path, json) {
+                let _ = std::fs::remove_file(&path);
+                close_error.get_or_insert(super::disk::named(INCOMPLETE_FILE, e));
+            }
+        }
+        match (self.failure, close_error) {
+            (Some((kind, reason)), _) => Err(std::io::Error::new(kind, reason)),
+            (None, Some(e)) => Err(e),
+            (None, None) => Ok(self.summary),
+        }
+    }
+
+    /// [`RunObserver::on_window`]'s writes; the first error is kept as the failure.
+    fn record_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
+        if self.failure.is_some() {
+            return Err(ObserverError::Record(std::io::Error::other("the recording stopped after a write error")));
+        }
+        let result = self.write_window(time_s, drones, events);
+        match &result {
+            Ok(()) => self.recorded_until_s = time_s,
+            Err(e) => self.failure = Some((e.kind(), e.to_string())),
+        }
+        result.map_err(ObserverError::Record)
     }
 }
 
 impl RunObserver for Recorder {
     fn on_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> Result<(), ObserverError> {
+        self.record_window(time_s, drones, events)
+    }
+}
+
+impl Recorder {
+    /// Records one window (errors name the file).
+    fn write_window(&mut self, time_s: f64, drones: &[DroneSnapshot], events: &[Event]) -> std::io::Result<()> {
         let mut cost = self.summary.recording_cpu_s;
         let mut lap = Lap::start();
-        self.events.write(events).map_err(ObserverError::Record)?;
+        self.events.write(events)?;
         let images = std::mem::take(&mut self.images);
         if let Some(streams) = &mut self.streams {
-            streams
-                .write_with_images(time_s, drones.to_vec(), events.to_vec(), images)
-                .map_err(ObserverError::Record)?;
+            streams.write_with_images(time_s, drones.to_vec(), events.to_vec(), images)?;
         }
         let final_window = events.iter().any(|e| matches!(e.kind, EventKind::RunEnded { .. }));
         if !final_window && self.rows.due(time_s) {
-            self.csv.write(time_s, drones, &self.plan, &self.frame).map_err(ObserverError::Record)?;
+            self.csv.write(time_s, drones, &self.plan, &self.frame)?;
         }
         // The track's last point is where the drone ended, whatever the rate.
         if self.track_points.due(time_s) || final_window {
@@ -217,10 +344,12 @@ impl RunObserver for Recorder {
         for s in drones {
             let Some(tally) = self.gnss.get_mut(s.index as usize) else { continue };
             if let (Some(row), Some(csv)) = (tally.observe(time_s, s), &mut self.gnss_csv) {
-                use std::io::Write;
+                use std::fmt::Write;
                 let opt = |v: Option<f64>, digits: usize| v.map_or(String::new(), |v| format!("{v:.digits$}"));
-                writeln!(
-                    csv,
+                let line = &mut self.gnss_row;
+                line.clear();
+                let _ = writeln!(
+                    line,
                     "{:.3},{},{},{},{},{},{}",
                     row.time_s,
                     s.index,
@@ -229,8 +358,8 @@ impl RunObserver for Recorder {
                     opt(row.hdop, 2),
                     opt(row.fix_error_m, 2),
                     opt(row.estimate_error_m, 2)
-                )
-                .map_err(ObserverError::Record)?;
+                );
+                csv.write_all(line.as_bytes())?;
             }
         }
         if !final_window {
@@ -274,6 +403,61 @@ mod tests {
             pilot_connect_wait: None,
         };
         recorder.finish(&outcome).unwrap()
+    }
+
+    /// `trajectory.csv` on a disk with no room at all (`/dev/full`): the window that
+    /// samples it fails naming it, and `finish` closes the rest (the MCAP with its summary,
+    /// each ULog at a whole message), writes `summary.json`, removes the reserve and
+    /// writes `incomplete.json`, which says what is not whole.
+    #[test]
+    fn a_full_disk_stops_the_recording_and_the_rest_is_closed_and_listed() {
+        use sadesim_evidence::archive::{FileState, INCOMPLETE_FILE, Incomplete};
+        let dir = TempDir::new("recorder-full");
+        std::os::unix::fs::symlink("/dev/full", dir.0.join(TRAJECTORY_CSV)).unwrap();
+        let plan = plan_of(run_with_groups(&[("a", 2)]).build());
+        let mut recorder = Recorder::create(&dir.0, &plan, &world_of(&plan), RecorderOptions::default()).unwrap();
+        assert!(dir.0.join(super::super::disk::RESERVE_FILE).exists());
+        let mut failed = None;
+        for w in 1..=300u32 {
+            let t = f64::from(w) * 0.01;
+            let drones: Vec<DroneSnapshot> = (0..2).map(|index| DroneSnapshot::climbing(index, 0.0, t)).collect();
+            if let Err(ObserverError::Record(e)) = recorder.on_window(t, &drones, &[]) {
+                failed = Some(e);
+                break;
+            }
+        }
+        let failed = failed.expect("the first trajectory sample fails");
+        assert_eq!(failed.to_string(), "trajectory.csv: No space left on device (os error 28)");
+        let outcome = RunOutcome {
+            reason: sadesim_engine::events::EndReason::Requested(format!("recordingFailed: {failed}")),
+            sim_time_s: recorder.recorded_until_s(),
+            wall_time: Duration::from_secs(1),
+            released_at_s: None,
+            pilot_connect_wait: None,
+        };
+        let error = recorder.finish(&outcome).unwrap_err();
+        assert_eq!(error.to_string(), failed.to_string(), "the error that stopped the recording");
+        assert!(!dir.0.join(super::super::disk::RESERVE_FILE).exists(), "the reserve is given back");
+        // Readable up to where it stopped: the MCAP has its summary.
+        let _poses = crate::record::mcap_file::finished_pose_count(&dir.0);
+        let summary: RunSummary =
+            serde_json::from_slice(&std::fs::read(dir.0.join(sadesim_crds::outcome::run_folder::SUMMARY)).unwrap())
+                .unwrap();
+        assert!(summary.end_reason.to_string().starts_with("recordingFailed: trajectory.csv: "));
+        let incomplete: Incomplete =
+            serde_json::from_slice(&std::fs::read(dir.0.join(INCOMPLETE_FILE)).unwrap()).unwrap();
+        assert_eq!(incomplete.reason, failed.to_string());
+        let states: Vec<(&str, FileState)> = incomplete.files.iter().map(|f| (f.path.as_str(), f.state)).collect();
+        assert_eq!(
+            states,
+            vec![
+                ("events.jsonl", FileState::Truncated),
+                ("recording.mcap", FileState::Truncated),
+                ("trajectory.csv", FileState::NotFinalised),
+                ("ulog/a-0.ulg", FileState::Truncated),
+                ("ulog/a-1.ulg", FileState::Truncated),
+            ]
+        );
     }
 
     #[test]

@@ -19,17 +19,22 @@
 //!   written: a writer slower than the simulation slows the caller (backpressure), never
 //!   grows memory. A process killed mid-run loses those windows (0.3 simulated seconds by
 //!   default) besides the open MCAP chunk.
-//! - A write error stops the thread; the caller's next [`StreamWriter::write`] (or
-//!   [`StreamWriter::finish`]) returns it.
-//! - [`StreamWriter::finish`] waits until both files are complete. Dropped without it (the
-//!   run ended on an error, or the caller unwinds), it does the same and drops the result.
+//! - A write error stops the thread; the caller's next [`StreamWriter::write`] returns it,
+//!   naming the file. The thread hands its writers back rather than dropping them.
+//! - [`StreamWriter::finish`] waits for the thread, then closes the files on the caller's
+//!   thread, cutting each back to its last whole record first (after a write error, part
+//!   of one may have reached the disk), and says which are not whole. Dropped without it
+//!   (the run ended on an error, or the caller unwinds), it does the same and drops the
+//!   result.
 
 use std::io;
 use std::sync::mpsc::{Receiver, SyncSender, sync_channel};
 use std::thread::JoinHandle;
 
+use sadesim_evidence::archive::{FileState, IncompleteFile};
+
 use super::cost::{Lap, RecordingCost};
-use super::{CameraImage, McapRecorder, UlogRecorder};
+use super::{CameraImage, MCAP_FILE, McapRecorder, UlogRecorder};
 use sadesim_engine::events::Event;
 use sadesim_engine::protocol::DroneSnapshot;
 
@@ -74,7 +79,48 @@ pub struct StreamWriter {
     sender: Option<SyncSender<Vec<Window>>>,
     /// Windows not handed over yet (fewer than [`BATCH_WINDOWS`]).
     pending: Vec<Window>,
-    thread: Option<JoinHandle<io::Result<RecordingCost>>>,
+    thread: Option<JoinHandle<Written>>,
+    /// What the thread handed back once it ended (on a write error, before
+    /// [`StreamWriter::finish`]).
+    ended: Option<Written>,
+}
+
+/// What the thread hands back when it ends: the writers, to be closed on the caller's
+/// thread, and the first write error with the simulated time of its window.
+#[derive(Debug)]
+struct Written {
+    cost: RecordingCost,
+    mcap: Option<McapRecorder>,
+    ulog: Option<UlogRecorder>,
+    failed: Option<(f64, io::Error)>,
+}
+
+/// [`StreamWriter::finish`]'s account: the CPU time the files cost, the first write error
+/// (naming the file) and the files that are not whole.
+#[derive(Debug, Default)]
+pub struct StreamsClosed {
+    pub cost: RecordingCost,
+    /// The write error that stopped the recording, with the simulated time of its window.
+    pub failed: Option<(f64, io::Error)>,
+    /// A file that could not be closed whole (no room even after the error): the first.
+    pub close_error: Option<io::Error>,
+    /// Per file that is not whole (the recording stopped early, or its end could not be
+    /// written): path, state, detail. `detail` says what it holds.
+    pub incomplete: Vec<IncompleteFile>,
+}
+
+impl StreamsClosed {
+    /// The cost, when every file was written whole.
+    ///
+    /// # Errors
+    /// The write error that stopped the recording, else the first file that could not be
+    /// closed.
+    pub fn whole(self) -> io::Result<RecordingCost> {
+        match (self.failed, self.close_error) {
+            (Some((_, e)), _) | (None, Some(e)) => Err(e),
+            (None, None) => Ok(self.cost),
+        }
+    }
 }
 
 impl StreamWriter {
@@ -86,7 +132,7 @@ impl StreamWriter {
         let (sender, receiver) = sync_channel(QUEUE_BATCHES);
         let thread =
             std::thread::Builder::new().name("recorder".into()).spawn(move || write_all(receiver, mcap, ulog))?;
-        Ok(Self { sender: Some(sender), pending: Vec::with_capacity(BATCH_WINDOWS), thread: Some(thread) })
+        Ok(Self { sender: Some(sender), pending: Vec::with_capacity(BATCH_WINDOWS), thread: Some(thread), ended: None })
     }
 
     /// Queues a window; every [`BATCH_WINDOWS`] windows, hands them to the thread, blocking
@@ -127,34 +173,63 @@ impl StreamWriter {
         }
         // The receiver is gone: the thread ended, which it does only on an error.
         self.sender = None;
-        match self.join() {
-            Err(e) => Err(e),
-            Ok(_) => Err(io::Error::other("the recording thread ended early")),
-        }
+        let mut written = self.join();
+        // The caller gets the thread's error (it names the file), `finish` a copy.
+        let error = match written.failed.take() {
+            Some((time_s, e)) => {
+                written.failed = Some((time_s, io::Error::new(e.kind(), e.to_string())));
+                e
+            }
+            None => io::Error::other("the recording thread ended early"),
+        };
+        self.ended = Some(written);
+        Err(error)
     }
 
-    /// Hands over the last windows, waits for them and the files' ends; the CPU time the
-    /// thread spent on each file (`other`: freeing windows and its own bookkeeping).
-    ///
-    /// # Errors
-    /// Any write or finish error of the thread.
-    pub fn finish(mut self) -> io::Result<RecordingCost> {
-        if !self.pending.is_empty() {
-            self.hand_over()?;
-        }
-        self.sender = None; // closing the channel tells the thread to finish the files
-        self.join()
+    /// Hands over the last windows, waits for them, then closes the files: the CPU time
+    /// the thread spent on each file (`other`: freeing windows and its own bookkeeping),
+    /// and what is not whole.
+    pub fn finish(self) -> StreamsClosed {
+        self.finish_stopped(None)
     }
 
-    fn join(&mut self) -> io::Result<RecordingCost> {
-        let thread = self.thread.take().ok_or_else(|| io::Error::other("the recording thread was already joined"))?;
-        thread.join().map_err(|_| io::Error::other("the recording thread panicked"))?
+    /// [`Self::finish`] for a recording the caller stopped at `stopped_at_s` (simulated
+    /// seconds) on a write error of its own: every file is then listed as ending there.
+    pub fn finish_stopped(mut self, stopped_at_s: Option<f64>) -> StreamsClosed {
+        if self.sender.is_some() && !self.pending.is_empty() {
+            // An error here leaves the thread's account in `ended`.
+            let _ = self.hand_over();
+        }
+        self.sender = None; // closing the channel tells the thread to stop
+        let written = match self.ended.take() {
+            Some(written) => written,
+            None => self.join(),
+        };
+        close(written, stopped_at_s)
+    }
+
+    /// Waits for the thread's account (a panic of the thread is a write error of the run).
+    fn join(&mut self) -> Written {
+        let Some(thread) = self.thread.take() else {
+            return Written {
+                cost: RecordingCost::default(),
+                mcap: None,
+                ulog: None,
+                failed: Some((0.0, io::Error::other("the recording thread was already joined"))),
+            };
+        };
+        thread.join().unwrap_or_else(|_| Written {
+            cost: RecordingCost::default(),
+            mcap: None,
+            ulog: None,
+            failed: Some((0.0, io::Error::other("the recording thread panicked"))),
+        })
     }
 }
 
 impl Drop for StreamWriter {
     /// Dropped without [`StreamWriter::finish`] (the run ended on an error, or unwinds):
-    /// hands over the pending windows and waits while the thread finishes the files, so
+    /// hands over the pending windows and waits for the thread, then closes the files, so
     /// what was recorded is complete on disk (errors are the caller's to have seen).
     fn drop(&mut self) {
         if let Some(sender) = self.sender.take() {
@@ -162,29 +237,90 @@ impl Drop for StreamWriter {
                 let _ = sender.send(std::mem::take(&mut self.pending));
             }
             drop(sender);
-            let _ = self.join();
+        }
+        if self.thread.is_some() || self.ended.is_some() {
+            let written = match self.ended.take() {
+                Some(written) => written,
+                None => self.join(),
+            };
+            close(written, None);
         }
     }
 }
 
-/// The thread: writes windows until the channel closes, then finishes the files. Returns
-/// at the first error (dropping the receiver, which the sender notices).
+/// Closes the files the thread handed back, on the caller's thread ([`StreamWriter::finish`]).
+fn close(written: Written, stopped_at_s: Option<f64>) -> StreamsClosed {
+    let Written { mut cost, mcap, ulog, failed } = written;
+    let mut lap = Lap::start();
+    let mut closed = StreamsClosed { failed: None, ..Default::default() };
+    let stopped = failed
+        .as_ref()
+        .map(|(time_s, _)| *time_s)
+        .or(stopped_at_s)
+        .map(|time_s| format!("it ends at {time_s:.2} s of simulated time, where the recording stopped"));
+    let note = |closed: &mut StreamsClosed, path: &str, result: io::Result<Option<String>>| {
+        let (state, detail) = match (result, &stopped) {
+            (Ok(None), None) => return,
+            (Ok(None), Some(stopped)) => (FileState::Truncated, format!("{stopped}; every record in it is whole")),
+            (Ok(Some(lost)), stopped) => (
+                FileState::Truncated,
+                format!("{}; closed without {lost}", stopped.as_deref().unwrap_or("its end could not be written")),
+            ),
+            (Err(e), _) => {
+                let detail = format!(
+                    "{}; its end could not be written ({e}): it stops after its last whole record",
+                    stopped.as_deref().unwrap_or("the run ended")
+                );
+                closed.close_error.get_or_insert(super::disk::named(path, e));
+                (FileState::NotFinalised, detail)
+            }
+        };
+        closed.incomplete.push(IncompleteFile { path: path.to_string(), state, detail });
+    };
+    if let Some(m) = mcap {
+        let result = m.close().map_err(|e| super::disk::named(MCAP_FILE, e));
+        note(&mut closed, MCAP_FILE, result);
+        lap.add_to(&mut cost.mcap);
+    }
+    if let Some(u) = ulog {
+        for (path, result) in u.close() {
+            note(&mut closed, &path, result.map(|()| None));
+        }
+        lap.add_to(&mut cost.ulog);
+    }
+    closed.cost = cost;
+    closed.failed = failed;
+    closed
+}
+
+/// The thread: writes windows until the channel closes or a write fails, then hands the
+/// writers back (closing them is the caller's, [`StreamWriter::finish`]). At the first
+/// error it stops (dropping the receiver, which the sender notices).
 fn write_all(
     batches: Receiver<Vec<Window>>,
     mut mcap: Option<McapRecorder>,
     mut ulog: Option<UlogRecorder>,
-) -> io::Result<RecordingCost> {
+) -> Written {
     yield_to_the_lockstep();
     let mut cost = RecordingCost::default();
     let mut lap = Lap::start();
+    let mut failed = None;
     for w in batches.into_iter().flatten() {
         if let Some(m) = &mut mcap {
-            m.write_window(w.time_s, &w.drones, &w.events)?;
-            m.write_images(w.time_s, &w.images)?;
+            let written =
+                m.write_window(w.time_s, &w.drones, &w.events).and_then(|()| m.write_images(w.time_s, &w.images));
+            if let Err(e) = written {
+                failed = Some((w.time_s, super::disk::named(MCAP_FILE, e)));
+                break;
+            }
             lap.add_to(&mut cost.mcap);
         }
         if let Some(u) = &mut ulog {
-            u.write_window(w.time_s, &w.drones, &w.events)?;
+            // The ULog recorder names the drone's file.
+            if let Err(e) = u.write_window(w.time_s, &w.drones, &w.events) {
+                failed = Some((w.time_s, e));
+                break;
+            }
             lap.add_to(&mut cost.ulog);
         }
         // Freeing the window is the thread's too.
@@ -192,15 +328,7 @@ fn write_all(
         lap.add_to(&mut cost.other);
     }
     lap.add_to(&mut cost.other);
-    if let Some(m) = mcap {
-        m.finish()?;
-        lap.add_to(&mut cost.mcap);
-    }
-    if let Some(u) = ulog {
-        u.finish()?;
-        lap.add_to(&mut cost.ulog);
-    }
-    Ok(cost)
+    Written { cost, mcap, ulog, failed }
 }
 
 #[cfg(test)]
@@ -258,7 +386,7 @@ mod tests {
         assert!(!nice_of_threads("recorder").is_empty());
         // The caller's thread (a coordinator's) keeps its priority.
         assert_ne!(nice_in_stat(&std::fs::read_to_string("/proc/thread-self/stat").unwrap()), RECORDER_NICE);
-        writer.finish().unwrap();
+        writer.finish().whole().unwrap();
     }
 
     #[test]
@@ -283,7 +411,7 @@ mod tests {
         for (t, drones) in windows() {
             writer.write(t, drones, Vec::new()).unwrap();
         }
-        let cost = writer.finish().unwrap();
+        let cost = writer.finish().whole().unwrap();
         assert!(cost.mcap > 0.0 && cost.ulog > 0.0, "{cost:?}");
 
         let (a, b) = (bytes(&direct), bytes(&threaded));
@@ -312,17 +440,19 @@ mod tests {
         assert_eq!(poses, 3 * sent as u64, "100 Hz ground truth: one pose per drone and window");
     }
 
-    /// A disk that fills up mid-run: the error reaches the caller at a later `write`, and
-    /// `finish` does not pretend the files are complete. The first drone's ULog is
-    /// `/dev/full`: its buffered writer fails at its first flush (the logs flush once per
-    /// simulated second).
+    /// A disk that fills up mid-run: the error reaches the caller at a later `write`,
+    /// naming the file, and `finish` says which files are not whole rather than pretending
+    /// they are complete. The first drone's ULog is `/dev/full`: its buffered writer fails
+    /// at its first flush (the logs flush once per simulated second), and no room ever
+    /// comes back for it; the other drones' files close whole, ending where the recording
+    /// stopped.
     #[test]
     fn a_write_error_on_the_thread_reaches_the_caller() {
         let plan = plan_of(run_with_groups(&[("a", 3)]).build());
         let dir = TempDir::new("streams-full");
         std::fs::create_dir_all(dir.0.join(ULOG_DIR)).unwrap();
         let first = format!("{}.ulg", plan.drones[0].name);
-        std::os::unix::fs::symlink("/dev/full", dir.0.join(ULOG_DIR).join(first)).unwrap();
+        std::os::unix::fs::symlink("/dev/full", dir.0.join(ULOG_DIR).join(&first)).unwrap();
         let ulog = UlogRecorder::create(&dir.0, &plan).unwrap();
         let mut writer = StreamWriter::start(None, Some(ulog)).unwrap();
         let mut error = None;
@@ -335,9 +465,32 @@ mod tests {
             }
         }
         let error = error.expect("writing to /dev/full fails within 1000 simulated seconds");
-        assert!(error.to_string().contains("No space left on device"), "ENOSPC, not a stand-in: {error}");
+        let path = format!("{ULOG_DIR}/{first}");
+        assert_eq!(error.to_string(), format!("{path}: No space left on device (os error 28)"), "ENOSPC, named");
+        assert_eq!(crate::record::disk::failed_file(&error), Some(path.as_str()));
         let again = writer.write(1.0, Vec::new(), Vec::new()).unwrap_err();
         assert!(again.to_string().contains("already closed after an error"), "{again}");
-        assert!(writer.finish().is_err());
+        let closed = writer.finish();
+        let (stopped_at_s, failed) = closed.failed.expect("the write error");
+        assert!(failed.to_string().starts_with(&path), "{failed}");
+        assert!(closed.close_error.is_some(), "/dev/full never has room: its file cannot be closed");
+        let states: Vec<(&str, FileState)> = closed.incomplete.iter().map(|f| (f.path.as_str(), f.state)).collect();
+        let others: Vec<String> = plan.drones[1..].iter().map(|d| format!("{ULOG_DIR}/{}.ulg", d.name)).collect();
+        assert_eq!(
+            states,
+            vec![
+                (path.as_str(), FileState::NotFinalised),
+                (others[0].as_str(), FileState::Truncated),
+                (others[1].as_str(), FileState::Truncated)
+            ]
+        );
+        assert!(
+            closed.incomplete[1].detail.contains(&format!("ends at {stopped_at_s:.2} s")),
+            "{:?}",
+            closed.incomplete
+        );
+        // The closed files end on a whole message: the last one is the 1-second flush's.
+        let bytes = std::fs::read(dir.0.join(&others[0])).unwrap();
+        assert!(bytes.len() > 1000 && bytes.starts_with(b"ULog"));
     }
 }

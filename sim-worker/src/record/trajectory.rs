@@ -13,6 +13,12 @@ use serde_json::json;
 use super::fixed;
 use sadesim_engine::protocol::DroneSnapshot;
 
+/// The CSV's name in the run folder.
+pub const TRAJECTORY_CSV: &str = "trajectory.csv";
+
+/// The GeoJSON's name in the run folder.
+pub const TRAJECTORY_GEOJSON: &str = "trajectory.geojson";
+
 /// Column names of `trajectory.csv`. Angles are Euler angles of the body (FLU) relative to
 /// ENU: roll about x, pitch about y, yaw about z (0 = facing east, counter-clockwise).
 pub const TRAJECTORY_CSV_HEADER: &str = "time_s,drone,name,group,latitude_deg,longitude_deg,altitude_msl_m,east_m,north_m,up_m,height_agl_m,vel_east_mps,vel_north_mps,vel_up_mps,roll_deg,pitch_deg,yaw_deg,mode,armed,on_ground,crashed,battery_remaining";
@@ -20,18 +26,28 @@ pub const TRAJECTORY_CSV_HEADER: &str = "time_s,drone,name,group,latitude_deg,lo
 /// Writes `trajectory.csv`, flushing every sample.
 #[derive(Debug)]
 pub struct TrajectoryCsv {
-    out: BufWriter<File>,
+    out: super::disk::Appender,
     /// The rows of one sample, built here and written at once (reused).
     rows: Vec<u8>,
 }
 
 impl TrajectoryCsv {
+    /// Creates `dir/trajectory.csv` with its header.
+    ///
     /// # Errors
-    /// When the file cannot be created.
-    pub fn create(path: &Path) -> std::io::Result<Self> {
-        let mut out = BufWriter::new(File::create(path)?);
-        writeln!(out, "{TRAJECTORY_CSV_HEADER}")?;
+    /// When the file cannot be created, naming it.
+    pub fn create(dir: &Path) -> std::io::Result<Self> {
+        let mut out = super::disk::Appender::create(dir, TRAJECTORY_CSV)?;
+        out.write_all(format!("{TRAJECTORY_CSV_HEADER}\n").as_bytes())?;
         Ok(Self { out, rows: Vec::new() })
+    }
+
+    /// Closes the file at its last whole sample ([`super::disk::Appender::close`]).
+    ///
+    /// # Errors
+    /// As [`super::disk::Appender::close`].
+    pub fn close(self) -> std::io::Result<()> {
+        self.out.close()
     }
 
     /// One row per drone at `time_s`. Numbers are written with [`fixed::push`], the same

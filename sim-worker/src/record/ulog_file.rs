@@ -95,6 +95,8 @@ mod msg_id {
 #[derive(Debug)]
 struct DroneLog {
     out: UlogWriter<BufWriter<File>>,
+    /// `ulog/<name>.ulg`, as write errors name it.
+    path: String,
     system_id: u8,
     component_id: u8,
     battery: Option<BatterySpec>,
@@ -150,6 +152,7 @@ impl UlogRecorder {
             write_definitions(&mut out, plan, drone, &topics).map_err(context)?;
             drones.push(DroneLog {
                 out,
+                path: format!("{ULOG_DIR}/{}.ulg", drone.name),
                 system_id: drone.system_id,
                 component_id: drone.component_id,
                 battery: sadesim_engine::preset::Preset::named(&drone.airframe).map(|p| p.airframe.battery),
@@ -186,39 +189,11 @@ impl UlogRecorder {
         let estimator = self.estimator.due(time_s);
         let actuators = self.actuators.due(time_s);
         let status = self.status.due(time_s);
-        let buf = &mut self.scratch;
+        let due = Due { estimator, actuators, status };
         for d in drones {
             let Some(log) = self.drones.get_mut(d.index as usize) else { continue };
-            log.status.observe(t_us, d);
-            let frame =
-                *log.frame.get_or_insert_with(|| DroneFrame::new(self.frame, d.detail.local_origin_enu_m, t_us));
-            if let Some(g) = d.detail.gnss.as_ref().filter(|g| log.last_gnss_s != Some(g.time_s)) {
-                log.last_gnss_s = Some(g.time_s);
-                let gps = convert::sensor_gps(t_us, &frame, g);
-                put(&mut log.out, buf, msg_id::SENSOR_GPS, &gps)?;
-                put(&mut log.out, buf, msg_id::VEHICLE_GPS_POSITION, &gps)?;
-            }
-            if estimator && let Some(est) = Solution::estimate(d) {
-                put(&mut log.out, buf, msg_id::LOCAL_POSITION, &convert::local_position(t_us, &frame, &est, d))?;
-                put(&mut log.out, buf, msg_id::GLOBAL_POSITION, &convert::global_position(t_us, &frame, &est, d))?;
-                put(&mut log.out, buf, msg_id::ATTITUDE, &convert::attitude(t_us, &est))?;
-            }
-            if estimator {
-                let truth = Solution::truth(d);
-                put(&mut log.out, buf, msg_id::LOCAL_POSITION_GT, &convert::local_position(t_us, &frame, &truth, d))?;
-                put(&mut log.out, buf, msg_id::GLOBAL_POSITION_GT, &convert::global_position(t_us, &frame, &truth, d))?;
-                put(&mut log.out, buf, msg_id::ATTITUDE_GT, &convert::attitude(t_us, &truth))?;
-            }
-            if actuators {
-                put(&mut log.out, buf, msg_id::ACTUATOR_OUTPUTS, &convert::actuator_outputs(t_us, d))?;
-            }
-            if status {
-                let battery = convert::battery_status(t_us, d, log.battery.as_ref());
-                put(&mut log.out, buf, msg_id::BATTERY_STATUS, &battery)?;
-                let vehicle = log.status.status(t_us, d, log.system_id, log.component_id);
-                put(&mut log.out, buf, msg_id::VEHICLE_STATUS, &vehicle)?;
-            }
-            log.last_us = log.last_us.max(t_us);
+            sample(log, &mut self.scratch, self.frame, d, t_us, due)
+                .map_err(|e| crate::record::disk::named(&log.path, e))?;
         }
         if self.flush.due(time_s) {
             self.flush_all()?;
@@ -229,12 +204,28 @@ impl UlogRecorder {
     /// Flushes and closes every file.
     ///
     /// # Errors
-    /// I/O errors.
+    /// I/O errors, naming the file.
     pub fn finish(self) -> io::Result<()> {
         for log in self.drones {
-            log.out.into_inner().into_inner().map_err(|e| e.into_error())?;
+            let path = log.path;
+            log.out.into_inner().into_inner().map_err(|e| crate::record::disk::named(&path, e.into_error()))?;
         }
         Ok(())
+    }
+
+    /// [`Self::finish`] that also closes the files after a write error (the disk filled),
+    /// once there is room again (the run's [`crate::record::disk::DiskReserve`] released):
+    /// what each still buffers is written and the file cut back to its last whole message
+    /// (a message whose write failed is dropped). Per file, `ulog/<name>.ulg` and whether it could be closed so;
+    /// one that could not ends where its last write stopped (pyulog reads it up to there).
+    pub fn close(self) -> Vec<(String, io::Result<()>)> {
+        self.drones
+            .into_iter()
+            .map(|log| {
+                let closed = log.out.cut_back(crate::record::disk::cut).map(|_| ());
+                (log.path, closed)
+            })
+            .collect()
     }
 
     /// Each event as a logged string in its drone's file; run-wide events in every file.
@@ -255,7 +246,7 @@ impl UlogRecorder {
             };
             for log in &mut self.drones[targets] {
                 let t_us = micros(event.time_s).max(log.last_us);
-                log.out.log(level, t_us, &text)?;
+                log.out.log(level, t_us, &text).map_err(|e| crate::record::disk::named(&log.path, e))?;
                 log.last_us = t_us;
             }
         }
@@ -263,8 +254,59 @@ impl UlogRecorder {
     }
 
     fn flush_all(&mut self) -> io::Result<()> {
-        self.drones.iter_mut().try_for_each(|log| log.out.flush())
+        self.drones.iter_mut().try_for_each(|log| log.out.flush().map_err(|e| crate::record::disk::named(&log.path, e)))
     }
+}
+
+/// Which samples a window takes.
+#[derive(Clone, Copy)]
+struct Due {
+    estimator: bool,
+    actuators: bool,
+    status: bool,
+}
+
+/// One drone's samples of a window (at `t_us`) into its file.
+fn sample(
+    log: &mut DroneLog,
+    buf: &mut Vec<u8>,
+    run_frame: LocalFrame,
+    d: &DroneSnapshot,
+    t_us: u64,
+    due: Due,
+) -> io::Result<()> {
+    log.status.observe(t_us, d);
+    let frame = *log.frame.get_or_insert_with(|| DroneFrame::new(run_frame, d.detail.local_origin_enu_m, t_us));
+    if let Some(g) = d.detail.gnss.as_ref().filter(|g| log.last_gnss_s != Some(g.time_s)) {
+        log.last_gnss_s = Some(g.time_s);
+        let gps = convert::sensor_gps(t_us, &frame, g);
+        put(&mut log.out, buf, msg_id::SENSOR_GPS, &gps)?;
+        put(&mut log.out, buf, msg_id::VEHICLE_GPS_POSITION, &gps)?;
+    }
+    if due.estimator
+        && let Some(est) = Solution::estimate(d)
+    {
+        put(&mut log.out, buf, msg_id::LOCAL_POSITION, &convert::local_position(t_us, &frame, &est, d))?;
+        put(&mut log.out, buf, msg_id::GLOBAL_POSITION, &convert::global_position(t_us, &frame, &est, d))?;
+        put(&mut log.out, buf, msg_id::ATTITUDE, &convert::attitude(t_us, &est))?;
+    }
+    if due.estimator {
+        let truth = Solution::truth(d);
+        put(&mut log.out, buf, msg_id::LOCAL_POSITION_GT, &convert::local_position(t_us, &frame, &truth, d))?;
+        put(&mut log.out, buf, msg_id::GLOBAL_POSITION_GT, &convert::global_position(t_us, &frame, &truth, d))?;
+        put(&mut log.out, buf, msg_id::ATTITUDE_GT, &convert::attitude(t_us, &truth))?;
+    }
+    if due.actuators {
+        put(&mut log.out, buf, msg_id::ACTUATOR_OUTPUTS, &convert::actuator_outputs(t_us, d))?;
+    }
+    if due.status {
+        let battery = convert::battery_status(t_us, d, log.battery.as_ref());
+        put(&mut log.out, buf, msg_id::BATTERY_STATUS, &battery)?;
+        let vehicle = log.status.status(t_us, d, log.system_id, log.component_id);
+        put(&mut log.out, buf, msg_id::VEHICLE_STATUS, &vehicle)?;
+    }
+    log.last_us = log.last_us.max(t_us);
+    Ok(())
 }
 
 /// Encodes `message` into `buf` and writes it as a `D` message.

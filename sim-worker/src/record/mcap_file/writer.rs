@@ -280,6 +280,48 @@ impl<W: Write> McapWriter<W> {
         self.out.flush()
     }
 
+    /// Bytes of whole records written to `W` (magic, header, the chunks closed so far).
+    pub fn position(&self) -> u64 {
+        self.position
+    }
+
+    /// After a write error: hands `W` and [`Self::position`] to `cut`, which puts the
+    /// sink back at the end of the last whole record (dropping a chunk `W` took part of)
+    /// and returns it; the open chunk (also one whose write failed) is still to be written.
+    ///
+    /// # Errors
+    /// `cut`'s: the writer is gone then, and the file ends where `cut` left it.
+    pub fn cut_back(self, cut: impl FnOnce(W, u64) -> io::Result<W>) -> io::Result<Self> {
+        // `W` is moved out and back: the writer is whole again only if `cut` succeeds.
+        let Self { out, position, .. } = self;
+        let out = cut(out, position)?;
+        Ok(Self { out, ..self })
+    }
+
+    /// Drops the messages of the open chunk (they are not counted in the summary), for a
+    /// file that has no room for them; returns how many.
+    pub fn discard_open_chunk(&mut self) -> u64 {
+        let mut dropped = 0;
+        let mut at = 0;
+        while at + 9 <= self.chunk.len() {
+            let opcode = self.chunk[at];
+            let len = u64::from_le_bytes(self.chunk[at + 1..at + 9].try_into().expect("8 bytes")) as usize;
+            if opcode == op::MESSAGE && at + 11 <= self.chunk.len() {
+                let channel = u16::from_le_bytes([self.chunk[at + 9], self.chunk[at + 10]]);
+                self.message_counts[usize::from(channel)] -= 1;
+                dropped += 1;
+            }
+            at += 9 + len;
+        }
+        self.chunk.clear();
+        self.chunk_times = None;
+        // The file's time range is the closed chunks'.
+        self.times = self.chunks.iter().fold(None, |r, c| {
+            Some(r.map_or((c.start_ns, c.end_ns), |(a, b): (u64, u64)| (a.min(c.start_ns), b.max(c.end_ns))))
+        });
+        dropped
+    }
+
     /// Writes the last chunk, DataEnd, the summary and the footer; returns `W`.
     ///
     /// # Errors
@@ -351,5 +393,60 @@ impl<W: Write> McapWriter<W> {
         self.out.write_all(&tail)?;
         self.out.flush()?;
         Ok(self.out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::record::disk::FillingDisk;
+
+    /// Messages of about 1 KiB into chunks of 8 KiB on a disk of `room` bytes, until a chunk
+    /// does not fit; returns the writer and the messages it was given.
+    fn fill(room: usize) -> (McapWriter<FillingDisk>, u64) {
+        let mut w = McapWriter::new(FillingDisk::with_room(room), "", "test", ChunkCompression::None).unwrap();
+        let schema = w.add_schema("s", "jsonschema", b"{}").unwrap();
+        let channel = w.add_channel(schema, "/t", "json").unwrap();
+        for n in 0..10_000u64 {
+            let size = w.message(channel, n as u32, n * 1000, n * 1000, |b| b.extend_from_slice(&[b'x'; 1000]));
+            if size >= 8 * 1024 && w.flush().is_err() {
+                return (w, n + 1);
+            }
+        }
+        panic!("the disk never filled");
+    }
+
+    fn read_back(bytes: &[u8]) -> u64 {
+        let summary = mcap::Summary::read(bytes).unwrap().expect("a summary section");
+        let stats = summary.stats.expect("statistics");
+        let streamed = mcap::MessageStream::new(bytes).unwrap().collect::<Result<Vec<_>, _>>().unwrap().len() as u64;
+        assert_eq!(streamed, stats.message_count, "every message the summary counts is in the file");
+        stats.message_count
+    }
+
+    /// A chunk half written when the disk filled: once there is room, the file is cut back
+    /// to its last whole chunk, and the failed chunk and the summary are written: the
+    /// `mcap` reader reads every message given.
+    #[test]
+    fn a_chunk_cut_by_a_full_disk_is_written_again_once_there_is_room() {
+        let (w, given) = fill(50_000);
+        assert!(w.out.bytes.len() as u64 > w.position(), "part of the failed chunk reached the disk");
+        let w = w.cut_back(|disk, len| disk.freed(1 << 20, len)).unwrap();
+        let bytes = w.finish().unwrap().bytes;
+        assert_eq!(read_back(&bytes), given);
+    }
+
+    /// With room for the summary but not the chunk, the chunk's messages are dropped (and
+    /// not counted) and the file still closes.
+    #[test]
+    fn without_room_for_the_chunk_the_file_closes_without_it() {
+        let (w, given) = fill(50_000);
+        let mut w = w.cut_back(|disk, len| disk.freed(0, len)).unwrap();
+        // Room for the summary only.
+        w.out.room = 4096;
+        let dropped = w.discard_open_chunk();
+        assert!(dropped > 0);
+        let bytes = w.finish().unwrap().bytes;
+        assert_eq!(read_back(&bytes), given - dropped);
     }
 }

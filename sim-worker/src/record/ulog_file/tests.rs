@@ -197,6 +197,33 @@ fn header_is_magic_version_timestamp_then_flag_bits() {
     assert_eq!(bytes.len(), 16 + 3 + 40);
 }
 
+/// A message half written when the disk filled: once there is room, the file is cut back
+/// to its last whole message and reads whole, with every message written before.
+#[test]
+fn a_message_cut_by_a_full_disk_is_cut_off_once_there_is_room() {
+    use crate::record::disk::FillingDisk;
+    let mut w = UlogWriter::new(FillingDisk::with_room(3000), 5).unwrap();
+    w.format("vehicle_attitude", &VehicleAttitude::fields()).unwrap();
+    w.add_logged(0, 3, "vehicle_attitude").unwrap();
+    let mut buf = Vec::new();
+    let mut written = 0u64;
+    let error = loop {
+        buf.clear();
+        VehicleAttitude { timestamp: written + 1, ..Default::default() }.encode(&mut buf);
+        match w.data(3, &buf) {
+            Ok(()) => written += 1,
+            Err(e) => break e,
+        }
+    };
+    assert_eq!(error.raw_os_error(), Some(28));
+    assert!(w.written() < 3000, "part of the last message reached the disk, beyond the whole ones");
+    let w = w.cut_back(|disk, len| disk.freed(1 << 20, len)).unwrap();
+    let p = parse(&w.into_inner().bytes);
+    let samples = p.samples("vehicle_attitude");
+    assert_eq!(samples.len() as u64, written);
+    assert_eq!(samples.last().unwrap().timestamp(), written);
+}
+
 #[test]
 fn messages_round_trip_through_the_reader() {
     let mut w = UlogWriter::new(Vec::new(), 5).unwrap();

@@ -55,6 +55,8 @@ pub struct UlogWriter<W: Write> {
     out: W,
     /// Scratch buffer for one message, reused.
     message: Vec<u8>,
+    /// Bytes of the header and whole messages `out` took.
+    written: u64,
 }
 
 impl<W: Write> UlogWriter<W> {
@@ -69,7 +71,7 @@ impl<W: Write> UlogWriter<W> {
         header[7] = VERSION;
         header[8..].copy_from_slice(&start_us.to_le_bytes());
         out.write_all(&header)?;
-        let mut writer = Self { out, message: Vec::with_capacity(512) };
+        let mut writer = Self { out, message: Vec::with_capacity(512), written: header.len() as u64 };
         // compat_flags[8], incompat_flags[8], appended_offsets[3] (u64): all zero.
         writer.message(msg_type::FLAG_BITS, |m| m.extend_from_slice(&[0u8; 40]))?;
         Ok(writer)
@@ -183,6 +185,22 @@ impl<W: Write> UlogWriter<W> {
         self.out
     }
 
+    /// Bytes of the header and the whole messages written.
+    pub fn written(&self) -> u64 {
+        self.written
+    }
+
+    /// After a write error: hands the writer and [`Self::written`] to `cut`, which puts
+    /// the file back at the end of the last whole message (dropping part of one that
+    /// failed) and returns it.
+    ///
+    /// # Errors
+    /// `cut`'s: the writer is gone then, and the file ends where `cut` left it.
+    pub fn cut_back(self, cut: impl FnOnce(W, u64) -> io::Result<W>) -> io::Result<Self> {
+        let Self { out, message, written } = self;
+        Ok(Self { out: cut(out, written)?, message, written })
+    }
+
     /// `[u8 key_len][key][value]`, as `I` and `P` messages are laid out.
     fn key_value(&mut self, kind: u8, typed_key: &str, value: &[u8]) -> io::Result<()> {
         let key_len = u8::try_from(typed_key.len())
@@ -204,7 +222,9 @@ impl<W: Write> UlogWriter<W> {
             invalid(format!("ULog message '{}' of {size} bytes: at most 65535 fit in msg_size", kind as char))
         })?;
         self.message[..2].copy_from_slice(&size.to_le_bytes());
-        self.out.write_all(&self.message)
+        self.out.write_all(&self.message)?;
+        self.written += self.message.len() as u64;
+        Ok(())
     }
 }
 
