@@ -1,32 +1,41 @@
 #!/usr/bin/env bash
-# Bounded coverage-guided fuzzing of the world's file readers: the cargo-fuzz (libFuzzer)
-# targets in fuzz/ for the OSM PBF reader, the DEM reader and the world bundle decoder
-# (fuzz/README.md). Part of tests/run.sh.
+# Bounded coverage-guided fuzzing: the cargo-fuzz (libFuzzer) targets in fuzz/ for the
+# world's file readers (OSM PBF, DEM, world bundle), MAVLink (frames and signing, the
+# per-drone session, the router's datagram path), the scenario reader down to the plan, the
+# shard protocol, orbit files and OpenFOAM fields (fuzz/README.md). Part of tests/run.sh.
 #
-# The seed corpora are written by the world crate's tests from their own encoders (nothing
-# is committed); each target then fuzzes a fresh copy for SADESIM_FUZZ_SECONDS (default 60),
-# SADESIM_FUZZ_JOBS targets at a time (default: one per core). A crash (a panic, an error of
+# The seed corpora are written by the owning crates' `fuzz_seeds` tests from their own
+# encoders and the repository's examples (nothing is committed); each target then fuzzes a
+# fresh copy for SADESIM_FUZZ_SECONDS (default 25), SADESIM_FUZZ_JOBS targets at a time
+# (default: one per core). SADESIM_FUZZ_TARGETS picks targets (space-separated names). A crash (a panic, an error of
 # more than one line, an input slower than 10 s, more than 2 GB of memory) fails the script;
 # libFuzzer names the input it saved under fuzz/artifacts/<target>/, which replays with
 # `cd fuzz && cargo fuzz run --sanitizer none <target> <file>`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-seconds="${SADESIM_FUZZ_SECONDS:-60}"
+seconds="${SADESIM_FUZZ_SECONDS:-25}"
 jobs="${SADESIM_FUZZ_JOBS:-$(nproc)}"
-targets=(pbf dem bundle)
+read -r -a targets <<<"${SADESIM_FUZZ_TARGETS:-pbf dem bundle mavlink_frame mavlink_session mavlink_router scenario shard_wire orbits openfoam}"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
-echo "--> seed corpora (the world crate's fuzz_seeds tests)"
-SADESIM_FUZZ_SEEDS="$work/corpus" cargo nextest run -p sadesim-world --locked --no-tests=fail \
+# The whole workspace's test binaries, as the nextest stage of tests/run.sh builds them (same
+# packages and features, so that stage reuses them rather than building again).
+echo "--> seed corpora (the fuzz_seeds tests of world, engine, gnss, wind, planner, sim-worker)"
+SADESIM_FUZZ_SEEDS="$work/corpus" cargo nextest run --workspace --locked --no-tests=fail \
   --status-level fail --final-status-level fail fuzz_seeds
+for target in "${targets[@]}"; do
+  [ -n "$(ls -A "$work/corpus/$target" 2>/dev/null)" ] || { echo "no seeds for $target" >&2; exit 1; }
+done
 
 # --sanitizer none: AddressSanitizer needs -Zsanitizer (a nightly compiler); the readers are
 # safe Rust (unsafe_code is forbidden), where what fuzzing finds is panics, overflows (debug
 # assertions are on), hangs and runaway allocations: no sanitizer is needed to see those.
 echo "--> cargo fuzz build"
+build_start=$SECONDS
 (cd fuzz && cargo fuzz build --sanitizer none)
+echo "cargo fuzz build: $((SECONDS - build_start)) s"
 
 fuzz() {
   local target=$1 rc=0
@@ -49,7 +58,7 @@ for target in "${targets[@]}"; do
     done_line=$(grep -E '^Done [0-9]+ runs' "$work/$target.log" | tail -1)
     runs=$(awk '{print $2}' <<<"$done_line")
     secs=$(awk '{print $5}' <<<"$done_line")
-    stats=$(grep -E '^#[0-9]+[[:space:]]+DONE' "$work/$target.log" | tail -1 | grep -oE '(cov|corp): [0-9]+' | paste -sd' ')
+    stats=$(grep -E '^#[0-9]+[[:space:]]+DONE' "$work/$target.log" | tail -1 | grep -oE '(cov|ft|corp): [0-9]+' | paste -sd' ')
     echo "$target: $runs runs in $secs s ($(( runs / (secs > 0 ? secs : 1) )) per second), $stats"
   else
     failed+=("$target")

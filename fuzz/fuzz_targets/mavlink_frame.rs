@@ -40,11 +40,7 @@ fn check(bytes: &[u8], pieces: u8) -> Vec<Frame> {
     for chunk in bytes.chunks(piece) {
         streamed.extend(parser.push(chunk));
     }
-    assert_eq!(
-        ids(&streamed),
-        ids(&whole),
-        "the frames of a stream depend on how it was split ({piece}-byte pieces)"
-    );
+    assert_eq!(ids(&streamed), ids(&whole), "the frames of a stream depend on how it was split ({piece}-byte pieces)");
     assert!(format!("{parser:?}").len() < 64 * MAX_FRAME_LEN, "the parser's buffer grew without bound");
 
     // A datagram: the router's zero-copy iterator agrees with the parser.
@@ -76,10 +72,7 @@ fn frame_is_whole(f: &Frame) {
     assert_eq!(f.message_id, u32::from_le_bytes([b[7], b[8], b[9], 0]));
     let crc = u16::from_le_bytes([b[10 + payload], b[11 + payload]]);
     use ::mavlink::Message;
-    assert_eq!(
-        checksum(&b[1..10 + payload], ::mavlink::dialects::common::MavMessage::extra_crc(f.message_id)),
-        crc
-    );
+    assert_eq!(checksum(&b[1..10 + payload], ::mavlink::dialects::common::MavMessage::extra_crc(f.message_id)), crc);
     if let Decoded::Message(m) = &f.message {
         let header = MavHeader { system_id: f.header.system_id, component_id: f.header.component_id, sequence: 3 };
         let once = encode(header, m);

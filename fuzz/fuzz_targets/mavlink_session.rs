@@ -170,9 +170,10 @@ fn mission_protocol(p: &mut MissionProtocol, sysid: u8, compid: u8, m: &MavMessa
     assert_eq!(p.mission_id() == 0, count == 0, "mission id {} for {count} items", p.mission_id());
     if let Some(plan) = &out.loaded {
         assert!(count > 0 || plan.items.is_empty());
-        let accepted = out.replies.iter().any(|r| {
-            matches!(r, MavMessage::MISSION_ACK(a) if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED)
-        });
+        let accepted = out
+            .replies
+            .iter()
+            .any(|r| matches!(r, MavMessage::MISSION_ACK(a) if a.mavtype == MavMissionResult::MAV_MISSION_ACCEPTED));
         assert!(accepted, "a plan was loaded without MISSION_ACK(ACCEPTED)");
     }
     if let MavMessage::MISSION_REQUEST_LIST(r) = m

@@ -31,7 +31,8 @@ fn check<T: Wire + std::fmt::Debug>(payload: &[u8]) {
         Ok(message) => {
             let mut once = Vec::new();
             message.encode(&mut once);
-            let again = T::decode(&once).unwrap_or_else(|e| panic!("{message:?} encodes to an undecodable payload: {e}"));
+            let again =
+                T::decode(&once).unwrap_or_else(|e| panic!("{message:?} encodes to an undecodable payload: {e}"));
             let mut twice = Vec::new();
             again.encode(&mut twice);
             assert_eq!(once, twice, "{message:?} changed in a round trip");

@@ -28,3 +28,6 @@ pub mod shard_io;
 pub mod transport;
 pub mod view;
 pub mod wind_field;
+
+#[cfg(test)]
+mod fuzz_seeds;

@@ -123,7 +123,7 @@ impl Wire for FromShard {
                 } else {
                     let at = r.at;
                     let json = r.take(events_bytes, "events")?;
-                    serde_json::from_slice(json).map_err(|e| format!("byte {at}: events: {e}"))?
+                    serde_json::from_slice(json).map_err(|e| format!("byte {at}: events: {}", one_line(&e)))?
                 };
                 r.end()?;
                 Ok(FromShard::Advanced { shard, step, ready, drones, events })
@@ -141,6 +141,12 @@ fn unknown_kind(kind: u8) -> String {
         ""
     };
     format!("byte 0: kind: expected 'A', 'W' or 'J', found {kind:#04x}{hint}")
+}
+
+/// A JSON error on one line: serde_json quotes the peer's text (an unknown variant) as it
+/// came, line breaks included; they are escaped so that the error stays one log line.
+fn one_line(e: &serde_json::Error) -> String {
+    e.to_string().chars().map(|c| if c.is_control() { c.escape_default().to_string() } else { c.to_string() }).collect()
 }
 
 fn put_json(out: &mut Vec<u8>, msg: &impl serde::Serialize) {
@@ -462,7 +468,7 @@ impl<'a> Reader<'a> {
         let at = self.at;
         let rest = &self.bytes[self.at..];
         self.at = self.bytes.len();
-        serde_json::from_slice(rest).map_err(|e| format!("byte {at}: {field}: {e}"))
+        serde_json::from_slice(rest).map_err(|e| format!("byte {at}: {field}: {}", one_line(&e)))
     }
 
     /// Nothing may follow the message.

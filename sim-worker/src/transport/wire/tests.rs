@@ -200,6 +200,17 @@ fn a_json_line_from_an_older_peer_is_refused_saying_so() {
     );
 }
 
+#[test]
+fn a_json_error_quoting_a_line_break_is_one_line() {
+    // Found by fuzz/fuzz_targets/shard_wire.rs: serde_json quotes an unknown variant as the
+    // peer wrote it, and a `\n` escape in it made the error two lines.
+    let err = ToShard::decode(b"J{\"type\":\"[\\n[\"}").unwrap_err();
+    assert!(err.starts_with("byte 1: message: unknown variant `[\\n[`, expected one of `advance`"), "{err}");
+    assert!(!err.contains('\n'), "{err}");
+    let err = FromShard::decode(b"J{\"type\":\"a\\nb\"}").unwrap_err();
+    assert!(!err.contains('\n') && err.contains("`a\\nb`"), "{err}");
+}
+
 proptest! {
     /// Whatever arrives, decoding answers (a message or an error), never panics.
     #[test]
