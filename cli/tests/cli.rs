@@ -262,7 +262,7 @@ fn run_starts_the_pilot_from_the_scenario_folder_and_reports_its_exit() {
     let dir = std::env::temp_dir().join(format!("sadesim-pilot-cli-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(dir.join("pilots")).unwrap();
-    std::fs::write(dir.join("pilots/pilot.sh"), "echo flying; exit 4\n").unwrap();
+    std::fs::write(dir.join("pilots/pilot.sh"), "echo flying\necho 'lost the link' >&2\nexit 4\n").unwrap();
     let file = dir.join("run.yaml");
     std::fs::write(&file, quickstart_with_pilot("    command: [sh, pilots/pilot.sh]\n", true)).unwrap();
     let out_dir = dir.join("out");
@@ -274,12 +274,28 @@ fn run_starts_the_pilot_from_the_scenario_folder_and_reports_its_exit() {
         sadesim(&args)
     };
     let out = run("");
-    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    // A pilot that exits non-zero fails the run: exit 1, its code and its log's last lines.
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
     assert!(text(&out).contains("run quickstart ended (pilotExited)"), "{}", text(&out));
     // The pilot starts in the window after the pilots are released (2.8 s in the
     // quickstart, once every drone's height has settled).
     assert!(text(&out).contains("  pilot: started at 2.81 s, exited with code 4 at "), "{}", text(&out));
-    assert!(text(&out).contains("pilot.log"), "{}", text(&out));
+    assert!(text(&out).contains(
+        "  pilot FAILED: the pilot exited with code 4 before the run ended; spec.pilot.expectedExit is success\n  last lines of pilot.log:\n    | flying\n    | lost the link\n"
+    ), "{}", text(&out));
+    assert!(text(&out).contains("criteria FAILED: 2 of 3 passed"), "{}", text(&out));
+    assert!(
+        text(&out).contains("    FAIL spec.pilot.expectedExit expectedExit: started at 2.81 s, exited with code 4 at "),
+        "{}",
+        text(&out)
+    );
+    // Declared as expected, the same exit passes.
+    let expected = quickstart_with_pilot("    command: [sh, pilots/pilot.sh]\n    expectedExit: failure\n", true);
+    std::fs::write(&file, expected).unwrap();
+    let out = run("");
+    assert_eq!(out.status.code(), Some(0), "{}", text(&out));
+    assert!(text(&out).contains("  pilot: started at 2.81 s, exited with code 4 at "), "{}", text(&out));
+    assert!(text(&out).contains("criteria PASSED: 2 of 2 passed"), "{}", text(&out));
     // --no-pilot: nobody exits, the run lasts its three minutes.
     let out = run("--no-pilot");
     assert_eq!(out.status.code(), Some(0), "{}", text(&out));

@@ -69,4 +69,20 @@ pub enum Criterion {
         #[schemars(range(min = 0.1, max = 1000.0))]
         max_horizontal_m: f64,
     },
+    /// Every drone of `groups` (every drone when empty) ends the run on the ground, not
+    /// crashed, having last touched down within `withinM` (horizontally) of the centre of
+    /// the world marker `marker`: a landing on a pad.
+    LandedNear {
+        /// Fleet group names; empty means every drone.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        #[schemars(length(max = 64), inner(length(max = 40)))]
+        groups: Vec<String>,
+        /// A marker of `spec.world.markers` (its `name`).
+        #[schemars(length(min = 1, max = 63))]
+        marker: String,
+        /// Largest horizontal distance from the marker's centre to where the drone touched
+        /// down, metres (0.01..1000).
+        #[schemars(range(min = 0.01, max = 1000.0))]
+        within_m: f64,
+    },
 }

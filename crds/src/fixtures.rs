@@ -89,10 +89,7 @@ impl RunBuilder {
             image: None,
             command: command.iter().map(|s| s.to_string()).collect(),
             container_command: None,
-            env: vec![],
-            on_exit: None,
-            resources: None,
-            connect_timeout_s: None,
+            ..Pilot::default()
         });
         self
     }

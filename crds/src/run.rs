@@ -390,11 +390,40 @@ impl Default for City {
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
 #[serde(rename_all = "camelCase")]
 pub enum PilotExit {
-    /// End the run (the pilot's exit status decides nothing by itself; criteria do).
+    /// End the run (its exit status is judged by `expectedExit`, the run by the criteria).
     #[default]
     EndRun,
     /// Keep simulating until `duration`.
     Continue,
+}
+
+/// How the pilot is expected to end (default `success`), judged with the criteria: a pilot
+/// that ends otherwise fails the run (`sadesim run` exits 1; on Kubernetes the run is
+/// `Failed`). Only an exit the pilot makes itself is judged: a pilot stopped because the
+/// run ended first is not.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq, Default, JsonSchema)]
+#[serde(rename_all = "camelCase")]
+pub enum ExpectedExit {
+    /// Exit code 0 (default): a pilot that exits with another code or is killed by a
+    /// signal before the run ends fails the run. A pilot still running at the end passes.
+    #[default]
+    Success,
+    /// A non-zero exit code or a signal before the run ends (a pilot meant to give up, e.g.
+    /// on a refused mission); exit code 0, or still running at the end, fails the run.
+    Failure,
+    /// Not judged: the pilot may exit in any way, or not at all.
+    Any,
+}
+
+impl ExpectedExit {
+    /// The value as written in the scenario.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ExpectedExit::Success => "success",
+            ExpectedExit::Failure => "failure",
+            ExpectedExit::Any => "any",
+        }
+    }
 }
 
 /// An environment variable for the pilot.
@@ -411,7 +440,7 @@ pub struct EnvVar {
 
 /// The software pilot under test. Locally `command` is started as a child process (from the
 /// scenario file's folder); on Kubernetes `image` runs as a Job with `command`.
-#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, JsonSchema)]
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Default, JsonSchema)]
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct Pilot {
     /// Container image (Kubernetes).
@@ -437,6 +466,10 @@ pub struct Pilot {
     /// What the run does when the pilot exits early. Default `endRun`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub on_exit: Option<PilotExit>,
+    /// How the pilot is expected to exit: `success` (default: exit code 0; a non-zero
+    /// code or a signal fails the run), `failure` (a non-zero code or a signal) or `any`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub expected_exit: Option<ExpectedExit>,
     /// Resources for the pilot container (Kubernetes).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub resources: Option<PilotResources>,

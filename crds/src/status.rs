@@ -43,6 +43,10 @@ pub mod condition_types {
     pub const SCHEDULED: &str = "Scheduled";
     pub const RUNNING: &str = "Running";
     pub const ARCHIVED: &str = "Archived";
+    /// Set once the pilot Job has ended (or the run ended with it still running): `True`
+    /// when its end is what `spec.pilot.expectedExit` allows, else `False` with reason
+    /// `PilotFailed`, the exit code and the last lines of its log; a `False` fails the run.
+    pub const PILOT: &str = "Pilot";
 }
 
 /// Observed state of a run.
@@ -51,7 +55,7 @@ pub mod condition_types {
 pub struct SimulationRunStatus {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub phase: Option<Phase>,
-    /// Latest observations (types: Valid, AssetsReady, Scheduled, Running, Archived).
+    /// Latest observations (types: Valid, AssetsReady, Scheduled, Running, Archived, Pilot).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub conditions: Vec<Condition>,
     /// The `metadata.generation` this status describes.

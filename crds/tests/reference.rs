@@ -545,7 +545,7 @@ fn semantic_checks(out: &mut String) {
         "`archive.url` uses `file`, `s3`, `gs` or `az`; `file://` needs a folder and the others a bucket or container.".to_string(),
         "`queue` is a DNS label.".to_string(),
         format!("`groundStations.allowFrom` entries are CIDR ranges; an inline `groundStations.signing.key.value` has at least {MIN_PASSPHRASE_CHARS} characters."),
-        "`reachZone` and `zoneVerdicts` criteria name existing groups and zones.".to_string(),
+        "`reachZone` and `zoneVerdicts` criteria name existing groups and zones; `landedNear` names an existing marker of `world.markers`.".to_string(),
     ];
     for c in checks {
         let _ = writeln!(out, "- {c}");

@@ -11,6 +11,7 @@ mod airspace;
 mod chicago;
 mod flight;
 mod pilot;
+mod pilot_failure;
 mod pilot_hold;
 mod run;
 mod sweep;

@@ -41,9 +41,7 @@ fn scenario(command: &[&str], duration: &str, clock: Clock) -> SimulationRun {
                 command: command.iter().map(|s| s.to_string()).collect(),
                 container_command: None,
                 env: vec![EnvVar { name: "MY_VAR".into(), value: "from the scenario".into() }],
-                on_exit: None,
-                resources: None,
-                connect_timeout_s: None,
+                ..Pilot::default()
             });
         })
         .build()

@@ -1,10 +1,12 @@
 """What the operator creates (`sadesim manifests`) and what the Helm chart installs, against
 Kubernetes' own schemas: kubernetes-validate --strict for Kubernetes 1.33 (the API version the
 operator is built against, k8s-openapi feature v1_33)."""
+import ast
 import json
 import pathlib
 import re
 import subprocess
+import sys
 
 import pytest
 import yaml
@@ -357,6 +359,27 @@ def test_the_pilot_images_pin_the_versions_the_tests_fly_with():
             if package in tested:
                 assert tested[package] == version, (name, package, version, tested[package])
     assert {"mavsdk", "pymavlink"} <= set(pins(REPO / "images" / "pilot-python.requirements.txt"))
+
+
+def test_the_example_pilots_requirements_pin_what_they_import_as_the_tests_do():
+    """`pip install -r examples/pilots/requirements.txt` (the README's one command) gets every
+    package the example pilots import, at the versions the interop tests fly with and the
+    pilots' image has."""
+    def pins(path):
+        lines = [l.split("#")[0].strip() for l in path.read_text().splitlines()]
+        return dict(l.split("==") for l in lines if l)
+    needed = pins(REPO / "examples" / "pilots" / "requirements.txt")
+    # numpy comes into the tests' environment with OpenCV; the pilots' image pins it.
+    tested = pins(REPO / "images" / "pilot-examples.requirements.txt") | pins(REPO / "tests" / "requirements.txt")
+    assert {p: tested.get(p) for p in needed} == needed, (needed, tested)
+    package_of = {"cv2": "opencv-python-headless", "numpy": "numpy", "pymavlink": "pymavlink", "mavsdk": "mavsdk"}
+    for script in sorted((REPO / "examples" / "pilots").glob("*.py")):
+        tree = ast.parse(script.read_text())
+        modules = {a.name.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        modules |= {n.module.split(".")[0] for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module}
+        third_party = modules - set(sys.stdlib_module_names)
+        assert third_party <= set(package_of), (script.name, third_party)
+        assert {package_of[m] for m in third_party} <= set(needed), (script.name, third_party, needed)
 
 
 def test_the_chart_lets_the_operator_apply_and_delete_every_kind_of_child(sadesim):

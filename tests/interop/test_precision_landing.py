@@ -1,16 +1,19 @@
 """The precision-landing example (examples/precision-landing.yaml) end to end: a pymavlink +
-OpenCV pilot lands on the ArUco pad within 0.5 m with its downward camera, while the same
-flight by GNSS alone (`--no-camera`) misses by the scenario's GNSS bias (3.9 m). The
-camera frames a pilot reads are rendered from the drone's true pose, so only they can
-correct a biased fix.
+OpenCV pilot lands on the ArUco pad within 0.5 m with its downward camera, and the run
+passes; the same flight by GNSS alone (`--no-camera`) misses by the scenario's GNSS bias
+(3.9 m), and the example's `landedNear` criterion fails the run (exit 1). The camera
+frames a pilot reads are rendered from the drone's true pose, so only they can correct a
+biased fix.
 
 Frames are rendered through wgpu on Vulkan: Mesa's lavapipe (tests/install-tools.sh).
 The MAVLink ports are fixed: the two runs go one after the other, never beside another run
 using MAVLink (see simrun.py).
 """
 import csv
+import json
 import math
 import pathlib
+import re
 import time
 
 import pytest
@@ -29,7 +32,8 @@ pytestmark = pytest.mark.skipif(
 
 def fly(sadesim, venv_bin, tmp, camera):
     """Runs the example from a copy in `tmp` (the pilot by absolute path); returns the run's
-    output folder, the scenario and the wall time, s."""
+    output folder, the scenario and the wall time, s. The run must pass with the camera and
+    fail (exit 1) without it."""
     doc = yaml.safe_load(EXAMPLE.read_text())
     command = doc["spec"]["pilot"]["command"]
     command[1] = str(REPO / "examples" / command[1])
@@ -42,7 +46,7 @@ def fly(sadesim, venv_bin, tmp, camera):
     code, out_dir, context = run_piloted(sadesim, scenario, tmp / "runs", venv_bin, 240,
                                          env={"SADESIM_CACHE_DIR": str(tmp / "cache")}, cwd=tmp)
     wall_s = time.monotonic() - started
-    assert code == 0, f"sadesim exited with {code} after {wall_s:.0f} s\n{context}"
+    assert code == (0 if camera else 1), f"sadesim exited with {code} after {wall_s:.0f} s\n{context}"
     return out_dir, doc, wall_s, context
 
 
@@ -64,6 +68,8 @@ def test_the_camera_lands_on_the_pad_where_gnss_alone_misses(sadesim, venv_bin, 
     print(f"with the camera: {with_camera_m:.2f} m from the pad, {wall_s:.0f} s wall")
     assert "pad 23 seen" in context, context
     assert with_camera_m < 0.5, f"{with_camera_m:.2f} m from the pad\n{context}"
+    landed = landed_near(out_dir)
+    assert landed["passed"], landed
 
     out_dir, doc, wall_s, context = fly(sadesim, venv_bin, tmp_path / "gnss", camera=False)
     gnss_only_m = landing_error_m(out_dir, doc)
@@ -73,3 +79,16 @@ def test_the_camera_lands_on_the_pad_where_gnss_alone_misses(sadesim, venv_bin, 
     # The miss is the bias (give or take the estimate's own decimetres): the flight
     # controller flies the biased estimate to the pad.
     assert abs(gnss_only_m - math.hypot(bias["eastM"], bias["northM"])) < 1.0, context
+    # The example's criterion says so: the run failed on it, naming the distance.
+    landed = landed_near(out_dir)
+    assert not landed["passed"], landed
+    touched = re.search(r"touched down ([0-9.]+) m from pad", landed["failures"][0])
+    assert touched and abs(float(touched.group(1)) - gnss_only_m) < 0.2, (gnss_only_m, landed)
+    assert "FAIL spec.criteria[2] landedNear" in context, context
+
+
+def landed_near(out_dir):
+    """The `landedNear` criterion's result in the run's summary.json."""
+    summary = json.loads((out_dir / "summary.json").read_text())
+    (landed,) = [c for c in summary["verdict"]["criteria"] if c["criterion"] == "landedNear"]
+    return landed

@@ -55,6 +55,17 @@ pub(super) fn run_file(
                 let log = report.out_dir.join(&p.log);
                 writeln!(out, "  pilot: {}; log: {}", p.describe(), log.display())?;
             }
+            let pilot_failed = s.pilot.as_ref().filter(|p| !p.as_expected);
+            if let Some(p) = pilot_failed {
+                writeln!(out, "  pilot FAILED: {}", p.failure.as_deref().unwrap_or("its end was not as expected"))?;
+                match p.log_tail.is_empty() {
+                    true => writeln!(out, "  {} is empty", p.log)?,
+                    false => writeln!(out, "  last lines of {}:", p.log)?,
+                }
+                for line in &p.log_tail {
+                    writeln!(out, "    | {line}")?;
+                }
+            }
             // The hold at the release for the pilot (`pilotConnectWaitS`).
             let not_connected = match (&s.end_reason, s.pilot_connect_wait_s) {
                 (EndReason::PilotNotConnected(why), _) => {
@@ -92,7 +103,7 @@ pub(super) fn run_file(
                     !v.passed
                 }
                 _ => false,
-            };
+            } || pilot_failed.is_some();
             let failed = failed || not_connected;
             if s.end_reason == EndReason::Interrupted {
                 return Ok(Outcome::Interrupted);

@@ -543,6 +543,12 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
             written?;
         }
     }
+    // How the pilot ended goes into summary.json, and an end `spec.pilot.expectedExit`
+    // does not allow fails the verdict; before the report and the manifest read it.
+    let mut summary = summary;
+    if let (Ok(summary), Some(r)) = (&mut summary, &record) {
+        judge_pilot(summary, r, &out_dir)?;
+    }
     // The end of every run, as the coordinator pod does it (DESIGN §8): report, manifest,
     // and the upload when `spec.archive.url` is an object store (a folder archive holds the
     // run folder already). The report cannot lose the run's files: a failure is a warning.
@@ -556,6 +562,17 @@ pub fn run_local(run: &SimulationRun, options: &RunOptions, stop: Arc<AtomicBool
     let summary = summary?;
     let report_error = report_error.map(|e| e.to_string());
     Ok(RunReport { out_dir, summary, pilot: record, archive: archived?.map(|a| a.url), report_error, assets })
+}
+
+/// Puts the pilot's outcome into `summary` (`pilot`), adds a failed expectation to its
+/// verdict (when the criteria were judged), and writes `summary.json` again.
+fn judge_pilot(summary: &mut RunSummary, record: &PilotRecord, out_dir: &Path) -> Result<(), RunError> {
+    let outcome = pilot::outcome(record, out_dir);
+    if let Some(verdict) = summary.verdict.as_mut() {
+        outcome.judge_into(verdict);
+    }
+    summary.pilot = Some(outcome);
+    write_json(out_dir, sadesim_crds::outcome::run_folder::SUMMARY, summary)
 }
 
 /// Serves the airspace API on 127.0.0.1 at the planned port, or on a free port when that is

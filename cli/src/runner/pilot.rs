@@ -10,6 +10,9 @@
 //!   started itself stop too.
 //! - Credential values are passed in the environment only: they never appear in
 //!   `fleet.json`, `pilot.json` or `Debug` output.
+//! - How the pilot ended is judged against `spec.pilot.expectedExit` ([`outcome`]): by
+//!   default an exit it made itself with a code other than 0, or by a signal, fails the
+//!   run, with its exit and the last lines of `pilot.log` in `summary.json`.
 //!
 //! # Caveats
 //! The pilot runs in its own process group so that Ctrl-C in the terminal reaches `sadesim`
@@ -23,12 +26,12 @@ use std::time::{Duration, Instant};
 
 use sadesim_crds::fleet::Credential;
 use sadesim_crds::plan::RunPlan;
-use sadesim_crds::run::{Pilot, PilotExit};
+use sadesim_crds::run::{ExpectedExit, Pilot, PilotExit};
 
 use sadesim_planner::credential_env_var;
 
 use sadesim_crds::outcome::ending::EndReason;
-pub use sadesim_crds::outcome::pilot::PilotRecord;
+pub use sadesim_crds::outcome::pilot::{PilotOutcome, PilotRecord};
 
 /// The fleet file in the output folder (path in `SADESIM_FLEET`).
 pub const FLEET_FILE: &str = sadesim_crds::outcome::run_folder::FLEET;
@@ -80,6 +83,8 @@ pub struct Launch {
     /// The log file (stdout and stderr).
     pub log: PathBuf,
     pub on_exit: PilotExit,
+    /// `spec.pilot.expectedExit` (default `success`).
+    pub expected_exit: ExpectedExit,
 }
 
 impl std::fmt::Debug for Launch {
@@ -92,6 +97,7 @@ impl std::fmt::Debug for Launch {
             .field("env", &self.env.iter().map(|(k, _)| k.as_str()).collect::<Vec<_>>())
             .field("log", &self.log)
             .field("on_exit", &self.on_exit)
+            .field("expected_exit", &self.expected_exit)
             .finish()
     }
 }
@@ -154,6 +160,7 @@ impl Launch {
             env,
             log: out_dir.join(LOG_FILE),
             on_exit: pilot.on_exit.unwrap_or_default(),
+            expected_exit: pilot.expected_exit.unwrap_or_default(),
         })
     }
 
@@ -219,6 +226,8 @@ enum State {
         pid: u32,
         started_at_s: f64,
         exited_at_s: f64,
+        /// Wall seconds from the start of the run.
+        exited_at_wall_s: f64,
         status: Option<ExitStatus>,
         by_runner: bool,
     },
@@ -233,6 +242,8 @@ pub struct Supervisor {
     state: State,
     /// Latest simulated time the runner reported, s.
     now_s: f64,
+    /// When the run started (the supervisor is made just before it), for wall times.
+    run_started: Instant,
 }
 
 /// The reason to end the run for the pilot, if any: it could not be started (`failed`), or
@@ -249,7 +260,7 @@ pub fn end_reason(failed: bool, exited: bool) -> Option<EndReason> {
 
 impl Supervisor {
     pub fn new(launch: Launch) -> Self {
-        Self { launch, state: State::Waiting, now_s: 0.0 }
+        Self { launch, state: State::Waiting, now_s: 0.0, run_started: Instant::now() }
     }
 
     /// The onboard cameras' frames are served at `cameras_url` ([`Launch::set_cameras_url`]);
@@ -294,6 +305,7 @@ impl Supervisor {
                 pid: child.id(),
                 started_at_s: *started_at_s,
                 exited_at_s: self.now_s,
+                exited_at_wall_s: self.run_started.elapsed().as_secs_f64(),
                 status: Some(status),
                 by_runner: false,
             };
@@ -312,6 +324,7 @@ impl Supervisor {
                 pid: child.id(),
                 started_at_s: *started_at_s,
                 exited_at_s: self.now_s,
+                exited_at_wall_s: self.run_started.elapsed().as_secs_f64(),
                 status,
                 by_runner: true,
             };
@@ -321,24 +334,56 @@ impl Supervisor {
             command: l.command.clone(),
             working_dir: l.dir.display().to_string(),
             on_exit: l.on_exit,
+            expected_exit: l.expected_exit,
             log: LOG_FILE.into(),
             pid: None,
             started_at_s: None,
             exited_at_s: None,
+            exited_at_wall_s: None,
             exit_code: None,
             signal: None,
             stopped_by_runner: false,
         };
-        if let State::Exited { pid, started_at_s, exited_at_s, status, by_runner } = &self.state {
+        if let State::Exited { pid, started_at_s, exited_at_s, exited_at_wall_s, status, by_runner } = &self.state {
             record.pid = Some(*pid);
             record.started_at_s = Some(*started_at_s);
             record.exited_at_s = Some(*exited_at_s);
+            record.exited_at_wall_s = Some(*exited_at_wall_s);
             record.exit_code = status.and_then(|s| s.code());
             record.signal = status.and_then(signal_of);
             record.stopped_by_runner = *by_runner;
         }
         record
     }
+}
+
+/// Bytes read from the end of `pilot.log` for its tail.
+const TAIL_BYTES: u64 = 64 * 1024;
+
+/// The `pilot` section of `summary.json` for `record`: its end judged against
+/// `spec.pilot.expectedExit`, with the last lines of the log in `out_dir` (none when it
+/// cannot be read).
+pub fn outcome(record: &PilotRecord, out_dir: &Path) -> PilotOutcome {
+    record.outcome(
+        read_tail(&out_dir.join(&record.log)).map(|t| sadesim_crds::outcome::pilot::log_tail(&t)).unwrap_or_default(),
+    )
+}
+
+/// The last [`TAIL_BYTES`] of `path` as text (invalid UTF-8 replaced), from the first
+/// whole line.
+fn read_tail(path: &Path) -> std::io::Result<String> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut file = File::open(path)?;
+    let len = file.metadata()?.len();
+    let from = len.saturating_sub(TAIL_BYTES);
+    file.seek(SeekFrom::Start(from))?;
+    let mut bytes = Vec::new();
+    file.take(TAIL_BYTES).read_to_end(&mut bytes)?;
+    let text = String::from_utf8_lossy(&bytes).into_owned();
+    Ok(match (from, text.split_once('\n')) {
+        (1.., Some((_, rest))) => rest.to_string(),
+        _ => text,
+    })
 }
 
 impl Drop for Supervisor {
@@ -405,9 +450,7 @@ mod tests {
             command: command.iter().map(|s| s.to_string()).collect(),
             container_command: None,
             env: vec![EnvVar { name: "MY_VAR".into(), value: "1".into() }],
-            on_exit: None,
-            resources: None,
-            connect_timeout_s: None,
+            ..Pilot::default()
         }
     }
 
@@ -486,15 +529,31 @@ mod tests {
     }
 
     #[test]
+    fn the_log_tail_is_read_from_the_end_of_a_long_log_in_whole_lines() {
+        let dir = std::env::temp_dir().join(format!("sadesim-pilot-tail-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // 100 000 lines of 8 bytes: far more than the bytes read.
+        let text: String = (0..100_000).map(|i| format!("l{i:06}\n")).collect();
+        std::fs::write(dir.join(LOG_FILE), text).unwrap();
+        let tail = read_tail(&dir.join(LOG_FILE)).unwrap();
+        assert!(tail.len() as u64 <= TAIL_BYTES && tail.starts_with('l') && tail.ends_with("l099999\n"));
+        let lines = sadesim_crds::outcome::pilot::log_tail(&tail);
+        assert_eq!((lines.len(), lines[0].as_str()), (20, "l099980"));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
     fn records_describe_what_happened() {
         let mut r = PilotRecord {
             command: vec!["p".into()],
             working_dir: "/s".into(),
             on_exit: PilotExit::EndRun,
+            expected_exit: ExpectedExit::Success,
             log: LOG_FILE.into(),
             pid: Some(1),
             started_at_s: Some(0.02),
             exited_at_s: Some(3.5),
+            exited_at_wall_s: None,
             exit_code: Some(3),
             signal: None,
             stopped_by_runner: false,

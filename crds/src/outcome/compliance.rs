@@ -209,6 +209,19 @@ pub struct ComplianceReport {
     /// estimate.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub worst_position_errors: Vec<Option<PositionError>>,
+    /// Per drone (index order), where it last touched down (a `landed` event; the drone at
+    /// the end of that window), `None` once it takes off again or crashes and for a drone
+    /// that never landed: tracked when the scenario has a `landedNear` criterion.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub touchdowns: Vec<Option<Touchdown>>,
+}
+
+/// Where and when a drone touched down.
+#[derive(Serialize, Deserialize, Clone, Debug, PartialEq)]
+#[serde(rename_all = "camelCase")]
+pub struct Touchdown {
+    pub time_s: f64,
+    pub at: Place,
 }
 
 /// A drone's worst estimated-position error: how far, when, where (the truth).

@@ -153,6 +153,11 @@ pub struct RunSummary {
     /// Each onboard camera's frames, and how many were late (runs with cameras).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub cameras: Vec<CameraTally>,
+    /// How the pilot process `sadesim run` started ended, and whether that is what
+    /// `spec.pilot.expectedExit` asks (absent without one: no `spec.pilot`, `--no-pilot`,
+    /// or a Kubernetes run, whose status says how the pilot's Job ended).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pilot: Option<super::pilot::PilotOutcome>,
 }
 
 /// One camera on one drone over a run.

@@ -70,6 +70,18 @@ pub(super) fn check_criteria(
                 check_group_refs(gs, groups, &format!("{path}.groups"), p);
                 p.range(format!("{path}.maxHorizontalM"), *max_horizontal_m, 0.1, 1000.0);
             }
+            Criterion::LandedNear { groups: gs, marker, within_m } => {
+                let path = format!("{path}.landedNear");
+                check_group_refs(gs, groups, &format!("{path}.groups"), p);
+                let markers: HashSet<String> = spec.world().markers.iter().map(|m| m.name.clone()).collect();
+                if !markers.contains(marker) {
+                    p.add(
+                        format!("{path}.marker"),
+                        format!("unknown marker {marker:?}, expected one of spec.world.markers: {}", sorted(&markers)),
+                    );
+                }
+                p.range(format!("{path}.withinM"), *within_m, 0.01, 1000.0);
+            }
             Criterion::NoUnauthorizedEntries {}
             | Criterion::ZoneConstraintsRespected {}
             | Criterion::AltitudeLimitsRespected {}

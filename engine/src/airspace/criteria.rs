@@ -20,6 +20,10 @@
 //!   groups (every drone when empty) had its estimated position farther than
 //!   `maxHorizontalM` from the truth (one failure line per drone, at its worst moment).
 //!
+//! - `landedNear {groups, marker, withinM}`: every drone of the groups (every drone when
+//!   empty) ended the run on the ground and not crashed, its last touchdown within
+//!   `withinM` of the marker's centre (one failure line per drone that did not).
+//!
 //! Failure lines name the drone, the sim time (seconds, 2 decimals), the duration, the
 //! place (latitude and longitude to 5 decimals, about 1 m; height above ground) and the
 //! zone, so a reader can find the moment in the events log and on a map.
@@ -60,6 +64,7 @@ pub fn criterion_name(c: &Criterion) -> &'static str {
         Criterion::ReachZone { .. } => "reachZone",
         Criterion::ZoneVerdicts { .. } => "zoneVerdicts",
         Criterion::EstimatedPositionError { .. } => "estimatedPositionError",
+        Criterion::LandedNear { .. } => "landedNear",
     }
 }
 
@@ -108,6 +113,7 @@ impl Judge<'_> {
             Criterion::EstimatedPositionError { groups, max_horizontal_m } => {
                 self.position_error(groups, *max_horizontal_m)
             }
+            Criterion::LandedNear { groups, marker, within_m } => self.landed_near(groups, marker, *within_m),
         };
         CriterionResult {
             path: format!("spec.criteria[{i}]"),
@@ -228,6 +234,63 @@ impl Judge<'_> {
                 self.name(d)
             ),
             Some(_) => format!("{} of {} drones' estimates strayed over {max_m} m", failures.len(), judged.len()),
+        };
+        Outcome { passed: failures.is_empty(), summary, failures }
+    }
+
+    /// Each drone of `groups` (all when empty) against where it last touched down.
+    fn landed_near(&self, groups: &[String], marker: &str, within_m: f64) -> Outcome {
+        let world = self.plan.spec.world();
+        let Some(pad) = world.markers.iter().find(|m| m.name == marker) else {
+            let failures = vec![format!("no marker {marker:?} in spec.world.markers")];
+            return Outcome { passed: false, summary: failures[0].clone(), failures };
+        };
+        let frame = sadesim_crds::geo::LocalFrame::new(self.plan.spec.origin.geo());
+        let (east, north) = frame.to_plane(pad.position.latitude_deg, pad.position.longitude_deg);
+        let judged: Vec<u32> = self
+            .plan
+            .drones
+            .iter()
+            .filter(|d| groups.is_empty() || groups.contains(&d.group))
+            .map(|d| d.index)
+            .collect();
+        let crashed = |d: u32| self.report.crashes.iter().any(|c| c.0 == d);
+        let mut closest: Option<f64> = None;
+        let mut failures = Vec::new();
+        for &d in &judged {
+            let touchdown = self.report.touchdowns.get(d as usize).and_then(Option::as_ref);
+            match touchdown {
+                _ if crashed(d) => failures.push(format!("{} crashed", self.name(d))),
+                None => failures.push(format!(
+                    "{} did not end the run landed (it never touched down, or took off again)",
+                    self.name(d)
+                )),
+                Some(t) => {
+                    let off = (t.at.east_m - east).hypot(t.at.north_m - north);
+                    closest = Some(closest.map_or(off, |c: f64| c.max(off)));
+                    if off > within_m {
+                        failures.push(format!(
+                            "{} touched down {off:.2} m from {marker} at {:.2} s at {} (limit {within_m} m)",
+                            self.name(d),
+                            t.time_s,
+                            place(&t.at)
+                        ));
+                    }
+                }
+            }
+        }
+        if judged.is_empty() {
+            failures.push(format!("no drone belongs to {}", groups.join(", ")));
+        }
+        let summary = match closest {
+            Some(worst) if failures.is_empty() => {
+                format!("{} drones landed within {within_m} m of {marker} (farthest {worst:.2} m)", judged.len())
+            }
+            _ => format!(
+                "{} of {} drones landed within {within_m} m of {marker}",
+                judged.len().saturating_sub(failures.len()),
+                judged.len()
+            ),
         };
         Outcome { passed: failures.is_empty(), summary, failures }
     }

@@ -53,7 +53,7 @@ use super::authority::LeaseConstraints;
 use super::volume::{Ground, ZoneVolume};
 use crate::events::{Event, EventKind, Place};
 use crate::protocol::DroneSnapshot;
-pub use sadesim_crds::outcome::compliance::{ComplianceReport, Presence, ViolationKind, ViolationRecord};
+pub use sadesim_crds::outcome::compliance::{ComplianceReport, Presence, Touchdown, ViolationKind, ViolationRecord};
 
 /// The monitor's state for one run.
 #[derive(Debug)]
@@ -65,6 +65,9 @@ pub struct Monitor {
     separation: Option<Separation>,
     /// The window's `crashed` events, (drone, time); reused.
     crash_events: Vec<(u32, f64)>,
+    /// The window's `landed` events not followed by a take-off, (drone, time), when
+    /// touchdowns are tracked; reused.
+    landings: Vec<(u32, f64)>,
     log: Log,
 }
 
@@ -95,6 +98,7 @@ impl Monitor {
             _ => None,
         });
         let position_errors = plan.spec.criteria.iter().any(|c| matches!(c, Criterion::EstimatedPositionError { .. }));
+        let touchdowns = plan.spec.criteria.iter().any(|c| matches!(c, Criterion::LandedNear { .. }));
         let separation = distances
             .fold(None, |acc: Option<(f64, f64)>, d| Some(acc.map_or((d, d), |(lo, hi)| (lo.min(d), hi.max(d)))));
         Self {
@@ -109,10 +113,12 @@ impl Monitor {
                 window: 0,
             }),
             crash_events: Vec::new(),
+            landings: Vec::new(),
             log: Log {
                 frame: LocalFrame::new(plan.spec.origin.geo()),
                 report: ComplianceReport {
                     worst_position_errors: if position_errors { vec![None; plan.drones.len()] } else { Vec::new() },
+                    touchdowns: if touchdowns { vec![None; plan.drones.len()] } else { Vec::new() },
                     ..ComplianceReport::default()
                 },
                 events: Vec::new(),
@@ -135,9 +141,22 @@ impl Monitor {
         lease: &dyn Fn(u32, &str, f64) -> Option<LeaseConstraints>,
     ) -> Vec<Event> {
         self.crash_events.clear();
+        self.landings.clear();
         for e in events {
-            if let (EventKind::Crashed { .. }, Some(d)) = (&e.kind, e.drone) {
-                self.crash_events.push((d, e.time_s));
+            match (&e.kind, e.drone) {
+                (EventKind::Crashed { .. }, Some(d)) => self.crash_events.push((d, e.time_s)),
+                // The window's last take-off or landing of a drone decides.
+                (EventKind::Takeoff, Some(d)) => {
+                    self.landings.retain(|l| l.0 != d);
+                    if let Some(t) = self.log.report.touchdowns.get_mut(d as usize) {
+                        *t = None;
+                    }
+                }
+                (EventKind::Landed, Some(d)) if !self.log.report.touchdowns.is_empty() => {
+                    self.landings.retain(|l| l.0 != d);
+                    self.landings.push((d, e.time_s));
+                }
+                _ => {}
             }
         }
         for snap in drones {
@@ -150,6 +169,12 @@ impl Monitor {
             let crash_s = self.crash_events.iter().find(|c| c.0 == snap.index).map(|c| c.1);
             if snap.crashed || crash_s.is_some() {
                 self.record_crash(i, crash_s.unwrap_or(time_s), &now);
+            }
+            if let Some(&(_, landed_s)) = self.landings.iter().find(|l| l.0 == snap.index)
+                && !snap.crashed
+            {
+                let at = self.log.place(&now);
+                self.log.report.touchdowns[i] = Some(Touchdown { time_s: landed_s, at });
             }
             // The first sample of a drone has no segment behind it.
             let prev = self.drones[i].last.unwrap_or(now);

@@ -387,6 +387,17 @@ mod tests {
             };
             q.outbound.clear();
         }
+        // A router registering with the drones (its own HEARTBEAT) is not the pilot.
+        let router = MavMessage::HEARTBEAT(Default::default());
+        let ids = MavHeader {
+            system_id: u32::from(crate::shard::ROUTER_SYSTEM_ID),
+            component_id: crate::shard::ROUTER_COMPONENT_ID,
+            sequence: 0,
+        };
+        let router = FrameParser::new().push(&encode(ids, &router)).pop().expect("one frame");
+        shard.mavlink_queues()[1].inbound.push(router);
+        let held = shard.handle(ToShard::Hold { heartbeat: false });
+        assert_eq!(held, Some(FromShard::Held { shard: 0, heard: vec![] }));
         shard.mavlink_queues()[0].inbound.push(arm_frame());
         let held = shard.handle(ToShard::Hold { heartbeat: false });
         assert_eq!(held, Some(FromShard::Held { shard: 0, heard: vec![0] }));

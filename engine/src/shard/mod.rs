@@ -99,6 +99,12 @@ pub struct Shard {
 /// setpoints).
 pub const MAVLINK_IO_PERIOD_S: f64 = 0.02;
 
+/// The MAVLink system and component id of the routers' own frames (`sim_worker`'s router
+/// registers with the drones with a HEARTBEAT from them while a ground station listens, or
+/// a TCP health check connects): not the pilot, so they do not end a hold.
+pub const ROUTER_SYSTEM_ID: u8 = 253;
+pub const ROUTER_COMPONENT_ID: u8 = 240;
+
 /// The environment is sampled every this many physics steps (100 Hz at 1 kHz) and held in
 /// between: wind gusts and GNSS conditions change over tenths of seconds (the Dryden
 /// filters' bandwidth is V/L, well under 1 Hz at low altitude), while sampling them every
@@ -251,7 +257,8 @@ impl Shard {
     /// A hold at the release ([`ToShard::Hold`]): nothing is simulated. What the drones'
     /// peers sent is read into the inbound queues, where the sessions find it at the next
     /// exchange (as if it had arrived just before it); with `heartbeat` every drone's
-    /// HEARTBEAT at the held time leaves at once. Answers which drones have frames waiting.
+    /// HEARTBEAT at the held time leaves at once. Answers which drones have frames waiting
+    /// from a peer other than a router's own ([`ROUTER_SYSTEM_ID`]).
     fn hold(&mut self, heartbeat: bool, io: &mut impl MavlinkIo) -> FromShard {
         if !self.mavlink.is_empty() {
             io.receive(&mut self.mavlink);
@@ -267,7 +274,11 @@ impl Shard {
             .drones
             .iter()
             .zip(&self.mavlink)
-            .filter(|(_, q)| !q.inbound.is_empty())
+            .filter(|(_, q)| {
+                q.inbound.iter().any(|f| {
+                    (f.header.system_id, f.header.component_id) != (u32::from(ROUTER_SYSTEM_ID), ROUTER_COMPONENT_ID)
+                })
+            })
             .map(|(d, _)| d.plan.index)
             .collect();
         FromShard::Held { shard: self.index, heard }

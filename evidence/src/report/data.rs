@@ -100,6 +100,8 @@ struct AirspaceFields {
     closest_approach: Option<(f64, f64, u32, u32)>,
     #[serde(default)]
     worst_position_errors: Vec<Option<sadesim_crds::outcome::compliance::PositionError>>,
+    #[serde(default)]
+    touchdowns: Vec<Option<sadesim_crds::outcome::compliance::Touchdown>>,
 }
 
 impl<'de> Deserialize<'de> for AirspaceFile {
@@ -115,6 +117,7 @@ impl<'de> Deserialize<'de> for AirspaceFile {
                 crash_places: f.crash_places,
                 closest_approach: f.closest_approach,
                 worst_position_errors: f.worst_position_errors,
+                touchdowns: f.touchdowns,
             },
         })
     }

@@ -734,3 +734,92 @@ fn the_closest_approach_counts_a_zone_only_while_it_is_active_and_without_zones_
     monitor.observe(1.0, &[at(0, 50.0, 50.0, 50.0)], &[], &|_, _, _| None);
     assert_eq!(monitor.closest_zones_m(), [None]);
 }
+
+/// `n` drones of `alpha` with a down camera, the marker `pad` on the ground 10 m east of
+/// the origin, and a `landedNear {marker: pad, withinM: 0.5}` criterion.
+fn plan_with_pad(n: u32) -> RunPlan {
+    use sadesim_crds::camera::GroundMarker;
+    use sadesim_crds::fleet::LatLon;
+    use sadesim_crds::geo::{Enu, LocalFrame};
+    let builder = run_with_groups(&[("alpha", n)]).with_camera(sadesim_crds::fixtures::down_camera());
+    plan_of(
+        builder
+            .with(|r| {
+                let pad =
+                    LocalFrame::new(r.spec.origin.geo()).to_geodetic(Enu { east_m: 10.0, north_m: 0.0, up_m: 0.0 });
+                r.spec.world.get_or_insert_with(Default::default).markers.push(GroundMarker {
+                    name: "pad".into(),
+                    position: LatLon { latitude_deg: pad.latitude_deg, longitude_deg: pad.longitude_deg },
+                    size_m: 1.5,
+                    yaw_deg: 0.0,
+                    aruco_id: 23,
+                });
+                r.spec.criteria = vec![Criterion::LandedNear { groups: vec![], marker: "pad".into(), within_m: 0.5 }];
+            })
+            .build(),
+    )
+}
+
+fn on_ground_at(index: u32, e: f64, n: f64) -> DroneSnapshot {
+    DroneSnapshot { on_ground: true, armed: false, mode: FlightMode::Idle, ..at(index, e, n, 0.0) }
+}
+
+fn event(time_s: f64, drone: u32, kind: EventKind) -> Event {
+    Event { time_s, drone: Some(drone), kind }
+}
+
+/// The `landedNear` criterion of `plan` judged on what `h` saw.
+fn landed_near(plan: &RunPlan, h: &Harness) -> crate::airspace::criteria::CriterionResult {
+    let verdict = crate::airspace::criteria::evaluate(plan, h.report(), &[], 60.0);
+    verdict.criteria.into_iter().next().unwrap()
+}
+
+#[test]
+fn landed_near_passes_a_drone_on_the_pad_and_names_one_that_landed_elsewhere() {
+    let plan = plan_with_pad(2);
+    let mut h = Harness::new(&plan);
+    h.window(1.0, &[on_ground_at(0, 0.0, 0.0), on_ground_at(1, 0.0, 0.0)]);
+    h.window_with(
+        2.0,
+        &[at(0, 5.0, 0.0, 10.0), at(1, 5.0, 0.0, 10.0)],
+        &[event(1.5, 0, EventKind::Takeoff), event(1.5, 1, EventKind::Takeoff)],
+    );
+    // Drone 0 touches down 0.3 m from the pad, drone 1 40 m west of it.
+    h.window_with(
+        3.0,
+        &[on_ground_at(0, 10.3, 0.0), on_ground_at(1, -30.0, 0.0)],
+        &[event(2.9, 0, EventKind::Landed), event(2.8, 1, EventKind::Landed)],
+    );
+    h.finish(60.0);
+    let touchdowns = &h.report().touchdowns;
+    assert_eq!(touchdowns[0].as_ref().map(|t| t.time_s), Some(2.9));
+    assert!((touchdowns[1].as_ref().unwrap().at.east_m + 30.0).abs() < 1e-9);
+    let result = landed_near(&plan, &h);
+    assert_eq!(result.criterion, "landedNear");
+    assert!(!result.passed, "{result:?}");
+    assert_eq!(result.summary, "1 of 2 drones landed within 0.5 m of pad");
+    assert_eq!(result.failures.len(), 1, "{result:?}");
+    assert!(result.failures[0].starts_with("alpha-1 touched down 40.00 m from pad at 2.80 s at "), "{result:?}");
+}
+
+#[test]
+fn landed_near_fails_a_drone_that_never_landed_or_took_off_again() {
+    let plan = plan_with_pad(2);
+    let mut h = Harness::new(&plan);
+    // Drone 0 never leaves the ground; drone 1 lands on the pad, then takes off again.
+    h.window(1.0, &[on_ground_at(0, 0.0, 0.0), on_ground_at(1, 10.0, 0.0)]);
+    h.window_with(2.0, &[on_ground_at(0, 0.0, 0.0), at(1, 10.0, 0.0, 5.0)], &[event(1.5, 1, EventKind::Takeoff)]);
+    h.window_with(3.0, &[on_ground_at(0, 0.0, 0.0), on_ground_at(1, 10.0, 0.0)], &[event(2.9, 1, EventKind::Landed)]);
+    assert!(landed_near(&plan, &h).failures.iter().all(|f| !f.starts_with("alpha-1")), "on the pad now");
+    h.window_with(4.0, &[on_ground_at(0, 0.0, 0.0), at(1, 10.0, 0.0, 5.0)], &[event(3.5, 1, EventKind::Takeoff)]);
+    h.finish(60.0);
+    let result = landed_near(&plan, &h);
+    assert!(!result.passed);
+    assert_eq!(
+        result.failures,
+        [
+            "alpha-0 did not end the run landed (it never touched down, or took off again)",
+            "alpha-1 did not end the run landed (it never touched down, or took off again)",
+        ]
+    );
+}

@@ -36,6 +36,8 @@ use crate::k8s::children::{self, Child, ClusterSettings, Kind, Role, RunFolder, 
 
 mod archiving;
 #[cfg(test)]
+mod pilot_tests;
+#[cfg(test)]
 mod tests;
 
 pub use archiving::{ARCHIVE_FAILED, archive_failed};
@@ -599,6 +601,9 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
     }
     let running = d.phase() == Phase::Running;
     let stop = if running { pilot_exited(d, input, plan) } else { None };
+    if running {
+        judge_pilot(d, input, plan, false);
+    }
     // The pilot Job comes with the other workers: its pod is scheduled and its image pulled
     // while the shards start, and its init container releases it with the pilots.
     d.apply = children_for(input, plan, Stage { assets_job: false, pilot: true, stop }, |r| r != Role::Assets);
@@ -648,6 +653,7 @@ fn live(d: &mut Decision, input: &Input, plan: &RunPlan) {
         d.status.sim_time_s = Some(finished.sim_time_s);
         d.status.real_time_factor = Some(round3(finished.real_time_factor));
         d.status.verdict = finished.verdict.clone();
+        pilot_failure_into_verdict(&mut d.status);
         // The run failed before anything flew: its reason, not a verdict, says why.
         if let EndReason::PilotNotConnected(why) = &finished.end_reason {
             end(d, input, RunEnd::PilotNotConnected, why.clone());
@@ -688,6 +694,67 @@ fn pilot_exited(d: &mut Decision, input: &Input, plan: &RunPlan) -> Option<EndRe
     }
     d.condition(ct::RUNNING, true, PILOT_EXITED, message, now, generation);
     ends_run.then_some(EndReason::PilotExited)
+}
+
+/// The `Pilot` condition's reason when the pilot's end is not what `spec.pilot.expectedExit`
+/// allows (the run then fails).
+pub const PILOT_FAILED: &str = "PilotFailed";
+
+/// Judges, once, how the pilot ended against `spec.pilot.expectedExit` into the `Pilot`
+/// condition, as `sadesim run` does: when its Job has ended (exit code 0 when complete, the
+/// pod's exit code when failed), or, with `run_over`, when the run ends with the Job still
+/// there (still running). A failed expectation sets `Pilot=False` (`PilotFailed`) with the
+/// exit code and the last lines of its log (the container's termination message, which
+/// `FallbackToLogsOnError` fills from the log), and a Warning Event.
+pub(super) fn judge_pilot(d: &mut Decision, input: &Input, plan: &RunPlan, run_over: bool) {
+    use sadesim_crds::outcome::pilot::{PilotEnd, exit_words, log_tail};
+    let Some(pilot) = plan.spec.pilot.as_ref() else { return };
+    let observed = input.observed;
+    if condition(&d.status, ct::PILOT).is_some() {
+        return;
+    }
+    let (end, how) = match observed.pilot_end() {
+        Some(Ok(how) | Err(how)) => {
+            let code = observed.pilot_exit_code();
+            (PilotEnd::Exited { code, signal: None }, format!("exited with {} ({how})", exit_words(code, None)))
+        }
+        None if run_over && observed.has_job(Role::Pilot) => {
+            (PilotEnd::StillRunning, "still running when the run ended".to_string())
+        }
+        None => return,
+    };
+    let (now, generation) = (input.now, input.run.metadata.generation);
+    let expected = pilot.expected_exit.unwrap_or_default();
+    match expected.judge(&end) {
+        None => {
+            let message = format!("the pilot {how}; spec.pilot.expectedExit is {}", expected.as_str());
+            d.condition(ct::PILOT, true, "AsExpected", message, now, generation);
+        }
+        Some(failure) => {
+            let mut message = format!("{failure} ({how})");
+            let tail = observed.pilot_message().map(log_tail).unwrap_or_default();
+            if !tail.is_empty() {
+                message.push_str("; the last lines of its log:\n");
+                message.push_str(&tail.join("\n"));
+            }
+            d.events.push(Note { warning: true, reason: PILOT_FAILED.into(), message: message.clone() });
+            d.condition(ct::PILOT, false, PILOT_FAILED, message, now, generation);
+        }
+    }
+}
+
+/// A `Pilot=False` condition fails the verdict (when the criteria were judged): one failure
+/// line `spec.pilot.expectedExit: <why>`, added once.
+pub(super) fn pilot_failure_into_verdict(status: &mut SimulationRunStatus) {
+    use sadesim_crds::outcome::pilot::EXPECTED_EXIT_PATH;
+    let Some(failed) = condition(status, ct::PILOT).filter(|c| c.status == "False") else { return };
+    let line = format!("{EXPECTED_EXIT_PATH}: {}", failed.message.lines().next().unwrap_or_default());
+    if let Some(v) = status.verdict.as_mut()
+        && !v.failures.contains(&line)
+    {
+        v.passed = false;
+        v.failures.push(line);
+    }
 }
 
 fn round3(x: f64) -> f64 {

@@ -151,6 +151,25 @@ impl Observed {
         })
     }
 
+    /// The pilot container's exit code once its Job has ended: 0 for a complete Job, the
+    /// failed pod's code (`container pilot Error (exit code 1)`; 128 + n for signal n) for
+    /// a failed one; `None` while it runs or when no pod says.
+    pub fn pilot_exit_code(&self) -> Option<i32> {
+        match self.pilot_end()? {
+            Ok(_) => Some(0),
+            Err(_) => self.pods_of(Role::Pilot).find_map(|p| match &p.state {
+                WorkState::Failed(reason) => exit_code_in(reason),
+                _ => None,
+            }),
+        }
+    }
+
+    /// The pilot container's termination message: with `FallbackToLogsOnError` (the pilot
+    /// Job's policy), the last lines of its log when it failed.
+    pub fn pilot_message(&self) -> Option<&str> {
+        self.pods_of(Role::Pilot).find_map(|p| p.message.as_deref())
+    }
+
     /// The coordinator pod's state, when it exists.
     pub fn coordinator_state(&self) -> Option<&WorkState> {
         self.pods_of(Role::Coordinator).map(|w| &w.state).next()
@@ -165,6 +184,12 @@ impl Observed {
     pub fn suspended(&self, role: Role) -> bool {
         self.jobs_of(role).any(|w| w.state == WorkState::Suspended)
     }
+}
+
+/// `N` in a failed pod's `... (exit code N)` ([`pod_workload`]).
+fn exit_code_in(reason: &str) -> Option<i32> {
+    let (_, rest) = reason.rsplit_once("(exit code ")?;
+    rest.strip_suffix(')')?.parse().ok()
 }
 
 fn is_fatal_waiting(reason: &str) -> bool {

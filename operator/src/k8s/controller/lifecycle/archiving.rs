@@ -114,6 +114,10 @@ pub(super) fn archive_step(d: &mut Decision, input: &Input) {
     let pods_of = |role: Role| observed.pods_of(role).map(|p| p.name.clone()).collect::<Vec<_>>();
     d.status.endpoints = None;
     if observed.has_job(Role::Pilot) {
+        // Judged before the Job goes: a pilot still running now is stopped by the run.
+        if let Ok(plan) = input.plan {
+            super::judge_pilot(d, input, plan, true);
+        }
         d.archive_logs = pods_of(Role::Pilot);
         d.delete = vec![Delete { kind: Kind::Job, role: Some(Role::Pilot) }];
         d.condition(ct::ARCHIVED, false, "Archiving", "stopping the pilot", now, generation);
@@ -194,18 +198,30 @@ pub(super) fn archive_step(d: &mut Decision, input: &Input) {
         Some((reason, message)) => (RunEnd::of_reason(&reason), message),
         None => (Some(RunEnd::Aborted), "the run ended".to_string()),
     };
+    super::pilot_failure_into_verdict(&mut d.status);
+    let pilot_failed = condition(&d.status, ct::PILOT).filter(|c| c.status == "False").map(|c| c.message.clone());
     let phase = match end {
         Some(RunEnd::Finished) => {
             let passed = match &d.status.verdict {
                 Some(v) => v.passed,
                 None => input.run.spec.criteria.is_empty(),
             };
-            if passed { Phase::Succeeded } else { Phase::Failed }
+            if passed && pilot_failed.is_none() { Phase::Succeeded } else { Phase::Failed }
         }
         Some(RunEnd::Aborted | RunEnd::Deleted) => Phase::Aborted,
         _ => Phase::Failed,
     };
     let message = match (phase, &d.status.verdict) {
+        (Phase::Failed, verdict) if end == Some(RunEnd::Finished) && pilot_failed.is_some() => {
+            let path = sadesim_crds::outcome::pilot::EXPECTED_EXIT_PATH;
+            let others: Vec<&str> =
+                verdict.iter().flat_map(|v| &v.failures).map(String::as_str).filter(|f| !f.starts_with(path)).collect();
+            let mut message = format!("the pilot failed: {}", pilot_failed.unwrap_or_default());
+            if !others.is_empty() {
+                message = format!("criteria failed: {}; {message}", others.join("; "));
+            }
+            message
+        }
         (Phase::Failed, Some(v)) if end == Some(RunEnd::Finished) && !v.failures.is_empty() => {
             format!("criteria failed: {}", v.failures.join("; "))
         }
