@@ -32,7 +32,16 @@ done
 # --sanitizer none: AddressSanitizer needs -Zsanitizer (a nightly compiler); the readers are
 # safe Rust (unsafe_code is forbidden), where what fuzzing finds is panics, overflows (debug
 # assertions are on), hangs and runaway allocations: no sanitizer is needed to see those.
-echo "--> cargo fuzz build"
+# The instrumented build goes to a cache outside the clone, keyed by the toolchain, so a
+# fresh clone (CI) builds only the repository's own crates, not the third-party ones.
+# SADESIM_FUZZ_CACHE sets its root (default /var/cache/sadesim-fuzz; fuzz/target when that
+# cannot be written).
+cache_root="${SADESIM_FUZZ_CACHE:-/var/cache/sadesim-fuzz}"
+toolchain_key=$(rustc -vV | sha256sum | cut -c1-12)
+if mkdir -p "$cache_root/$toolchain_key" 2>/dev/null && [ -w "$cache_root/$toolchain_key" ]; then
+  export CARGO_TARGET_DIR="$cache_root/$toolchain_key/target"
+fi
+echo "--> cargo fuzz build (into ${CARGO_TARGET_DIR:-fuzz/target})"
 build_start=$SECONDS
 (cd fuzz && cargo fuzz build --sanitizer none)
 echo "cargo fuzz build: $((SECONDS - build_start)) s"

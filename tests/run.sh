@@ -63,7 +63,7 @@ trap - EXIT
 echo "==> the real-cluster lane (tests/cluster/lane.sh)"
 bash tests/cluster/lane.sh
 
-echo "==> fuzzing the file readers (cargo-fuzz, ${SADESIM_FUZZ_SECONDS:-60} s per target)"
+echo "==> fuzzing (tests/fuzz.sh: cargo-fuzz, ${SADESIM_FUZZ_SECONDS:-25} s per target)"
 bash tests/fuzz.sh
 
 echo "==> Rust tests"
