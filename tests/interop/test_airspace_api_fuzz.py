@@ -146,7 +146,8 @@ def schemathesis(url: str, token: str, report: pathlib.Path, *extra: str) -> sub
          "-H", f"Authorization: Bearer {token}",
          "--max-examples", str(MAX_EXAMPLES), "--seed", "20261206", "--no-color", "--report", "junit",
          "--report-junit-path", str(report), *extra],
-        capture_output=True, text=True, timeout=240, env={**os.environ, "SCHEMATHESIS_TELEMETRY": "false"})
+        capture_output=True, text=True, timeout=240, env={**os.environ, "SCHEMATHESIS_TELEMETRY": "false"},
+        cwd=report.parent)  # its example cache (.schemathesis/) goes there, not into the clone
 
 
 def test_every_operation_answers_as_its_spec_says(live, tmp_path):
