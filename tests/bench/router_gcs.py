@@ -12,7 +12,9 @@ For each N, one real-time run of the quickstart's mission (`--drones` scripted d
   time 20 times a second; every other ground station looks for it in what it receives.
   One-way latency through the router (its GCS thread, the fan-out to the other ground
   stations), measured with one clock in this process; p50, p99, max, and the share of
-  the expected deliveries (probes x other ground stations) that arrived;
+  the expected deliveries (probes x other ground stations) that arrived, and the share
+  among the ground stations the router serves (those that receive telemetry: at most 16
+  UDP ones, the first to arrive; the router refuses the others while those stay live);
 - **telemetry**: two observer ground stations (1 and 2) parse every frame and count the
   gaps in each drone's sequence numbers (frames lost between the drone and them); every
   ground station counts the bytes it receives (median and lowest per ground station);
@@ -252,6 +254,9 @@ def load(proc: subprocess.Popen, drones: list[int], n: int, warmup_s: float, unt
     frames = sum(g.frames for g in stations if g.observer)
     gaps = sum(g.gaps for g in stations if g.observer)
     expected = probes_sent * (n - 1)
+    # Ground stations the router serves (at most 16 UDP ones; the others are refused).
+    served = [b for b in per_gcs if b >= 0.5]
+    expected_served = probes_sent * (len(served) - 1)
     return {
         "gcs": n,
         "window_s": round(window, 1),
@@ -263,6 +268,10 @@ def load(proc: subprocess.Popen, drones: list[int], n: int, warmup_s: float, unt
         "kB_per_s_median_gcs": round(percentile(per_gcs, 50), 1),
         "kB_per_s_lowest_gcs": round(per_gcs[0], 1) if per_gcs else None,
         "gcs_without_telemetry": sum(1 for b in per_gcs if b < 0.5),
+        "gcs_served": len(served),
+        "probe_delivered_to_served": round(probe_hits / expected_served, 4) if expected_served > 0 else None,
+        "kB_per_s_median_served": round(percentile(served, 50), 1) if served else None,
+        "kB_per_s_lowest_served": round(served[0], 1) if served else None,
         "cmd_rtt_p50_ms": round(percentile(rtts_ms, 50), 1),
         "cmd_rtt_p99_ms": round(percentile(rtts_ms, 99), 1),
         "cmd_unanswered": unanswered,

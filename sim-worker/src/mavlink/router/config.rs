@@ -17,8 +17,16 @@ pub const ROUTER_SYSTEM_ID: u8 = sadesim_engine::shard::ROUTER_SYSTEM_ID;
 pub const ROUTER_COMPONENT_ID: u8 = sadesim_engine::shard::ROUTER_COMPONENT_ID;
 /// Drones per segment: the planner's limit, since system ids 1..=250 must be distinct.
 pub const MAX_DRONES: usize = 250;
-/// UDP ground stations served at once; the least recently heard is dropped for a new one.
+/// UDP ground stations served at once. A station keeps its place while it is live (heard
+/// within [`UDP_GCS_LIVENESS`]); a newcomer while every place is live is refused (counted in
+/// [`RouterStats::refused_udp_gcs_frames`], logged), and takes the place of the least
+/// recently heard station once that one has been silent for longer than the period.
 pub const MAX_UDP_GCS: usize = 16;
+/// How long a UDP ground station keeps its place without a frame from it: ground stations
+/// heartbeat at 1 Hz, so a live one is never silent this long, and a gone one frees its
+/// place for a newcomer after it. (A silent station keeps receiving telemetry until a
+/// newcomer needs the place.)
+pub const UDP_GCS_LIVENESS: Duration = Duration::from_secs(5);
 /// TCP ground stations served at once; further connections are closed at once (counted).
 pub const MAX_TCP_GCS: usize = 16;
 /// Read timeout of every socket: how long a thread may take to notice [`RouterHandle::stop`].
@@ -125,6 +133,9 @@ pub struct RouterStats {
     pub dropped_gcs_backlog: u64,
     /// TCP connections refused because [`MAX_TCP_GCS`] were open.
     pub refused_tcp_clients: u64,
+    /// Frames from UDP ground stations refused because [`MAX_UDP_GCS`] others were live
+    /// (heard within [`UDP_GCS_LIVENESS`]): not forwarded, and their sender gets no telemetry.
+    pub refused_udp_gcs_frames: u64,
     /// With signing: GCS frames dropped for carrying no signature (MAVLink 1 frames
     /// included, which cannot carry one).
     pub refused_unsigned: u64,

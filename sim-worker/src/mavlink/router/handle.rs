@@ -123,6 +123,7 @@ impl RouterHandle {
             garbage_bytes: get(&c.garbage_bytes),
             dropped_gcs_backlog: get(&c.dropped_gcs_backlog),
             refused_tcp_clients: get(&c.refused_tcp_clients),
+            refused_udp_gcs_frames: get(&c.refused_udp_gcs_frames),
             refused_unsigned: get(&c.refused_unsigned),
             refused_bad_signature: get(&c.refused_bad_signature),
             refused_old_timestamp: get(&c.refused_old_timestamp),

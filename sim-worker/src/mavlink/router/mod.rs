@@ -16,9 +16,13 @@
 //!   telemetry at once) share datagrams of up to 1 400 bytes, sent when no datagram came
 //!   for 1 ms (at most 5 ms after the first): one send per shared datagram instead of one
 //!   per drone, for the router and for each ground station.
-//! - **GCS side**: UDP clients are whoever sent a valid frame to the GCS UDP port (the most
-//!   recent [`MAX_UDP_GCS`], least recently heard evicted); TCP clients are connections on
-//!   the GCS TCP port (at most [`MAX_TCP_GCS`]). Their frames go to the drone whose system id
+//! - **GCS side**: UDP clients are whoever sent a valid frame to the GCS UDP port, at most
+//!   [`MAX_UDP_GCS`]: a client keeps its place while it is heard within
+//!   [`UDP_GCS_LIVENESS`] (5 s; ground stations heartbeat at 1 Hz); a newcomer while all
+//!   places are live is refused (its frames go nowhere, it gets no telemetry; counted in
+//!   [`RouterStats::refused_udp_gcs_frames`] and logged like garbage), and takes the place of
+//!   a client silent for longer than that. TCP clients are connections on the GCS TCP port
+//!   (at most [`MAX_TCP_GCS`]; further ones are closed at once). Their frames go to the drone whose system id
 //!   is the message's `target_system`, to every drone when the target is 0 or the message
 //!   has none, and nowhere (counted) for a system id outside the segment. Each GCS also
 //!   receives the other GCS clients' frames, so two ground stations see each other, as
@@ -82,7 +86,7 @@ mod sockets;
 
 pub use config::{
     MAX_DRONES, MAX_TCP_GCS, MAX_UDP_GCS, POLL, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone, RouterConfig,
-    RouterError, RouterStats,
+    RouterError, RouterStats, UDP_GCS_LIVENESS,
 };
 pub use gcs_signing::ROUTER_LINK_ID;
 pub use handle::{RouterHandle, start};

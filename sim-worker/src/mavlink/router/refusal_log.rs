@@ -1,6 +1,6 @@
 //! What the router drops from ground stations, said on stderr without letting a peer fill
 //! the log: frames refused by signing, bytes that are not MAVLink, frames with a bad
-//! checksum. The first refusal from an address is logged at once with its reason (for
+//! checksum, frames from a UDP ground station that found no place. The first refusal from an address is logged at once with its reason (for
 //! garbage: which byte, where, and why it is not MAVLink), the following ones are counted
 //! and summed up every [`REFUSAL_REPORT_PERIOD`].
 
@@ -8,6 +8,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
 
+use super::config::{MAX_UDP_GCS, UDP_GCS_LIVENESS};
 use sadesim_engine::mavlink::frame::DatagramFrames;
 use sadesim_engine::mavlink::signing::{IFLAG_SIGNED, Refusal};
 
@@ -26,12 +27,15 @@ pub(super) enum Dropped {
     NotMavlink,
     /// A frame whose checksum does not match.
     BadChecksum,
+    /// A frame from a new UDP ground station while [`MAX_UDP_GCS`] live ones hold every place.
+    NoPlace,
 }
 
-/// Slots in [`Counts`]: the signing reasons, then garbage, then bad checksums.
-const SLOTS: usize = Refusal::ALL.len() + 2;
+/// Slots in [`Counts`]: the signing reasons, then garbage, bad checksums, no place.
+const SLOTS: usize = Refusal::ALL.len() + 3;
 const NOT_MAVLINK: usize = Refusal::ALL.len();
 const BAD_CHECKSUM: usize = Refusal::ALL.len() + 1;
+const NO_PLACE: usize = Refusal::ALL.len() + 2;
 
 impl Dropped {
     fn slot(self) -> usize {
@@ -39,6 +43,7 @@ impl Dropped {
             Dropped::Signing(why) => Refusal::ALL.iter().position(|&r| r == why).expect("every reason is listed"),
             Dropped::NotMavlink => NOT_MAVLINK,
             Dropped::BadChecksum => BAD_CHECKSUM,
+            Dropped::NoPlace => NO_PLACE,
         }
     }
 }
@@ -72,6 +77,7 @@ impl Counts {
         let name = |slot: usize, n: u64| match slot {
             NOT_MAVLINK => format!("not MAVLink {n} bytes"),
             BAD_CHECKSUM => format!("bad checksum {n}"),
+            NO_PLACE => format!("no place among the UDP ground stations {n}"),
             i => format!("{} {n}", Refusal::ALL[i]),
         };
         let parts: Vec<String> =
@@ -99,6 +105,11 @@ pub(super) struct RefusalLog {
 impl RefusalLog {
     pub(super) fn new(segment: u32) -> Self {
         Self { segment, sources: HashMap::new(), others: Counts::default(), next_report: None }
+    }
+
+    /// The router's segment (for other log lines).
+    pub(super) fn segment(&self) -> u32 {
+        self.segment
     }
 
     /// Notes `n` frames (bytes, for garbage) from `source` dropped at `now` for `why`;
@@ -131,6 +142,12 @@ impl RefusalLog {
             ),
             Dropped::NotMavlink => format!("dropped {n} byte(s) from {source} that are not MAVLink: {}", detail()),
             Dropped::BadChecksum => format!("dropped {n} frame(s) from {source}: {}", detail()),
+            Dropped::NoPlace => format!(
+                "refused {n} frame(s) from the new UDP ground station {source}: all {MAX_UDP_GCS} places are held by \
+                 ground stations heard within the last {} s (it gets no telemetry; a place frees when its station is \
+                 silent for longer)",
+                UDP_GCS_LIVENESS.as_secs()
+            ),
         };
         Some(format!(
             "MAVLink router, segment {segment}: {first}; further refusals from {source} are summed up every {period} s"

@@ -13,7 +13,7 @@ use std::time::{Instant, SystemTime};
 use ::mavlink::MavHeader;
 use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType};
 
-use super::config::{MAX_UDP_GCS, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone};
+use super::config::{MAX_UDP_GCS, ROUTER_COMPONENT_ID, ROUTER_SYSTEM_ID, RoutedDrone, UDP_GCS_LIVENESS};
 use super::gcs_signing::{GcsSigning, SETUP_SIGNING_ID};
 use super::refusal_log::{Dropped, RefusalLog, describe_bad_bytes};
 use sadesim_engine::mavlink::frame::{
@@ -26,25 +26,45 @@ pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
-/// The UDP ground stations, most recently heard kept. Time is a counter of datagrams, so
-/// the eviction order does not depend on the clock.
+/// The UDP ground stations: at most [`MAX_UDP_GCS`], each keeping its place while it is
+/// heard within [`UDP_GCS_LIVENESS`]. Time is passed in (tests choose it).
 #[derive(Debug, Default)]
 pub(super) struct PeerTable {
-    /// (address, tick last heard)
-    pub(super) peers: Vec<(SocketAddr, u64)>,
-    pub(super) tick: u64,
+    /// (address, when last heard)
+    pub(super) peers: Vec<(SocketAddr, Instant)>,
+}
+
+/// What [`PeerTable::heard`] did with a sender.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Heard {
+    /// A client already: its place is renewed.
+    Known,
+    /// A new client, in a free place.
+    Added,
+    /// A new client, in the place of this one (silent for longer than [`UDP_GCS_LIVENESS`]).
+    Replaced(SocketAddr),
+    /// Not a client: every place is held by a live one.
+    Refused,
 }
 
 impl PeerTable {
-    pub(super) fn heard(&mut self, addr: SocketAddr) {
-        self.tick += 1;
-        let tick = self.tick;
+    /// A valid frame from `addr` at `now`.
+    pub(super) fn heard(&mut self, addr: SocketAddr, now: Instant) -> Heard {
         if let Some(p) = self.peers.iter_mut().find(|p| p.0 == addr) {
-            p.1 = tick;
-        } else if self.peers.len() < MAX_UDP_GCS {
-            self.peers.push((addr, tick));
-        } else if let Some(oldest) = self.peers.iter_mut().min_by_key(|p| p.1) {
-            *oldest = (addr, tick);
+            p.1 = now;
+            return Heard::Known;
+        }
+        if self.peers.len() < MAX_UDP_GCS {
+            self.peers.push((addr, now));
+            return Heard::Added;
+        }
+        match self.peers.iter_mut().min_by_key(|p| p.1) {
+            Some(oldest) if now.saturating_duration_since(oldest.1) > UDP_GCS_LIVENESS => {
+                let gone = oldest.0;
+                *oldest = (addr, now);
+                Heard::Replaced(gone)
+            }
+            _ => Heard::Refused,
         }
     }
 }
@@ -82,6 +102,7 @@ pub(super) struct Counters {
     pub(super) garbage_bytes: AtomicU64,
     pub(super) dropped_gcs_backlog: AtomicU64,
     pub(super) refused_tcp_clients: AtomicU64,
+    pub(super) refused_udp_gcs_frames: AtomicU64,
     pub(super) refused_unsigned: AtomicU64,
     pub(super) refused_bad_signature: AtomicU64,
     pub(super) refused_old_timestamp: AtomicU64,
@@ -204,6 +225,33 @@ impl Shared {
             }
         }
         frames
+    }
+
+    /// `frames` valid frames (at least one) from the UDP ground station `from` at `now`:
+    /// whether it is a client (its frames are routed). A newcomer while every place is live
+    /// is refused: counted and logged (the first from an address at once, then summed).
+    pub(super) fn udp_gcs_heard(&self, from: SocketAddr, frames: usize, now: Instant) -> bool {
+        let heard = lock(&self.udp_peers).heard(from, now);
+        match heard {
+            Heard::Known | Heard::Added => true,
+            Heard::Replaced(gone) => {
+                let segment = lock(&self.refusals).segment();
+                let silent = UDP_GCS_LIVENESS.as_secs();
+                self.log(format!(
+                    "MAVLink router, segment {segment}: UDP ground station {gone} silent for over {silent} s: its \
+                     place goes to {from}"
+                ));
+                true
+            }
+            Heard::Refused => {
+                let n = frames as u64;
+                add(&self.counters.refused_udp_gcs_frames, n);
+                if let Some(line) = lock(&self.refusals).refused(from, Dropped::NoPlace, n, now, String::new) {
+                    self.log(line);
+                }
+                false
+            }
+        }
     }
 
     /// Logs the sums of refusals that are due (called often by the GCS UDP thread).

@@ -131,10 +131,10 @@ pub(super) fn gcs_udp_side(shared: &Shared) {
                 // Only a sender of at least one valid frame (with signing: validly signed)
                 // becomes a client, so a port scan or stray traffic does not subscribe to
                 // the telemetry.
-                if !frames.is_empty() {
-                    lock(&shared.udp_peers).heard(from);
+                // A newcomer while every place is held by a live client is refused.
+                if !frames.is_empty() && shared.udp_gcs_heard(from, frames.len(), Instant::now()) {
+                    shared.route_gcs_frames(&frames, GcsOrigin::Udp(from));
                 }
-                shared.route_gcs_frames(&frames, GcsOrigin::Udp(from));
             }
             Err(e) if is_timeout(&e) => {}
             Err(_) => std::thread::sleep(POLL),

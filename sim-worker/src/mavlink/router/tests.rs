@@ -7,9 +7,10 @@ use ::mavlink::dialects::common::{ATTITUDE_DATA, COMMAND_LONG_DATA, MavCmd, SETU
 
 use super::config::{
     HEARTBEAT_PERIOD, MAX_DATAGRAM, MAX_UDP_GCS, ROUTER_SYSTEM_ID, RoutedDrone, RouterConfig, RouterError,
+    UDP_GCS_LIVENESS,
 };
 use super::handle::{RouterHandle, start};
-use super::routing_table::PeerTable;
+use super::routing_table::{Heard, PeerTable};
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -447,18 +448,92 @@ fn stop_is_prompt_and_releases_the_ports() {
     router.stop(); // idempotent
 }
 
+fn local(port: u16) -> SocketAddr {
+    SocketAddr::from(([127, 0, 0, 1], port))
+}
+
+/// A table full of live ground stations keeps them all, whoever was heard least recently:
+/// a newcomer is refused.
 #[test]
-fn the_least_recently_heard_udp_gcs_is_evicted() {
+fn a_live_udp_gcs_keeps_its_place_and_a_newcomer_is_refused() {
     let mut table = PeerTable::default();
-    let addr = |p: u16| SocketAddr::from(([127, 0, 0, 1], p));
+    let t0 = Instant::now();
     for p in 0..MAX_UDP_GCS as u16 {
-        table.heard(addr(p));
+        assert_eq!(table.heard(local(p), t0), Heard::Added);
     }
-    table.heard(addr(0)); // 0 is now the most recent; 1 the least
-    table.heard(addr(100));
+    let t1 = t0 + Duration::from_secs(1);
+    assert_eq!(table.heard(local(0), t1), Heard::Known); // 0 is now the most recent; 1 the least
+    assert_eq!(table.heard(local(100), t1), Heard::Refused);
+    // Still refused up to the period after the least recently heard station was heard.
+    assert_eq!(table.heard(local(100), t0 + UDP_GCS_LIVENESS), Heard::Refused);
     let peers: BTreeSet<u16> = table.peers.iter().map(|p| p.0.port()).collect();
-    assert_eq!(peers.len(), MAX_UDP_GCS);
-    assert!(peers.contains(&0) && peers.contains(&100) && !peers.contains(&1));
+    assert_eq!(peers, (0..MAX_UDP_GCS as u16).collect());
+}
+
+/// A ground station silent for longer than the liveness period gives its place to a newcomer;
+/// the live ones keep theirs.
+#[test]
+fn a_silent_udp_gcs_gives_its_place_to_a_newcomer_after_the_liveness_period() {
+    let mut table = PeerTable::default();
+    let t0 = Instant::now();
+    for p in 0..MAX_UDP_GCS as u16 {
+        table.heard(local(p), t0);
+    }
+    // Every station but 3 heartbeats at 1 Hz; 3 falls silent after t0.
+    let mut t = t0;
+    while t < t0 + UDP_GCS_LIVENESS {
+        t += Duration::from_secs(1);
+        for p in (0..MAX_UDP_GCS as u16).filter(|&p| p != 3) {
+            table.heard(local(p), t);
+        }
+    }
+    // Exactly the period: still live.
+    assert_eq!(table.heard(local(100), t0 + UDP_GCS_LIVENESS), Heard::Refused);
+    let after = t0 + UDP_GCS_LIVENESS + Duration::from_millis(1);
+    assert_eq!(table.heard(local(100), after), Heard::Replaced(local(3)));
+    assert_eq!(table.heard(local(101), after), Heard::Refused, "the others are live");
+    let peers: BTreeSet<u16> = table.peers.iter().map(|p| p.0.port()).collect();
+    let mut want: BTreeSet<u16> = (0..MAX_UDP_GCS as u16).filter(|&p| p != 3).collect();
+    want.insert(100);
+    assert_eq!(peers, want);
+}
+
+/// 16 live UDP ground stations keep their telemetry while a 17th is refused: its frames
+/// reach no drone, it receives nothing, and it is counted and logged once.
+#[test]
+fn sixteen_live_udp_gcs_keep_telemetry_while_a_17th_is_refused() {
+    let (drones, router) = fleet(2);
+    let served: Vec<UdpSocket> = (0..MAX_UDP_GCS).map(|_| udp_gcs(&router)).collect();
+    wait_for("16 ground stations", || (router.stats().gcs_udp_clients == MAX_UDP_GCS).then_some(()));
+    let newcomer = UdpSocket::bind("127.0.0.1:0").unwrap();
+    newcomer.set_read_timeout(Some(Duration::from_millis(5))).unwrap();
+    for _ in 0..3 {
+        newcomer.send_to(&frame(GCS_SYSID, &heartbeat(MavType::MAV_TYPE_GCS)), router.gcs_udp()).unwrap();
+    }
+    newcomer.send_to(&frame(GCS_SYSID, &command(1, 7.0)), router.gcs_udp()).unwrap();
+    // A served station's command after it: once it has arrived, the newcomer's would have.
+    served[5].send_to(&frame(GCS_SYSID, &command(1, 8.0)), router.gcs_udp()).unwrap();
+    wait_for("the served station's command", || (drones[0].commands() == [8.0]).then_some(()));
+    let stats = router.stats();
+    assert_eq!(stats.refused_udp_gcs_frames, 4, "{stats:?}");
+    assert_eq!(stats.gcs_udp_clients, MAX_UDP_GCS);
+    // Every served station keeps receiving both drones' telemetry...
+    for gcs in &served {
+        udp_until(gcs, "telemetry of both drones", |f| sysids(f).is_superset(&BTreeSet::from([1, 2])));
+    }
+    // ...sent to each at once: had the newcomer been served, it would have had some by now.
+    let mut buf = vec![0u8; MAX_DATAGRAM];
+    assert!(newcomer.recv(&mut buf).is_err(), "the refused ground station received a datagram");
+    let logged = router.shared.as_ref().unwrap().logged.lock().unwrap().clone();
+    let from = newcomer.local_addr().unwrap().to_string();
+    assert_eq!(logged.len(), 1, "once per address: {logged:?}");
+    assert!(
+        logged[0].contains(&format!(
+            "refused 1 frame(s) from the new UDP ground station {from}: all 16 places are held by ground stations \
+             heard within the last 5 s"
+        )),
+        "{logged:?}"
+    );
 }
 
 /// A ground station's signer: link id 1, timestamps from the wall clock.
