@@ -10,9 +10,9 @@ segment and reading the telemetry back) keeps the MAVLink path busy the whole ti
 
 After a warm-up (from the moment the run folder's fleet.json appears, i.e. the world is
 built and the flight starts: the first `--warmup` fraction of the flight, at least 30 s,
-while the fleet takes off and buffers reach their working size) and up to the end of the
-flight (then the run writes its report and frees the world), it fits a least-squares
-line to the memory samples and checks:
+while the fleet takes off and buffers reach their working size) to 10 s (or three sample
+intervals) before the end of the flight (then the run writes its report and frees the
+world), it fits a least-squares line to the memory samples and checks:
 
 - memory: the fitted growth over the measured window stays under `--max-rss-growth-mib`
   (default: 2 MiB or 1 % of the median, whichever is larger);
@@ -204,9 +204,10 @@ def main() -> int:
     # built), not from the process start, whose world build time varies with the machine.
     flying_from = counts["fleetAtS"] - start if "fleetAtS" in counts else 0.0
     warm_end = flying_from + max(30.0, args.warmup * (wall - flying_from))
-    # The judged window ends with the flight: afterwards the run writes its report and
-    # frees the world, and its memory falls.
-    flight_end = flying_from + seconds
+    # The judged window ends before the flight does: afterwards the run writes its report
+    # and frees the world, and its memory falls (fleet.json is seen a little after the
+    # flight starts, hence the margin).
+    flight_end = flying_from + seconds - max(10.0, 3 * args.interval)
     judged = [s for s in samples if warm_end <= s["t"] <= flight_end]
     failures = []
     result: dict[str, object] = {"exitCode": code, "wallS": round(wall, 1), "drones": args.drones,

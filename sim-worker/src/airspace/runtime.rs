@@ -217,6 +217,11 @@ impl RunObserver for WithAirspace<'_> {
     fn on_clock_started(&mut self, started: std::time::Instant) {
         self.inner.on_clock_started(started);
     }
+
+    /// Forwarded: the runner looks at its pilot process while the run holds for it.
+    fn on_hold(&mut self, waited: std::time::Duration) {
+        self.inner.on_hold(waited);
+    }
 }
 
 #[cfg(test)]
