@@ -215,7 +215,7 @@ pub fn decide(
 
 /// Byte-wise equality whose running time depends only on the lengths, not on where the
 /// first difference is, so response times do not reveal a credential's prefix.
-fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+pub fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
     let mut diff = u8::from(a.len() != b.len());
     for i in 0..a.len().max(b.len()) {
         let (x, y) = (a.get(i).copied().unwrap_or(0), b.get(i).copied().unwrap_or(0));

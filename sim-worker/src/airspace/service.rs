@@ -38,7 +38,7 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
-use super::authority::{Authority, AuthorityError};
+use super::authority::{Authority, AuthorityError, constant_time_eq};
 use super::{AirspaceState, SharedAirspace};
 use sadesim_engine::events::Event;
 
@@ -142,16 +142,6 @@ fn authenticate(authority: &Authority, token: &str) -> Result<(), ApiError> {
              (`credential` in the scenario; `SADESIM_CREDENTIAL_<GROUP>` in a pilot's environment)",
         ))
     }
-}
-
-/// Byte-wise equality whose running time depends only on the lengths.
-fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
-    let mut diff = u8::from(a.len() != b.len());
-    for i in 0..a.len().max(b.len()) {
-        let (x, y) = (a.get(i).copied().unwrap_or(0), b.get(i).copied().unwrap_or(0));
-        diff |= std::hint::black_box(x ^ y);
-    }
-    diff == 0
 }
 
 /// Reads the bearer token. Missing, empty or another scheme: 401 `missing_token` (a request
