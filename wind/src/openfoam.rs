@@ -446,7 +446,7 @@ fn parse_internal_field(lex: &mut Lexer, cells: Option<usize>) -> Result<Vec<[f6
             if list_type != "List<vector>" {
                 return Err(lex.syntax(line, "`List<vector>` (a vector field)", &format!("`{}`", truncate(list_type))));
             }
-            let values = parse_list(lex)?;
+            let values = parse_list(lex, cells)?;
             lex.expect_punct(b';', "`;` after the internal field's list")?;
             Ok(values)
         }
@@ -458,8 +458,13 @@ fn parse_internal_field(lex: &mut Lexer, cells: Option<usize>) -> Result<Vec<[f6
     }
 }
 
-/// `N ( v0 v1 ... )`, `N{v}` or `( v0 ... )`, each v a `(x y z)`.
-fn parse_list(lex: &mut Lexer) -> Result<Vec<[f64; 3]>, FoamError> {
+/// The most entries a compact `N{v}` list expands to when the case's cell count is not known
+/// (240 MB): a damaged `N` must not allocate without bound.
+const MAX_COMPACT_ENTRIES: usize = 10_000_000;
+
+/// `N ( v0 v1 ... )`, `N{v}` or `( v0 ... )`, each v a `(x y z)`. `cells`: the case's cell
+/// count when known; a compact `N{v}` must then declare exactly that many entries.
+fn parse_list(lex: &mut Lexer, cells: Option<usize>) -> Result<Vec<[f64; 3]>, FoamError> {
     let (t, count_line) = lex.next()?;
     let declared = match t {
         Token::Word(w) => match w.parse::<usize>() {
@@ -477,7 +482,20 @@ fn parse_list(lex: &mut Lexer) -> Result<Vec<[f64; 3]>, FoamError> {
             Token::Punct(b'{') => {
                 let value = parse_vector(lex, None)?;
                 lex.expect_punct(b'}', "`}` closing the uniform list")?;
-                return Ok(vec![value; n]);
+                return match cells {
+                    Some(c) if c != n => Err(FoamError::CountMismatch {
+                        file: lex.file.to_string(),
+                        line: count_line,
+                        declared: n,
+                        found: c,
+                    }),
+                    None if n > MAX_COMPACT_ENTRIES => Err(lex.syntax(
+                        count_line,
+                        "a compact list `N{(x y z)}` of at most 10000000 entries",
+                        &n.to_string(),
+                    )),
+                    _ => Ok(vec![value; n]),
+                };
             }
             t => return Err(lex.syntax(line, "`(` opening the list", &t.describe())),
         }
@@ -601,6 +619,17 @@ mod tests {
     fn compact_list_of_equal_values_is_expanded() {
         let text = u("nonuniform List<vector> 4{(2 0 1)};");
         assert_eq!(parse_vector_field("U", &text).unwrap(), vec![[2.0, 0.0, 1.0]; 4]);
+    }
+
+    #[test]
+    fn a_compact_list_s_count_is_bounded_before_it_is_expanded() {
+        // Found by fuzz/openfoam: 728888888888888888{(..)} asked for 1.7e19 bytes.
+        let huge = u("nonuniform List<vector> 728888888888888888{(7 0 0)};");
+        let err = parse_vector_field("U", &huge).unwrap_err().to_string();
+        assert!(err.contains("at most 10000000 entries"), "{err}");
+        let mut lex = Lexer::new("U", "nonuniform List<vector> 5{(1 0 0)};");
+        let err = parse_internal_field(&mut lex, Some(4)).unwrap_err();
+        assert!(matches!(err, FoamError::CountMismatch { declared: 5, found: 4, .. }), "{err}");
     }
 
     #[test]
