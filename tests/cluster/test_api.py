@@ -28,6 +28,7 @@ REFUSED_BY = {
     "infinity.yaml": "client",
     "nan.yaml": "client",
     "airframe-unknown.yaml": "operator",
+    "criterion-landed-near-unknown-marker.yaml": "operator",
     "criterion-unknown-group.yaml": "operator",
     "criterion-unknown-zone.yaml": "operator",
     "duration-negative.yaml": "operator",
