@@ -7,7 +7,10 @@
 # The seed corpora are written by the owning crates' `fuzz_seeds` tests from their own
 # encoders and the repository's examples (nothing is committed); each target then fuzzes a
 # fresh copy for SADESIM_FUZZ_SECONDS (default 25), SADESIM_FUZZ_JOBS targets at a time
-# (default: one per core). SADESIM_FUZZ_TARGETS picks targets (space-separated names). A crash (a panic, an error of
+# (default: one per core). SADESIM_FUZZ_TARGETS picks targets (space-separated names).
+# SADESIM_FUZZ_CORPUS keeps the corpora across runs: each target fuzzes
+# $SADESIM_FUZZ_CORPUS/<target>, the seeds are added to it and what libFuzzer finds stays, so
+# runs of an hour add up (the long runs of fuzz/README.md use it). A crash (a panic, an error of
 # more than one line, an input slower than 10 s, more than 2 GB of memory) fails the script;
 # libFuzzer names the input it saved under fuzz/artifacts/<target>/, which replays with
 # `cd fuzz && cargo fuzz run --sanitizer none <target> <file>`.
@@ -25,9 +28,18 @@ trap 'rm -rf "$work"' EXIT
 echo "--> seed corpora (the fuzz_seeds tests of world, engine, gnss, wind, planner, sim-worker)"
 SADESIM_FUZZ_SEEDS="$work/corpus" cargo nextest run --workspace --locked --no-tests=fail \
   --status-level fail --final-status-level fail fuzz_seeds
+corpus="$work/corpus"
 for target in "${targets[@]}"; do
   [ -n "$(ls -A "$work/corpus/$target" 2>/dev/null)" ] || { echo "no seeds for $target" >&2; exit 1; }
 done
+if [ -n "${SADESIM_FUZZ_CORPUS:-}" ]; then
+  corpus=$SADESIM_FUZZ_CORPUS
+  for target in "${targets[@]}"; do
+    mkdir -p "$corpus/$target"
+    cp -n "$work/corpus/$target"/* "$corpus/$target/"
+    echo "corpus $corpus/$target: $(ls "$corpus/$target" | wc -l) inputs"
+  done
+fi
 
 # --sanitizer none: AddressSanitizer needs -Zsanitizer (a nightly compiler); the readers are
 # safe Rust (unsafe_code is forbidden), where what fuzzing finds is panics, overflows (debug
@@ -48,7 +60,7 @@ echo "cargo fuzz build: $((SECONDS - build_start)) s"
 
 fuzz() {
   local target=$1 rc=0
-  (cd fuzz && cargo fuzz run --sanitizer none "$target" "$work/corpus/$target" -- \
+  (cd fuzz && cargo fuzz run --sanitizer none "$target" "$corpus/$target" -- \
     -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1) \
     >"$work/$target.log" 2>&1 || rc=$?
   echo "$rc" >"$work/$target.rc"
@@ -63,12 +75,14 @@ wait
 failed=()
 for target in "${targets[@]}"; do
   if [ "$(cat "$work/$target.rc")" = 0 ]; then
-    # "Done 1107947 runs in 61 second(s)", and the final coverage and corpus size.
+    # "Done 1107947 runs in 61 second(s)", the final coverage and corpus size, and the
+    # edges instrumented in the whole target ("Loaded 1 modules (N inline 8-bit counters)").
     done_line=$(grep -E '^Done [0-9]+ runs' "$work/$target.log" | tail -1)
     runs=$(awk '{print $2}' <<<"$done_line")
     secs=$(awk '{print $5}' <<<"$done_line")
     stats=$(grep -E '^#[0-9]+[[:space:]]+DONE' "$work/$target.log" | tail -1 | grep -oE '(cov|ft|corp): [0-9]+' | paste -sd' ')
-    echo "$target: $runs runs in $secs s ($(( runs / (secs > 0 ? secs : 1) )) per second), $stats"
+    edges=$(grep -oE 'Loaded 1 modules +\([0-9]+ inline 8-bit counters' "$work/$target.log" | grep -oE '[0-9]+ inline' | head -1 | cut -d' ' -f1)
+    echo "$target: $runs runs in $secs s ($(( runs / (secs > 0 ? secs : 1) )) per second), $stats, ${edges:-?} edges instrumented"
   else
     failed+=("$target")
     echo "$target: FAILED"
