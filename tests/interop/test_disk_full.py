@@ -50,11 +50,12 @@ def small_disk(tmp_path):
             subprocess.run(["umount", "-l", str(point)], check=False)
 
 
-def run_onto(sadesim, out, doc):
-    """`sadesim run` of `doc` into `out`; (exit code, stdout + stderr, the run folder)."""
+def run_onto(sadesim, out, doc, *flags):
+    """`sadesim run` of `doc` into `out` with `flags`; (exit code, stdout + stderr, the run
+    folder)."""
     scenario = out.parent / f"{out.name}-{doc['metadata']['name']}.yaml"
     scenario.write_text(yaml.safe_dump(doc))
-    done = subprocess.run([sadesim, "run", str(scenario), "--out", str(out), "-q", "--no-mavlink"],
+    done = subprocess.run([sadesim, "run", str(scenario), "--out", str(out), "-q", "--no-mavlink", *flags],
                           capture_output=True, text=True, timeout=120, cwd=REPO)
     folders = glob.glob(str(out / doc["metadata"]["name"] / "*"))
     assert len(folders) == 1, (folders, done.stdout, done.stderr)
@@ -108,10 +109,13 @@ def check_incomplete(sadesim, folder, output):
     return incomplete, failed
 
 
-def test_a_disk_that_fills_mid_run_keeps_every_recording_readable(sadesim, small_disk):
-    """Quickstart's 14 MB onto 8 MiB: the disk fills about a third into the run."""
+@pytest.mark.parametrize("flags", [[], ["--processes"]], ids=["threads", "processes"])
+def test_a_disk_that_fills_mid_run_keeps_every_recording_readable(sadesim, small_disk, flags):
+    """Quickstart's 14 MB onto 8 MiB: the disk fills about a third into the run. With
+    `--processes` the coordinator process records, as the coordinator pod does, and the CLI
+    passes its error on."""
     disk = small_disk(8)
-    code, output, folder = run_onto(sadesim, disk, quickstart("disk-full"))
+    code, output, folder = run_onto(sadesim, disk, quickstart("disk-full"), *flags)
     assert code != 0, output
     incomplete, failed = check_incomplete(sadesim, folder, output)
     states = {f["path"]: f["state"] for f in incomplete["files"]}
