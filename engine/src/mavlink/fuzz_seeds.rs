@@ -11,6 +11,7 @@ use ::mavlink::dialects::common::*;
 use ::mavlink::{MavHeader, Message};
 
 use super::frame::{FrameParser, checksum, encode};
+use super::gcs_messages::{command_long, heartbeat};
 use super::signing::{SecretKey, Verifier, sign_into};
 
 const PASSPHRASE: &str = "sadesim fuzz";
@@ -36,19 +37,7 @@ fn gcs(messages: &[MavMessage]) -> Vec<u8> {
 }
 
 fn command(command: MavCmd, params: [f32; 7]) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: params[0],
-        param2: params[1],
-        param3: params[2],
-        param4: params[3],
-        param5: params[4],
-        param6: params[5],
-        param7: params[6],
-        command,
-        target_system: DRONE,
-        target_component: 1,
-        confirmation: 0,
-    })
+    command_long(DRONE, command, params)
 }
 
 fn item(seq: u16, command: MavCmd, east: i32, z: f32) -> MavMessage {
@@ -68,17 +57,6 @@ fn item(seq: u16, command: MavCmd, east: i32, z: f32) -> MavMessage {
         current: u8::from(seq == 0),
         autocontinue: 1,
         mission_type: MavMissionType::MAV_MISSION_TYPE_MISSION,
-    })
-}
-
-fn heartbeat() -> MavMessage {
-    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-        custom_mode: 0,
-        mavtype: MavType::MAV_TYPE_GCS,
-        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-        base_mode: MavModeFlag::empty(),
-        system_status: MavState::MAV_STATE_ACTIVE,
-        mavlink_version: 3,
     })
 }
 

@@ -17,3 +17,5 @@ pub mod telemetry;
 
 #[cfg(test)]
 mod fuzz_seeds;
+#[cfg(test)]
+mod gcs_messages;

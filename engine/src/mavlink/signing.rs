@@ -247,7 +247,6 @@ mod tests {
     use std::time::Duration;
 
     use ::mavlink::MavHeader;
-    use ::mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavModeFlag, MavState, MavType};
 
     use super::*;
     use crate::mavlink::frame::{FrameParser, encode};
@@ -279,17 +278,7 @@ mod tests {
     }
 
     fn heartbeat_frame(system_id: u32) -> Vec<u8> {
-        encode(
-            MavHeader { system_id, component_id: 190, sequence: 0 },
-            &MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                custom_mode: 0,
-                mavtype: MavType::MAV_TYPE_GCS,
-                autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
-                base_mode: MavModeFlag::empty(),
-                system_status: MavState::MAV_STATE_ACTIVE,
-                mavlink_version: 3,
-            }),
-        )
+        encode(MavHeader { system_id, component_id: 190, sequence: 0 }, &crate::mavlink::gcs_messages::heartbeat())
     }
 
     #[test]

@@ -73,19 +73,7 @@ fn from_gcs(msg: MavMessage) -> Frame {
 }
 
 fn command_long(command: MavCmd, params: [f32; 7]) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: params[0],
-        param2: params[1],
-        param3: params[2],
-        param4: params[3],
-        param5: params[4],
-        param6: params[5],
-        param7: params[6],
-        command,
-        target_system: 7,
-        target_component: 1,
-        confirmation: 0,
-    })
+    crate::mavlink::gcs_messages::command_long(7, command, params)
 }
 
 fn replies(s: &mut Session, t: f64) -> Vec<MavMessage> {
