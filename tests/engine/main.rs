@@ -10,6 +10,7 @@ mod acceptance;
 mod airspace;
 mod chicago;
 mod flight;
+mod local;
 mod pilot;
 mod pilot_failure;
 mod pilot_hold;

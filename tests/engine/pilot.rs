@@ -21,12 +21,10 @@ use sadesim_crds::outcome::ending::EndReason;
 use sadesim_crds::run::{Clock, ClockMode, EnvVar, Pilot, PilotExit};
 use sadesim_integration_tests::{mavlink_ports, plan};
 
-/// A fresh folder holding the scenario's folder (`scenario/`) and the output (`out/`).
+use crate::local::options;
+
 fn root(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sadesim-pilot-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(dir.join("scenario")).unwrap();
-    dir
+    crate::local::scratch("pilot", name)
 }
 
 /// Two scripted drones (take off to 30 m, land) flown by `command` as the pilot.
@@ -54,17 +52,6 @@ fn afap() -> Clock {
 /// Paced, so the pilot has wall time to act before the run ends.
 fn scaled(factor: f64) -> Clock {
     Clock { mode: ClockMode::Scaled, factor: Some(factor) }
-}
-
-fn options(root: &Path, processes: bool) -> RunOptions {
-    RunOptions {
-        out_root: Some(root.join("out")),
-        processes,
-        worker: Some(Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/debug/sim-worker")),
-        scenario: Some(root.join("scenario/run.yaml")),
-        mavlink: false,
-        ..RunOptions::default()
-    }
 }
 
 fn run(r: &SimulationRun, options: &RunOptions) -> Result<RunReport, RunError> {

@@ -7,25 +7,17 @@
 //! The pilots are shell scripts flying nothing: the drones fly scripted missions without
 //! MAVLink.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
-use sadesim::runner::{RunOptions, RunReport, run_local};
+use sadesim::runner::{RunReport, run_local};
 use sadesim_crds::SimulationRun;
 use sadesim_crds::fixtures::RunBuilder;
 use sadesim_crds::outcome::ending::EndReason;
 use sadesim_crds::outcome::pilot::EXPECTED_EXIT_PATH;
 use sadesim_crds::outcome::summary::RunSummary;
 use sadesim_crds::run::{Clock, ClockMode, ExpectedExit, Pilot};
-
-/// A fresh folder holding the scenario's folder (`scenario/`) and the output (`out/`).
-fn root(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sadesim-pilot-failure-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(dir.join("scenario")).unwrap();
-    dir
-}
 
 /// Two scripted drones, a `noCrashes` criterion, and `script` (sh) as the pilot.
 fn scenario(script: &str, expected_exit: Option<ExpectedExit>) -> SimulationRun {
@@ -45,15 +37,9 @@ fn scenario(script: &str, expected_exit: Option<ExpectedExit>) -> SimulationRun 
 }
 
 fn run(name: &str, r: &SimulationRun, processes: bool) -> (PathBuf, RunReport) {
-    let root = root(&format!("{name}-{}", if processes { "processes" } else { "threads" }));
-    let options = RunOptions {
-        out_root: Some(root.join("out")),
-        processes,
-        worker: Some(Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/debug/sim-worker")),
-        scenario: Some(root.join("scenario/run.yaml")),
-        mavlink: false,
-        ..RunOptions::default()
-    };
+    let root =
+        crate::local::scratch("pilot-failure", &format!("{name}-{}", if processes { "processes" } else { "threads" }));
+    let options = crate::local::options(&root, processes);
     let report = run_local(r, &options, Arc::new(AtomicBool::new(false))).expect("the run completes");
     (root, report)
 }

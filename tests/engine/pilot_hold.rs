@@ -22,14 +22,6 @@ const ARM: &str = r"\xfd\x20\x00\x00\x00\xff\xbe\x4c\x00\x00\x00\x00\x80\x3f\x00
 /// COMMAND_LONG MAV_CMD_NAV_TAKEOFF (param7 NaN: the default takeoff altitude), likewise.
 const TAKEOFF: &str = r"\xfd\x20\x00\x00\x01\xff\xbe\x4c\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\xc0\x7f\x16\x00\x01\x01\x82\x48";
 
-/// A fresh folder holding the scenario's folder (`scenario/`) and the output (`out/`).
-fn root(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("sadesim-hold-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(dir.join("scenario")).unwrap();
-    dir
-}
-
 /// One drone flown by `script` (bash), as fast as possible for `duration`.
 fn scenario(script: &str, duration: &str, connect_timeout_s: Option<u32>) -> SimulationRun {
     RunBuilder::test()
@@ -42,6 +34,10 @@ fn scenario(script: &str, duration: &str, connect_timeout_s: Option<u32>) -> Sim
             pilot.connect_timeout_s = connect_timeout_s;
         })
         .build()
+}
+
+fn root(name: &str) -> PathBuf {
+    crate::local::scratch("hold", name)
 }
 
 fn run(r: &SimulationRun, root: &Path) -> RunReport {
