@@ -119,6 +119,10 @@ pub enum ObserverError {
 }
 
 /// What the coordinator reports each window, and asks about ending early.
+///
+/// Only `on_window` must be written; the other methods default to doing nothing. An
+/// observer that wraps another (the conductor's, the airspace's) forwards every method it
+/// does not answer itself: a default left in a wrapper silently cuts off the one inside.
 pub trait RunObserver {
     /// A window ended at `time_s`: every drone's state (by global index) and the events
     /// that happened during the window, in time order.

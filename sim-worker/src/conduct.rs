@@ -222,6 +222,10 @@ impl RunObserver for Conducting<'_> {
         self.caller.on_window(time_s, drones, events)
     }
 
+    fn leases_changed(&mut self) -> Option<Vec<[u32; 2]>> {
+        self.caller.leases_changed()
+    }
+
     fn stop_reason(&mut self) -> Option<sadesim_engine::events::EndReason> {
         self.caller.stop_reason()
     }
