@@ -48,6 +48,7 @@ trap 'rm -rf "$snapshot"' EXIT
 for target in "${targets[@]}"; do
   pattern=${under_test[$target]:?"no files under test listed for $target"}
   mkdir -p fuzz/coverage
+  [ -d "$corpus_root/$target" ] || { echo "$corpus_root/$target: no corpus of $target (a folder of inputs)" >&2; exit 1; }
   cp -r "$corpus_root/$target" "$snapshot/$target" 2>/dev/null || true # (inputs removed meanwhile)
   inputs=$(find "$snapshot/$target" -type f | wc -l)
   (cd fuzz && cargo fuzz coverage --sanitizer none --llvm-path "$llvm" "$target" "$snapshot/$target") \
