@@ -5,7 +5,8 @@
 //! `sadesim run` do.
 //!
 //! What is asserted: never a panic, a hang or a runaway allocation; every input becomes
-//! plans or errors, and every validation error names a field path; a plan is whole: every
+//! plans or errors; a document's error names its document, and a field error its field in
+//! one line; every validation error names a field path; a plan is whole: every
 //! drone in exactly one shard and one segment, drone `i` at index `i`, system ids 1..=250
 //! and unique within a segment.
 #![no_main]
@@ -14,13 +15,21 @@ use std::collections::HashSet;
 
 use libfuzzer_sys::fuzz_target;
 use sadesim_crds::plan::RunPlan;
-use sadesim_crds::{parse_runs, validate};
+use sadesim_crds::{DocumentError, parse_runs, validate};
 use sadesim_planner::PlanError;
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
     let Ok(runs) = parse_runs(&text) else { return };
-    for run in runs.into_iter().flatten() {
+    let count = runs.len();
+    for run in runs {
+        let run = match run {
+            Ok(run) => run,
+            Err(e) => {
+                document_error(&e, count);
+                continue;
+            }
+        };
         if let Err(errors) = validate(&run) {
             assert!(!errors.0.is_empty(), "validation failed without an error");
             for e in &errors.0 {
@@ -35,6 +44,36 @@ fuzz_target!(|data: &[u8]| {
         }
     }
 });
+
+/// A document's error says which document (numbered from 1), and a field's error names
+/// the field, with a message of one line (`sadesim validate` prints one line per field).
+fn document_error(e: &DocumentError, count: usize) {
+    let document = match e {
+        DocumentError::Syntax { document, message } => {
+            assert!(!message.is_empty(), "{e:?}");
+            *document
+        }
+        DocumentError::WrongKind { document, .. } => *document,
+        DocumentError::Field { document, path, message } => {
+            field(path, message);
+            *document
+        }
+        DocumentError::Fields { document, problems } => {
+            assert!(problems.0.len() > 1, "one problem listed as several: {e:?}");
+            for p in &problems.0 {
+                field(&p.path, &p.message);
+            }
+            *document
+        }
+        _ => panic!("an error of the whole input in one document: {e}"),
+    };
+    assert!((1..=count).contains(&document), "document {document} of {count}: {e}");
+}
+
+fn field(path: &str, message: &str) {
+    assert!(!path.is_empty() && !message.is_empty(), "a field error without a path or message: {path:?} {message:?}");
+    assert!(!path.contains('\n') && !message.contains('\n'), "a field error of more than one line: {path}: {message}");
+}
 
 fn whole(plan: &RunPlan) {
     for (i, d) in plan.drones.iter().enumerate() {
