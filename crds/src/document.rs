@@ -221,10 +221,10 @@ pub(crate) fn yaml_documents(text: &str) -> Result<Vec<Result<Value, DocumentErr
 /// serde_yaml's recursion limit on the value we were given.
 fn yaml_to_json(v: &serde_yaml::Value, path: &mut String, document: usize) -> Result<Value, DocumentError> {
     use serde_yaml::Value as Y;
-    let field_error = |path: &str, message: String| DocumentError::Field {
-        document,
-        path: if path.is_empty() { "(document root)".into() } else { path.to_string() },
-        message,
+    let field_error = |path: &str, message: String| {
+        let FieldError { path, message } =
+            FieldError::quoting(if path.is_empty() { "(document root)" } else { path }, &message);
+        DocumentError::Field { document, path, message }
     };
     Ok(match v {
         Y::Null => Value::Null,
@@ -285,11 +285,9 @@ pub(crate) fn to_run(document: usize, v: Value) -> Result<SimulationRun, Documen
         Err(e) => e,
     };
     let path = e.path().to_string();
-    let first = FieldError {
-        path: if path == "." { "(document root)".into() } else { path },
-        message: e.into_inner().to_string(),
-    };
-    let mut problems = schema_problems(&v);
+    let first = FieldError::quoting(if path == "." { "(document root)" } else { &path }, &e.into_inner().to_string());
+    let mut problems: Vec<FieldError> =
+        schema_problems(&v).iter().map(|p| FieldError::quoting(&p.path, &p.message)).collect();
     // Typed reading may stop at something the schema cannot see (a bad duration string, a
     // negative count): keep it unless a schema problem is about the same field (serde names
     // the object of a missing field, the schema the field itself).
@@ -336,6 +334,29 @@ spec:
         match parse_runs(text).unwrap().remove(0) {
             Err(DocumentError::Field { path, message, .. }) => (path, message),
             other => panic!("expected a field error, got {other:?}"),
+        }
+    }
+
+    /// A key, a tag or a value an error quotes is shown with its line breaks escaped, so
+    /// that every problem is one line (found by fuzz/scenario: the tag `!%0a!` decodes to
+    /// a line break, and the error spanned two lines).
+    #[test]
+    fn quoted_text_keeps_each_problem_on_one_line() {
+        let cases = [
+            ("!%0a! x".to_string(), "YAML tags are not supported, got !\\n!"),
+            (MINIMAL.replace("duration: 2m", "duration: 2m\n  clock: {mode: \"as\\nFast\"}"), "as\\nFast"),
+            (MINIMAL.replace("count: 1", "count: 1\n      \"col\\nour\": red"), "col\\nour"),
+        ];
+        for (text, quoted) in cases {
+            let problems = match parse_runs(&text).unwrap().remove(0) {
+                Err(DocumentError::Field { path, message, .. }) => vec![FieldError { path, message }],
+                Err(DocumentError::Fields { problems, .. }) => problems.0,
+                other => panic!("expected field errors, got {other:?}"),
+            };
+            for p in &problems {
+                assert!(!p.to_string().contains('\n'), "{p:?}");
+            }
+            assert!(problems.iter().any(|p| p.to_string().contains(quoted)), "{quoted} not in {problems:?}");
         }
     }
 

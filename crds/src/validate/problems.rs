@@ -20,6 +20,24 @@ impl fmt::Display for FieldError {
     }
 }
 
+impl FieldError {
+    /// A problem whose path or message quotes the user's text (a key, a tag, a value as
+    /// serde shows it), with control characters escaped (`\n` as the two characters `\`
+    /// and `n`): every problem is one line where it is printed, one per line.
+    pub(crate) fn quoting(path: &str, message: &str) -> Self {
+        Self { path: escape_controls(path), message: escape_controls(message) }
+    }
+}
+
+/// `text` with its control characters escaped as Rust writes them (`\n`, `\u{1b}`), the
+/// rest as it is (non-ASCII letters too).
+fn escape_controls(text: &str) -> String {
+    if !text.chars().any(char::is_control) {
+        return text.to_string();
+    }
+    text.chars().map(|c| if c.is_control() { c.escape_debug().to_string() } else { c.to_string() }).collect()
+}
+
 /// Every problem found in one run, in document order.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub struct ValidationErrors(pub Vec<FieldError>);
