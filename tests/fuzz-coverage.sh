@@ -44,10 +44,10 @@ triple=$(rustc -vV | sed -n 's/^host: //p')
 # A copy of each corpus is measured: a fuzzer still running on it removes inputs it reduced.
 snapshot=$(mktemp -d)
 trap 'rm -rf "$snapshot"' EXIT
+mkdir -p fuzz/coverage
 
 for target in "${targets[@]}"; do
   pattern=${under_test[$target]:?"no files under test listed for $target"}
-  mkdir -p fuzz/coverage
   [ -d "$corpus_root/$target" ] || { echo "$corpus_root/$target: no corpus of $target (a folder of inputs)" >&2; exit 1; }
   cp -r "$corpus_root/$target" "$snapshot/$target" 2>/dev/null || true # (inputs removed meanwhile)
   inputs=$(find "$snapshot/$target" -type f | wc -l)

@@ -286,8 +286,7 @@ pub(crate) fn to_run(document: usize, v: Value) -> Result<SimulationRun, Documen
     };
     let path = e.path().to_string();
     let first = FieldError::quoting(if path == "." { "(document root)" } else { &path }, &e.into_inner().to_string());
-    let mut problems: Vec<FieldError> =
-        schema_problems(&v).iter().map(|p| FieldError::quoting(&p.path, &p.message)).collect();
+    let mut problems = schema_problems(&v);
     // Typed reading may stop at something the schema cannot see (a bad duration string, a
     // negative count): keep it unless a schema problem is about the same field (serde names
     // the object of a missing field, the schema the field itself).

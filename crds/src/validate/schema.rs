@@ -48,9 +48,11 @@ pub fn schema_problems(document: &Value) -> Vec<FieldError> {
     out
 }
 
+/// Paths hold the document's keys and messages quote its values: both as one line
+/// ([`FieldError::quoting`]).
 fn add(out: &mut Vec<FieldError>, path: &str, message: impl Into<String>) {
-    let path = if path.is_empty() { "(document root)".to_string() } else { path.to_string() };
-    out.push(FieldError { path, message: message.into() });
+    let path = if path.is_empty() { "(document root)" } else { path };
+    out.push(FieldError::quoting(path, &message.into()));
 }
 
 fn child_path(path: &str, key: &str) -> String {
