@@ -37,7 +37,7 @@ if [ -n "${SADESIM_FUZZ_CORPUS:-}" ]; then
   for target in "${targets[@]}"; do
     mkdir -p "$corpus/$target"
     cp -n "$work/corpus/$target"/* "$corpus/$target/"
-    echo "corpus $corpus/$target: $(ls "$corpus/$target" | wc -l) inputs"
+    echo "corpus $corpus/$target: $(find "$corpus/$target" -type f | wc -l) inputs"
   done
 fi
 
