@@ -32,6 +32,7 @@ pub(crate) mod tests;
 pub use check::{Problem, VerifyReport, get, verify};
 pub use error::ArchiveError;
 pub use listing::{RunListing, list};
+#[cfg(feature = "report")]
 pub(crate) use manifest::read_incomplete;
 pub use manifest::{
     FileState, INCOMPLETE_FILE, Incomplete, IncompleteFile, MANIFEST_FILE, MANIFEST_FORMAT_VERSION, Manifest,

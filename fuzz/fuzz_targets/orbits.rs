@@ -1,6 +1,7 @@
-//! Orbit files (`sadesim_gnss::Constellation::from_tle`: TLE and 3LE element sets as
-//! CelesTrak publishes them) on arbitrary text, then what a run asks of a constellation:
-//! its age, its newest epoch and every satellite's position at a few times.
+//! Orbit files (`sadesim_gnss::Constellation::parse`: TLE and 3LE element sets, and OMM in
+//! KVN, XML, JSON and CSV, as CelesTrak publishes them) on arbitrary text, then what a run
+//! asks of a constellation: its age, its newest epoch and every satellite's position at a
+//! few times.
 //!
 //! What is asserted: never a panic, a hang or a runaway allocation; an error is one line
 //! naming the line of the file it is about (or saying what kind of file this is not); a
@@ -8,11 +9,12 @@
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
+use sadesim_gnss::omm::At;
 use sadesim_gnss::{Constellation, OrbitError};
 
 fuzz_target!(|data: &[u8]| {
     let text = String::from_utf8_lossy(data);
-    match Constellation::from_tle(&text) {
+    match Constellation::parse(&text) {
         Ok(c) => {
             assert!(!c.satellites.is_empty());
             let newest = c.newest_epoch_unix_s();
@@ -35,8 +37,17 @@ fuzz_target!(|data: &[u8]| {
         Err(e) => {
             let message = e.to_string();
             assert!(!message.is_empty() && !message.contains('\n'), "not one line: {message:?}");
-            if let OrbitError::Line { line, .. } | OrbitError::Elements { line, .. } = e {
-                assert!(line >= 1 && line <= text.lines().count(), "line {line} of {}", text.lines().count());
+            let lines = text.lines().count().max(1);
+            match e {
+                OrbitError::Line { line, .. }
+                | OrbitError::Set { at: At::Line(line), .. }
+                | OrbitError::Elements { at: At::Line(line), .. } => {
+                    assert!(line >= 1 && line <= lines, "line {line} of {lines}: {message}");
+                }
+                OrbitError::Set { at: At::Object(n), .. } | OrbitError::Elements { at: At::Object(n), .. } => {
+                    assert!(n >= 1, "{message}");
+                }
+                OrbitError::UnknownFormat { .. } | OrbitError::NoNavigationSatellites { .. } => {}
             }
         }
     }

@@ -1,8 +1,11 @@
 //! The seed corpus of the orbit-file fuzz target (`fuzz/fuzz_targets/orbits.rs`), written
 //! when `SADESIM_FUZZ_SEEDS` names a folder (`tests/fuzz.sh` sets it): the crate's own orbit
 //! files cut small (a fuzzer mutates every byte of a small file more often), in each form the
-//! reader takes, each checked to read. Nothing is committed.
+//! reader takes (TLE, 2LE, 3LE, and OMM in its four encodings), each checked to read.
+//! Nothing is committed.
 
+use crate::omm::Encoding;
+use crate::omm::tests::encode;
 use crate::orbits::{Constellation, System};
 use crate::synthetic::{NOMINAL_TLE, walker_gps_galileo_tle};
 
@@ -37,11 +40,22 @@ fn the_fuzz_seeds_are_orbit_files_that_read() {
         ("catalogue.tle", catalogue),
         ("nominal.tle", lines(NOMINAL_TLE, 9)),
     ];
+    // The same two satellites (one GPS, one Galileo) as OMM in each encoding.
+    let pair = Constellation::parse(&format!("{}{}", lines(&walker, 3), galileo.replace("\r\n", "\n")))
+        .expect("the pair reads");
+    let pair: Vec<sgp4::Elements> = (0..pair.satellites.len()).map(|i| pair.elements(i).clone()).collect();
+    let omm = [
+        ("pair.kvn", encode(&pair, Encoding::Kvn)),
+        ("pair.xml", encode(&pair, Encoding::Xml)),
+        ("pair.json", encode(&pair, Encoding::Json)),
+        ("pair.csv", encode(&pair, Encoding::Csv)),
+    ];
+    let seeds: Vec<(&str, String)> = seeds.into_iter().chain(omm).collect();
     for (name, text) in &seeds {
-        let c = Constellation::from_tle(text).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let c = Constellation::parse(text).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(!c.positions(c.newest_epoch_unix_s()).is_empty(), "{name}");
     }
-    let galileo = Constellation::from_tle(&seeds[2].1).unwrap();
+    let galileo = Constellation::parse(&seeds[2].1).unwrap();
     assert_eq!(galileo.satellites[0].system, System::Galileo);
     let Some(root) = std::env::var_os("SADESIM_FUZZ_SEEDS") else { return };
     let dir = std::path::Path::new(&root).join("orbits");

@@ -3,8 +3,9 @@
 //!
 //! Pure: orbit files are read at the I/O edge and parsed here from their text.
 //!
-//! - [`orbits`]: a constellation from two- or three-line element sets (TLE, as CelesTrak
-//!   and Space-Track publish them), propagated with SGP4 to Earth-fixed positions.
+//! - [`orbits`]: a constellation from an orbit file (TLE or OMM, as CelesTrak and
+//!   Space-Track publish them), propagated with SGP4 to Earth-fixed positions.
+//! - [`omm`]: Orbit Mean-Elements Messages in KVN, XML, JSON and CSV.
 //! - [`sky`]: azimuth, elevation and range of a satellite from a receiver.
 //! - [`dop`]: dilution of precision (GDOP, PDOP, HDOP, VDOP, TDOP) of a satellite set.
 //! - [`run_sky`]: the satellites in the run's ENU frame at simulated times (cached per
@@ -26,6 +27,7 @@ pub use nalgebra;
 
 pub mod dop;
 pub mod grid;
+pub mod omm;
 pub mod orbits;
 pub mod receiver;
 pub mod run_sky;

@@ -1,7 +1,8 @@
-//! A GNSS constellation from an orbit file: two-line (TLE) or three-line (3LE, a name line
-//! first) element sets as CelesTrak and Space-Track publish them (CelesTrak's `gnss`,
-//! `gps-ops`, `galileo`, `glo-ops`, `beidou` groups), or a whole catalogue from which the
-//! navigation satellites are picked by name.
+//! A GNSS constellation from an orbit file as CelesTrak and Space-Track publish them
+//! (CelesTrak's `gnss`, `gps-ops`, `galileo`, `glo-ops`, `beidou` groups): two-line (TLE) or
+//! three-line (3LE, a name line first) element sets, or Orbit Mean-Elements Messages (OMM,
+//! [`crate::omm`]) in KVN, XML, JSON or CSV; or a whole catalogue from which the navigation
+//! satellites are picked by name.
 //!
 //! Satellites are propagated with SGP4 (the `sgp4` crate, the Vallado reference
 //! implementation) to TEME positions, then rotated into Earth-fixed coordinates by the
@@ -15,6 +16,8 @@
 
 use nalgebra::Vector3;
 use sadesim_crds::geo::Ecef;
+
+use crate::omm::{self, At};
 
 /// A navigation system, from the satellite's name in the orbit file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize, serde::Deserialize)]
@@ -86,22 +89,29 @@ pub struct Satellite {
 /// Why an orbit file cannot be a constellation. The caller adds the file's name.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum OrbitError {
-    /// A line that should be a TLE line is not one.
+    /// A line that should be a TLE line is not one, or an OMM file's syntax is broken there.
     #[error("line {line}: {reason}")]
     Line { line: usize, reason: String },
+    /// An OMM element set with a key missing or wrong (the reason names the key).
+    #[error("{at}{}: {reason}", shown_name(.name.as_deref()))]
+    Set { at: At, name: Option<String>, reason: String },
     /// An element set that SGP4 refuses (e.g. an eccentricity out of range).
-    #[error("line {line} ({name}): the elements cannot be propagated: {reason}")]
-    Elements { line: usize, name: String, reason: String },
-    /// Nothing in the file looks like a TLE (another kind of file: CSV, RINEX, OMM XML...).
+    #[error("{at} ({name}): the elements cannot be propagated: {reason}")]
+    Elements { at: At, name: String, reason: String },
+    /// Nothing in the file looks like element sets (another kind of file: RINEX, HTML...).
     #[error(
-        "not a TLE file: no line starts with \"1 \" (a TLE line 1); first line {first:?}. Expected two- or three-line element sets as CelesTrak publishes them (FORMAT=tle)"
+        "not an orbit file: neither TLE (no line starts with \"1 \", a TLE line 1) nor OMM; first line {first:?}. Expected element sets as CelesTrak publishes them: FORMAT=tle, 3le, kvn, xml, json or csv"
     )]
-    NotTle { first: String },
+    UnknownFormat { first: String },
     /// The file has no navigation satellite.
     #[error(
-        "no GPS, Galileo, GLONASS or BeiDou satellite among {objects} element sets: expected an orbit file of navigation satellites (e.g. CelesTrak's gnss group in TLE format)"
+        "no GPS, Galileo, GLONASS or BeiDou satellite among {objects} element sets: expected an orbit file of navigation satellites (e.g. CelesTrak's gnss group)"
     )]
     NoNavigationSatellites { objects: usize },
+}
+
+fn shown_name(name: Option<&str>) -> String {
+    name.map(|n| format!(" ({n})")).unwrap_or_default()
 }
 
 /// Element sets farther than this many days from the time they are used at deserve a
@@ -123,21 +133,91 @@ pub struct SatellitePosition {
     pub ecef: Ecef,
 }
 
+impl Satellite {
+    /// A satellite from its element set, found at `at` in its file.
+    ///
+    /// # Errors
+    /// [`OrbitError::Elements`]: SGP4 cannot propagate the set, or it is of another theory
+    /// (ephemeris type 4 is SGP4-XP).
+    fn new(at: At, name: Option<&str>, system: System, elements: sgp4::Elements) -> Result<Self, OrbitError> {
+        let shown = name.map_or_else(|| format!("NORAD {}", elements.norad_id), str::to_string);
+        let refused = |reason: String| OrbitError::Elements { at, name: shown.clone(), reason };
+        if elements.ephemeris_type != 0 {
+            return Err(refused(format!(
+                "ephemeris type {} is not supported: expected 0 (SGP4); 4 is SGP4-XP, a different theory",
+                elements.ephemeris_type
+            )));
+        }
+        let constants = sgp4::Constants::from_elements(&elements).map_err(|e| refused(format!("{e:?}")))?;
+        let epoch_unix_s = elements.datetime.and_utc().timestamp_micros() as f64 * 1e-6;
+        Ok(Satellite { name: shown, norad_id: elements.norad_id, system, epoch_unix_s, elements, constants })
+    }
+}
+
+/// The system of an element set named `name`, `None` to skip it. Unnamed sets are kept (as
+/// GPS) only when the whole file is unnamed: CelesTrak's 2LE files of a GNSS group.
+fn system_of(name: Option<&str>, all_unnamed: bool) -> Option<System> {
+    match name {
+        Some(name) => System::of_name(name),
+        None if all_unnamed => Some(System::Gps),
+        None => None,
+    }
+}
+
 impl Constellation {
-    /// Parses `text`: element sets of two lines (`1 ...`, `2 ...`) or three (a name line
+    /// Parses an orbit file, its format told from its text: two- or three-line element sets
+    /// (TLE, see [`Constellation::from_tle`]) or an Orbit Mean-Elements Message in any of
+    /// its encodings (KVN, XML, JSON, CSV; see [`crate::omm`]). The navigation satellites
+    /// are kept, by name.
+    ///
+    /// # Errors
+    /// [`OrbitError`] naming the line (or JSON object) and, for OMM, the key: a malformed
+    /// file or element set, elements SGP4 cannot propagate, a file of no known format, or
+    /// no navigation satellite at all.
+    pub fn parse(text: &str) -> Result<Self, OrbitError> {
+        match omm::Encoding::of(text) {
+            Some(encoding) => Self::from_omm(text, encoding),
+            None => Self::from_tle(text),
+        }
+    }
+
+    /// Parses an OMM file in `encoding`: every element set's syntax is checked, the keys of
+    /// the navigation satellites' sets (see [`omm::Record::elements`]).
+    ///
+    /// # Errors
+    /// As [`Constellation::parse`].
+    pub fn from_omm(text: &str, encoding: omm::Encoding) -> Result<Self, OrbitError> {
+        let records = omm::records(text, encoding)?;
+        let all_unnamed = records.iter().all(|r| r.name().is_none());
+        let mut satellites = Vec::new();
+        for record in &records {
+            let Some(system) = system_of(record.name(), all_unnamed) else { continue };
+            satellites.push(Satellite::new(record.at, record.name(), system, record.elements()?)?);
+        }
+        Self::of(satellites, records.len())
+    }
+
+    fn of(satellites: Vec<Satellite>, objects: usize) -> Result<Self, OrbitError> {
+        if satellites.is_empty() {
+            return Err(OrbitError::NoNavigationSatellites { objects });
+        }
+        Ok(Self { satellites })
+    }
+
+    /// Parses TLE `text`: element sets of two lines (`1 ...`, `2 ...`) or three (a name line
     /// first, `0 NAME` or `NAME`). Every element set's lines are checked (length, checksum,
     /// fields); the navigation satellites (by name; unnamed sets are kept when the file
     /// holds nothing but unnamed sets, as CelesTrak's 2LE files of a GNSS group) are kept.
     ///
     /// # Errors
-    /// [`OrbitError`] naming the line: a malformed line or element set, or no navigation
-    /// satellite at all.
+    /// [`OrbitError`] naming the line: a malformed line or element set, no line 1 at all, or
+    /// no navigation satellite.
     pub fn from_tle(text: &str) -> Result<Self, OrbitError> {
         let lines: Vec<(usize, &str)> =
             text.lines().enumerate().map(|(i, l)| (i + 1, l.trim_end())).filter(|(_, l)| !l.is_empty()).collect();
         if !lines.iter().any(|(_, l)| l.starts_with("1 ")) {
             let first: String = lines.first().map_or("", |(_, l)| l).chars().take(60).collect();
-            return Err(OrbitError::NotTle { first });
+            return Err(OrbitError::UnknownFormat { first });
         }
         let mut sets: Vec<(usize, usize, Option<String>, &str, &str)> = Vec::new();
         // The sgp4 crate reads a line's checksum digit as `byte - b'0'`, which overflows
@@ -173,37 +253,14 @@ impl Constellation {
         let all_unnamed = sets.iter().all(|(_, _, name, _, _)| name.is_none());
         let mut satellites = Vec::new();
         for (line, line2, name, l1, l2) in &sets {
-            let system = match name.as_deref().map(System::of_name) {
-                Some(Some(system)) => system,
-                Some(None) => continue,
-                // A 2LE file has no names: a GNSS group's file, taken as GPS.
-                None if all_unnamed => System::Gps,
-                None => continue,
-            };
+            let Some(system) = system_of(name.as_deref(), all_unnamed) else { continue };
             checksum_digit(*line, l1)?;
             checksum_digit(*line2, l2)?;
             let elements = sgp4::Elements::from_tle(name.clone(), l1.as_bytes(), l2.as_bytes())
                 .map_err(|e| OrbitError::Line { line: *line, reason: e.to_string() })?;
-            let shown = name.clone().unwrap_or_else(|| format!("NORAD {}", elements.norad_id));
-            let constants = sgp4::Constants::from_elements(&elements).map_err(|e| OrbitError::Elements {
-                line: *line,
-                name: shown.clone(),
-                reason: format!("{e:?}"),
-            })?;
-            let epoch_unix_s = elements.datetime.and_utc().timestamp_micros() as f64 * 1e-6;
-            satellites.push(Satellite {
-                name: shown,
-                norad_id: elements.norad_id,
-                system,
-                epoch_unix_s,
-                elements,
-                constants,
-            });
+            satellites.push(Satellite::new(At::Line(*line), name.as_deref(), system, elements)?);
         }
-        if satellites.is_empty() {
-            return Err(OrbitError::NoNavigationSatellites { objects: sets.len() });
-        }
-        Ok(Self { satellites })
+        Self::of(satellites, sets.len())
     }
 
     /// Days from the element sets' epochs to `unix_s`: the largest absolute difference (a
@@ -300,7 +357,7 @@ mod tests {
         let e = Constellation::from_tle(iss).unwrap_err();
         assert_eq!(e, OrbitError::NoNavigationSatellites { objects: 1 });
         let e = Constellation::from_tle("<html>\n<body>not found</body>\n</html>\n").unwrap_err();
-        assert_eq!(e, OrbitError::NotTle { first: "<html>".into() });
+        assert_eq!(e, OrbitError::UnknownFormat { first: "<html>".into() });
         // A TLE-looking file whose name line is followed by something else.
         let e = Constellation::from_tle(&format!("GPS X\nnot a line\n{SAMPLE}")).unwrap_err().to_string();
         assert!(e.starts_with("line 2: expected a TLE line 1"), "{e}");

@@ -17,7 +17,7 @@ const FIELD: &str = "spec.environment.gnss.constellation.file";
 pub enum SkyReadError {
     #[error(transparent)]
     File(#[from] crate::world::WorldReadError),
-    #[error("{FIELD} {path}: not a text orbit file (TLE): byte {offset} is not UTF-8")]
+    #[error("{FIELD} {path}: not a text orbit file (TLE or OMM): byte {offset} is not UTF-8")]
     NotText { path: String, offset: usize },
     #[error("{FIELD} {path}: {source}")]
     Orbits {
@@ -48,7 +48,7 @@ pub fn load_sky(spec: &SimulationRunSpec) -> Result<Option<RunSky>, SkyReadError
         None => (NOMINAL_NAME.to_string(), NOMINAL_TLE.to_string()),
     };
     let constellation =
-        Constellation::from_tle(&text).map_err(|source| SkyReadError::Orbits { path: path.clone(), source })?;
+        Constellation::parse(&text).map_err(|source| SkyReadError::Orbits { path: path.clone(), source })?;
     let epoch_unix_s = match &c.epoch {
         Some(text) => sadesim_gnss::parse_utc(text).map_err(SkyReadError::Epoch)?,
         None => constellation.newest_epoch_unix_s(),
@@ -108,6 +108,19 @@ mod tests {
     }
 
     #[test]
+    fn an_omm_file_makes_the_sky_as_a_tle_file_does() {
+        let kvn = "CCSDS_OMM_VERS = 2.0\nOBJECT_NAME = NAVSTAR 43 (USA 132)\nNORAD_CAT_ID = 24876\n\
+                   EPOCH = 2020-11-29T23:14:27.067776\nMEAN_MOTION = 2.00562032 [rev/day]\nECCENTRICITY = .0046391\n\
+                   INCLINATION = 55.4606\nRA_OF_ASC_NODE = 177.6943\nARG_OF_PERICENTER = 58.6753\n\
+                   MEAN_ANOMALY = 301.8606\nBSTAR = 0\n";
+        let sky = sky_of("omm", kvn.as_bytes(), None).unwrap().unwrap();
+        assert_eq!(sky.constellation().satellites[0].norad_id, 24876);
+        assert!((sky.epoch_unix_s() - 1_606_691_667.067_776).abs() < 1e-6, "{}", sky.epoch_unix_s());
+        let e = sky_of("omm-bad", kvn.replace("BSTAR = 0\n", "").as_bytes(), None).unwrap_err().to_string();
+        assert!(e.ends_with("line 1 (NAVSTAR 43 (USA 132)): BSTAR: missing: an SGP4 element set needs it"), "{e}");
+    }
+
+    #[test]
     fn a_constellation_without_a_file_is_the_shipped_nominal_one_at_any_epoch() {
         let run = |epoch: &str| {
             RunBuilder::test()
@@ -133,9 +146,9 @@ mod tests {
     fn bad_orbit_files_name_the_field_the_file_and_what_is_wrong() {
         let binary = sky_of("pbf", b"\x00\x00\x00\x0d\n\x09OSMHeader\xff", None).unwrap_err().to_string();
         assert!(binary.starts_with("spec.environment.gnss.constellation.file "), "{binary}");
-        assert!(binary.ends_with("not a text orbit file (TLE): byte 15 is not UTF-8"), "{binary}");
+        assert!(binary.ends_with("not a text orbit file (TLE or OMM): byte 15 is not UTF-8"), "{binary}");
         let csv = sky_of("csv", b"name,lat,lon\nfoo,1,2\n", None).unwrap_err().to_string();
-        assert!(csv.ends_with(r#"not a TLE file: no line starts with "1 " (a TLE line 1); first line "name,lat,lon". Expected two- or three-line element sets as CelesTrak publishes them (FORMAT=tle)"#), "{csv}");
+        assert!(csv.ends_with(r#"not an orbit file: neither TLE (no line starts with "1 ", a TLE line 1) nor OMM; first line "name,lat,lon". Expected element sets as CelesTrak publishes them: FORMAT=tle, 3le, kvn, xml, json or csv"#), "{csv}");
         let missing = load_sky(
             &RunBuilder::test()
                 .with(|r| {

@@ -321,8 +321,9 @@ pub enum GnssCommand {
     /// elevation and range of each above the elevation mask, and their dilution of
     /// precision. Warns when the file's element sets are more than a week from the time.
     Sky {
-        /// The orbit file: TLE or 3LE element sets (e.g. CelesTrak's gnss group); GPS,
-        /// Galileo, GLONASS and BeiDou satellites are recognised by name.
+        /// The orbit file: TLE or 3LE element sets, or OMM in KVN, XML, JSON or CSV (e.g.
+        /// CelesTrak's gnss group); GPS, Galileo, GLONASS and BeiDou satellites are
+        /// recognised by name.
         file: PathBuf,
         /// The receiver as `LAT,LON` or `LAT,LON,HEIGHT_M` (degrees, metres above the
         /// WGS84 ellipsoid).

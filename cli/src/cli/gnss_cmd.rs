@@ -21,7 +21,7 @@ pub(super) fn sky(
 ) -> Result<Outcome, CliError> {
     let shown = file.display().to_string();
     let text = std::fs::read_to_string(file).map_err(|source| CliError::Read { path: shown.clone(), source })?;
-    let constellation = Constellation::from_tle(&text).map_err(|e| CliError::Failed(format!("{shown}: {e}")))?;
+    let constellation = Constellation::parse(&text).map_err(|e| CliError::Failed(format!("{shown}: {e}")))?;
     let unix_s = sadesim_gnss::parse_utc(time).map_err(|e| CliError::Failed(format!("--time {e}")))?;
     let receiver = GeoPoint::new(at.0, at.1, at.2);
     let mut seen: Vec<(usize, LookAngles)> = constellation
