@@ -307,7 +307,7 @@ fn gmst_rad(unix_s: f64) -> f64 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// GPS SVN 43 (PRN 13), Galileo's first satellite and the ISS, in 3LE form as the

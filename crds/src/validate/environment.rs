@@ -14,7 +14,10 @@ fn check_constellation(c: &crate::environment::GnssConstellation, base: &str, p:
     let field = format!("{base}.constellation.file");
     if let Some(file) = &c.file {
         if file.trim().is_empty() {
-            p.add(&field, "must name an orbit file (TLE or OMM), or be left out for the built-in nominal constellation");
+            p.add(
+                &field,
+                "must name an orbit file (TLE or OMM), or be left out for the built-in nominal constellation",
+            );
         }
         super::world::check_file_url(p, &field, file);
     }

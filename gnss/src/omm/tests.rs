@@ -1,19 +1,9 @@
 use super::*;
 use crate::orbits::{Constellation, System};
 
-/// GPS SVN 43 (PRN 13) and Galileo's first satellite as the public catalogue of 2020-12-01
-/// has them (TLE), and the ISS, which a GNSS constellation skips.
-const TLE: &str = "\
-0 NAVSTAR 43 (USA 132)
-1 24876U 97035A   20334.96836884 +.00000096 +00000-0 +00000-0 0  9990
-2 24876 055.4606 177.6943 0046391 058.6753 301.8606 02.00562032171136
-0 GALILEO-PFM
-1 37846U 11060A   20335.54226950 -.00000073  00000-0  00000+0 0  9992
-2 37846  56.7287  36.7266 0002118 302.7747  57.2653  1.70475407 56731
-0 ISS (ZARYA)
-1 25544U 98067A   20336.23881537  .00004902  00000-0  96666-4 0  9993
-2 25544  51.6479 241.8901 0001933  98.6369   4.7960 15.49124337257915
-";
+/// GPS SVN 43 (PRN 13), Galileo's first satellite and the ISS, which a GNSS constellation
+/// skips, as TLE.
+use crate::orbits::tests::SAMPLE as TLE;
 
 /// The keys and values of an element set, in CelesTrak's order.
 fn fields(e: &sgp4::Elements) -> Vec<(&'static str, String)> {
