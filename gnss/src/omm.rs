@@ -97,7 +97,7 @@ impl Record {
         if self.fields.contains_key(key) {
             return Err(OrbitError::Line {
                 line,
-                reason: format!("{key} given twice in the element set of {}", self.at),
+                reason: format!("{} given twice in the element set of {}", shown_key(key), self.at),
             });
         }
         self.fields.insert(key.to_string(), value.to_string());
@@ -245,6 +245,13 @@ impl Record {
     }
 }
 
+/// A key as the file gives it: bare when it is a CCSDS-style key (capitals, digits, `_`),
+/// else quoted on one line.
+fn shown_key(key: &str) -> String {
+    let plain = !key.is_empty() && key.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_');
+    if plain { key.to_string() } else { quoted(key) }
+}
+
 /// `text` quoted on one line, cut to 40 characters.
 fn quoted(text: &str) -> String {
     let cut: String = text.chars().take(40).collect();
@@ -387,7 +394,7 @@ fn csv_fields(line: &str) -> Result<Vec<String>, String> {
 
 fn json(text: &str) -> Result<Vec<Record>, OrbitError> {
     let value: serde_json::Value = serde_json::from_str(text).map_err(|e| OrbitError::Line {
-        line: e.line().max(1),
+        line: e.line().clamp(1, last_line(text)),
         reason: format!("column {}: not JSON: {}", e.column(), one_line(&e.to_string())),
     })?;
     let objects = match value {
@@ -411,7 +418,7 @@ fn json(text: &str) -> Result<Vec<Record>, OrbitError> {
                     return Err(OrbitError::Set {
                         at,
                         name: None,
-                        reason: format!("{key}: expected a number or text"),
+                        reason: format!("{}: expected a number or text", shown_key(&key)),
                     });
                 }
             };
@@ -429,13 +436,19 @@ fn one_line(text: &str) -> String {
 
 /// The line numbers of byte positions, counted incrementally: positions asked in increasing
 /// order cost one pass over the text in all.
+/// The end of the file (after its last line break) counts as its last line.
 struct Lines<'a> {
     text: &'a [u8],
     position: usize,
     line: usize,
+    last: usize,
 }
 
-impl Lines<'_> {
+impl<'a> Lines<'a> {
+    fn new(text: &'a str) -> Self {
+        Self { text: text.as_bytes(), position: 0, line: 1, last: last_line(text) }
+    }
+
     fn at(&mut self, position: u64) -> usize {
         let end = usize::try_from(position).unwrap_or(usize::MAX).min(self.text.len());
         if end < self.position {
@@ -443,16 +456,22 @@ impl Lines<'_> {
         }
         self.line += self.text[self.position..end].iter().filter(|&&b| b == b'\n').count();
         self.position = end;
-        self.line
+        self.line.min(self.last)
     }
+}
+
+/// The number of the file's last line (1 for an empty file).
+fn last_line(text: &str) -> usize {
+    text.lines().count().max(1)
 }
 
 fn xml(text: &str) -> Result<Vec<Record>, OrbitError> {
     use quick_xml::events::Event;
-    let mut lines = Lines { text: text.as_bytes(), position: 0, line: 1 };
+    let mut lines = Lines::new(text);
     let mut reader = quick_xml::Reader::from_str(text);
     let mut records: Vec<Record> = Vec::new();
-    let mut open: Vec<String> = Vec::new();
+    // The open elements and the lines they open on.
+    let mut open: Vec<(String, usize)> = Vec::new();
     let mut in_segment = false;
     // The text of the innermost element, and the line that element starts on.
     let mut content = String::new();
@@ -475,12 +494,12 @@ fn xml(text: &str) -> Result<Vec<Record>, OrbitError> {
                     in_segment = true;
                     records.push(Record::new(At::Line(line)));
                 }
-                open.push(name);
+                open.push((name, line));
                 content.clear();
                 content_line = line;
             }
             Event::End(_) => {
-                let Some(name) = open.pop() else { break };
+                let Some((name, _)) = open.pop() else { break };
                 if name == "segment" {
                     in_segment = false;
                 } else if in_segment && !content.trim().is_empty() {
@@ -509,10 +528,10 @@ fn xml(text: &str) -> Result<Vec<Record>, OrbitError> {
             Event::Empty(_) | Event::Comment(_) | Event::Decl(_) | Event::PI(_) | Event::DocType(_) => {}
         }
     }
-    if let Some(name) = open.last() {
+    if let Some((name, line)) = open.last() {
         return Err(OrbitError::Line {
-            line: lines.at(reader.buffer_position()),
-            reason: format!("<{name}> is not closed"),
+            line: *line,
+            reason: format!("the element {} opened here is not closed", shown_key(name)),
         });
     }
     Ok(records)
