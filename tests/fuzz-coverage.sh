@@ -30,7 +30,7 @@ declare -A under_test=(
   [mavlink_router]='engine/src/mavlink/(frame|signing)\.rs'
   [scenario]='crds/src/(validate\.rs|validate/|document\.rs|criteria\.rs|zones\.rs|fleet\.rs|polygon\.rs|geo\.rs|plan\.rs)|planner/src/lib\.rs'
   [shard_wire]='sim-worker/src/transport/wire\.rs'
-  [orbits]='gnss/src/orbits\.rs'
+  [orbits]='gnss/src/(orbits|omm)\.rs'
   [openfoam]='wind/src/(openfoam|foam_import)\.rs'
 )
 
@@ -51,6 +51,8 @@ for target in "${targets[@]}"; do
   [ -d "$corpus_root/$target" ] || { echo "$corpus_root/$target: no corpus of $target (a folder of inputs)" >&2; exit 1; }
   cp -r "$corpus_root/$target" "$snapshot/$target" 2>/dev/null || true # (inputs removed meanwhile)
   inputs=$(find "$snapshot/$target" -type f | wc -l)
+  # cargo fuzz coverage merges the raw profiles it finds there: each measurement starts clean.
+  rm -rf "fuzz/coverage/$target"
   (cd fuzz && cargo fuzz coverage --sanitizer none --llvm-path "$llvm" "$target" "$snapshot/$target") \
     >"fuzz/coverage/$target.log" 2>&1 || { tail -c 3000 "fuzz/coverage/$target.log"; exit 1; }
   binary=fuzz/target/$triple/coverage/$triple/release/$target
