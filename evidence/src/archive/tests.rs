@@ -354,4 +354,5 @@ fn put_file_writes_one_object_outside_any_run_folder_and_refuses_unsafe_paths() 
         let err = archive.put_file(bad, Vec::new()).unwrap_err();
         assert!(matches!(err, ArchiveError::BadName { field: "path", .. }), "{bad:?}: {err}");
     }
+    std::fs::remove_dir_all(&root).unwrap();
 }
