@@ -174,11 +174,11 @@ pub struct GnssBias {
 #[serde(rename_all = "camelCase", deny_unknown_fields)]
 pub struct GnssConstellation {
     /// Orbit file: two- or three-line element sets (TLE), or Orbit Mean-Elements Messages
-    /// (OMM) in KVN, XML, JSON or CSV, as CelesTrak publishes its GNSS groups. A local path (relative to the scenario's folder), `file://`, or an
-    /// object-store URL (`s3://`, `gs://`, `az://`) on a cluster. Default: the nominal
-    /// GPS + Galileo constellation shipped with sadesim (48 satellites in their nominal
-    /// Walker patterns, element sets of 2020-11-30T12:00:00Z): a plausible sky for any
-    /// epoch, not a real day's.
+    /// (OMM) in KVN, XML, JSON or CSV, as CelesTrak publishes its GNSS groups. A local path
+    /// (relative to the scenario's folder), `file://`, or an object-store URL (`s3://`,
+    /// `gs://`, `az://`) on a cluster. Default: the nominal GPS + Galileo constellation
+    /// shipped with sadesim (48 satellites in their nominal Walker patterns, element sets of
+    /// 2020-11-30T12:00:00Z): a plausible sky for any epoch, not a real day's.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     #[schemars(length(min = 1, max = 1024))]
     pub file: Option<String>,
