@@ -137,14 +137,7 @@ impl Record {
             }
         }
         let ephemeris_type = self.optional_integer("EPHEMERIS_TYPE", 0)?;
-        if ephemeris_type != 0 {
-            return Err(self.error(
-                "EPHEMERIS_TYPE",
-                format!(
-                    "{ephemeris_type} is not supported: expected 0 (SGP4); 4 is SGP4-XP, a different theory sadesim does not propagate"
-                ),
-            ));
-        }
+        crate::orbits::check_ephemeris_type(ephemeris_type).map_err(|reason| self.error("EPHEMERIS_TYPE", reason))?;
         let classification = match self.get("CLASSIFICATION_TYPE").map(str::trim) {
             None | Some("U") => sgp4::Classification::Unclassified,
             Some("C") => sgp4::Classification::Classified,

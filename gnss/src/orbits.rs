@@ -142,16 +142,24 @@ impl Satellite {
     fn new(at: At, name: Option<&str>, system: System, elements: sgp4::Elements) -> Result<Self, OrbitError> {
         let shown = name.map_or_else(|| format!("NORAD {}", elements.norad_id), str::to_string);
         let refused = |reason: String| OrbitError::Elements { at, name: shown.clone(), reason };
-        if elements.ephemeris_type != 0 {
-            return Err(refused(format!(
-                "ephemeris type {} is not supported: expected 0 (SGP4); 4 is SGP4-XP, a different theory",
-                elements.ephemeris_type
-            )));
-        }
+        check_ephemeris_type(elements.ephemeris_type.into())
+            .map_err(|reason| refused(format!("ephemeris type {reason}")))?;
         let constants = sgp4::Constants::from_elements(&elements).map_err(|e| refused(format!("{e:?}")))?;
         let epoch_unix_s = elements.datetime.and_utc().timestamp_micros() as f64 * 1e-6;
         Ok(Satellite { name: shown, norad_id: elements.norad_id, system, epoch_unix_s, elements, constants })
     }
+}
+
+/// Refuses an element set of a theory other than SGP4 (`reason` starts with the type):
+/// ephemeris type 0 is SGP4; 4 is SGP4-XP, whose elements SGP4 would propagate to a wrong
+/// place.
+pub(crate) fn check_ephemeris_type(ephemeris_type: u64) -> Result<(), String> {
+    if ephemeris_type == 0 {
+        return Ok(());
+    }
+    Err(format!(
+        "{ephemeris_type} is not supported: expected 0 (SGP4); 4 is SGP4-XP, a different theory sadesim does not propagate"
+    ))
 }
 
 /// The system of an element set named `name`, `None` to skip it. Unnamed sets are kept (as
